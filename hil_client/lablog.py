@@ -1,0 +1,89 @@
+"""Writing the lab log (CONTRACT section 3) and its meta file.
+
+Each row is written and flushed as soon as it is acquired, so a killed client leaves a valid
+CSV holding every row acquired so far. A missing value (NaN) is an empty field.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from hil_client.protocol.runner import LOG_COLUMNS, Row
+
+#: Decimals written per column: finer than any instrument's resolution.
+_DECIMALS = {
+    "time_s": 3,
+    "water_flow_kg_h": 4,
+    "flue_gas_O2_pct": 5,
+    "flue_gas_CO2_pct": 5,
+    "flue_gas_CO_ppm": 3,
+    "flue_gas_velocity_m_s": 5,
+    "chimney_draught_Pa": 3,
+    "balance_mass_kg": 5,
+    "ambient_pressure_hPa": 3,
+    "relative_humidity_pct": 3,
+    "electric_power_W": 4,
+    "water_flow_setpoint_kg_h": 4,
+    "boiler_on": 0,
+}
+_TEXT = {"phase", "sequence"}
+
+
+def _formatter(column: str):
+    if column in _TEXT:
+        return str
+    decimals = _DECIMALS.get(column, 5)  # temperatures: 10 uK
+    fmt = f"{{:.{decimals}f}}"
+
+    def format_number(value: Any) -> str:
+        if value is None or (isinstance(value, float) and not math.isfinite(value)):
+            return ""
+        return fmt.format(value)
+
+    return format_number
+
+
+class LabLogWriter:
+    """CSV writer of lab-log rows, one flushed line per row."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._file = self.path.open("w", encoding="utf-8", newline="")
+        self._file.write(",".join(LOG_COLUMNS) + "\n")
+        self._file.flush()
+        self._formatters = tuple(_formatter(c) for c in LOG_COLUMNS)
+        self.rows = 0
+
+    def __call__(self, row: Row) -> None:
+        self._file.write(",".join([f(v) for f, v in zip(self._formatters, row, strict=True)]))
+        self._file.write("\n")
+        self._file.flush()
+        self.rows += 1
+
+    def close(self) -> None:
+        self._file.close()
+
+    def __enter__(self) -> LabLogWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def meta_path(log_path: Path) -> Path:
+    """``NAME.meta.json`` beside ``NAME.csv``."""
+    log_path = Path(log_path)
+    return log_path.with_name(log_path.stem + ".meta.json")
+
+
+def write_meta(log_path: Path, meta: dict[str, Any]) -> Path:
+    """Write the meta file beside the log (atomically: a temporary file renamed)."""
+    path = meta_path(log_path)
+    tmp = path.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(meta, indent=2, sort_keys=False) + "\n", encoding="utf-8")
+    tmp.replace(path)
+    return path

@@ -1,0 +1,276 @@
+"""Test methods as data: the schema of protocol YAML files and its validation.
+
+A protocol file describes the shared sequence of Fig. 3 (Carlon et al. 2015, Section 2.3)
+and the measuring cycle between t1 and t2 as a list of sequences. Loads are in percent of
+nominal load and become flow setpoints as load * Pnom / (cp_w * flow_spread_K).
+
+    name: load_cycle            # label
+    test: load_cycle            # stationary | load_cycle | other label written to the meta file
+    acquisition_period_s: 1     # one log row per period [s]
+    flow_spread_K: 15           # spread of the load-to-flow conversion [K]
+    preheat:   {temperature_C: 45, tolerance_K: 0.5, hold_s: 60, load_pct: 100,
+                max_duration_s: 14400}
+    start_up:  {return_setpoint_C: 55, t1_window_s: 300, t1_max_rise_K_min: 0.5,
+                min_duration_s: 300, max_duration_s: 7200}
+    test:      {return_setpoint_C: 55,
+                sequences: [{name: peak, load_pct: 100, duration: "00:04:52"},
+                            {name: gradient_100_48, load_pct: [100, 48], duration: 1560}]}
+    cooling_1: {load_pct: 20, return_setpoint_C: 55, until_forward_C: 55,
+                max_duration_s: 10800}
+    cooling_2: {until_after_t2_s: 28800}
+
+A sequence whose ``load_pct`` is a pair is a linear ramp from the first to the second value.
+Durations are seconds or "HH:MM:SS".
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+DEFINITION_DIR = Path(__file__).parent / "definitions"
+
+
+class ProtocolError(ValueError):
+    """A protocol file is malformed; the message names the file and key."""
+
+
+@dataclass(frozen=True, slots=True)
+class Sequence:
+    """One step of the measuring cycle: a constant load or a linear ramp [% of nominal]."""
+
+    name: str
+    load_start_pct: float
+    load_end_pct: float
+    duration_s: float
+
+    def load_at(self, elapsed_s: float) -> float:
+        """Load [% of nominal] ``elapsed_s`` seconds into the sequence."""
+        if self.load_start_pct == self.load_end_pct:
+            return self.load_start_pct
+        w = min(max(elapsed_s / self.duration_s, 0.0), 1.0)
+        return self.load_start_pct + (self.load_end_pct - self.load_start_pct) * w
+
+
+@dataclass(frozen=True, slots=True)
+class Preheat:
+    temperature_C: float
+    tolerance_K: float
+    hold_s: float
+    load_pct: float
+    max_duration_s: float
+
+
+@dataclass(frozen=True, slots=True)
+class StartUp:
+    return_setpoint_C: float
+    t1_window_s: float
+    t1_max_rise_K_min: float
+    min_duration_s: float
+    max_duration_s: float
+
+
+@dataclass(frozen=True, slots=True)
+class CoolingOne:
+    load_pct: float
+    return_setpoint_C: float
+    until_forward_C: float
+    max_duration_s: float
+
+
+@dataclass(frozen=True, slots=True)
+class ProtocolDefinition:
+    """A whole test method (see the module docstring for the file form)."""
+
+    name: str
+    test: str
+    acquisition_period_s: float
+    flow_spread_K: float
+    preheat: Preheat
+    start_up: StartUp
+    test_return_setpoint_C: float
+    sequences: tuple[Sequence, ...]
+    cooling_1: CoolingOne
+    cooling_2_until_after_t2_s: float
+
+    @property
+    def test_duration_s(self) -> float:
+        """Duration of the measuring cycle t1..t2 [s]."""
+        return sum(s.duration_s for s in self.sequences)
+
+
+def parse_duration(value: Any, key: str, source: str) -> float:
+    """Seconds from a number or an "HH:MM:SS" string."""
+    if isinstance(value, str):
+        parts = value.split(":")
+        try:
+            if len(parts) != 3:
+                raise ValueError
+            h, m, s = (float(x) for x in parts)
+        except ValueError:
+            raise ProtocolError(
+                f"{source}: key '{key}' must be seconds or HH:MM:SS, got {value!r}"
+            ) from None
+        seconds = h * 3600 + m * 60 + s
+    else:
+        seconds = _number(value, key, source)
+    if seconds <= 0:
+        raise ProtocolError(f"{source}: key '{key}' must be a positive duration")
+    return seconds
+
+
+def _number(value: Any, key: str, source: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise ProtocolError(f"{source}: key '{key}' must be a finite number, got {value!r}")
+    return float(value)
+
+
+def _section(data: Mapping[str, Any], key: str, source: str) -> Mapping[str, Any]:
+    if key not in data:
+        raise ProtocolError(f"{source}: missing required key '{key}'")
+    value = data[key]
+    if not isinstance(value, Mapping):
+        raise ProtocolError(f"{source}: key '{key}' must be a mapping")
+    return value
+
+
+def _get(section: Mapping[str, Any], prefix: str, key: str, source: str, kind: str = "num") -> Any:
+    full = f"{prefix}.{key}"
+    if key not in section:
+        raise ProtocolError(f"{source}: missing required key '{full}'")
+    if kind == "duration":
+        return parse_duration(section[key], full, source)
+    value = _number(section[key], full, source)
+    if kind == "load" and not 0.0 <= value <= 120.0:
+        raise ProtocolError(f"{source}: key '{full}' must be a load in 0..120 %, got {value}")
+    return value
+
+
+def _check_keys(section: Mapping[str, Any], allowed: set[str], prefix: str, source: str) -> None:
+    for key in section:
+        if key not in allowed:
+            name = f"{prefix}.{key}" if prefix else key
+            raise ProtocolError(f"{source}: unknown key '{name}'")
+
+
+def protocol_from_mapping(data: Any, source: str = "<protocol>") -> ProtocolDefinition:
+    """Validate ``data`` and build a :class:`ProtocolDefinition`."""
+    if not isinstance(data, Mapping):
+        raise ProtocolError(f"{source}: expected a mapping")
+    _check_keys(
+        data,
+        {"name", "test", "description", "acquisition_period_s", "flow_spread_K", "preheat",
+         "start_up", "test_sequence", "cooling_1", "cooling_2"},
+        "",
+        source,
+    )
+    for key in ("name", "test"):
+        if not isinstance(data.get(key), str) or not data.get(key):
+            raise ProtocolError(f"{source}: missing required key '{key}' (a non-empty string)")
+    period = _get(data, "", "acquisition_period_s", source)
+    spread = _get(data, "", "flow_spread_K", source)
+    if period <= 0 or spread <= 0:
+        raise ProtocolError(f"{source}: 'acquisition_period_s' and 'flow_spread_K' must be > 0")
+
+    pre = _section(data, "preheat", source)
+    _check_keys(pre, {"temperature_C", "tolerance_K", "hold_s", "load_pct", "max_duration_s"},
+                "preheat", source)
+    preheat = Preheat(
+        temperature_C=_get(pre, "preheat", "temperature_C", source),
+        tolerance_K=_get(pre, "preheat", "tolerance_K", source),
+        hold_s=_get(pre, "preheat", "hold_s", source),
+        load_pct=_get(pre, "preheat", "load_pct", source, "load"),
+        max_duration_s=_get(pre, "preheat", "max_duration_s", source, "duration"),
+    )
+    su = _section(data, "start_up", source)
+    _check_keys(su, {"return_setpoint_C", "t1_window_s", "t1_max_rise_K_min", "min_duration_s",
+                     "max_duration_s"}, "start_up", source)
+    start_up = StartUp(
+        return_setpoint_C=_get(su, "start_up", "return_setpoint_C", source),
+        t1_window_s=_get(su, "start_up", "t1_window_s", source, "duration"),
+        t1_max_rise_K_min=_get(su, "start_up", "t1_max_rise_K_min", source),
+        min_duration_s=_get(su, "start_up", "min_duration_s", source, "duration"),
+        max_duration_s=_get(su, "start_up", "max_duration_s", source, "duration"),
+    )
+    ts = _section(data, "test_sequence", source)
+    _check_keys(ts, {"return_setpoint_C", "sequences"}, "test_sequence", source)
+    raw_sequences = ts.get("sequences")
+    if not isinstance(raw_sequences, list) or not raw_sequences:
+        raise ProtocolError(f"{source}: key 'test_sequence.sequences' must be a non-empty list")
+    sequences = []
+    for i, raw in enumerate(raw_sequences):
+        prefix = f"test_sequence.sequences[{i}]"
+        if not isinstance(raw, Mapping):
+            raise ProtocolError(f"{source}: key '{prefix}' must be a mapping")
+        _check_keys(raw, {"name", "load_pct", "duration"}, prefix, source)
+        name = raw.get("name")
+        if not isinstance(name, str) or not name:
+            raise ProtocolError(f"{source}: missing required key '{prefix}.name'")
+        if "load_pct" not in raw:
+            raise ProtocolError(f"{source}: missing required key '{prefix}.load_pct'")
+        load = raw["load_pct"]
+        if isinstance(load, list):
+            if len(load) != 2:
+                raise ProtocolError(f"{source}: key '{prefix}.load_pct' ramp needs [from, to]")
+            a = _get({"a": load[0]}, prefix + ".load_pct", "a", source, "load")
+            b = _get({"b": load[1]}, prefix + ".load_pct", "b", source, "load")
+        else:
+            a = b = _get(raw, prefix, "load_pct", source, "load")
+        duration = _get(raw, prefix, "duration", source, "duration")
+        sequences.append(Sequence(name, a, b, duration))
+    c1 = _section(data, "cooling_1", source)
+    _check_keys(c1, {"load_pct", "return_setpoint_C", "until_forward_C", "max_duration_s"},
+                "cooling_1", source)
+    cooling_1 = CoolingOne(
+        load_pct=_get(c1, "cooling_1", "load_pct", source, "load"),
+        return_setpoint_C=_get(c1, "cooling_1", "return_setpoint_C", source),
+        until_forward_C=_get(c1, "cooling_1", "until_forward_C", source),
+        max_duration_s=_get(c1, "cooling_1", "max_duration_s", source, "duration"),
+    )
+    c2 = _section(data, "cooling_2", source)
+    _check_keys(c2, {"until_after_t2_s"}, "cooling_2", source)
+    return ProtocolDefinition(
+        name=data["name"],
+        test=data["test"],
+        acquisition_period_s=period,
+        flow_spread_K=spread,
+        preheat=preheat,
+        start_up=start_up,
+        test_return_setpoint_C=_get(ts, "test_sequence", "return_setpoint_C", source),
+        sequences=tuple(sequences),
+        cooling_1=cooling_1,
+        cooling_2_until_after_t2_s=_get(c2, "cooling_2", "until_after_t2_s", source, "duration"),
+    )
+
+
+def available() -> list[str]:
+    """Names of the shipped protocol definitions."""
+    return sorted(p.stem for p in DEFINITION_DIR.glob("*.yaml"))
+
+
+def load_protocol(name_or_path: str) -> ProtocolDefinition:
+    """Load a shipped protocol by name (``stationary``, ``load_cycle``) or a YAML path."""
+    path = Path(name_or_path)
+    if path.suffix not in (".yaml", ".yml") and not path.exists():
+        path = DEFINITION_DIR / f"{name_or_path}.yaml"
+        if not path.exists():
+            raise ProtocolError(
+                f"unknown protocol '{name_or_path}' (known: {', '.join(available())}, "
+                "or a YAML path)"
+            )
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ProtocolError(f"{path}: cannot read ({exc.strerror})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        raise ProtocolError(f"{path}: not valid YAML{where}") from None
+    return protocol_from_mapping(data, source=str(path))

@@ -1,0 +1,62 @@
+"""The abstract rig the protocol runner talks to.
+
+A rig takes setpoints and commands, advances (or waits for) time, and reads its instruments.
+The same runner drives the in-process rig and the Modbus rig.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Protocol
+
+#: Instrument readings every rig returns, keyed by lab-log column (CONTRACT section 3).
+READING_KEYS: tuple[str, ...] = (
+    "water_flow_kg_h",
+    "water_in_temp_C",
+    "water_out_temp_C",
+    "boiler_water_temp_C",
+    "flue_gas_temp_C",
+    "flue_gas_O2_pct",
+    "flue_gas_CO2_pct",
+    "flue_gas_CO_ppm",
+    "flue_gas_velocity_m_s",
+    "chimney_draught_Pa",
+    "balance_mass_kg",
+    "room_temp_C",
+    "ambient_pressure_hPa",
+    "relative_humidity_pct",
+    "electric_power_W",
+    "boiler_on",
+)
+
+
+@dataclass(slots=True)
+class RigCommand:
+    """What the test controller writes to the bench each step."""
+
+    flow_setpoint_kg_h: float
+    return_setpoint_C: float
+    pump_on: bool
+    boiler_on: bool
+    return_heating: bool = False
+
+
+class RigError(RuntimeError):
+    """The rig cannot be reached or answered wrongly."""
+
+
+class Rig(Protocol):
+    """What the protocol runner needs from a bench."""
+
+    def apply(self, command: RigCommand) -> None:
+        """Write setpoints and commands."""
+
+    def advance(self, dt_s: float) -> None:
+        """Let ``dt_s`` seconds of simulated (or real) time pass."""
+
+    def read(self) -> Mapping[str, float]:
+        """Read every instrument; keys are :data:`READING_KEYS`."""
+
+    def close(self) -> None:
+        """Release the rig."""

@@ -1,0 +1,252 @@
+"""One runner for every test method and every rig (Fig. 3 of Carlon et al. 2015).
+
+Phases and the rules that end them:
+
+- ``preheat``: water circulates at the preheat load; the bench heats the return ("outside
+  help") to the preheat temperature; t0 once forward and return have both been within the
+  tolerance of it for ``hold_s``.
+- ``start_up`` (t0..t1): boiler switched on, return set to 55 C, flow of the first sequence's
+  load; t1 once the flue-gas temperature rises by less than 0.5 K/min, the rise being the
+  least-squares slope over the last ``t1_window_s`` while the burner fires, and at least
+  ``min_duration_s`` after t0.
+- ``test`` (t1..t2): the sequences, loads converted to flow (load * Pnom / (cp_w * 15 K)).
+- ``cooling_1`` (t2..t3): boiler switched off, heat extracted at the first-cooling load until
+  the forward temperature falls to 55 C.
+- ``cooling_2`` (t3..t4): circulation stopped until t4 = t2 + 8 h.
+
+Every phase also has a maximum duration so that a rig that never meets a rule still ends;
+the meta file then says which rule timed out.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+from rig_emulator.model.constants import CP_WATER
+
+from hil_client.protocol.definition import ProtocolDefinition
+from hil_client.protocol.rig import READING_KEYS, Rig, RigCommand
+
+#: Columns of the lab log (CONTRACT section 3), in file order.
+LOG_COLUMNS: tuple[str, ...] = (
+    "time_s",
+    "phase",
+    "sequence",
+    *READING_KEYS[:-1],
+    "water_flow_setpoint_kg_h",
+    "boiler_on",
+)
+
+PHASES = ("preheat", "start_up", "test", "cooling_1", "cooling_2")
+
+Row = tuple[object, ...]
+
+
+@dataclass(slots=True)
+class RunResult:
+    """Outcome of a protocol run: phase boundaries [s since the record start] and notes."""
+
+    protocol: str
+    test: str
+    rows: int = 0
+    times: dict[str, float] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    duration_s: float = 0.0
+
+
+class _SlopeWindow:
+    """Least-squares slope of y(t) over a sliding time window, O(1) per sample."""
+
+    def __init__(self, window_s: float) -> None:
+        self.window_s = window_s
+        self.points: deque[tuple[float, float]] = deque()
+        self.st = self.sy = self.stt = self.sty = 0.0
+
+    def add(self, t: float, y: float) -> None:
+        self.points.append((t, y))
+        self.st += t
+        self.sy += y
+        self.stt += t * t
+        self.sty += t * y
+        while self.points and self.points[0][0] < t - self.window_s:
+            t_old, y_old = self.points.popleft()
+            self.st -= t_old
+            self.sy -= y_old
+            self.stt -= t_old * t_old
+            self.sty -= t_old * y_old
+
+    def full(self) -> bool:
+        return bool(self.points) and self.points[-1][0] - self.points[0][0] >= self.window_s * 0.98
+
+    def slope(self) -> float:
+        n = len(self.points)
+        if n < 3:
+            return math.inf
+        # centre on the last time to keep the sums well conditioned
+        t_ref = self.points[-1][0]
+        st = self.st - n * t_ref
+        stt = self.stt - 2 * t_ref * self.st + n * t_ref * t_ref
+        sty = self.sty - t_ref * self.sy
+        den = n * stt - st * st
+        return (n * sty - st * self.sy) / den if den > 0 else math.inf
+
+    def clear(self) -> None:
+        self.__init__(self.window_s)  # type: ignore[misc]
+
+
+def flow_for_load(load_pct: float, p_nom_kW: float, spread_K: float) -> float:
+    """Water flow [kg/h] that imposes ``load_pct`` of nominal load with a ``spread_K`` spread."""
+    return load_pct / 100.0 * p_nom_kW * 3600.0 / (CP_WATER * spread_K)
+
+
+def run_protocol(
+    protocol: ProtocolDefinition,
+    p_nom_kW: float,
+    rig: Rig,
+    sink: Callable[[Row], None],
+    progress: Callable[[float, str, str, Mapping[str, float]], None] | None = None,
+) -> RunResult:
+    """Play ``protocol`` on ``rig`` and hand every acquired row to ``sink``.
+
+    Args:
+        protocol: the test method.
+        p_nom_kW: nominal load of the boiler under test [kW] (load-to-flow conversion).
+        rig: the bench (in-process or over Modbus).
+        sink: receives one row per acquisition step, in :data:`LOG_COLUMNS` order.
+        progress: optional callback (time_s, phase, sequence, reading) after each row.
+    """
+    dt = protocol.acquisition_period_s
+    spread = protocol.flow_spread_K
+    pre = protocol.preheat
+    su = protocol.start_up
+    c1 = protocol.cooling_1
+    sequences = protocol.sequences
+    result = RunResult(protocol=protocol.name, test=protocol.test)
+    times = result.times
+
+    def flow(load_pct: float) -> float:
+        return flow_for_load(load_pct, p_nom_kW, spread)
+
+    phase = "preheat"
+    phase_start = 0.0
+    hold_since: float | None = None
+    slope = _SlopeWindow(su.t1_window_s)
+    seq_index = 0
+    seq_start = 0.0
+    t = 0.0
+    rows = 0
+    command = RigCommand(flow(pre.load_pct), pre.temperature_C, True, False, True)
+    first_load = sequences[0].load_start_pct
+    t4_after = protocol.cooling_2_until_after_t2_s
+
+    while True:
+        # --- commands for this step
+        sequence = ""
+        if phase == "preheat":
+            command.flow_setpoint_kg_h = flow(pre.load_pct)
+            command.return_setpoint_C = pre.temperature_C
+            command.pump_on, command.boiler_on, command.return_heating = True, False, True
+        elif phase == "start_up":
+            command.flow_setpoint_kg_h = flow(first_load)
+            command.return_setpoint_C = su.return_setpoint_C
+            command.pump_on, command.boiler_on, command.return_heating = True, True, False
+        elif phase == "test":
+            elapsed = t - seq_start
+            while seq_index < len(sequences) - 1 and elapsed >= sequences[seq_index].duration_s:
+                seq_start += sequences[seq_index].duration_s
+                seq_index += 1
+                elapsed = t - seq_start
+            seq = sequences[seq_index]
+            sequence = seq.name
+            command.flow_setpoint_kg_h = flow(seq.load_at(elapsed + dt))
+            command.return_setpoint_C = protocol.test_return_setpoint_C
+        elif phase == "cooling_1":
+            command.flow_setpoint_kg_h = flow(c1.load_pct)
+            command.return_setpoint_C = c1.return_setpoint_C
+            command.pump_on, command.boiler_on = True, False
+        else:  # cooling_2
+            command.flow_setpoint_kg_h = 0.0
+            command.pump_on, command.boiler_on = False, False
+
+        rig.apply(command)
+        rig.advance(dt)
+        t += dt
+        reading = rig.read()
+        rows += 1
+        sink(
+            (
+                t,
+                phase,
+                sequence,
+                reading["water_flow_kg_h"],
+                reading["water_in_temp_C"],
+                reading["water_out_temp_C"],
+                reading["boiler_water_temp_C"],
+                reading["flue_gas_temp_C"],
+                reading["flue_gas_O2_pct"],
+                reading["flue_gas_CO2_pct"],
+                reading["flue_gas_CO_ppm"],
+                reading["flue_gas_velocity_m_s"],
+                reading["chimney_draught_Pa"],
+                reading["balance_mass_kg"],
+                reading["room_temp_C"],
+                reading["ambient_pressure_hPa"],
+                reading["relative_humidity_pct"],
+                reading["electric_power_W"],
+                command.flow_setpoint_kg_h if command.pump_on else 0.0,
+                reading["boiler_on"],
+            )
+        )
+        if progress is not None:
+            progress(t, phase, sequence, reading)
+
+        # --- rules that end the phase (evaluated on what was read)
+        elapsed_phase = t - phase_start
+        if phase == "preheat":
+            ok = (
+                abs(reading["water_out_temp_C"] - pre.temperature_C) <= pre.tolerance_K
+                and abs(reading["water_in_temp_C"] - pre.temperature_C) <= pre.tolerance_K
+            )
+            hold_since = (hold_since if hold_since is not None else t) if ok else None
+            timed_out = elapsed_phase >= pre.max_duration_s
+            if (hold_since is not None and t - hold_since >= pre.hold_s) or timed_out:
+                if timed_out:
+                    result.notes.append("t0: preheat timed out before the water was stable")
+                phase, phase_start = "start_up", t
+                times["t0_s"] = t
+        elif phase == "start_up":
+            if reading["boiler_on"] >= 0.5:
+                slope.add(t, reading["flue_gas_temp_C"])
+            else:
+                slope.clear()
+            rise_K_min = slope.slope() * 60.0 if slope.full() else math.inf
+            timed_out = elapsed_phase >= su.max_duration_s
+            if (elapsed_phase >= su.min_duration_s and rise_K_min < su.t1_max_rise_K_min) or (
+                timed_out
+            ):
+                if timed_out:
+                    result.notes.append("t1: flue-gas rule not met, start-up timed out")
+                phase, phase_start = "test", t
+                seq_start = t
+                times["t1_s"] = t
+        elif phase == "test":
+            if elapsed_phase >= protocol.test_duration_s - 1e-9:
+                phase, phase_start = "cooling_1", t
+                times["t2_s"] = t
+        elif phase == "cooling_1":
+            timed_out = elapsed_phase >= c1.max_duration_s
+            if reading["water_out_temp_C"] <= c1.until_forward_C or timed_out:
+                if timed_out:
+                    result.notes.append("t3: forward temperature rule not met, timed out")
+                phase, phase_start = "cooling_2", t
+                times["t3_s"] = t
+        elif t - times["t2_s"] >= t4_after - 1e-9:
+            times["t4_s"] = t
+            break
+
+    result.rows = rows
+    result.duration_s = t
+    return result

@@ -1,0 +1,1 @@
+"""Rig backends behind the runner's rig interface: in-process (``local``), Modbus."""

@@ -1,0 +1,56 @@
+"""Named boiler parameter files and their loader (the only I/O around the model's params)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import yaml
+
+from rig_emulator.model.params import BoilerParams, ParameterError, params_from_mapping
+
+BOILER_DIR = Path(__file__).parent
+
+
+def available() -> list[str]:
+    """Names of the parameter files shipped with the package."""
+    return sorted(path.stem for path in BOILER_DIR.glob("*.yaml"))
+
+
+def resolve(name_or_path: str) -> Path:
+    """Path of a boiler given as a shipped NAME or a PATH to a YAML file."""
+    path = Path(name_or_path)
+    if path.suffix in (".yaml", ".yml") or path.exists():
+        return path
+    candidate = BOILER_DIR / f"{name_or_path}.yaml"
+    if not candidate.exists():
+        raise ParameterError(
+            f"unknown boiler '{name_or_path}' (known: {', '.join(available())}, or a YAML path)"
+        )
+    return candidate
+
+
+def load_boiler(name_or_path: str) -> BoilerParams:
+    """Load and validate a boiler parameter file.
+
+    Raises:
+        ParameterError: the file is missing, is not YAML, or fails validation; the message
+            names the file and the key.
+    """
+    path = resolve(name_or_path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ParameterError(f"{path}: cannot read ({exc.strerror})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        raise ParameterError(f"{path}: not valid YAML{where}") from None
+    return params_from_mapping(data, source=str(path))
+
+
+def dump_boiler(params: BoilerParams, path: Path, header: str = "") -> None:
+    """Write a parameter file of CONTRACT section 2 form."""
+    text = yaml.safe_dump(params.to_mapping(), sort_keys=False)
+    path.write_text((header + "\n" if header else "") + text, encoding="utf-8")

@@ -1,0 +1,232 @@
+"""Boiler parameter set (Table 3 of Carlon et al. 2015) and its validation.
+
+Pure: :func:`params_from_mapping` checks a mapping (as read from a YAML file by
+:mod:`rig_emulator.boilers`) and raises :class:`ParameterError` naming the key at fault.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
+from typing import Any
+
+from rig_emulator.model import constants as k
+from rig_emulator.model.fuel import Fuel
+
+REQUIRED_KEYS: tuple[str, ...] = (
+    "name",
+    "p_nom_kW",
+    "p_max_kW",
+    "p_min_kW",
+    "p_start_kW",
+    "c_therm_kJ_K",
+    "vol_water_m3",
+    "ua_amb_off_W_K",
+    "ua_amb_on_W_K",
+    "dt_nom_K",
+    "dt_hx_fg_K",
+    "dt_hx_wat_K",
+    "fac_a_lambda",
+    "fac_b_lambda_h_kg",
+    "p_el_min_W",
+    "p_el_max_W",
+    "p_el_off_W",
+    "w_el_Wh",
+    "fuel",
+)
+FUEL_KEYS: tuple[str, ...] = ("hhv_dry_kJ_kg", "c", "h", "o", "n", "s", "ash", "moisture")
+
+#: Optional keys and their defaults (the paper's controller and our CO model).
+OPTIONAL_DEFAULTS: dict[str, float] = {
+    "set_temp_C": 70.0,  # outlet set temperature (Section 2.3)
+    "shutoff_temp_C": 85.0,  # cut-out of the water inside the boiler (Section 3.2)
+    "restart_temp_C": 55.0,  # restart after a cut-out (Section 3.2.3)
+    "startup_duration_s": 900.0,  # firing at Pstart after each start (about 15 min, 3.2.1)
+    "co_ppm_at_p_max": 60.0,  # stationary CO at Pmax [ppm, dry] (assumption)
+    "co_ppm_at_p_min": 200.0,  # stationary CO at Pmin [ppm, dry] (assumption)
+    "co_start_peak_ppm": 1500.0,  # extra CO right after ignition [ppm] (assumption)
+    "co_stop_peak_ppm": 600.0,  # extra CO of the burn-out after a stop [ppm] (assumption)
+    "co_transient_s": 240.0,  # decay time of the start/stop CO peaks [s] (assumption)
+}
+
+
+class ParameterError(ValueError):
+    """A parameter set is incomplete or inconsistent; the message names the key."""
+
+
+@dataclass(frozen=True, slots=True)
+class BoilerParams:
+    """Parameters of the Type 869 one-node boiler model.
+
+    Power figures are firing powers of the burner on a net (dry-fuel LHV) basis, the basis
+    manufacturers document; the model converts them to the gross basis of Eq. 3 with
+    HHV/LHV of the fuel. With the paper's 12 kW figures this gives about 85 % of Q_fuel to
+    water at Pmax, as the paper reports (Section 3.2.1).
+
+    Attributes:
+        name: label of the boiler.
+        p_nom_kW: nominal heat output to water [kW].
+        p_max_kW, p_min_kW, p_start_kW: firing power at maximum, minimum, start-up [kW].
+        c_therm_kJ_K: thermal capacity of the structure [kJ/K].
+        vol_water_m3: water volume inside the boiler [m3].
+        ua_amb_off_W_K, ua_amb_on_W_K: loss coefficient to the room, idle and firing [W/K].
+        dt_nom_K, dt_hx_fg_K, dt_hx_wat_K: empirical delta-T coefficients of Eq. 8 [K].
+        fac_a_lambda [-], fac_b_lambda_h_kg [h/kg]: excess-air coefficients of Eq. 9.
+        p_el_min_W, p_el_max_W, p_el_off_W: electric power at 30 %, 100 % load, stand-by [W].
+        w_el_Wh: electric energy for ignition, per start [Wh].
+        fuel: the fuel burnt.
+        set_temp_C, shutoff_temp_C, restart_temp_C: controller temperatures [C].
+        startup_duration_s: duration of the start-up at Pstart [s].
+        co_*: parameters of the CO model (:mod:`rig_emulator.model.emissions`).
+    """
+
+    name: str
+    p_nom_kW: float
+    p_max_kW: float
+    p_min_kW: float
+    p_start_kW: float
+    c_therm_kJ_K: float
+    vol_water_m3: float
+    ua_amb_off_W_K: float
+    ua_amb_on_W_K: float
+    dt_nom_K: float
+    dt_hx_fg_K: float
+    dt_hx_wat_K: float
+    fac_a_lambda: float
+    fac_b_lambda_h_kg: float
+    p_el_min_W: float
+    p_el_max_W: float
+    p_el_off_W: float
+    w_el_Wh: float
+    fuel: Fuel
+    set_temp_C: float = OPTIONAL_DEFAULTS["set_temp_C"]
+    shutoff_temp_C: float = OPTIONAL_DEFAULTS["shutoff_temp_C"]
+    restart_temp_C: float = OPTIONAL_DEFAULTS["restart_temp_C"]
+    startup_duration_s: float = OPTIONAL_DEFAULTS["startup_duration_s"]
+    co_ppm_at_p_max: float = OPTIONAL_DEFAULTS["co_ppm_at_p_max"]
+    co_ppm_at_p_min: float = OPTIONAL_DEFAULTS["co_ppm_at_p_min"]
+    co_start_peak_ppm: float = OPTIONAL_DEFAULTS["co_start_peak_ppm"]
+    co_stop_peak_ppm: float = OPTIONAL_DEFAULTS["co_stop_peak_ppm"]
+    co_transient_s: float = OPTIONAL_DEFAULTS["co_transient_s"]
+
+    @property
+    def capacity_kJ_K(self) -> float:
+        """Capacity of the one node [kJ/K]: structure plus water (digest section 1)."""
+        return self.c_therm_kJ_K + self.vol_water_m3 * k.RHO_WATER * k.CP_WATER
+
+    @property
+    def nominal_flow_kg_h(self) -> float:
+        """Water flow of nominal load with a 15 K spread [kg/h] (Section 2.3)."""
+        return self.p_nom_kW * 3600.0 / (k.CP_WATER * 15.0)
+
+    def to_mapping(self) -> dict[str, Any]:
+        """The parameter set as a plain mapping of CONTRACT section 2 form."""
+        out: dict[str, Any] = {}
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.name == "fuel":
+                value = {key: getattr(value, key) for key in FUEL_KEYS}
+            out[f.name] = value
+        return out
+
+
+def _number(value: Any, key: str, source: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ParameterError(f"{source}: key '{key}' must be a number, got {value!r}")
+    x = float(value)
+    if not math.isfinite(x):
+        raise ParameterError(f"{source}: key '{key}' must be finite, got {value!r}")
+    return x
+
+
+def params_from_mapping(data: Any, source: str = "<parameters>") -> BoilerParams:
+    """Validate ``data`` and build :class:`BoilerParams`.
+
+    Raises:
+        ParameterError: a key is missing, unknown, of the wrong type or out of range; the
+            message names ``source`` and the key.
+    """
+    if not isinstance(data, Mapping):
+        raise ParameterError(f"{source}: expected a mapping of parameters, got {type(data).__name__}")
+    for key in REQUIRED_KEYS:
+        if key not in data:
+            raise ParameterError(f"{source}: missing required key '{key}'")
+    known = set(REQUIRED_KEYS) | set(OPTIONAL_DEFAULTS)
+    for key in data:
+        if key not in known:
+            raise ParameterError(f"{source}: unknown key '{key}'")
+    name = data["name"]
+    if not isinstance(name, str) or not name:
+        raise ParameterError(f"{source}: key 'name' must be a non-empty string")
+    values: dict[str, Any] = {"name": name}
+    for key in (*REQUIRED_KEYS, *OPTIONAL_DEFAULTS):
+        if key in ("name", "fuel") or key not in data:
+            continue
+        values[key] = _number(data[key], key, source)
+
+    fuel_data = data["fuel"]
+    if not isinstance(fuel_data, Mapping):
+        raise ParameterError(f"{source}: key 'fuel' must be a mapping")
+    for key in FUEL_KEYS:
+        if key not in fuel_data:
+            raise ParameterError(f"{source}: missing required key 'fuel.{key}'")
+    for key in fuel_data:
+        if key not in FUEL_KEYS:
+            raise ParameterError(f"{source}: unknown key 'fuel.{key}'")
+    fuel_values = {key: _number(fuel_data[key], f"fuel.{key}", source) for key in FUEL_KEYS}
+    for key in FUEL_KEYS[1:]:
+        if not 0.0 <= fuel_values[key] < 1.0:
+            raise ParameterError(f"{source}: key 'fuel.{key}' must be a fraction in [0, 1)")
+    if fuel_values["hhv_dry_kJ_kg"] <= 0:
+        raise ParameterError(f"{source}: key 'fuel.hhv_dry_kJ_kg' must be positive")
+    total = sum(fuel_values[key] for key in ("c", "h", "o", "n", "s", "ash"))
+    if abs(total - 1.0) > 0.02:
+        raise ParameterError(
+            f"{source}: key 'fuel' fractions c+h+o+n+s+ash sum to {total:.4f}, expected 1"
+        )
+    values["fuel"] = Fuel(**fuel_values)
+
+    positive = (
+        "p_nom_kW",
+        "p_max_kW",
+        "p_min_kW",
+        "p_start_kW",
+        "c_therm_kJ_K",
+        "vol_water_m3",
+        "ua_amb_off_W_K",
+        "ua_amb_on_W_K",
+        "dt_nom_K",
+        "startup_duration_s",
+    )
+    for key in positive:
+        if key in values and values[key] <= 0:
+            raise ParameterError(f"{source}: key '{key}' must be positive, got {values[key]}")
+    for key in ("p_el_min_W", "p_el_max_W", "p_el_off_W", "w_el_Wh"):
+        if values[key] < 0:
+            raise ParameterError(f"{source}: key '{key}' must not be negative")
+    if values["p_min_kW"] > values["p_max_kW"]:
+        raise ParameterError(
+            f"{source}: key 'p_min_kW' ({values['p_min_kW']}) exceeds 'p_max_kW' "
+            f"({values['p_max_kW']})"
+        )
+    if values["p_start_kW"] > values["p_max_kW"] * 1.5:
+        raise ParameterError(f"{source}: key 'p_start_kW' is above 1.5 x p_max_kW")
+    params = BoilerParams(**values)
+    if not params.restart_temp_C < params.set_temp_C < params.shutoff_temp_C:
+        raise ParameterError(
+            f"{source}: keys 'restart_temp_C' < 'set_temp_C' < 'shutoff_temp_C' must hold"
+        )
+    lam_max = params.fac_a_lambda + params.fac_b_lambda_h_kg * _dry_fuel_kg_h(params, params.p_max_kW)
+    lam_min = params.fac_a_lambda + params.fac_b_lambda_h_kg * _dry_fuel_kg_h(params, params.p_min_kW)
+    if min(lam_max, lam_min) <= 1.0:
+        raise ParameterError(
+            f"{source}: keys 'fac_a_lambda'/'fac_b_lambda_h_kg' give lambda <= 1 in the "
+            "modulation range (incomplete combustion)"
+        )
+    return params
+
+
+def _dry_fuel_kg_h(params: BoilerParams, firing_kW: float) -> float:
+    """Dry fuel flow [kg/h] of a firing power on the net basis [kW]."""
+    return firing_kW * 3600.0 / params.fuel.lhv_dry_kJ_kg
