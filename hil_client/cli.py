@@ -12,15 +12,14 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from rig_emulator.boilers import load_boiler
-from rig_emulator.model.params import ParameterError
-
 from hil_client.lablog import LabLogWriter, write_meta
 from hil_client.progress import ProgressLine
 from hil_client.protocol.definition import ProtocolError, load_protocol
 from hil_client.protocol.runner import run_protocol
 from hil_client.rigs.local import PROFILES, LocalRig
 from hil_client.summary import RunSummary
+from rig_emulator.boilers import load_boiler
+from rig_emulator.model.params import ParameterError
 
 
 class UsageError(Exception):
@@ -127,9 +126,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_run(args)
         raise UsageError(f"unknown command {args.command}")
     except UsageError as exc:
-        print(f"hil-client: error: {exc}" if not str(exc).startswith("hil-client") else
-              f"{str(exc).split(': ', 1)[0]}: error: {str(exc).split(': ', 1)[1]}",
-              file=sys.stderr)
+        print(
+            f"hil-client: error: {exc}"
+            if not str(exc).startswith("hil-client")
+            else f"{str(exc).split(': ', 1)[0]}: error: {str(exc).split(': ', 1)[1]}",
+            file=sys.stderr,
+        )
         return 2
     except KeyboardInterrupt:
         print("hil-client: interrupted; the log keeps every row acquired", file=sys.stderr)

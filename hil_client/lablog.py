@@ -7,7 +7,7 @@ CSV holding every row acquired so far. A missing value (NaN) is an empty field.
 from __future__ import annotations
 
 import json
-import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -32,18 +32,14 @@ _DECIMALS = {
 _TEXT = {"phase", "sequence"}
 
 
-def _formatter(column: str):
-    if column in _TEXT:
-        return str
-    decimals = _DECIMALS.get(column, 5)  # temperatures: 10 uK
-    fmt = f"{{:.{decimals}f}}"
+_MISSING = re.compile(r"(?<=,)(?:nan|-?inf)(?=,|$)")
 
-    def format_number(value: Any) -> str:
-        if value is None or (isinstance(value, float) and not math.isfinite(value)):
-            return ""
-        return fmt.format(value)
 
-    return format_number
+def _row_format() -> str:
+    parts = []
+    for column in LOG_COLUMNS:
+        parts.append("%s" if column in _TEXT else f"%.{_DECIMALS.get(column, 5)}f")
+    return ",".join(parts) + "\n"  # temperatures: 10 uK by default
 
 
 class LabLogWriter:
@@ -55,12 +51,14 @@ class LabLogWriter:
         self._file = self.path.open("w", encoding="utf-8", newline="")
         self._file.write(",".join(LOG_COLUMNS) + "\n")
         self._file.flush()
-        self._formatters = tuple(_formatter(c) for c in LOG_COLUMNS)
+        self._format = _row_format()
         self.rows = 0
 
     def __call__(self, row: Row) -> None:
-        self._file.write(",".join([f(v) for f, v in zip(self._formatters, row, strict=True)]))
-        self._file.write("\n")
+        line = self._format % row
+        if "nan" in line or "inf" in line:
+            line = _MISSING.sub("", line)
+        self._file.write(line)
         self._file.flush()
         self.rows += 1
 

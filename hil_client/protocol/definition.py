@@ -98,10 +98,10 @@ class ProtocolDefinition:
     cooling_1: CoolingOne
     cooling_2_until_after_t2_s: float
 
-    @property
-    def test_duration_s(self) -> float:
-        """Duration of the measuring cycle t1..t2 [s]."""
-        return sum(s.duration_s for s in self.sequences)
+    test_duration_s: float = 0.0  #: duration of the measuring cycle t1..t2 [s], derived
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "test_duration_s", sum(s.duration_s for s in self.sequences))
 
 
 def parse_duration(value: Any, key: str, source: str) -> float:
@@ -164,8 +164,18 @@ def protocol_from_mapping(data: Any, source: str = "<protocol>") -> ProtocolDefi
         raise ProtocolError(f"{source}: expected a mapping")
     _check_keys(
         data,
-        {"name", "test", "description", "acquisition_period_s", "flow_spread_K", "preheat",
-         "start_up", "test_sequence", "cooling_1", "cooling_2"},
+        {
+            "name",
+            "test",
+            "description",
+            "acquisition_period_s",
+            "flow_spread_K",
+            "preheat",
+            "start_up",
+            "test_sequence",
+            "cooling_1",
+            "cooling_2",
+        },
         "",
         source,
     )
@@ -178,8 +188,12 @@ def protocol_from_mapping(data: Any, source: str = "<protocol>") -> ProtocolDefi
         raise ProtocolError(f"{source}: 'acquisition_period_s' and 'flow_spread_K' must be > 0")
 
     pre = _section(data, "preheat", source)
-    _check_keys(pre, {"temperature_C", "tolerance_K", "hold_s", "load_pct", "max_duration_s"},
-                "preheat", source)
+    _check_keys(
+        pre,
+        {"temperature_C", "tolerance_K", "hold_s", "load_pct", "max_duration_s"},
+        "preheat",
+        source,
+    )
     preheat = Preheat(
         temperature_C=_get(pre, "preheat", "temperature_C", source),
         tolerance_K=_get(pre, "preheat", "tolerance_K", source),
@@ -188,8 +202,18 @@ def protocol_from_mapping(data: Any, source: str = "<protocol>") -> ProtocolDefi
         max_duration_s=_get(pre, "preheat", "max_duration_s", source, "duration"),
     )
     su = _section(data, "start_up", source)
-    _check_keys(su, {"return_setpoint_C", "t1_window_s", "t1_max_rise_K_min", "min_duration_s",
-                     "max_duration_s"}, "start_up", source)
+    _check_keys(
+        su,
+        {
+            "return_setpoint_C",
+            "t1_window_s",
+            "t1_max_rise_K_min",
+            "min_duration_s",
+            "max_duration_s",
+        },
+        "start_up",
+        source,
+    )
     start_up = StartUp(
         return_setpoint_C=_get(su, "start_up", "return_setpoint_C", source),
         t1_window_s=_get(su, "start_up", "t1_window_s", source, "duration"),
@@ -224,8 +248,12 @@ def protocol_from_mapping(data: Any, source: str = "<protocol>") -> ProtocolDefi
         duration = _get(raw, prefix, "duration", source, "duration")
         sequences.append(Sequence(name, a, b, duration))
     c1 = _section(data, "cooling_1", source)
-    _check_keys(c1, {"load_pct", "return_setpoint_C", "until_forward_C", "max_duration_s"},
-                "cooling_1", source)
+    _check_keys(
+        c1,
+        {"load_pct", "return_setpoint_C", "until_forward_C", "max_duration_s"},
+        "cooling_1",
+        source,
+    )
     cooling_1 = CoolingOne(
         load_pct=_get(c1, "cooling_1", "load_pct", source, "load"),
         return_setpoint_C=_get(c1, "cooling_1", "return_setpoint_C", source),

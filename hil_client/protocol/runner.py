@@ -25,10 +25,9 @@ from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
-from rig_emulator.model.constants import CP_WATER
-
 from hil_client.protocol.definition import ProtocolDefinition
 from hil_client.protocol.rig import READING_KEYS, Rig, RigCommand
+from rig_emulator.model.constants import CP_WATER
 
 #: Columns of the lab log (CONTRACT section 3), in file order.
 LOG_COLUMNS: tuple[str, ...] = (

@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-from rig_emulator.bench import Bench, BenchConfig, BenchOutputs
-from rig_emulator.model import MODULATING, STARTUP
-from rig_emulator.model.params import BoilerParams
-
 from hil_client.protocol.rig import RigCommand
+from rig_emulator.bench import Bench, BenchConfig
+from rig_emulator.model.layout import Y_CO, Y_CO2, Y_O2, Y_P_EL, Y_T_BOILER, Y_T_FG
+from rig_emulator.model.params import BoilerParams
 
 PROFILES = ("clean",)
 
@@ -18,48 +17,55 @@ class LocalRig:
     """
 
     def __init__(
-        self, params: BoilerParams, profile: str = "clean", seed: int = 0,
+        self,
+        params: BoilerParams,
+        profile: str = "clean",
+        seed: int = 0,
         config: BenchConfig | None = None,
     ) -> None:
         if profile not in PROFILES:
             raise ValueError(f"unknown profile '{profile}' (available: {', '.join(PROFILES)})")
         self.bench = Bench(params, config)
         self.seed = seed
-        self.last: BenchOutputs | None = None
+        self._stepped = False
 
     def apply(self, command: RigCommand) -> None:
-        inp = self.bench.inputs
-        inp.flow_setpoint_kg_h = command.flow_setpoint_kg_h
-        inp.return_setpoint_C = command.return_setpoint_C
-        inp.pump_on = command.pump_on
-        inp.boiler_on = command.boiler_on
-        inp.return_heating = command.return_heating
+        self.bench.set_inputs(
+            command.flow_setpoint_kg_h,
+            command.return_setpoint_C,
+            command.pump_on,
+            command.boiler_on,
+            command.return_heating,
+        )
 
     def advance(self, dt_s: float) -> None:
-        self.last = self.bench.step(dt_s)
+        self.bench.step(dt_s)
+        self._stepped = True
 
     def read(self) -> dict[str, float]:
-        o = self.last
-        if o is None:
+        if not self._stepped:
             raise RuntimeError("read() before the first advance()")
-        b = o.boiler
+        (_, flow, t_in, t_out, room, pressure, humidity, balance, velocity, draught, _, on) = (
+            self.bench.yb.tolist()
+        )
+        y = self.bench.y.tolist()
         return {
-            "water_flow_kg_h": o.water_flow_kg_h,
-            "water_in_temp_C": o.water_in_temp_C,
-            "water_out_temp_C": o.water_out_temp_C,
-            "boiler_water_temp_C": b.t_boiler_C,
-            "flue_gas_temp_C": b.t_flue_gas_C,
-            "flue_gas_O2_pct": b.o2_pct,
-            "flue_gas_CO2_pct": b.co2_pct,
-            "flue_gas_CO_ppm": b.co_ppm,
-            "flue_gas_velocity_m_s": o.flue_gas_velocity_m_s,
-            "chimney_draught_Pa": o.chimney_draught_Pa,
-            "balance_mass_kg": o.balance_mass_kg,
-            "room_temp_C": o.room_temp_C,
-            "ambient_pressure_hPa": o.ambient_pressure_hPa,
-            "relative_humidity_pct": o.relative_humidity_pct,
-            "electric_power_W": b.p_el_W,
-            "boiler_on": 1.0 if b.mode == STARTUP or b.mode == MODULATING else 0.0,
+            "water_flow_kg_h": flow,
+            "water_in_temp_C": t_in,
+            "water_out_temp_C": t_out,
+            "boiler_water_temp_C": y[Y_T_BOILER],
+            "flue_gas_temp_C": y[Y_T_FG],
+            "flue_gas_O2_pct": y[Y_O2],
+            "flue_gas_CO2_pct": y[Y_CO2],
+            "flue_gas_CO_ppm": y[Y_CO],
+            "flue_gas_velocity_m_s": velocity,
+            "chimney_draught_Pa": draught,
+            "balance_mass_kg": balance,
+            "room_temp_C": room,
+            "ambient_pressure_hPa": pressure,
+            "relative_humidity_pct": humidity,
+            "electric_power_W": y[Y_P_EL],
+            "boiler_on": on,
         }
 
     def close(self) -> None:

@@ -2,12 +2,12 @@
 
 The bench is the plant the instruments look at. It owns the boiler state and steps it with
 the inputs the test controller sets (flow and return setpoints, pump, boiler on/off, external
-heating during preheat). Everything here is deterministic; instrument errors are added later.
+heating during preheat). Everything here is deterministic; instrument errors come later.
 
 Assumptions (ours, the paper is silent): the boiler stands on the balance with its ash box,
 so the balance loses the fuel as received (moisture included) less its ash; the chimney is
 DN100 and the bench holds the draught at -12 Pa (digest section 5); without firing, the
-fan-less draught pulls ``idle_velocity_m_s`` of air through the idle boiler.
+draught pulls ``idle_velocity_m_s`` of air through the idle boiler.
 """
 
 from __future__ import annotations
@@ -15,11 +15,65 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import numpy as np
+from numba import njit
+
 from rig_emulator.bench.loop import LoopConfig, condition_return, follow_flow
 from rig_emulator.bench.room import RoomConditions
 from rig_emulator.model import boiler as bm
 from rig_emulator.model.constants import CP_WATER, T_NORMAL_K
+from rig_emulator.model.layout import (
+    MODULATING,
+    N_OUTPUTS,
+    S_FUEL,
+    STARTUP,
+    Y_FG_WET,
+    Y_MODE,
+    Y_Q_WATER,
+    Y_T_FG,
+    Y_T_OUT,
+)
 from rig_emulator.model.params import BoilerParams
+
+# bench constants
+BC_TAU_FLOW, BC_LOOP_CAP, BC_LOOP_UA, BC_TAU_COND, BC_COOL_MAX, BC_HEAT_MAX = range(6)
+BC_VELOCITY_FACTOR, BC_IDLE_VELOCITY, BC_DRAUGHT, BC_BALANCE0, BC_BALANCE_PER_KG = range(6, 11)
+N_BENCH_CONSTANTS = 11
+# bench state
+BS_FLOW, BS_T_RETURN, BS_TIME = range(3)
+# inputs
+U_FLOW_SP, U_RETURN_SP, U_PUMP, U_BOILER_ON, U_HEATING, U_ROOM, U_PRESSURE, U_HUMIDITY = range(8)
+N_INPUTS = 8
+# bench outputs
+(
+    YB_TIME,
+    YB_FLOW,
+    YB_T_IN,
+    YB_T_OUT,
+    YB_ROOM,
+    YB_PRESSURE,
+    YB_HUMIDITY,
+    YB_BALANCE,
+    YB_VELOCITY,
+    YB_DRAUGHT,
+    YB_CONDITIONING,
+    YB_FIRING_FLAG,
+) = range(12)
+N_BENCH_OUTPUTS = 12
+BENCH_OUTPUT_FIELDS = (
+    "time_s",
+    "water_flow_kg_h",
+    "water_in_temp_C",
+    "water_out_temp_C",
+    "room_temp_C",
+    "ambient_pressure_hPa",
+    "relative_humidity_pct",
+    "balance_mass_kg",
+    "flue_gas_velocity_m_s",
+    "chimney_draught_Pa",
+    "conditioning_kW",
+    "boiler_on",
+)
 
 
 @dataclass(frozen=True, slots=True)
@@ -35,100 +89,124 @@ class BenchConfig:
     idle_velocity_m_s: float = 0.25
 
 
-@dataclass(slots=True)
-class BenchInputs:
-    """What the test controller sets on the bench."""
+def pack_bench_constants(params: BoilerParams, cfg: BenchConfig, c: np.ndarray) -> np.ndarray:
+    """The bench's constant array (layout ``BC_*``)."""
+    bc = np.zeros(N_BENCH_CONSTANTS)
+    loop = cfg.loop
+    bc[BC_TAU_FLOW] = loop.flow_time_constant_s
+    bc[BC_LOOP_CAP] = loop.capacity_kJ_K
+    bc[BC_LOOP_UA] = loop.loop_ua_W_K / 1000.0
+    bc[BC_TAU_COND] = loop.conditioning_time_constant_s
+    bc[BC_COOL_MAX] = loop.cooling_capacity_kW
+    bc[BC_HEAT_MAX] = loop.heating_capacity_kW
+    area = math.pi * cfg.chimney_diameter_m**2 / 4.0
+    bc[BC_VELOCITY_FACTOR] = 1013.25 / (T_NORMAL_K * 3600.0 * area)
+    bc[BC_IDLE_VELOCITY] = cfg.idle_velocity_m_s
+    bc[BC_DRAUGHT] = cfg.draught_Pa
+    bc[BC_BALANCE0] = cfg.initial_balance_kg
+    # the balance loses the fuel as received less its ash, which stays in the ash box
+    bc[BC_BALANCE_PER_KG] = params.fuel.as_received_per_kg_dry - params.fuel.ash
+    return bc
 
-    flow_setpoint_kg_h: float = 0.0
-    return_setpoint_C: float = 45.0
-    pump_on: bool = True
-    boiler_on: bool = False
-    return_heating: bool = False
 
-
-@dataclass(slots=True)
-class BenchOutputs:
-    """True plant values after a step (before any instrument)."""
-
-    time_s: float
-    water_flow_kg_h: float
-    water_in_temp_C: float
-    water_out_temp_C: float
-    room_temp_C: float
-    ambient_pressure_hPa: float
-    relative_humidity_pct: float
-    balance_mass_kg: float
-    flue_gas_velocity_m_s: float
-    chimney_draught_Pa: float
-    conditioning_kW: float
-    boiler: bm.BoilerOutputs
+@njit(cache=True)
+def bench_step(c, s, bc, bs, u, y, yb, dt_s):
+    """Advance boiler and bench by ``dt_s`` [s]; states ``s``/``bs`` and outputs ``y``/``yb``
+    are updated in place; ``u`` holds the inputs (layout ``U_*``)."""
+    room = u[U_ROOM]
+    flow = follow_flow(bs[BS_FLOW], u[U_FLOW_SP], u[U_PUMP] > 0.5, dt_s, bc[BC_TAU_FLOW])
+    t_in = bs[BS_T_RETURN]
+    bm.step(c, s, flow, t_in, room, u[U_BOILER_ON] > 0.5, dt_s, y)
+    m_cp = flow * CP_WATER / 3600.0
+    t_forward = t_in + y[Y_Q_WATER] / m_cp if m_cp > 0.0 else y[Y_T_OUT]
+    t_ret, q_cond = condition_return(
+        t_in,
+        flow,
+        t_forward,
+        u[U_RETURN_SP],
+        room,
+        u[U_HEATING] > 0.5,
+        dt_s,
+        bc[BC_LOOP_CAP],
+        bc[BC_LOOP_UA],
+        bc[BC_TAU_COND],
+        bc[BC_COOL_MAX],
+        bc[BC_HEAT_MAX],
+    )
+    bs[BS_FLOW] = flow
+    bs[BS_T_RETURN] = t_ret
+    bs[BS_TIME] += dt_s
+    yb[YB_TIME] = bs[BS_TIME]
+    yb[YB_FLOW] = flow
+    yb[YB_T_IN] = t_in
+    yb[YB_T_OUT] = y[Y_T_OUT]
+    yb[YB_ROOM] = room
+    yb[YB_PRESSURE] = u[U_PRESSURE]
+    yb[YB_HUMIDITY] = u[U_HUMIDITY]
+    yb[YB_BALANCE] = bc[BC_BALANCE0] - s[S_FUEL] * bc[BC_BALANCE_PER_KG]
+    if y[Y_FG_WET] > 0.0:
+        # actual volume flow at flue-gas temperature and room pressure over the duct area
+        yb[YB_VELOCITY] = (
+            y[Y_FG_WET] * (y[Y_T_FG] + T_NORMAL_K) * bc[BC_VELOCITY_FACTOR] / u[U_PRESSURE]
+        )
+    else:
+        yb[YB_VELOCITY] = bc[BC_IDLE_VELOCITY]
+    yb[YB_DRAUGHT] = bc[BC_DRAUGHT]
+    yb[YB_CONDITIONING] = q_cond
+    mode = y[Y_MODE]
+    yb[YB_FIRING_FLAG] = 1.0 if (mode == STARTUP or mode == MODULATING) else 0.0
 
 
 class Bench:
-    """The boiler on its test bench, advanced step by step."""
+    """The boiler on its test bench, advanced step by step.
+
+    Attributes:
+        c, s: boiler constants and state arrays; bc, bs: bench constants and state;
+        u: inputs (set with :meth:`set_inputs`); y, yb: outputs of the last step.
+    """
 
     def __init__(self, params: BoilerParams, config: BenchConfig | None = None) -> None:
         self.params = params
         self.config = config or BenchConfig()
-        self.coeffs = bm.coefficients(params)
-        self.inputs = BenchInputs()
-        self._area = math.pi * self.config.chimney_diameter_m**2 / 4.0
-        self._ash_loss = params.fuel.ash  # ash per kg dry fuel stays on the balance
+        self.c = bm.pack_constants(params)
+        self.bc = pack_bench_constants(params, self.config, self.c)
+        self.u = np.zeros(N_INPUTS)
+        self.y = np.zeros(N_OUTPUTS)
+        self.yb = np.zeros(N_BENCH_OUTPUTS)
+        self._room_varies = bool(self.config.room.profile)
         self.reset()
 
     def reset(self) -> None:
         """Return to the initial state: water at the initial temperature, boiler off."""
         t = self.config.initial_water_temp_C
-        self.time_s = 0.0
-        self.state = bm.BoilerState(t_boiler_C=t)
-        self.flow_kg_h = 0.0
-        self.t_return_C = t
-        self.inputs = BenchInputs(return_setpoint_C=t)
+        self.s = bm.new_state(t)
+        self.bs = np.array([0.0, t, 0.0])
+        self.set_inputs(0.0, t, True, False, False)
+        self.u[U_ROOM], self.u[U_PRESSURE], self.u[U_HUMIDITY] = self.config.room.at(0.0)
 
-    def step(self, dt_s: float) -> BenchOutputs:
-        """Advance the bench by ``dt_s`` seconds with the current inputs."""
-        cfg = self.config
-        inp = self.inputs
-        room_C, pressure_hPa, humidity = cfg.room.at(self.time_s)
-        flow = follow_flow(
-            self.flow_kg_h, inp.flow_setpoint_kg_h, inp.pump_on, dt_s, cfg.loop.flow_time_constant_s
-        )
-        t_in = self.t_return_C
-        self.state, out = bm.step(
-            self.params, self.coeffs, self.state, flow, t_in, room_C, inp.boiler_on, dt_s
-        )
-        m_cp = flow * CP_WATER / 3600.0
-        t_forward = t_in + out.q_water_kW / m_cp if m_cp > 0.0 else out.t_out_C
-        self.t_return_C, q_cond = condition_return(
-            cfg.loop, t_in, flow, t_forward, inp.return_setpoint_C, room_C, inp.return_heating, dt_s
-        )
-        self.flow_kg_h = flow
-        self.time_s += dt_s
-        if out.flue_gas_wet_m3n_h > 0.0:
-            actual = (
-                out.flue_gas_wet_m3n_h
-                * (out.t_flue_gas_C + T_NORMAL_K)
-                / T_NORMAL_K
-                * (1013.25 / pressure_hPa)
-            )
-            velocity = actual / 3600.0 / self._area
-        else:
-            velocity = cfg.idle_velocity_m_s
-        fuel_dry = self.state.fuel_dry_kg
-        balance = cfg.initial_balance_kg - fuel_dry * (
-            self.coeffs.as_received_factor - self._ash_loss
-        )
-        return BenchOutputs(
-            time_s=self.time_s,
-            water_flow_kg_h=flow,
-            water_in_temp_C=t_in,
-            water_out_temp_C=out.t_out_C,
-            room_temp_C=room_C,
-            ambient_pressure_hPa=pressure_hPa,
-            relative_humidity_pct=humidity,
-            balance_mass_kg=balance,
-            flue_gas_velocity_m_s=velocity,
-            chimney_draught_Pa=cfg.draught_Pa,
-            conditioning_kW=q_cond,
-            boiler=out,
-        )
+    @property
+    def time_s(self) -> float:
+        return float(self.bs[BS_TIME])
+
+    def set_inputs(
+        self,
+        flow_setpoint_kg_h: float,
+        return_setpoint_C: float,
+        pump_on: bool,
+        boiler_on: bool,
+        return_heating: bool,
+    ) -> None:
+        """Set what the test controller commands (held until changed)."""
+        u = self.u
+        u[U_FLOW_SP] = flow_setpoint_kg_h
+        u[U_RETURN_SP] = return_setpoint_C
+        u[U_PUMP] = pump_on
+        u[U_BOILER_ON] = boiler_on
+        u[U_HEATING] = return_heating
+
+    def step(self, dt_s: float) -> None:
+        """Advance the bench by ``dt_s`` seconds; results in :attr:`y` and :attr:`yb`."""
+        u = self.u
+        if self._room_varies:
+            u[U_ROOM], u[U_PRESSURE], u[U_HUMIDITY] = self.config.room.at(float(self.bs[BS_TIME]))
+        bench_step(self.c, self.s, self.bc, self.bs, u, self.y, self.yb, dt_s)

@@ -26,7 +26,7 @@ class RoomConditions:
     def at(self, time_s: float) -> tuple[float, float, float]:
         """(temperature [C], pressure [hPa], humidity [%]) at ``time_s``."""
         if not self.profile:
-            return self.temp_C, self.pressure_hPa, self.humidity_pct
+            return (self.temp_C, self.pressure_hPa, self.humidity_pct)
         times = [p[0] for p in self.profile]
         i = bisect.bisect_right(times, time_s)
         if i == 0:

@@ -25,7 +25,7 @@ and is solved exactly, so any step length is stable, and the step-mean heat flow
 balance to rounding. The controller is the ideal one of the paper's simulations: it fires at
 Pstart for the start-up time after each start, then chooses the firing power in [Pmin, Pmax]
 that brings the outlet to the set temperature by the end of the step; above the shut-off
-temperature it stops, and it restarts when the water has cooled to the restart temperature.
+temperature it stops, and it restarts once the water has cooled to the restart temperature.
 
 Assumptions (ours, where the paper is silent):
 - firing powers are on the net (LHV, dry) basis; Q_fuel = P HHV/LHV (see params.py);
@@ -33,375 +33,398 @@ Assumptions (ours, where the paper is silent):
 - the ignition energy Wel is spread evenly over the start-up and heats the node;
 - when the burner is off the flue-gas probe sees draught air leaving the exchanger at the
   node temperature, and the analyser sees ambient air (plus the decaying burn-out CO);
-- electric power is linear in firing power between Pel,MIN at Pmin and Pel,MAX at Pmax.
+- electric power is linear in firing power between Pel,MIN at Pmin and Pel,MAX at Pmax;
+- CO (for Eq. 6 and the analyser): see :func:`co_stationary_ppm`.
+
+The functions are compiled with numba (``cache=True``); they exchange flat float64 arrays
+whose layout :mod:`rig_emulator.model.layout` names. Set ``NUMBA_DISABLE_JIT=1`` to run them
+as plain Python.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
 
 from rig_emulator.model import constants as k
-from rig_emulator.model.emissions import co_ppm
 from rig_emulator.model.fuel import stoichiometry
+from rig_emulator.model.layout import (
+    CUTOUT,
+    K_A0,
+    K_A1,
+    K_AS_RECEIVED,
+    K_B0,
+    K_B1,
+    K_CAP,
+    K_CHEM_PER_PPM,
+    K_CO_PMAX,
+    K_CO_PMIN,
+    K_CO_START,
+    K_CO_STOP,
+    K_CO_TAU,
+    K_DT_HX_FG,
+    K_DT_HX_WAT,
+    K_DT_NOM,
+    K_FAC_A,
+    K_FAC_B,
+    K_FLOW_NOM,
+    K_FUEL_NOM,
+    K_HHV,
+    K_IGNITION,
+    K_INV_SPAN,
+    K_LATENT,
+    K_LHV,
+    K_MH2O_CP,
+    K_P_MAX,
+    K_P_MIN,
+    K_P_START,
+    K_PEL_MIN,
+    K_PEL_OFF,
+    K_PEL_SLOPE,
+    K_RESTART,
+    K_SET,
+    K_SHUTOFF,
+    K_STARTUP_S,
+    K_UA_OFF,
+    K_UA_ON,
+    K_VCO2,
+    K_VDRY0,
+    K_VDRY1,
+    K_VH2O,
+    K_VO2_PER_LAMBDA,
+    K_VSO2,
+    MODULATING,
+    N_CONSTANTS,
+    N_OUTPUTS,
+    N_STATE,
+    OFF,
+    S_ELECTRIC,
+    S_FIRING,
+    S_FUEL,
+    S_MODE,
+    S_MODE_TIME,
+    S_SINCE_START,
+    S_SINCE_STOP,
+    S_STARTS,
+    S_T,
+    STARTUP,
+    Y_CO,
+    Y_CO2,
+    Y_FG_DRY,
+    Y_FG_WET,
+    Y_FIRING,
+    Y_FUEL,
+    Y_LAMBDA,
+    Y_MODE,
+    Y_O2,
+    Y_P_EL,
+    Y_Q_AMB,
+    Y_Q_ASH,
+    Y_Q_CHEM,
+    Y_Q_FUEL,
+    Y_Q_HX,
+    Y_Q_IGN,
+    Y_Q_LAT,
+    Y_Q_SENS,
+    Y_Q_STORED,
+    Y_Q_WATER,
+    Y_SO2,
+    Y_T_BOILER,
+    Y_T_FG,
+    Y_T_OUT,
+)
 from rig_emulator.model.params import BoilerParams
 
-# Controller modes.
-OFF = 0  #: switched off by the external command
-STARTUP = 1  #: firing at Pstart after a start
-MODULATING = 2  #: firing between Pmin and Pmax to hold the set temperature
-CUTOUT = 3  #: stopped above the shut-off temperature, waiting for the restart temperature
-MODE_NAMES = {OFF: "off", STARTUP: "start_up", MODULATING: "modulating", CUTOUT: "cut_out"}
-
-_INF = math.inf
+_CP_W_KWH = k.CP_WATER / 3600.0  # [kJ/(kg K)] per [h/s]: kg/h flow to kW/K
+_ASH = k.ASH_LOSS_FRACTION
 
 
-@dataclass(frozen=True, slots=True)
-class BoilerCoefficients:
-    """Per-boiler constants derived once from :class:`BoilerParams` (no state)."""
-
-    hhv: float  # [kJ/kg dry]
-    lhv: float  # [kJ/kg dry]
-    capacity: float  # node capacity [kJ/K]
-    ua_on: float  # [kW/K]
-    ua_off: float  # [kW/K]
-    a0: float  # dry flue-gas mass = a0 + a1 lambda [kg/kg]
-    a1: float
-    b0: float  # dry flue-gas heat capacity = b0 + b1 lambda [kJ/(K kg)]
-    b1: float
-    m_h2o: float  # vapour [kg/kg]
-    latent: float  # m_h2o dH_vap [kJ/kg]
-    v_dry0: float  # dry volume = v_dry0 + v_dry1 lambda [m3(N)/kg]
-    v_dry1: float
-    v_h2o: float  # vapour volume [m3(N)/kg]
-    v_o2_per_lambda: float  # O2 volume = v_o2_per_lambda (lambda - 1)
-    v_co2: float
-    v_so2: float
-    fuel_nom_kg_h: float  # dry fuel flow at Pmax [kg/h]
-    flow_nom_kg_h: float  # nominal water flow [kg/h]
-    as_received_factor: float  # as-received fuel per kg dry
-    ignition_kW: float  # Wel spread over the start-up [kW]
-
-
-def coefficients(p: BoilerParams) -> BoilerCoefficients:
-    """Derive the per-boiler constants of :func:`step` from the parameter set."""
+def pack_constants(p: BoilerParams) -> np.ndarray:
+    """The constant array of the compiled model (layout ``K_*``) for a parameter set."""
     st = stoichiometry(p.fuel)
     a0, a1 = st.dry_mass_coeffs()
     b0, b1 = st.dry_heat_capacity_coeffs()
     v_dry0 = st.dry_volume_m3(0.0)
-    v_dry1 = st.dry_volume_m3(1.0) - v_dry0
     lhv = p.fuel.lhv_dry_kJ_kg
-    return BoilerCoefficients(
-        hhv=p.fuel.hhv_dry_kJ_kg,
-        lhv=lhv,
-        capacity=p.capacity_kJ_K,
-        ua_on=p.ua_amb_on_W_K / 1000.0,
-        ua_off=p.ua_amb_off_W_K / 1000.0,
-        a0=a0,
-        a1=a1,
-        b0=b0,
-        b1=b1,
-        m_h2o=st.m_h2o_kg,
-        latent=st.m_h2o_kg * k.DH_VAP_WATER,
-        v_dry0=v_dry0,
-        v_dry1=v_dry1,
-        v_h2o=st.m_h2o_kg / k.RHO_N_H2O,
-        v_o2_per_lambda=k.O2_AIR * st.air_min_m3,
-        v_co2=st.v_co2_m3,
-        v_so2=st.v_so2_m3,
-        fuel_nom_kg_h=p.p_max_kW * 3600.0 / lhv,
-        flow_nom_kg_h=p.nominal_flow_kg_h,
-        as_received_factor=p.fuel.as_received_per_kg_dry,
-        ignition_kW=p.w_el_Wh * 3.6 / p.startup_duration_s,
-    )
+    span = p.p_max_kW - p.p_min_kW
+    c = np.zeros(N_CONSTANTS)
+    c[K_HHV] = p.fuel.hhv_dry_kJ_kg
+    c[K_LHV] = lhv
+    c[K_CAP] = p.capacity_kJ_K
+    c[K_UA_ON] = p.ua_amb_on_W_K / 1000.0
+    c[K_UA_OFF] = p.ua_amb_off_W_K / 1000.0
+    c[K_A0], c[K_A1], c[K_B0], c[K_B1] = a0, a1, b0, b1
+    c[K_MH2O_CP] = st.m_h2o_kg * k.CP_VAPOUR
+    c[K_LATENT] = st.m_h2o_kg * k.DH_VAP_WATER
+    c[K_VDRY0] = v_dry0
+    c[K_VDRY1] = st.dry_volume_m3(1.0) - v_dry0
+    c[K_VH2O] = st.m_h2o_kg / k.RHO_N_H2O
+    c[K_VO2_PER_LAMBDA] = k.O2_AIR * st.air_min_m3
+    c[K_VCO2] = st.v_co2_m3
+    c[K_VSO2] = st.v_so2_m3
+    c[K_FUEL_NOM] = p.p_max_kW * 3600.0 / lhv
+    c[K_FLOW_NOM] = p.nominal_flow_kg_h
+    c[K_AS_RECEIVED] = p.fuel.as_received_per_kg_dry
+    c[K_IGNITION] = p.w_el_Wh * 3.6 / p.startup_duration_s
+    c[K_CHEM_PER_PPM] = 1e-6 * k.RHO_N_CO * k.DH_COMB_CO
+    c[K_INV_SPAN] = 1.0 / span if span > 0 else 0.0
+    c[K_PEL_SLOPE] = (p.p_el_max_W - p.p_el_min_W) / span if span > 0 else 0.0
+    c[K_P_MAX], c[K_P_MIN], c[K_P_START] = p.p_max_kW, p.p_min_kW, p.p_start_kW
+    c[K_DT_NOM], c[K_DT_HX_FG], c[K_DT_HX_WAT] = p.dt_nom_K, p.dt_hx_fg_K, p.dt_hx_wat_K
+    c[K_FAC_A], c[K_FAC_B] = p.fac_a_lambda, p.fac_b_lambda_h_kg
+    c[K_PEL_MIN], c[K_PEL_OFF] = p.p_el_min_W, p.p_el_off_W
+    c[K_SET], c[K_SHUTOFF], c[K_RESTART] = p.set_temp_C, p.shutoff_temp_C, p.restart_temp_C
+    c[K_STARTUP_S] = p.startup_duration_s
+    c[K_CO_PMIN], c[K_CO_PMAX] = p.co_ppm_at_p_min, p.co_ppm_at_p_max
+    c[K_CO_START], c[K_CO_STOP] = p.co_start_peak_ppm, p.co_stop_peak_ppm
+    c[K_CO_TAU] = p.co_transient_s
+    return c
 
 
-@dataclass(slots=True)
-class BoilerState:
-    """State of the boiler between steps.
+def new_state(t_boiler_C: float) -> np.ndarray:
+    """Boiler state array (layout ``S_*``): node at ``t_boiler_C``, switched off, no history."""
+    s = np.zeros(N_STATE)
+    s[S_T] = t_boiler_C
+    s[S_MODE] = OFF
+    s[S_SINCE_START] = math.inf
+    s[S_SINCE_STOP] = math.inf
+    return s
 
-    Attributes:
-        t_boiler_C: temperature of the node (water and structure) [C].
-        mode: controller mode (OFF, STARTUP, MODULATING, CUTOUT).
-        mode_time_s: time spent in the current mode [s].
-        firing_kW: firing power of the last step (net basis) [kW].
-        since_start_s / since_stop_s: time since the last ignition / stop [s].
-        fuel_dry_kg: dry fuel burnt so far [kg].
-        electric_Wh: electricity drawn so far [Wh].
-        starts: number of ignitions so far.
+
+def new_outputs() -> np.ndarray:
+    """An output array (layout ``Y_*``) to be filled by :func:`step`."""
+    return np.zeros(N_OUTPUTS)
+
+
+@njit(cache=True)
+def flue_gas_temperature(c, water_in_C, water_flow_kg_h, fuel_dry_kg_h):
+    """Flue-gas temperature while firing [C], Eq. 8 (empirical delta-T approach).
+
+    Args:
+        c: constants array; water_in_C: return temperature [C];
+        water_flow_kg_h: water flow [kg/h]; fuel_dry_kg_h: dry fuel flow [kg/h].
     """
-
-    t_boiler_C: float
-    mode: int = OFF
-    mode_time_s: float = 0.0
-    firing_kW: float = 0.0
-    since_start_s: float = _INF
-    since_stop_s: float = _INF
-    fuel_dry_kg: float = 0.0
-    electric_Wh: float = 0.0
-    starts: int = 0
-
-    def copy(self) -> BoilerState:
-        return BoilerState(
-            self.t_boiler_C,
-            self.mode,
-            self.mode_time_s,
-            self.firing_kW,
-            self.since_start_s,
-            self.since_stop_s,
-            self.fuel_dry_kg,
-            self.electric_Wh,
-            self.starts,
-        )
-
-
-@dataclass(slots=True)
-class BoilerOutputs:
-    """Everything the instruments and the analysis need from one step.
-
-    Temperatures are end-of-step values [C]; heat flows are step means [kW].
-    """
-
-    t_boiler_C: float
-    t_out_C: float
-    t_flue_gas_C: float
-    mode: int
-    firing_kW: float
-    fuel_dry_kg_h: float
-    lambda_: float
-    o2_pct: float
-    co2_pct: float
-    so2_ppm: float
-    co_ppm: float
-    flue_gas_dry_kg_h: float
-    flue_gas_wet_m3n_h: float
-    q_fuel_kW: float
-    q_el_ign_kW: float
-    q_ash_kW: float
-    q_fg_sens_kW: float
-    q_fg_lat_kW: float
-    q_fg_chem_kW: float
-    q_hx_kW: float
-    q_water_kW: float
-    q_amb_kW: float
-    q_stored_kW: float
-    p_el_W: float
-
-    @property
-    def balance_residual_kW(self) -> float:
-        """Inputs less outputs of the energy balance [kW]; zero to rounding."""
-        return (
-            self.q_fuel_kW
-            + self.q_el_ign_kW
-            - self.q_ash_kW
-            - self.q_fg_sens_kW
-            - self.q_fg_lat_kW
-            - self.q_fg_chem_kW
-            - self.q_water_kW
-            - self.q_amb_kW
-            - self.q_stored_kW
-        )
-
-
-def flue_gas_temperature(
-    p: BoilerParams, c: BoilerCoefficients, water_in_C: float, water_flow_kg_h: float,
-    fuel_dry_kg_h: float,
-) -> float:
-    """Flue-gas temperature while firing [C], Eq. 8 (empirical delta-T approach)."""
     return (
         water_in_C
-        + p.dt_nom_K
-        + p.dt_hx_fg_K * (1.0 - fuel_dry_kg_h / c.fuel_nom_kg_h)
-        + p.dt_hx_wat_K * (1.0 - water_flow_kg_h / c.flow_nom_kg_h)
+        + c[K_DT_NOM]
+        + c[K_DT_HX_FG] * (1.0 - fuel_dry_kg_h / c[K_FUEL_NOM])
+        + c[K_DT_HX_WAT] * (1.0 - water_flow_kg_h / c[K_FLOW_NOM])
     )
 
 
-def _fuel_for_heat(
-    p: BoilerParams, c: BoilerCoefficients, q_hx_kW: float, dt_fg_K: float, chem_per_kg: float
-) -> float:
+@njit(cache=True)
+def excess_air(c, fuel_dry_kg_h):
+    """Excess-air ratio [-], Eq. 9: lambda = facA + facB m_fuel,dry [kg/h]."""
+    return c[K_FAC_A] + c[K_FAC_B] * fuel_dry_kg_h
+
+
+@njit(cache=True)
+def co_stationary_ppm(c, firing_kW):
+    """CO in the dry flue gas in stationary firing [ppm].
+
+    Not part of Type 869; the chemical loss (Eq. 6) needs a CO level and the analyser shows
+    one. Assumption (ours, typical of small pellet boilers): linear from ``co_ppm_at_p_min``
+    at Pmin to ``co_ppm_at_p_max`` at Pmax. Each ignition adds ``co_start_peak_ppm`` and each
+    stop leaves a burn-out peak ``co_stop_peak_ppm``, both decaying with ``co_transient_s``
+    (in :func:`step`).
+    """
+    x = (firing_kW - c[K_P_MIN]) * c[K_INV_SPAN]
+    x = min(max(x, 0.0), 1.0)
+    return c[K_CO_PMIN] + (c[K_CO_PMAX] - c[K_CO_PMIN]) * x
+
+
+@njit(cache=True)
+def flue_gas_loss_per_kg(c, lam, t_fg_C, room_C, co_ppm):
+    """Flue-gas losses per kg of dry fuel [kJ/kg]: (sensible, latent, chemical), Eq. 4-6."""
+    sens = (c[K_B0] + c[K_B1] * lam + c[K_MH2O_CP]) * (t_fg_C - room_C)
+    chem = co_ppm * (c[K_VDRY0] + c[K_VDRY1] * lam) * c[K_CHEM_PER_PPM]
+    return sens, c[K_LATENT], chem
+
+
+@njit(cache=True)
+def fuel_for_heat(c, q_hx_kW, dt_fg_K, chem_per_kg):
     """Dry fuel flow [kg/h] whose combustion delivers ``q_hx_kW`` to the exchanger.
 
+    With lambda linear in the fuel flow x (Eq. 9) the balance Eq. 1 is quadratic in x:
     Q_hx 3600 = x (HHV (1 - ash) - (b0 + b1 facA + m_H2O cp_v) dT - latent - chem)
-                - b1 facB dT x^2, solved for x (the root that tends to q/beta).
+    - b1 facB dT x^2; the root that tends to Q_hx 3600 / beta is taken.
     """
     beta = (
-        c.hhv * (1.0 - k.ASH_LOSS_FRACTION)
-        - (c.b0 + c.b1 * p.fac_a_lambda + c.m_h2o * k.CP_VAPOUR) * dt_fg_K
-        - c.latent
+        c[K_HHV] * (1.0 - _ASH)
+        - (c[K_B0] + c[K_B1] * c[K_FAC_A] + c[K_MH2O_CP]) * dt_fg_K
+        - c[K_LATENT]
         - chem_per_kg
     )
-    gamma = c.b1 * p.fac_b_lambda_h_kg * dt_fg_K
+    gamma = c[K_B1] * c[K_FAC_B] * dt_fg_K
     q = q_hx_kW * 3600.0
     disc = beta * beta - 4.0 * gamma * q
     if disc <= 0.0 or beta <= 0.0:
-        return c.fuel_nom_kg_h
+        return c[K_FUEL_NOM]
     return 2.0 * q / (beta + math.sqrt(disc))
 
 
-def step(
-    p: BoilerParams,
-    c: BoilerCoefficients,
-    s: BoilerState,
-    water_flow_kg_h: float,
-    water_in_C: float,
-    room_C: float,
-    enabled: bool,
-    dt_s: float,
-) -> tuple[BoilerState, BoilerOutputs]:
-    """Advance the boiler by ``dt_s`` seconds with inputs held constant over the step.
+@njit(cache=True)
+def node_exact(t0_C, q_in_kW, m_cp_kW_K, water_in_C, ua_kW_K, room_C, cap_kJ_K, dt_s):
+    """Exact solution of the node equation (Eq. 2, 7, 10) over a step with held inputs.
+
+    C dT/dt = Q_in - m cp (T - T_in) - UA (T - T_room)  is linear in T, so
+    T(dt) = T_eq + (T0 - T_eq) exp(-b dt / C), b = m cp + UA, T_eq = (Q_in + m cp T_in +
+    UA T_room) / b. Returns (T at the end [C], mean T over the step [C]).
+    """
+    b = m_cp_kW_K + ua_kW_K
+    decay = math.exp(-b * dt_s / cap_kJ_K)
+    t_eq = (q_in_kW + m_cp_kW_K * water_in_C + ua_kW_K * room_C) / b
+    t1 = t_eq + (t0_C - t_eq) * decay
+    t_mean = t_eq + (t0_C - t_eq) * (1.0 - decay) * cap_kJ_K / (b * dt_s)
+    return t1, t_mean
+
+
+@njit(cache=True)
+def controller_mode(c, mode, mode_time_s, t_boiler_C, enabled):
+    """Next controller mode from the current one and the node temperature.
+
+    Off when not enabled; on enabling it starts unless the water is already at the set
+    temperature; start-up lasts ``startup_duration_s``; firing stops at or above the shut-off
+    temperature (cut-out) and starts again at or below the restart temperature.
+    """
+    if not enabled:
+        return OFF
+    if mode == OFF:
+        return STARTUP if t_boiler_C < c[K_SET] else CUTOUT
+    if mode == CUTOUT:
+        return STARTUP if t_boiler_C <= c[K_RESTART] else CUTOUT
+    if t_boiler_C >= c[K_SHUTOFF]:
+        return CUTOUT
+    if mode == STARTUP and mode_time_s >= c[K_STARTUP_S]:
+        return MODULATING
+    return mode
+
+
+@njit(cache=True)
+def step(c, s, water_flow_kg_h, water_in_C, room_C, enabled, dt_s, y):
+    """Advance the boiler by ``dt_s`` seconds with inputs held over the step.
 
     Args:
-        p, c: parameters and their derived coefficients.
-        s: state at the start of the step (not modified).
-        water_flow_kg_h: water mass flow through the boiler [kg/h].
-        water_in_C: return (inlet) water temperature [C].
-        room_C: room air temperature [C].
-        enabled: external on/off command of the bench.
-        dt_s: step length [s].
-
-    Returns:
-        The state at the end of the step and the step's outputs.
+        c: constants (:func:`pack_constants`); s: state (layout ``S_*``), updated in place.
+        water_flow_kg_h: water flow through the boiler [kg/h].
+        water_in_C: return (inlet) temperature [C]; room_C: room temperature [C].
+        enabled: external on/off command of the bench; dt_s: step length [s].
+        y: output array (layout ``Y_*``), filled in place.
     """
-    t0 = s.t_boiler_C
-    mode = s.mode
-    mode_time = s.mode_time_s
-    since_start = s.since_start_s
-    since_stop = s.since_stop_s
-    starts = s.starts
-    was_firing = mode == STARTUP or mode == MODULATING
-
-    # --- controller: mode transitions on the state at the start of the step
-    if not enabled:
-        new_mode = OFF
-    elif mode == OFF:
-        new_mode = STARTUP if t0 < p.set_temp_C else CUTOUT
-    elif mode == CUTOUT:
-        new_mode = STARTUP if t0 <= p.restart_temp_C else CUTOUT
-    elif t0 >= p.shutoff_temp_C:
-        new_mode = CUTOUT
-    elif mode == STARTUP and mode_time >= p.startup_duration_s:
-        new_mode = MODULATING
-    else:
-        new_mode = mode
+    t0 = s[S_T]
+    mode = int(s[S_MODE])
+    new_mode = controller_mode(c, mode, s[S_MODE_TIME], t0, enabled)
     if new_mode != mode:
-        mode_time = 0.0
+        s[S_MODE_TIME] = 0.0
         if new_mode == STARTUP:
-            since_start = 0.0
-            starts += 1
-        elif was_firing and new_mode in (OFF, CUTOUT):
-            since_stop = 0.0
-    mode = new_mode
+            s[S_SINCE_START] = 0.0
+            s[S_STARTS] += 1.0
+        elif mode == STARTUP or mode == MODULATING:
+            s[S_SINCE_STOP] = 0.0
+        mode = new_mode
     firing = mode == STARTUP or mode == MODULATING
+    m_cp = water_flow_kg_h * _CP_W_KWH
+    cap = c[K_CAP]
 
-    m_cp = water_flow_kg_h * k.CP_WATER / 3600.0  # [kW/K]
-    ua = c.ua_on if firing else c.ua_off
-    b = m_cp + ua
-    cap = c.capacity
-    decay = math.exp(-b * dt_s / cap)
-    q_ign = c.ignition_kW if mode == STARTUP else 0.0
-
-    # --- firing power
     if firing:
-        dt_fg = flue_gas_temperature(p, c, water_in_C, water_flow_kg_h, s.firing_kW) - room_C
+        ua = c[K_UA_ON]
+        co_start = c[K_CO_START] * math.exp(-s[S_SINCE_START] / c[K_CO_TAU])
         if mode == STARTUP:
-            firing_kW = p.p_start_kW
+            q_ign = c[K_IGNITION]
+            firing_kW = c[K_P_START]
         else:
-            # heat that brings the node to the set temperature by the end of the step
-            t_eq = (p.set_temp_C - t0 * decay) / (1.0 - decay)
-            q_req = b * t_eq - m_cp * water_in_C - ua * room_C - q_ign
-            x_prev = s.firing_kW * 3600.0 / c.lhv
-            co_prev = co_ppm(
-                s.firing_kW, p.p_min_kW, p.p_max_kW, p.co_ppm_at_p_min, p.co_ppm_at_p_max,
-                p.co_start_peak_ppm, p.co_stop_peak_ppm, p.co_transient_s, since_start,
-                since_stop,
-            )
-            lam_prev = p.fac_a_lambda + p.fac_b_lambda_h_kg * x_prev
-            chem = co_prev * 1e-6 * (c.v_dry0 + c.v_dry1 * lam_prev) * k.RHO_N_CO * k.DH_COMB_CO
-            x = _fuel_for_heat(p, c, max(q_req, 0.0), dt_fg, chem)
-            firing_kW = min(max(x * c.lhv / 3600.0, p.p_min_kW), p.p_max_kW)
-        fuel_kg_h = firing_kW * 3600.0 / c.lhv
-        t_fg = flue_gas_temperature(p, c, water_in_C, water_flow_kg_h, fuel_kg_h)
-        lam = p.fac_a_lambda + p.fac_b_lambda_h_kg * fuel_kg_h
-        co = co_ppm(
-            firing_kW, p.p_min_kW, p.p_max_kW, p.co_ppm_at_p_min, p.co_ppm_at_p_max,
-            p.co_start_peak_ppm, p.co_stop_peak_ppm, p.co_transient_s, since_start, since_stop,
-        )
-        v_dry = c.v_dry0 + c.v_dry1 * lam
-        per_h = fuel_kg_h / 3600.0
-        q_fuel = per_h * c.hhv
-        q_ash = k.ASH_LOSS_FRACTION * q_fuel
-        dT = t_fg - room_C
-        q_sens = per_h * ((c.b0 + c.b1 * lam) + c.m_h2o * k.CP_VAPOUR) * dT
-        q_lat = per_h * c.latent
-        q_chem = per_h * co * 1e-6 * v_dry * k.RHO_N_CO * k.DH_COMB_CO
+            q_ign = 0.0
+            # heat to the exchanger that brings the node to the set point by the step's end
+            b = m_cp + ua
+            decay = math.exp(-b * dt_s / cap)
+            t_eq = (c[K_SET] - t0 * decay) / (1.0 - decay)
+            q_req = max(b * t_eq - m_cp * water_in_C - ua * room_C, 0.0)
+            # losses evaluated at the previous firing power (one fixed-point pass)
+            x_prev = s[S_FIRING] * 3600.0 / c[K_LHV]
+            lam_prev = excess_air(c, x_prev)
+            co_prev = co_stationary_ppm(c, s[S_FIRING]) + co_start
+            t_fg_prev = flue_gas_temperature(c, water_in_C, water_flow_kg_h, x_prev)
+            chem_prev = flue_gas_loss_per_kg(c, lam_prev, t_fg_prev, room_C, co_prev)[2]
+            x = fuel_for_heat(c, q_req, t_fg_prev - room_C, chem_prev)
+            firing_kW = min(max(x * c[K_LHV] / 3600.0, c[K_P_MIN]), c[K_P_MAX])
+        fuel = firing_kW * 3600.0 / c[K_LHV]
+        t_fg = flue_gas_temperature(c, water_in_C, water_flow_kg_h, fuel)
+        lam = excess_air(c, fuel)
+        co = co_stationary_ppm(c, firing_kW) + co_start
+        sens, lat, chem = flue_gas_loss_per_kg(c, lam, t_fg, room_C, co)
+        per_s = fuel / 3600.0
+        q_fuel = per_s * c[K_HHV]
+        q_ash = _ASH * q_fuel
+        q_sens = per_s * sens
+        q_lat = per_s * lat
+        q_chem = per_s * chem
         q_hx = q_fuel - q_ash - q_sens - q_lat - q_chem
-        o2 = 100.0 * c.v_o2_per_lambda * (lam - 1.0) / v_dry
-        co2 = 100.0 * c.v_co2 / v_dry
-        so2 = 1e6 * c.v_so2 / v_dry
-        fg_dry = fuel_kg_h * (c.a0 + c.a1 * lam)
-        fg_wet = fuel_kg_h * (v_dry + c.v_h2o)
-        span = p.p_max_kW - p.p_min_kW
-        frac = (firing_kW - p.p_min_kW) / span if span > 0 else 1.0
-        p_el = p.p_el_min_W + (p.p_el_max_W - p.p_el_min_W) * frac + q_ign * 1000.0
+        v_dry = c[K_VDRY0] + c[K_VDRY1] * lam
+        y[Y_O2] = 100.0 * c[K_VO2_PER_LAMBDA] * (lam - 1.0) / v_dry
+        y[Y_CO2] = 100.0 * c[K_VCO2] / v_dry
+        y[Y_SO2] = 1e6 * c[K_VSO2] / v_dry
+        y[Y_FG_DRY] = fuel * (c[K_A0] + c[K_A1] * lam)
+        y[Y_FG_WET] = fuel * (v_dry + c[K_VH2O])
+        p_el = c[K_PEL_MIN] + c[K_PEL_SLOPE] * (firing_kW - c[K_P_MIN]) + q_ign * 1000.0
     else:
-        firing_kW = fuel_kg_h = q_fuel = q_ash = q_sens = q_lat = q_chem = q_hx = 0.0
-        lam = _INF
-        o2, co2, so2 = k.O2_AMBIENT_PCT, k.CO2_AMBIENT_PCT, 0.0
-        co = co_ppm(
-            0.0, p.p_min_kW, p.p_max_kW, p.co_ppm_at_p_min, p.co_ppm_at_p_max,
-            p.co_start_peak_ppm, p.co_stop_peak_ppm, p.co_transient_s, since_start, since_stop,
-        )
-        fg_dry = fg_wet = 0.0
-        p_el = p.p_el_off_W
-        t_fg = _INF  # set below from the node temperature
+        ua = c[K_UA_OFF]
+        q_ign = firing_kW = fuel = q_fuel = q_ash = q_sens = q_lat = q_chem = q_hx = 0.0
+        lam = math.inf
+        co = c[K_CO_STOP] * math.exp(-s[S_SINCE_STOP] / c[K_CO_TAU])
+        y[Y_O2] = k.O2_AMBIENT_PCT
+        y[Y_CO2] = k.CO2_AMBIENT_PCT
+        y[Y_SO2] = 0.0
+        y[Y_FG_DRY] = 0.0
+        y[Y_FG_WET] = 0.0
+        p_el = c[K_PEL_OFF]
+        t_fg = 0.0  # set below: the node temperature
 
-    # --- exact solution of the linear node equation over the step
-    a = q_hx + q_ign + m_cp * water_in_C + ua * room_C
-    t_eq = a / b
-    t1 = t_eq + (t0 - t_eq) * decay
-    # step mean of T: integral of the exponential over the step
-    t_mean = t_eq + (t0 - t_eq) * (1.0 - decay) * cap / (b * dt_s)
-    q_water = m_cp * (t_mean - water_in_C)
-    q_amb = ua * (t_mean - room_C)
-    q_stored = cap * (t1 - t0) / dt_s
+    t1, t_mean = node_exact(t0, q_hx + q_ign, m_cp, water_in_C, ua, room_C, cap, dt_s)
     if not firing:
         t_fg = t1
 
-    new_state = BoilerState(
-        t_boiler_C=t1,
-        mode=mode,
-        mode_time_s=mode_time + dt_s,
-        firing_kW=firing_kW,
-        since_start_s=since_start + dt_s,
-        since_stop_s=since_stop + dt_s,
-        fuel_dry_kg=s.fuel_dry_kg + fuel_kg_h * dt_s / 3600.0,
-        electric_Wh=s.electric_Wh + p_el * dt_s / 3600.0,
-        starts=starts,
+    s[S_T] = t1
+    s[S_MODE] = mode
+    s[S_MODE_TIME] += dt_s
+    s[S_FIRING] = firing_kW
+    s[S_SINCE_START] += dt_s
+    s[S_SINCE_STOP] += dt_s
+    s[S_FUEL] += fuel * dt_s / 3600.0
+    s[S_ELECTRIC] += p_el * dt_s / 3600.0
+
+    y[Y_T_BOILER] = t1
+    y[Y_T_OUT] = t1
+    y[Y_T_FG] = t_fg
+    y[Y_MODE] = mode
+    y[Y_FIRING] = firing_kW
+    y[Y_FUEL] = fuel
+    y[Y_LAMBDA] = lam
+    y[Y_CO] = co
+    y[Y_Q_FUEL] = q_fuel
+    y[Y_Q_IGN] = q_ign
+    y[Y_Q_ASH] = q_ash
+    y[Y_Q_SENS] = q_sens
+    y[Y_Q_LAT] = q_lat
+    y[Y_Q_CHEM] = q_chem
+    y[Y_Q_HX] = q_hx
+    y[Y_Q_WATER] = m_cp * (t_mean - water_in_C)
+    y[Y_Q_AMB] = ua * (t_mean - room_C)
+    y[Y_Q_STORED] = cap * (t1 - t0) / dt_s
+    y[Y_P_EL] = p_el
+
+
+def balance_residual_kW(y: np.ndarray) -> float:
+    """Inputs less outputs of the energy balance of one step's outputs [kW]."""
+    return float(
+        y[Y_Q_FUEL]
+        + y[Y_Q_IGN]
+        - y[Y_Q_ASH]
+        - y[Y_Q_SENS]
+        - y[Y_Q_LAT]
+        - y[Y_Q_CHEM]
+        - y[Y_Q_WATER]
+        - y[Y_Q_AMB]
+        - y[Y_Q_STORED]
     )
-    out = BoilerOutputs(
-        t_boiler_C=t1,
-        t_out_C=t1,
-        t_flue_gas_C=t_fg,
-        mode=mode,
-        firing_kW=firing_kW,
-        fuel_dry_kg_h=fuel_kg_h,
-        lambda_=lam,
-        o2_pct=o2,
-        co2_pct=co2,
-        so2_ppm=so2,
-        co_ppm=co,
-        flue_gas_dry_kg_h=fg_dry,
-        flue_gas_wet_m3n_h=fg_wet,
-        q_fuel_kW=q_fuel,
-        q_el_ign_kW=q_ign,
-        q_ash_kW=q_ash,
-        q_fg_sens_kW=q_sens,
-        q_fg_lat_kW=q_lat,
-        q_fg_chem_kW=q_chem,
-        q_hx_kW=q_hx,
-        q_water_kW=q_water,
-        q_amb_kW=q_amb,
-        q_stored_kW=q_stored,
-        p_el_W=p_el,
-    )
-    return new_state, out

@@ -143,14 +143,3 @@ def stoichiometry(fuel: Fuel) -> Stoichiometry:
         v_n2_fuel_m3=0.8 * fuel.n,
         m_h2o_kg=8.937 * fuel.h + fuel.water_per_kg_dry,
     )
-
-
-def excess_air_ratio(fac_a: float, fac_b_h_kg: float, fuel_dry_kg_h: float) -> float:
-    """Excess-air ratio from the dry fuel flow (Eq. 9): lambda = facA + facB m_fuel,dry.
-
-    Args:
-        fac_a: facA,lam [-].
-        fac_b_h_kg: facB,lam [h/kg].
-        fuel_dry_kg_h: dry fuel mass flow [kg/h].
-    """
-    return fac_a + fac_b_h_kg * fuel_dry_kg_h

@@ -78,7 +78,7 @@ class BoilerParams:
         fuel: the fuel burnt.
         set_temp_C, shutoff_temp_C, restart_temp_C: controller temperatures [C].
         startup_duration_s: duration of the start-up at Pstart [s].
-        co_*: parameters of the CO model (:mod:`rig_emulator.model.emissions`).
+        co_*: parameters of the CO model (:func:`rig_emulator.model.boiler.co_stationary_ppm`).
     """
 
     name: str
@@ -148,7 +148,9 @@ def params_from_mapping(data: Any, source: str = "<parameters>") -> BoilerParams
             message names ``source`` and the key.
     """
     if not isinstance(data, Mapping):
-        raise ParameterError(f"{source}: expected a mapping of parameters, got {type(data).__name__}")
+        raise ParameterError(
+            f"{source}: expected a mapping of parameters, got {type(data).__name__}"
+        )
     for key in REQUIRED_KEYS:
         if key not in data:
             raise ParameterError(f"{source}: missing required key '{key}'")
@@ -217,8 +219,12 @@ def params_from_mapping(data: Any, source: str = "<parameters>") -> BoilerParams
         raise ParameterError(
             f"{source}: keys 'restart_temp_C' < 'set_temp_C' < 'shutoff_temp_C' must hold"
         )
-    lam_max = params.fac_a_lambda + params.fac_b_lambda_h_kg * _dry_fuel_kg_h(params, params.p_max_kW)
-    lam_min = params.fac_a_lambda + params.fac_b_lambda_h_kg * _dry_fuel_kg_h(params, params.p_min_kW)
+    lam_max = params.fac_a_lambda + params.fac_b_lambda_h_kg * _dry_fuel_kg_h(
+        params, params.p_max_kW
+    )
+    lam_min = params.fac_a_lambda + params.fac_b_lambda_h_kg * _dry_fuel_kg_h(
+        params, params.p_min_kW
+    )
     if min(lam_max, lam_min) <= 1.0:
         raise ParameterError(
             f"{source}: keys 'fac_a_lambda'/'fac_b_lambda_h_kg' give lambda <= 1 in the "

@@ -14,12 +14,17 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
 from scipy.optimize import brentq
 
 from rig_emulator.model import constants as k
-from rig_emulator.model.boiler import BoilerCoefficients, flue_gas_temperature
-from rig_emulator.model.emissions import co_ppm
-from rig_emulator.model.params import BoilerParams
+from rig_emulator.model.boiler import (
+    co_stationary_ppm,
+    excess_air,
+    flue_gas_loss_per_kg,
+    flue_gas_temperature,
+)
+from rig_emulator.model.layout import K_HHV, K_LHV, K_P_MAX, K_P_MIN, K_SET, K_UA_ON
 
 
 @dataclass(frozen=True, slots=True)
@@ -38,52 +43,42 @@ class SteadyState:
 
 
 def exchanger_heat(
-    p: BoilerParams, c: BoilerCoefficients, firing_kW: float, flow_kg_h: float, t_in_C: float,
-    room_C: float,
+    c: np.ndarray, firing_kW: float, flow_kg_h: float, t_in_C: float, room_C: float
 ) -> tuple[float, float, float, float]:
-    """(Q_hx, Q_fuel, flue-gas loss [kW], T_fg [C]) in stationary firing (no start transient)."""
-    x = firing_kW * 3600.0 / c.lhv
-    lam = p.fac_a_lambda + p.fac_b_lambda_h_kg * x
-    t_fg = flue_gas_temperature(p, c, t_in_C, flow_kg_h, x)
-    co = co_ppm(
-        firing_kW, p.p_min_kW, p.p_max_kW, p.co_ppm_at_p_min, p.co_ppm_at_p_max, 0.0, 0.0,
-        p.co_transient_s, float("inf"), float("inf"),
-    )
-    per_h = x / 3600.0
-    q_fuel = per_h * c.hhv
-    sens = ((c.b0 + c.b1 * lam) + c.m_h2o * k.CP_VAPOUR) * (t_fg - room_C)
-    chem = co * 1e-6 * (c.v_dry0 + c.v_dry1 * lam) * k.RHO_N_CO * k.DH_COMB_CO
-    q_fg = per_h * (sens + c.latent + chem)
+    """(Q_hx, Q_fuel, flue-gas loss [kW], T_fg [C]) in stationary firing (Eq. 1, 3-6, 8, 9)."""
+    x = firing_kW * 3600.0 / c[K_LHV]
+    lam = excess_air(c, x)
+    t_fg = flue_gas_temperature(c, t_in_C, flow_kg_h, x)
+    sens, lat, chem = flue_gas_loss_per_kg(c, lam, t_fg, room_C, co_stationary_ppm(c, firing_kW))
+    q_fuel = x / 3600.0 * c[K_HHV]
+    q_fg = x / 3600.0 * (sens + lat + chem)
     q_hx = q_fuel * (1.0 - k.ASH_LOSS_FRACTION) - q_fg
     return q_hx, q_fuel, q_fg, t_fg
 
 
-def steady_state(
-    p: BoilerParams, c: BoilerCoefficients, flow_kg_h: float, t_in_C: float, room_C: float
-) -> SteadyState:
-    """Steady state of the firing boiler for a held flow [kg/h], return and room [C]."""
+def steady_state(c: np.ndarray, flow_kg_h: float, t_in_C: float, room_C: float) -> SteadyState:
+    """Steady state of the firing boiler (constants ``c`` of ``pack_constants``) for a held
+    flow [kg/h], return and room temperature [C]."""
     m_cp = flow_kg_h * k.CP_WATER / 3600.0
-    ua = c.ua_on
-
-    def need(t: float) -> float:
-        return m_cp * (t - t_in_C) + ua * (t - room_C)
+    ua = c[K_UA_ON]
+    p_min, p_max = c[K_P_MIN], c[K_P_MAX]
+    q_set = m_cp * (c[K_SET] - t_in_C) + ua * (c[K_SET] - room_C)
 
     def hx(power: float) -> float:
-        return exchanger_heat(p, c, power, flow_kg_h, t_in_C, room_C)[0]
+        return exchanger_heat(c, power, flow_kg_h, t_in_C, room_C)[0]
 
-    q_set = need(p.set_temp_C)
-    if hx(p.p_min_kW) >= q_set:
-        power = p.p_min_kW
-    elif hx(p.p_max_kW) <= q_set:
-        power = p.p_max_kW
+    if hx(p_min) >= q_set:
+        power = p_min
+    elif hx(p_max) <= q_set:
+        power = p_max
     else:
-        power = brentq(lambda w: hx(w) - q_set, p.p_min_kW, p.p_max_kW, xtol=1e-12)
-    q_hx, q_fuel, q_fg, t_fg = exchanger_heat(p, c, power, flow_kg_h, t_in_C, room_C)
+        power = brentq(lambda w: hx(w) - q_set, p_min, p_max, xtol=1e-12)
+    q_hx, q_fuel, q_fg, t_fg = exchanger_heat(c, power, flow_kg_h, t_in_C, room_C)
     t = (q_hx + m_cp * t_in_C + ua * room_C) / (m_cp + ua)
     return SteadyState(
         t_boiler_C=t,
         firing_kW=power,
-        fuel_dry_kg_h=power * 3600.0 / c.lhv,
+        fuel_dry_kg_h=power * 3600.0 / c[K_LHV],
         t_flue_gas_C=t_fg,
         q_fuel_kW=q_fuel,
         q_hx_kW=q_hx,
