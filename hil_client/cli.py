@@ -19,21 +19,13 @@ from hil_client.protocol.runner import run_protocol
 from hil_client.rigs.local import PROFILES, LocalRig
 from hil_client.summary import RunSummary
 from rig_emulator.boilers import load_boiler
+from rig_emulator.cli_support import Parser, UsageError, report
 from rig_emulator.model.params import ParameterError
 
 
-class UsageError(Exception):
-    """Bad usage or input: reported on one line, exit code 2."""
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # one line, exit 2 (argparse's own convention)
-        raise UsageError(f"{self.prog}: {message}")
-
-
 def _build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="hil-client", description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    parser = Parser(prog="hil-client", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     run = sub.add_parser(
         "run",
         help="play a test method on a rig and write the lab log",
@@ -126,13 +118,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_run(args)
         raise UsageError(f"unknown command {args.command}")
     except UsageError as exc:
-        print(
-            f"hil-client: error: {exc}"
-            if not str(exc).startswith("hil-client")
-            else f"{str(exc).split(': ', 1)[0]}: error: {str(exc).split(': ', 1)[1]}",
-            file=sys.stderr,
-        )
-        return 2
+        return report(exc, "hil-client")
     except KeyboardInterrupt:
         print("hil-client: interrupted; the log keeps every row acquired", file=sys.stderr)
         return 1

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
 
 from hil_client.protocol.runner import LOG_COLUMNS, Row
 from rig_emulator.model.constants import CP_WATER
 
-_INDEX = {name: i for i, name in enumerate(LOG_COLUMNS)}
+_I = {name: i for i, name in enumerate(LOG_COLUMNS)}
+_T, _PHASE, _MASS, _FLOW = _I["time_s"], _I["phase"], _I["balance_mass_kg"], _I["water_flow_kg_h"]
+_T_IN, _T_OUT, _T_BOILER = _I["water_in_temp_C"], _I["water_out_temp_C"], _I["boiler_water_temp_C"]
 
 
 @dataclass(slots=True)
@@ -36,23 +37,20 @@ class RunSummary:
     _mass_prev: float | None = None
 
     def __call__(self, row: Row) -> None:
-        def get(name: str) -> Any:
-            return row[_INDEX[name]]
-
-        t = float(get("time_s"))
+        t: float = row[_T]  # type: ignore[assignment]
         dt = t - self._t_prev
         self._t_prev = t
-        mass = float(get("balance_mass_kg"))
-        phase = str(get("phase"))
+        mass: float = row[_MASS]  # type: ignore[assignment]
+        phase: str = row[_PHASE]  # type: ignore[assignment]
         total = self.phases.get(phase)
         if total is None:
             total = self.phases[phase] = PhaseTotal()
             total.mass_start_kg = self._mass_prev if self._mass_prev is not None else mass
-        spread = float(get("water_out_temp_C")) - float(get("water_in_temp_C"))
+        spread = row[_T_OUT] - row[_T_IN]  # type: ignore[operator]
         total.duration_s += dt
-        total.heat_to_water_kWh += float(get("water_flow_kg_h")) * CP_WATER * spread * dt / 3600**2
+        total.heat_to_water_kWh += row[_FLOW] * CP_WATER * spread * dt / 3600**2  # type: ignore[operator]
         total.mass_end_kg = mass
-        total.t_boiler_end_C = float(get("boiler_water_temp_C"))
+        total.t_boiler_end_C = row[_T_BOILER]  # type: ignore[assignment]
         self._mass_prev = mass
 
     def table(self) -> str:

@@ -1,0 +1,86 @@
+"""``make bench``: speed and memory of the offline physics, printed (never asserted).
+
+Figures:
+- simulated seconds per wall second for the full load-cycle test (preheat, t0..t4, about
+  16.5 h at 1 s steps) played by the protocol runner on the in-process rig, median of
+  several runs, rows kept in memory (what calibration and diagnosis loops do);
+- the same with the lab log written to a CSV file (what ``hil-client run`` does);
+- the bare compiled bench step, for reference;
+- peak resident memory of the process.
+"""
+
+from __future__ import annotations
+
+import resource
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+from hil_client.lablog import LabLogWriter
+from hil_client.protocol.definition import load_protocol
+from hil_client.protocol.runner import run_protocol
+from hil_client.rigs.local import LocalRig
+from rig_emulator.bench import Bench
+from rig_emulator.boilers import load_boiler
+
+TARGET_X_REAL_TIME = 100_000  # issue 2: about 0.6 s for the whole test
+RUNS = 7
+
+
+def _offline_run(params, protocol, sink) -> float:
+    rig = LocalRig(params)
+    start = time.perf_counter()
+    result = run_protocol(protocol, params.p_nom_kW, rig, sink)
+    wall = time.perf_counter() - start
+    return result.duration_s / wall
+
+
+def main() -> int:
+    params = load_boiler("windhager_12kw")
+    protocol = load_protocol("load_cycle")
+    t = time.perf_counter()
+    _offline_run(params, protocol, lambda row: None)  # compile or load the numba cache
+    print(f"warm-up (numba compile or cache load + first run): {time.perf_counter() - t:.2f} s")
+
+    rows: list = []
+    speeds = [_offline_run(params, protocol, (rows.clear(), rows.append)[1]) for _ in range(RUNS)]
+    median = statistics.median(speeds)
+    print(
+        f"load cycle offline, rows in memory: median {median:,.0f} x real time over {RUNS} runs "
+        f"(min {min(speeds):,.0f}, max {max(speeds):,.0f}); "
+        f"{len(rows)} steps; target {TARGET_X_REAL_TIME:,}: "
+        f"ratio {median / TARGET_X_REAL_TIME:.2f}"
+    )
+    print(f"  whole test: {len(rows) / median:.3f} s wall per {len(rows) / 3600:.2f} h simulated")
+
+    with tempfile.TemporaryDirectory() as tmp:
+        csv_speeds = []
+        for _ in range(3):
+            with LabLogWriter(Path(tmp) / "lc.csv") as writer:
+                csv_speeds.append(_offline_run(params, protocol, writer))
+    print(
+        f"load cycle offline, CSV written and flushed per row: median "
+        f"{statistics.median(csv_speeds):,.0f} x real time over 3 runs"
+    )
+
+    bench = Bench(params)
+    bench.set_inputs(500.0, 55.0, True, True, False)
+    n = 200_000
+    step_times = []
+    for _ in range(5):
+        start = time.perf_counter()
+        for _ in range(n):
+            bench.step(1.0)
+        step_times.append((time.perf_counter() - start) / n)
+    print(
+        "bare bench step (boiler + loop, compiled): "
+        f"median {statistics.median(step_times) * 1e6:.2f} us"
+    )
+    peak_mib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"peak resident memory: {peak_mib:.0f} MiB (rows of one whole test kept in memory)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
