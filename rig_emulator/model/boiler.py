@@ -286,7 +286,10 @@ def controller_mode(c, mode, mode_time_s, t_boiler_C, enabled):
     """Next controller mode from the current one and the node temperature.
 
     Off when not enabled; on enabling it starts unless the water is already at the set
-    temperature; start-up lasts ``startup_duration_s``; firing stops at or above the shut-off
+    temperature; the start-up at Pstart lasts ``startup_duration_s`` or until the water
+    reaches the set temperature, whichever comes first (assumption: at part load a boiler
+    fired at Pmax for the whole start-up would overshoot to the cut-out, which the paper
+    reports only below the modulation range); firing stops at or above the shut-off
     temperature (cut-out) and starts again at or below the restart temperature.
     """
     if not enabled:
@@ -297,7 +300,7 @@ def controller_mode(c, mode, mode_time_s, t_boiler_C, enabled):
         return STARTUP if t_boiler_C <= c[K_RESTART] else CUTOUT
     if t_boiler_C >= c[K_SHUTOFF]:
         return CUTOUT
-    if mode == STARTUP and mode_time_s >= c[K_STARTUP_S]:
+    if mode == STARTUP and (mode_time_s >= c[K_STARTUP_S] or t_boiler_C >= c[K_SET]):
         return MODULATING
     return mode
 

@@ -1,0 +1,66 @@
+"""Parameter files: the shipped sets and the validation of broken ones."""
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from rig_emulator.boilers import BOILER_DIR, load_boiler
+from rig_emulator.model.params import REQUIRED_KEYS, ParameterError
+
+
+@pytest.mark.parametrize("name", ["windhager_6kw", "windhager_12kw"])
+def test_shipped_files_have_exactly_the_contract_keys(name):
+    data = yaml.safe_load((BOILER_DIR / f"{name}.yaml").read_text())
+    assert list(data) == list(REQUIRED_KEYS)
+    assert set(data["fuel"]) == {"hhv_dry_kJ_kg", "c", "h", "o", "n", "s", "ash", "moisture"}
+    assert load_boiler(name).name == name
+
+
+def test_table3_values(params_12kw):
+    p = params_12kw
+    # Table 3 of the paper, 12 kW column
+    assert (p.p_max_kW, p.p_min_kW, p.p_nom_kW, p.dt_nom_K) == (13.2, 4.4, 12.0, 97.0)
+    assert (p.ua_amb_off_W_K, p.ua_amb_on_W_K, p.w_el_Wh) == (2.90, 1.27, 126.0)
+    # digest section 1: node capacity 80 kJ/K structure + about 125 kJ/K water
+    assert p.capacity_kJ_K == pytest.approx(80 + 0.03 * 977.8 * 4.19)
+
+
+def _write(tmp_path: Path, mutate) -> Path:
+    data = yaml.safe_load((BOILER_DIR / "windhager_12kw.yaml").read_text())
+    mutate(data)
+    path = tmp_path / "broken.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+@pytest.mark.parametrize(
+    ("mutate", "message"),
+    [
+        (lambda d: d.pop("dt_nom_K"), "missing required key 'dt_nom_K'"),
+        (lambda d: d["fuel"].pop("moisture"), "missing required key 'fuel.moisture'"),
+        (lambda d: d.update(p_min_kW=20.0), "'p_min_kW' (20.0) exceeds 'p_max_kW'"),
+        (lambda d: d.update(c_therm_kJ_K=-5), "'c_therm_kJ_K' must be positive"),
+        (lambda d: d.update(ua_amb_on_W_K="high"), "'ua_amb_on_W_K' must be a number"),
+        (lambda d: d.update(bogus=1), "unknown key 'bogus'"),
+        (lambda d: d["fuel"].update(c=0.9), "fractions"),
+        (lambda d: d.update(fac_a_lambda=0.5), "lambda <= 1"),
+        (lambda d: d.update(restart_temp_C=90.0), "'restart_temp_C' < 'set_temp_C'"),
+    ],
+)
+def test_broken_files_name_the_key_and_file(tmp_path, mutate, message):
+    path = _write(tmp_path, mutate)
+    with pytest.raises(ParameterError) as info:
+        load_boiler(str(path))
+    assert message in str(info.value)
+    assert str(path) in str(info.value)
+    assert "\n" not in str(info.value)
+
+
+def test_not_yaml_and_unknown_name(tmp_path):
+    path = tmp_path / "bad.yaml"
+    path.write_text("name: [unclosed\n")
+    with pytest.raises(ParameterError, match="not valid YAML at line"):
+        load_boiler(str(path))
+    with pytest.raises(ParameterError, match="unknown boiler 'nope'"):
+        load_boiler("nope")
