@@ -1,0 +1,70 @@
+"""``hil-client`` as users call it: logs written, bad input refused with exit code 2."""
+
+import json
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+from hil_client.cli import main
+from hil_client.demo import main as demo_main
+
+
+@pytest.mark.parametrize("script", ["hil-client", "rig-emulator"])
+def test_console_scripts_answer_help(script):
+    exe = shutil.which(script) or str(__import__("pathlib").Path(sys.executable).with_name(script))
+    result = subprocess.run([exe, "--help"], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0
+    assert "usage:" in result.stdout
+
+
+def test_run_writes_log_and_meta(run_log):
+    rec = run_log("load_cycle", "windhager_6kw")
+    meta = rec.meta
+    assert meta["boiler"] == "windhager_6kw" and meta["test"] == "load_cycle"
+    assert all(isinstance(meta[f"t{i}_s"], float) for i in range(5))
+    assert meta["t0_s"] < meta["t1_s"] < meta["t2_s"] < meta["t3_s"] < meta["t4_s"]
+    # every column has a value in every row for a clean local run; the sequence only
+    # exists during the test phase
+    for name, values in rec.columns.items():
+        if name != "sequence":
+            assert None not in values, name
+    in_test = [s for s, ph in zip(rec["sequence"], rec["phase"], strict=True) if ph == "test"]
+    assert None not in in_test and in_test[0] == "peak" and in_test[-1] == "stationary_13"
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["run", "load_cycle", "--boiler", "nope"], "unknown boiler 'nope'"),
+        (["run", "nope", "--boiler", "windhager_12kw"], "unknown protocol 'nope'"),
+        (["run", "load_cycle", "--boiler", "windhager_12kw", "--profile", "x"], "--profile"),
+        (["run", "load_cycle", "--boiler", "windhager_12kw", "--rig", "tcp:1"], "--rig"),
+        (["bogus"], "invalid choice"),
+    ],
+)
+def test_bad_input_exit_2_one_line_nothing_written(tmp_path, capsys, args, message):
+    out = tmp_path / "x.csv"
+    code = main([*args, "--out", str(out)] if args[0] == "run" else args)
+    err = capsys.readouterr().err
+    assert code == 2
+    assert message in err and err.count("\n") == 1 and "Traceback" not in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_broken_parameter_file_is_refused_before_any_work(tmp_path, capsys):
+    bad = tmp_path / "boiler.yaml"
+    bad.write_text("name: x\np_nom_kW: 12\n")
+    out = tmp_path / "log.csv"
+    assert main(["run", "stationary", "--boiler", str(bad), "--out", str(out)]) == 2
+    assert "missing required key 'p_max_kW'" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_demo_writes_the_load_cycle(tmp_path, capsys):
+    assert demo_main([str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "demo results in" in out
+    meta = json.loads((tmp_path / "load_cycle.meta.json").read_text())
+    assert meta["test"] == "load_cycle" and meta["t4_s"] > meta["t2_s"]
