@@ -23,13 +23,14 @@ from hil_client.protocol.runner import run_protocol
 from hil_client.rigs.local import LocalRig
 from rig_emulator.bench import Bench
 from rig_emulator.boilers import load_boiler
+from rig_emulator.instruments import load_profile
 
 TARGET_X_REAL_TIME = 100_000  # issue 2: about 0.6 s for the whole test
 RUNS = 7
 
 
 def _offline_run(params, protocol, sink) -> float:
-    rig = LocalRig(params)
+    rig = LocalRig(params, load_profile("clean"))
     start = time.perf_counter()
     result = run_protocol(protocol, params.p_nom_kW, rig, sink)
     wall = time.perf_counter() - start

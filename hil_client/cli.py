@@ -16,10 +16,11 @@ from hil_client.lablog import LabLogWriter, write_meta
 from hil_client.progress import ProgressLine
 from hil_client.protocol.definition import ProtocolError, load_protocol
 from hil_client.protocol.runner import run_protocol
-from hil_client.rigs.local import PROFILES, LocalRig
+from hil_client.rigs.local import LocalRig
 from hil_client.summary import RunSummary
 from rig_emulator.boilers import load_boiler
 from rig_emulator.cli_support import Parser, UsageError, report
+from rig_emulator.instruments import ProfileError, load_profile
 from rig_emulator.model.params import ParameterError
 
 
@@ -56,15 +57,17 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise UsageError(str(exc)) from None
     if args.rig != "local":
         raise UsageError(f"--rig: unsupported rig '{args.rig}' (available: local)")
-    if args.profile not in PROFILES:
-        raise UsageError(f"--profile: unknown profile '{args.profile}' (available: clean)")
+    try:
+        profile = load_profile(args.profile)
+    except ProfileError as exc:
+        raise UsageError(f"--profile: {exc}") from None
     out: Path = args.out
     if out.suffix.lower() != ".csv":
         raise UsageError(f"--out: '{out}' must name a .csv file")
     if out.exists() and out.is_dir():
         raise UsageError(f"--out: '{out}' is a directory")
 
-    rig = LocalRig(params, profile=args.profile, seed=args.seed)
+    rig = LocalRig(params, profile, seed=args.seed)
     summary = RunSummary()
     expected = protocol.test_duration_s + protocol.cooling_2_until_after_t2_s + 2 * 3600
     show = not args.quiet and sys.stderr.isatty()

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import sys
 import time
-from collections.abc import Mapping
 from typing import TextIO
+
+from hil_client.protocol.runner import LOG_COLUMNS, Row
 
 
 class ProgressLine:
@@ -18,10 +19,12 @@ class ProgressLine:
         self._next = 0.0
         self._start = time.monotonic()
 
-    def __call__(self, t: float, phase: str, sequence: str, reading: Mapping[str, float]) -> None:
+    def __call__(self, row: Row) -> None:
         now = time.monotonic()
         if now < self._next:
             return
+        t, phase, sequence = row[0], row[1], row[2]
+        reading = dict(zip(LOG_COLUMNS, row, strict=True))
         self._next = now + self.interval_s
         frac = min(t / self.expected_s, 1.0)
         width = 24

@@ -6,11 +6,11 @@ The same runner drives the in-process rig and the Modbus rig.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
-#: Instrument readings every rig returns, keyed by lab-log column (CONTRACT section 3).
+#: Instrument readings every rig returns, in this order (lab-log columns, CONTRACT section 3).
 READING_KEYS: tuple[str, ...] = (
     "water_flow_kg_h",
     "water_in_temp_C",
@@ -55,8 +55,8 @@ class Rig(Protocol):
     def advance(self, dt_s: float) -> None:
         """Let ``dt_s`` seconds of simulated (or real) time pass."""
 
-    def read(self) -> Mapping[str, float]:
-        """Read every instrument; keys are :data:`READING_KEYS`."""
+    def read(self) -> Sequence[float]:
+        """Read every instrument: values in :data:`READING_KEYS` order (NaN if missing)."""
 
     def close(self) -> None:
         """Release the rig."""

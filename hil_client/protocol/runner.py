@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from hil_client.protocol.definition import ProtocolDefinition
@@ -40,6 +40,11 @@ LOG_COLUMNS: tuple[str, ...] = (
 )
 
 PHASES = ("preheat", "start_up", "test", "cooling_1", "cooling_2")
+
+_T_IN = READING_KEYS.index("water_in_temp_C")
+_T_OUT = READING_KEYS.index("water_out_temp_C")
+_T_FG = READING_KEYS.index("flue_gas_temp_C")
+_ON = READING_KEYS.index("boiler_on")
 
 Row = tuple[object, ...]
 
@@ -106,7 +111,7 @@ def run_protocol(
     p_nom_kW: float,
     rig: Rig,
     sink: Callable[[Row], None],
-    progress: Callable[[float, str, str, Mapping[str, float]], None] | None = None,
+    progress: Callable[[Row], None] | None = None,
 ) -> RunResult:
     """Play ``protocol`` on ``rig`` and hand every acquired row to ``sink``.
 
@@ -115,7 +120,7 @@ def run_protocol(
         p_nom_kW: nominal load of the boiler under test [kW] (load-to-flow conversion).
         rig: the bench (in-process or over Modbus).
         sink: receives one row per acquisition step, in :data:`LOG_COLUMNS` order.
-        progress: optional callback (time_s, phase, sequence, reading) after each row.
+        progress: optional callback receiving each row too.
     """
     dt = protocol.acquisition_period_s
     spread = protocol.flow_spread_K
@@ -175,39 +180,18 @@ def run_protocol(
         t += dt
         reading = rig.read()
         rows += 1
-        sink(
-            (
-                t,
-                phase,
-                sequence,
-                reading["water_flow_kg_h"],
-                reading["water_in_temp_C"],
-                reading["water_out_temp_C"],
-                reading["boiler_water_temp_C"],
-                reading["flue_gas_temp_C"],
-                reading["flue_gas_O2_pct"],
-                reading["flue_gas_CO2_pct"],
-                reading["flue_gas_CO_ppm"],
-                reading["flue_gas_velocity_m_s"],
-                reading["chimney_draught_Pa"],
-                reading["balance_mass_kg"],
-                reading["room_temp_C"],
-                reading["ambient_pressure_hPa"],
-                reading["relative_humidity_pct"],
-                reading["electric_power_W"],
-                command.flow_setpoint_kg_h if command.pump_on else 0.0,
-                reading["boiler_on"],
-            )
-        )
+        setpoint = command.flow_setpoint_kg_h if command.pump_on else 0.0
+        row = (t, phase, sequence, *reading[:-1], setpoint, reading[-1])
+        sink(row)
         if progress is not None:
-            progress(t, phase, sequence, reading)
+            progress(row)
 
         # --- rules that end the phase (evaluated on what was read)
         elapsed_phase = t - phase_start
         if phase == "preheat":
             ok = (
-                abs(reading["water_out_temp_C"] - pre.temperature_C) <= pre.tolerance_K
-                and abs(reading["water_in_temp_C"] - pre.temperature_C) <= pre.tolerance_K
+                abs(reading[_T_OUT] - pre.temperature_C) <= pre.tolerance_K
+                and abs(reading[_T_IN] - pre.temperature_C) <= pre.tolerance_K
             )
             hold_since = (hold_since if hold_since is not None else t) if ok else None
             timed_out = elapsed_phase >= pre.max_duration_s
@@ -217,8 +201,8 @@ def run_protocol(
                 phase, phase_start = "start_up", t
                 times["t0_s"] = t
         elif phase == "start_up":
-            if reading["boiler_on"] >= 0.5:
-                slope.add(t, reading["flue_gas_temp_C"])
+            if reading[_ON] >= 0.5:
+                slope.add(t, reading[_T_FG])
             else:
                 slope.clear()
             rise_K_min = slope.slope() * 60.0 if slope.full() else math.inf
@@ -237,7 +221,7 @@ def run_protocol(
                 times["t2_s"] = t
         elif phase == "cooling_1":
             timed_out = elapsed_phase >= c1.max_duration_s
-            if reading["water_out_temp_C"] <= c1.until_forward_C or timed_out:
+            if reading[_T_OUT] <= c1.until_forward_C or timed_out:
                 if timed_out:
                     result.notes.append("t3: forward temperature rule not met, timed out")
                 phase, phase_start = "cooling_2", t

@@ -21,15 +21,21 @@ from numba import njit
 from rig_emulator.bench.loop import LoopConfig, condition_return, follow_flow
 from rig_emulator.bench.room import RoomConditions
 from rig_emulator.model import boiler as bm
-from rig_emulator.model.constants import CP_WATER, T_NORMAL_K
+from rig_emulator.model.constants import CO2_AMBIENT_PCT, CP_WATER, O2_AMBIENT_PCT, T_NORMAL_K
 from rig_emulator.model.layout import (
     MODULATING,
     N_OUTPUTS,
     S_FUEL,
+    S_T,
     STARTUP,
+    Y_CO2,
     Y_FG_WET,
+    Y_LAMBDA,
     Y_MODE,
+    Y_O2,
+    Y_P_EL,
     Y_Q_WATER,
+    Y_T_BOILER,
     Y_T_FG,
     Y_T_OUT,
 )
@@ -183,6 +189,24 @@ class Bench:
         self.bs = np.array([0.0, t, 0.0])
         self.set_inputs(0.0, t, True, False, False)
         self.u[U_ROOM], self.u[U_PRESSURE], self.u[U_HUMIDITY] = self.config.room.at(0.0)
+
+    def initial_outputs(self) -> None:
+        """Fill :attr:`y` and :attr:`yb` with the idle state before the first step."""
+        t = float(self.s[S_T])
+        room, pressure, humidity = self.config.room.at(0.0)
+        self.y[:] = 0.0
+        self.y[Y_T_BOILER] = self.y[Y_T_OUT] = self.y[Y_T_FG] = t
+        self.y[Y_LAMBDA] = math.inf
+        self.y[Y_O2], self.y[Y_CO2] = O2_AMBIENT_PCT, CO2_AMBIENT_PCT
+        self.y[Y_P_EL] = self.params.p_el_off_W
+        yb = self.yb
+        yb[:] = 0.0
+        yb[YB_T_IN] = self.bs[BS_T_RETURN]
+        yb[YB_T_OUT] = t
+        yb[YB_ROOM], yb[YB_PRESSURE], yb[YB_HUMIDITY] = room, pressure, humidity
+        yb[YB_BALANCE] = self.bc[BC_BALANCE0]
+        yb[YB_VELOCITY] = self.bc[BC_IDLE_VELOCITY]
+        yb[YB_DRAUGHT] = self.bc[BC_DRAUGHT]
 
     @property
     def time_s(self) -> float:

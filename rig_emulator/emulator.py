@@ -1,0 +1,247 @@
+"""The emulated bench as instruments see it: plant, instruments and commands in one object.
+
+This is what the Modbus adapter publishes and what the in-process rig of the client reads;
+both therefore see exactly the same values. Time advances in sub-steps of at most
+``max_step_s`` so that a long advance (lockstep, accelerated real time) gives the same
+result as many short ones at the acquisition period.
+
+Emissions the Type 869 model does not carry (assumptions ours, documented):
+- NOx: 35 % of the fuel nitrogen converted to NO (typical of wood pellets, 20-50 %),
+  expressed as ppm in the dry flue gas;
+- organic gaseous carbon (FID, ppm C1): 5 % of the CO concentration (OGC/CO of wood
+  combustion is a few per cent in stationary operation and rises with CO at start-up).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rig_emulator.bench import Bench, BenchConfig
+from rig_emulator.bench.bench import (
+    YB_BALANCE,
+    YB_DRAUGHT,
+    YB_FIRING_FLAG,
+    YB_FLOW,
+    YB_HUMIDITY,
+    YB_PRESSURE,
+    YB_ROOM,
+    YB_T_IN,
+    YB_T_OUT,
+    YB_VELOCITY,
+)
+from rig_emulator.instruments import InstrumentBank, Profile
+from rig_emulator.model.constants import V_MOLAR_N
+from rig_emulator.model.layout import (
+    K_SET,
+    K_VDRY0,
+    K_VDRY1,
+    S_ELECTRIC,
+    Y_CO,
+    Y_CO2,
+    Y_FIRING,
+    Y_LAMBDA,
+    Y_MODE,
+    Y_O2,
+    Y_P_EL,
+    Y_SO2,
+    Y_T_BOILER,
+    Y_T_FG,
+)
+from rig_emulator.model.params import BoilerParams
+from rig_emulator.signals import MEASURED, SIGNALS
+
+NOX_CONVERSION = 0.35  # fraction of fuel N emitted as NO
+OGC_PER_CO = 0.05  # organic gaseous carbon [ppm C1] per ppm CO
+CO_RANGE_PPM = 10_000.0  # analyser range; above it the status word flags over-range
+STABLE_WINDOW_S = 5.0  # the balance reports "stable" when unchanged this long
+
+_INDEX = {name: i for i, name in enumerate(MEASURED)}
+
+
+class CommandError(ValueError):
+    """A command value is not acceptable (unknown, NaN, infinite or out of range)."""
+
+
+def check_command(name: str, value: float) -> float:
+    """Validate a command value against its signal's range; returns it as float."""
+    signal = SIGNALS.get(name)
+    if signal is None or signal.kind != "command":
+        raise CommandError(f"'{name}' is not a command")
+    value = float(value)
+    if not math.isfinite(value):
+        raise CommandError(f"{name}: {value} is not a finite number")
+    if not signal.minimum <= value <= signal.maximum:
+        raise CommandError(f"{name}: {value} outside {signal.minimum:g}..{signal.maximum:g}")
+    return value
+
+
+class Emulator:
+    """Boiler, bench and instruments, advanced in simulated time.
+
+    Args:
+        params: the boiler.
+        profile: instrument profile (``clean``: readings equal the plant).
+        seed: seed of the instruments' fixed errors and noise.
+        config: the bench (loop, room, balance).
+        max_step_s: longest physics step of an advance [s].
+    """
+
+    def __init__(
+        self,
+        params: BoilerParams,
+        profile: Profile,
+        seed: int = 0,
+        config: BenchConfig | None = None,
+        max_step_s: float = 1.0,
+    ) -> None:
+        self.params = params
+        self.profile = profile
+        self.seed = seed
+        self.max_step_s = max_step_s
+        self.bench = Bench(params, config)
+        fuel_n = params.fuel.n
+        self._nox_per_v = 1e6 * NOX_CONVERSION * fuel_n / 14.007 * V_MOLAR_N
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the initial state; the instruments draw the same errors again."""
+        self.bench.reset()
+        self.bench.c[K_SET] = self.params.set_temp_C
+        self.instruments = InstrumentBank(MEASURED, self.profile, self.seed)
+        self.sim_time_s = 0.0
+        self.commands: dict[str, float] = {
+            "water_flow_setpoint_kg_h": 0.0,
+            "return_setpoint_C": self.bench.config.initial_water_temp_C,
+            "pump_on": 1.0,
+            "return_heating": 0.0,
+            "boiler_command": 0.0,
+            "boiler_set_temp_C": self.params.set_temp_C,
+        }
+        self._apply_commands()
+        self.bench.initial_outputs()
+        self._true = self._plant_values()
+        self._readings = self._true
+        self._stale = False
+        self._balance_last = float(self._readings[_INDEX["balance_mass_kg"]])
+        self._balance_since = 0.0
+
+    # ------------------------------------------------------------------ commands
+    def set_command(self, name: str, value: float) -> None:
+        """Set a bench or boiler command (validated; :class:`CommandError` if not valid)."""
+        self.set_commands({name: value})
+
+    def set_commands(self, values: dict[str, float]) -> None:
+        """Set several commands at once; all are validated before any is applied."""
+        checked = {}
+        for name, value in values.items():
+            checked[name] = check_command(name, value)
+            if name not in self.commands:
+                raise CommandError(f"'{name}' is a clock command, not a plant command")
+        self.commands.update(checked)
+        self._apply_commands()
+
+    def _apply_commands(self) -> None:
+        cmd = self.commands
+        self.bench.set_inputs(
+            cmd["water_flow_setpoint_kg_h"],
+            cmd["return_setpoint_C"],
+            cmd["pump_on"] >= 0.5,
+            cmd["boiler_command"] >= 0.5,
+            cmd["return_heating"] >= 0.5,
+        )
+        self.bench.c[K_SET] = cmd["boiler_set_temp_C"]
+
+    # ------------------------------------------------------------------ time
+    def advance(self, seconds: float) -> None:
+        """Advance by ``seconds`` of simulated time in sub-steps of at most ``max_step_s``."""
+        if seconds <= 0:
+            return
+        n = 1 if seconds <= self.max_step_s else math.ceil(seconds / self.max_step_s - 1e-9)
+        dt = seconds / n
+        bench = self.bench
+        instruments = self.instruments
+        if instruments.ideal:  # readings are the plant values: computed when read
+            for _ in range(n):
+                bench.step(dt)
+            self.sim_time_s += seconds
+            self._stale = True
+            return
+        for _ in range(n):
+            bench.step(dt)
+            self.sim_time_s += dt
+            self._true = self._plant_values()
+            self._readings = instruments.read(np.array(self._true), self.sim_time_s, dt).tolist()
+
+    @property
+    def readings(self) -> list[float]:
+        """Instrument readings of the measured signals, in :data:`MEASURED` order."""
+        if self._stale:
+            self._true = self._readings = self._plant_values()
+            self._stale = False
+        return self._readings
+
+    # ------------------------------------------------------------------ values
+    def _plant_values(self) -> list[float]:
+        """True values of the measured signals, in :data:`MEASURED` order."""
+        y = self.bench.y.tolist()
+        yb = self.bench.yb.tolist()
+        c = self.bench.c
+        lam = y[Y_LAMBDA]
+        nox = self._nox_per_v / (c[K_VDRY0] + c[K_VDRY1] * lam) if math.isfinite(lam) else 0.0
+        return [
+            yb[YB_FLOW],
+            yb[YB_T_IN],
+            yb[YB_T_OUT],
+            y[Y_T_BOILER],
+            yb[YB_ROOM],
+            yb[YB_PRESSURE],
+            yb[YB_HUMIDITY],
+            y[Y_O2],
+            y[Y_CO2],
+            y[Y_CO],
+            nox,
+            y[Y_SO2],
+            OGC_PER_CO * y[Y_CO],
+            y[Y_T_FG],
+            yb[YB_VELOCITY],
+            yb[YB_DRAUGHT],
+            yb[YB_BALANCE],
+            y[Y_P_EL],
+        ]
+
+    @property
+    def boiler_on(self) -> float:
+        """1.0 while the burner fires, as the boiler controller reports it."""
+        return float(self.bench.yb[YB_FIRING_FLAG])
+
+    def plant(self) -> dict[str, float]:
+        """True plant values of the measured signals (what ideal instruments would read)."""
+        self.readings  # noqa: B018 - refresh a stale plant vector
+        return dict(zip(MEASURED, self._true, strict=True))
+
+    def values(self) -> dict[str, float]:
+        """Every published signal: readings, status and current commands.
+
+        The balance's "stable" flag and the energy counter are evaluated here, i.e. at the
+        rate the values are published; the counter integrates the plant's power.
+        """
+        out = dict(zip(MEASURED, self.readings, strict=True))
+        y = self.bench.y
+        co = out["flue_gas_CO_ppm"]
+        out["analyser_status"] = 1.0 + (2.0 if co > CO_RANGE_PPM else 0.0)
+        balance = out["balance_mass_kg"]
+        if balance != self._balance_last:
+            self._balance_last = balance
+            self._balance_since = self.sim_time_s
+        out["balance_stable"] = (
+            1.0 if self.sim_time_s - self._balance_since >= STABLE_WINDOW_S else 0.0
+        )
+        out["electric_energy_Wh"] = float(self.bench.s[S_ELECTRIC])
+        out["boiler_on"] = self.boiler_on
+        out["boiler_mode"] = float(y[Y_MODE])
+        out["firing_power_kW"] = float(y[Y_FIRING])
+        out["sim_time_s"] = self.sim_time_s
+        out.update(self.commands)
+        return out

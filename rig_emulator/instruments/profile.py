@@ -1,0 +1,148 @@
+"""Instrument profiles: how each measured signal is read (YAML data, validated on load).
+
+A profile names, per measured signal, the instrument's error model:
+
+    name: lab
+    description: ...
+    instruments:
+      flue_gas_temp_C: {accuracy_abs: 0.30, accuracy_rel: 0.005, noise_sd: 0.05,
+                        resolution: 0.01, lag_s: 8, delay_s: 0, update_period_s: 1}
+
+Keys of an instrument (all optional, default 0 = ideal):
+
+- ``accuracy_abs`` [unit], ``accuracy_rel`` [-]: tolerance band +-(abs + rel |x|); a fixed
+  error is drawn once per run, uniformly within the band (e.g. Pt100 class B: 0.30 + 0.005|t|);
+- ``noise_sd`` [unit], ``noise_rel`` [-]: standard deviation of white noise added at each
+  update, sd = noise_sd + noise_rel |x|;
+- ``resolution`` [unit]: the reading is rounded to a multiple of it;
+- ``lag_s`` [s]: first-order response time constant (thermowell, analyser cell);
+- ``delay_s`` [s]: dead time (sample line transport);
+- ``update_period_s`` [s]: the reading is refreshed only this often and held in between.
+
+Signals not listed are ideal. ``clean`` lists none.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from rig_emulator.signals import MEASURED
+
+PROFILE_DIR = Path(__file__).resolve().parent.parent / "profiles"
+
+INSTRUMENT_KEYS = (
+    "accuracy_abs",
+    "accuracy_rel",
+    "noise_sd",
+    "noise_rel",
+    "resolution",
+    "lag_s",
+    "delay_s",
+    "update_period_s",
+)
+
+
+class ProfileError(ValueError):
+    """A profile is malformed; the message names the file and key."""
+
+
+@dataclass(frozen=True, slots=True)
+class InstrumentSpec:
+    """Error model of one instrument (see the module docstring; units of the signal)."""
+
+    accuracy_abs: float = 0.0
+    accuracy_rel: float = 0.0
+    noise_sd: float = 0.0
+    noise_rel: float = 0.0
+    resolution: float = 0.0
+    lag_s: float = 0.0
+    delay_s: float = 0.0
+    update_period_s: float = 0.0
+
+    @property
+    def ideal(self) -> bool:
+        return all(getattr(self, key) == 0.0 for key in INSTRUMENT_KEYS)
+
+
+@dataclass(frozen=True, slots=True)
+class Profile:
+    """A named set of instrument specs (and, later, plant effects)."""
+
+    name: str
+    description: str = ""
+    instruments: Mapping[str, InstrumentSpec] = field(default_factory=dict)
+    effects: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+
+    def spec(self, signal: str) -> InstrumentSpec:
+        return self.instruments.get(signal, InstrumentSpec())
+
+
+def profile_from_mapping(data: Any, source: str = "<profile>") -> Profile:
+    """Validate ``data`` and build a :class:`Profile`."""
+    if not isinstance(data, Mapping):
+        raise ProfileError(f"{source}: expected a mapping")
+    for key in data:
+        if key not in ("name", "description", "instruments", "effects"):
+            raise ProfileError(f"{source}: unknown key '{key}'")
+    name = data.get("name")
+    if not isinstance(name, str) or not name:
+        raise ProfileError(f"{source}: missing required key 'name'")
+    raw = data.get("instruments") or {}
+    if not isinstance(raw, Mapping):
+        raise ProfileError(f"{source}: key 'instruments' must be a mapping")
+    instruments: dict[str, InstrumentSpec] = {}
+    for signal, spec in raw.items():
+        if signal not in MEASURED:
+            raise ProfileError(
+                f"{source}: key 'instruments.{signal}' is not a measured signal "
+                f"(known: {', '.join(MEASURED)})"
+            )
+        if not isinstance(spec, Mapping):
+            raise ProfileError(f"{source}: key 'instruments.{signal}' must be a mapping")
+        values = {}
+        for key, value in spec.items():
+            full = f"instruments.{signal}.{key}"
+            if key not in INSTRUMENT_KEYS:
+                raise ProfileError(f"{source}: unknown key '{full}'")
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise ProfileError(f"{source}: key '{full}' must be a number")
+            if not math.isfinite(value) or value < 0:
+                raise ProfileError(f"{source}: key '{full}' must be finite and >= 0")
+            values[key] = float(value)
+        instruments[signal] = InstrumentSpec(**values)
+    effects = data.get("effects") or {}
+    if not isinstance(effects, Mapping):
+        raise ProfileError(f"{source}: key 'effects' must be a mapping")
+    return Profile(name, str(data.get("description", "")), instruments, dict(effects))
+
+
+def available() -> list[str]:
+    """Names of the shipped profiles."""
+    return sorted(p.stem for p in PROFILE_DIR.glob("*.yaml"))
+
+
+def load_profile(name_or_path: str) -> Profile:
+    """Load a shipped profile (``clean``, ``lab``) or a YAML file."""
+    path = Path(name_or_path)
+    if path.suffix not in (".yaml", ".yml") and not path.exists():
+        path = PROFILE_DIR / f"{name_or_path}.yaml"
+        if not path.exists():
+            raise ProfileError(
+                f"unknown profile '{name_or_path}' (known: {', '.join(available())}, "
+                "or a YAML path)"
+            )
+    try:
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise ProfileError(f"{path}: cannot read ({exc.strerror})") from None
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        raise ProfileError(f"{path}: not valid YAML{where}") from None
+    return profile_from_mapping(data, source=str(path))
