@@ -23,7 +23,7 @@ def _set_numba_cache_dir() -> None:
         return
     root = Path(__file__).parent
     digest = hashlib.sha256()
-    for sub in ("model", "bench"):
+    for sub in ("model", "bench", "instruments"):
         for path in sorted((root / sub).glob("*.py")):
             digest.update(path.name.encode())
             digest.update(path.read_bytes())

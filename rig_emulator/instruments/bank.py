@@ -11,8 +11,44 @@ from __future__ import annotations
 from collections import deque
 
 import numpy as np
+from numba import njit
 
 from rig_emulator.instruments.profile import Profile
+
+
+@njit(cache=True)
+def _update(
+    x,
+    time_s,
+    keep,
+    lagged,
+    error_fraction,
+    acc_abs,
+    acc_rel,
+    noise_sd,
+    noise_rel,
+    normals,
+    resolution,
+    period,
+    next_update,
+    reading,
+):
+    """Lag, then (where an update is due) fixed error, noise, rounding; arrays in place."""
+    for i in range(x.size):
+        lagged[i] = x[i] + (lagged[i] - x[i]) * keep[i]
+        if time_s + 1e-9 < next_update[i]:
+            continue
+        v = lagged[i]
+        mag = abs(v)
+        v += error_fraction[i] * (acc_abs[i] + acc_rel[i] * mag)
+        v += normals[i] * (noise_sd[i] + noise_rel[i] * mag)
+        if resolution[i] > 0:
+            v = np.round(v / resolution[i]) * resolution[i]
+        reading[i] = v
+        if period[i] > 0:
+            next_update[i] = (np.floor(time_s / period[i]) + 1.0) * period[i]
+        else:
+            next_update[i] = time_s
 
 
 class InstrumentBank:
@@ -30,6 +66,8 @@ class InstrumentBank:
         self.lag_s = np.array([s.lag_s for s in specs])
         self.delay_s = [s.delay_s for s in specs]
         self.period = np.array([s.update_period_s for s in specs])
+        self._keep_dt = -1.0
+        self._keep = np.zeros(len(signals))
         self._rng = np.random.default_rng(seed)
         # the fixed error of each instrument: a fraction of its band, uniform in [-1, 1]
         self.error_fraction = self._rng.uniform(-1.0, 1.0, len(signals))
@@ -58,28 +96,24 @@ class InstrumentBank:
             x[i] = buf[0][1]
         if self._lagged is None:
             self._lagged = x.copy()
-        else:
-            with np.errstate(divide="ignore"):
-                keep = np.where(self.lag_s > 0, np.exp(-dt_s / np.maximum(self.lag_s, 1e-300)), 0.0)
-            self._lagged = x + (self._lagged - x) * keep
-        due = time_s + 1e-9 >= self._next_update
-        if due.any():
-            lagged = self._lagged
-            mag = np.abs(lagged)
-            value = lagged + self.error_fraction * (self.acc_abs + self.acc_rel * mag)
-            sd = self.noise_sd + self.noise_rel * mag
-            value = value + self._rng.standard_normal(len(value)) * sd
-            res = self.resolution
-            value = np.where(res > 0, np.round(value / np.where(res > 0, res, 1.0)) * res, value)
-            self._reading = np.where(due, value, self._reading)
-            period = self.period
-            self._next_update = np.where(
-                due,
-                np.where(
-                    period > 0,
-                    (np.floor(time_s / np.where(period > 0, period, 1.0)) + 1) * period,
-                    time_s,
-                ),
-                self._next_update,
-            )
+        if dt_s != self._keep_dt:  # exact discretisation of the first-order lag
+            lag = self.lag_s
+            self._keep = np.where(lag > 0, np.exp(-dt_s / np.where(lag > 0, lag, 1.0)), 0.0)
+            self._keep_dt = dt_s
+        _update(
+            x,
+            time_s,
+            self._keep,
+            self._lagged,
+            self.error_fraction,
+            self.acc_abs,
+            self.acc_rel,
+            self.noise_sd,
+            self.noise_rel,
+            self._rng.standard_normal(len(x)),
+            self.resolution,
+            self.period,
+            self._next_update,
+            self._reading,
+        )
         return self._reading.copy()
