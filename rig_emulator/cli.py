@@ -7,18 +7,54 @@ other failure.
 from __future__ import annotations
 
 import argparse
+import asyncio
+import logging
+import signal
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
 from rig_emulator.boilers import load_boiler
 from rig_emulator.cli_support import Parser, UsageError, report
+from rig_emulator.emulator import CommandError, Emulator, check_command
+from rig_emulator.instruments import ProfileError, load_profile
+from rig_emulator.modbus import BenchServer
 from rig_emulator.model import pack_constants, steady_state
 from rig_emulator.model.params import ParameterError
+from rig_emulator.registers import MapError, load_map
+from rig_emulator.registers.reference import markdown
 
 
 def _build_parser() -> argparse.ArgumentParser:
     parser = Parser(prog="rig-emulator", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
+    serve = sub.add_parser(
+        "serve",
+        help="run the emulated bench as a Modbus TCP server",
+        description="Run the emulated bench as a Modbus TCP server (one unit ID per "
+        "instrument, see the register map reference). Stops cleanly on SIGINT/SIGTERM.",
+    )
+    serve.add_argument("--boiler", required=True, help="boiler NAME or parameter file PATH")
+    serve.add_argument(
+        "--map", default=None, help="register map YAML [register_maps/wieselburg_bench.yaml]"
+    )
+    serve.add_argument("--host", default="127.0.0.1", help="address to listen on [127.0.0.1]")
+    serve.add_argument("--port", type=int, default=5020, help="TCP port (0: any free) [5020]")
+    pace = serve.add_mutually_exclusive_group()
+    pace.add_argument(
+        "--speed", type=float, default=1.0, help="simulated seconds per wall second [1 = real time]"
+    )
+    pace.add_argument(
+        "--lockstep",
+        action="store_true",
+        help="time moves only when a client writes lockstep_advance",
+    )
+    serve.add_argument("--profile", default="clean", help="clean | lab | PROFILE.yaml [clean]")
+    serve.add_argument("--seed", type=int, default=0, help="seed of instrument errors [0]")
+    serve.add_argument("--tick-hz", type=float, default=10.0, help="tick rate [10]")
+    doc = sub.add_parser("map-doc", help="write the Markdown reference of a register map")
+    doc.add_argument("--map", default=None, help="register map YAML [the shipped one]")
+    doc.add_argument("--out", default=None, help="file to write [stdout]")
     check = sub.add_parser("check", help="validate a boiler parameter file and print it")
     check.add_argument("--boiler", required=True, help="boiler NAME or parameter file PATH")
     steady = sub.add_parser(
@@ -64,11 +100,87 @@ def _cmd_steady(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_map_doc(args: argparse.Namespace) -> int:
+    try:
+        text = markdown(load_map(args.map))
+    except MapError as exc:
+        raise UsageError(str(exc)) from None
+    if args.out:
+        Path(args.out).write_text(text, encoding="utf-8")
+    else:
+        sys.stdout.write(text)
+    return 0
+
+
+def _cmd_serve(args: argparse.Namespace) -> int:
+    params = _load(args.boiler)
+    try:
+        register_map = load_map(args.map)
+        profile = load_profile(args.profile)
+        check_command("speed_factor", args.speed)
+    except (MapError, ProfileError) as exc:
+        raise UsageError(str(exc)) from None
+    except CommandError as exc:
+        raise UsageError(f"--speed: {exc}") from None
+    if not 0 <= args.port <= 65535:
+        raise UsageError(f"--port: {args.port} is not a TCP port")
+    if not 0.1 <= args.tick_hz <= 1000:
+        raise UsageError(f"--tick-hz: {args.tick_hz} outside 0.1..1000")
+    logging.basicConfig(
+        level=logging.INFO, format="%(asctime)s rig-emulator: %(message)s", stream=sys.stderr
+    )
+    logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
+    emulator = Emulator(params, profile, seed=args.seed)
+    server = BenchServer(
+        emulator, register_map, args.host, args.port, args.speed, args.lockstep, args.tick_hz
+    )
+    try:
+        asyncio.run(_serve(server, args))
+    except OSError as exc:
+        print(
+            f"rig-emulator: error: cannot serve on {args.host}:{args.port}: {exc.strerror or exc}",
+            file=sys.stderr,
+        )
+        return 1
+    return 0
+
+
+async def _serve(server: BenchServer, args: argparse.Namespace) -> None:
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(sig, stop.set)
+    await server.start()
+    pace = "lockstep" if args.lockstep else f"real time x{args.speed:g}"
+    units = ", ".join(f"{d.unit_id}={d.name}" for d in server.map.devices)
+    logging.getLogger("rig_emulator.serve").info(
+        "serving %s on %s:%d (%s, profile %s, seed %d); units %s",
+        server.emulator.params.name,
+        server.host,
+        server.port,
+        pace,
+        args.profile,
+        args.seed,
+        units,
+    )
+    await stop.wait()
+    logging.getLogger("rig_emulator.serve").info(
+        "stopping at simulated time %.1f s", server.emulator.sim_time_s
+    )
+    await server.stop()
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``rig-emulator``; returns the exit code."""
     try:
         args = _build_parser().parse_args(argv)
-        return {"check": _cmd_check, "steady": _cmd_steady}[args.command](args)
+        commands = {
+            "check": _cmd_check,
+            "steady": _cmd_steady,
+            "serve": _cmd_serve,
+            "map-doc": _cmd_map_doc,
+        }
+        return commands[args.command](args)
     except UsageError as exc:
         return report(exc, "rig-emulator")
 

@@ -1,18 +1,30 @@
-"""Shared fixtures: the shipped boilers and whole protocol runs on the in-process rig.
+"""Shared fixtures: the shipped boilers, whole protocol runs on the in-process rig, and real
+emulator servers on free ports of 127.0.0.1.
 
 Whole runs are computed once per session (about 1 s each) and shared read-only.
 """
 
 from __future__ import annotations
 
+import asyncio
 import csv
 import json
+import logging
+import threading
+from collections.abc import Iterator
+from concurrent.futures import Future
 from pathlib import Path
 
 import pytest
 
 from hil_client.cli import main as hil_client_main
 from rig_emulator.boilers import load_boiler
+from rig_emulator.emulator import Emulator
+from rig_emulator.instruments import load_profile
+from rig_emulator.modbus import BenchServer
+from rig_emulator.registers import load_map
+
+logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
 
 BOILERS = ("windhager_12kw", "windhager_6kw")
 
@@ -83,3 +95,53 @@ def run_log(tmp_path_factory):
         return cache[key]
 
     return get
+
+
+class RunningServer:
+    """A :class:`BenchServer` serving from its own event-loop thread."""
+
+    def __init__(self, **kwargs) -> None:
+        self.loop = asyncio.new_event_loop()
+        self.thread = threading.Thread(target=self.loop.run_forever, daemon=True)
+        self.thread.start()
+        profile = load_profile(kwargs.pop("profile", "clean"))
+        emulator = Emulator(
+            load_boiler(kwargs.pop("boiler", "windhager_12kw")), profile, kwargs.pop("seed", 0)
+        )
+        self.map = kwargs.pop("register_map", None) or load_map()
+        self.server = BenchServer(emulator, self.map, port=0, **kwargs)
+        self.call(self.server.start())
+        self.port = self.server.port
+
+    def call(self, coro):
+        """Run a coroutine in the server's loop and return its result."""
+        future: Future = asyncio.run_coroutine_threadsafe(coro, self.loop)
+        return future.result(timeout=30)
+
+    def values(self) -> dict[str, float]:
+        async def get():
+            return self.server.values()
+
+        return self.call(get())
+
+    def stop(self) -> None:
+        self.call(self.server.stop())
+        self.loop.call_soon_threadsafe(self.loop.stop)
+        self.thread.join(timeout=10)
+        self.loop.close()
+
+
+@pytest.fixture
+def serve() -> Iterator:
+    """``serve(**kwargs)`` starts a server (lockstep by default); all are stopped after."""
+    servers: list[RunningServer] = []
+
+    def start(**kwargs) -> RunningServer:
+        kwargs.setdefault("lockstep", True)
+        server = RunningServer(**kwargs)
+        servers.append(server)
+        return server
+
+    yield start
+    for server in servers:
+        server.stop()

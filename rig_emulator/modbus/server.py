@@ -1,0 +1,348 @@
+"""The thin, declarative Modbus TCP adapter: a register map over the emulator.
+
+Built on pymodbus 3.16's ``ModbusTcpServer`` with one ``SimDevice`` per map device (its own
+unit ID, separate coil, discrete, holding and input address spaces) and a catch-all device
+for unknown unit IDs. Values are published with ``server.async_setValues``; client writes
+are checked in the devices' action callback before pymodbus stores them:
+
+- only points declared ``rw`` accept writes (else exception 02, illegal data address);
+- a write that covers part of a multi-register value, or whose value is NaN, infinite or
+  outside the point's range, gets exception 03 (illegal data value) and changes nothing;
+- unmapped addresses get exception 02 (pymodbus marks gaps invalid);
+- an unknown unit ID gets exception 0B (gateway target device failed to respond) at once.
+
+Everything runs in one asyncio loop: the tick never waits for a client, and a client that
+stops reading only fills its own socket buffer.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from pymodbus.constants import ExcCodes
+from pymodbus.server import ModbusTcpServer
+from pymodbus.server.requesthandler import ServerRequestHandler
+from pymodbus.simulator import DataType, SimData, SimDevice
+
+from rig_emulator.clock import LOCKSTEP, REALTIME, LatenessStats, Pacer, SimClock
+from rig_emulator.emulator import CommandError, Emulator, check_command
+from rig_emulator.registers import Device, Point, RegisterMap, decode, encode
+
+log = logging.getLogger("rig_emulator.serve")
+
+_WRITE_FC = {5: "coil", 15: "coil", 6: "holding", 16: "holding", 23: "holding"}
+_PUBLISH_FC = {"input": 4, "holding": 16, "discrete": 2, "coil": 15}
+_TABLE_INDEX = {"coil": 0, "discrete": 1, "holding": 2, "input": 3}
+CLOCK_COMMANDS = ("speed_factor", "clock_mode", "lockstep_advance_s", "reset")
+
+
+@dataclass(frozen=True, slots=True)
+class _Run:
+    """A contiguous run of registers (or bits) of one table, published in one call."""
+
+    table: str
+    start: int
+    points: tuple[Point, ...]
+
+
+def _runs(device: Device, table: str) -> list[_Run]:
+    runs: list[_Run] = []
+    current: list[Point] = []
+    for point in device.table(table):
+        if current and point.address != current[-1].address + current[-1].width:
+            runs.append(_Run(table, current[0].address, tuple(current)))
+            current = []
+        current.append(point)
+    if current:
+        runs.append(_Run(table, current[0].address, tuple(current)))
+    return runs
+
+
+def _simdata(runs: list[_Run], bits: bool) -> list[SimData]:
+    if bits:
+        blocks = [
+            SimData(p.address, values=[False], datatype=DataType.BITS)
+            for run in runs
+            for p in run.points
+        ]
+        return blocks or [SimData(0, values=[False], datatype=DataType.BITS)]
+    blocks = [
+        SimData(
+            run.start, values=[0] * sum(p.width for p in run.points), datatype=DataType.REGISTERS
+        )
+        for run in runs
+    ]
+    return blocks or [SimData(0, count=1, datatype=DataType.INVALID)]
+
+
+def _catch_all_device() -> SimDevice:
+    """Device id 0 answers every unknown unit ID with exception 0B."""
+
+    async def refuse(*_args) -> ExcCodes:
+        return ExcCodes.GATEWAY_NO_RESPONSE
+
+    regs = SimData(0, count=65536, values=0, datatype=DataType.REGISTERS)
+    bit = SimData(0, values=[False] * 16, datatype=DataType.BITS)
+    return SimDevice(0, simdata=([bit], [bit], [regs], [regs]), action=refuse)
+
+
+class _LoggingHandler(ServerRequestHandler):
+    """Request handler that logs one line per client connect and disconnect."""
+
+    def callback_connected(self) -> None:
+        super().callback_connected()
+        peer = self.transport.get_extra_info("peername") if self.transport else None
+        self.peer = f"{peer[0]}:{peer[1]}" if peer else "?"
+        self.server.connections += 1
+        log.info("client %s connected (%d open)", self.peer, self.server.connections)
+
+    def callback_disconnected(self, exc: Exception | None) -> None:
+        super().callback_disconnected(exc)
+        self.server.connections -= 1
+        reason = f" ({exc})" if exc else ""
+        log.info(
+            "client %s disconnected%s (%d open)",
+            getattr(self, "peer", "?"),
+            reason,
+            self.server.connections,
+        )
+
+
+class _Server(ModbusTcpServer):
+    connections = 0
+
+    def callback_new_connection(self):
+        return _LoggingHandler(self, self.trace_packet, self.trace_pdu, self.trace_connect)
+
+
+class BenchServer:
+    """The emulator published over Modbus TCP, paced in real time or in lockstep.
+
+    Args:
+        emulator: the bench to publish.
+        register_map: which signal goes where.
+        host, port: where to listen (port 0: any free port; see :attr:`port` after start).
+        speed: simulated seconds per wall second in real-time mode.
+        lockstep: start in lockstep mode (time moves only on ``lockstep_advance``).
+        tick_hz: rate of the real-time tick and of the register updates.
+    """
+
+    def __init__(
+        self,
+        emulator: Emulator,
+        register_map: RegisterMap,
+        host: str = "127.0.0.1",
+        port: int = 5020,
+        speed: float = 1.0,
+        lockstep: bool = False,
+        tick_hz: float = 10.0,
+    ) -> None:
+        check_command("speed_factor", speed)
+        self.emulator = emulator
+        self.map = register_map
+        self.host = host
+        self.port = port
+        self.tick_period_s = 1.0 / tick_hz
+        self.clock = SimClock(speed=speed, mode=LOCKSTEP if lockstep else REALTIME)
+        self.lateness = LatenessStats()
+        self.lockstep_counter = 0
+        self.last_advance_s = 0.0
+        self._internal = False
+        self._server: _Server | None = None
+        self._tick_task: asyncio.Task | None = None
+        self._runs: dict[int, list[_Run]] = {}
+        self._points: dict[tuple[int, str], dict[int, Point]] = {}
+        self._published: dict[tuple[int, str, int], list] = {}
+        self.on_tick: Callable[[], None] | None = None
+
+    # ------------------------------------------------------------------ building
+    def _devices(self) -> list[SimDevice]:
+        devices = [_catch_all_device()]
+        for dev in self.map.devices:
+            runs = {t: _runs(dev, t) for t in _TABLE_INDEX}
+            self._runs[dev.unit_id] = [
+                r for t in ("input", "discrete", "holding", "coil") for r in runs[t]
+            ]
+            for table in ("holding", "coil"):
+                index: dict[int, Point] = {}
+                for p in dev.table(table):
+                    for a in range(p.address, p.address + p.width):
+                        index[a] = p
+                self._points[(dev.unit_id, table)] = index
+            simdata = (
+                _simdata(runs["coil"], True),
+                _simdata(runs["discrete"], True),
+                _simdata(runs["holding"], False),
+                _simdata(runs["input"], False),
+            )
+            tables_used = {t for t in _TABLE_INDEX if runs[t]}
+            devices.append(
+                SimDevice(dev.unit_id, simdata=simdata, action=self._action(dev, tables_used))
+            )
+        return devices
+
+    # ------------------------------------------------------------------ lifecycle
+    async def start(self) -> None:
+        """Listen, publish the initial state and start the tick."""
+        loop = asyncio.get_running_loop()
+        self._server = _Server(self._devices(), address=(self.host, self.port))
+        await self._server.serve_forever(background=True)
+        sock = self._server.transport.sockets[0] if self._server.transport else None
+        if sock is not None:
+            self.port = sock.getsockname()[1]
+        now = loop.time()
+        self.clock.anchor(now, self.emulator.sim_time_s)
+        await self.publish()
+        self._tick_task = asyncio.create_task(self._tick_loop(now), name="rig tick")
+
+    async def stop(self) -> None:
+        if self._tick_task is not None:
+            self._tick_task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._tick_task
+        if self._server is not None:
+            await self._server.shutdown()
+
+    # ------------------------------------------------------------------ time
+    async def _tick_loop(self, start: float) -> None:
+        loop = asyncio.get_running_loop()
+        pacer = Pacer(self.tick_period_s, start)
+        while True:
+            deadline = pacer.next_deadline(loop.time())
+            delay = deadline - loop.time()
+            if delay > 0:
+                await asyncio.sleep(delay)
+            if self.clock.mode != REALTIME:
+                continue  # lockstep: time and registers move only on client writes
+            self.lateness.add(max(loop.time() - deadline, 0.0))
+            self.emulator.advance(self.clock.target(deadline) - self.emulator.sim_time_s)
+            await self.publish()
+            if self.on_tick is not None:
+                self.on_tick()
+
+    def _reanchor(self) -> None:
+        self.clock.anchor(asyncio.get_running_loop().time(), self.emulator.sim_time_s)
+
+    async def advance(self, seconds: float) -> None:
+        """Lockstep: advance the simulation and publish the new state before returning."""
+        self.emulator.advance(seconds)
+        self.last_advance_s = seconds
+        self.lockstep_counter += 1
+        await self.publish()
+
+    # ------------------------------------------------------------------ publishing
+    def values(self) -> dict[str, float]:
+        out = self.emulator.values()
+        realtime = self.clock.mode == REALTIME
+        out["tick_lateness_ms"] = self.lateness.last_s * 1000.0 if realtime else 0.0
+        out["lockstep_counter"] = float(self.lockstep_counter % 65536)
+        out["speed_factor"] = self.clock.speed
+        out["clock_mode"] = float(self.clock.mode)
+        out["lockstep_advance_s"] = self.last_advance_s
+        out["reset"] = 0.0
+        return out
+
+    async def publish(self) -> None:
+        """Encode every point and write the registers (one call per contiguous run)."""
+        assert self._server is not None
+        values = self.values()
+        self._internal = True
+        try:
+            for unit_id, runs in self._runs.items():
+                for run in runs:
+                    if run.table in ("coil", "discrete"):
+                        for p in run.points:
+                            await self._server.async_setValues(
+                                unit_id,
+                                _PUBLISH_FC[run.table],
+                                p.address,
+                                [values[p.signal] >= 0.5],
+                            )
+                        continue
+                    regs: list[int] = []
+                    for p in run.points:
+                        regs += encode(p, values[p.signal])
+                    await self._server.async_setValues(
+                        unit_id, _PUBLISH_FC[run.table], run.start, regs
+                    )
+        finally:
+            self._internal = False
+
+    # ------------------------------------------------------------------ writes
+    def _action(self, device: Device, tables_used: set[str]):
+        async def action(fc, _start, address, count, _registers, set_values):
+            if self._internal:
+                return None
+            table = _WRITE_FC.get(fc) if set_values is not None else None
+            if set_values is None:
+                read_table = {1: "coil", 2: "discrete", 3: "holding", 4: "input"}.get(fc)
+                if read_table is not None and read_table not in tables_used:
+                    return ExcCodes.ILLEGAL_ADDRESS
+                return None
+            if table is None:
+                return ExcCodes.ILLEGAL_FUNCTION
+            return await self._write(device, table, address, set_values)
+
+        return action
+
+    async def _write(self, device: Device, table: str, address: int, values) -> ExcCodes | None:
+        """Check a client write of ``values`` at ``address``; apply it or refuse it whole."""
+        index = self._points[(device.unit_id, table)]
+        touched: dict[str, Point] = {}
+        for i in range(len(values)):
+            point = index.get(address + i)
+            if point is None or not point.writable:
+                return ExcCodes.ILLEGAL_ADDRESS
+            touched[point.name] = point
+        end = address + len(values)
+        new: dict[str, float] = {}
+        for point in touched.values():
+            first = point.address - address
+            if first < 0 or point.address + point.width > end:
+                return ExcCodes.ILLEGAL_VALUE  # part of a multi-register value
+            if table == "coil":
+                value = 1.0 if values[first] else 0.0
+            else:
+                value = decode(point, list(values[first : first + point.width]))
+            if not (math.isfinite(value) and point.minimum <= value <= point.maximum):
+                return ExcCodes.ILLEGAL_VALUE
+            try:
+                new[point.signal] = check_command(point.signal, value)
+            except CommandError:
+                return ExcCodes.ILLEGAL_VALUE
+        # the client's registers are stored after this returns: publish them again next time
+        for key in [k for k in self._published if k[0] == device.unit_id and k[1] == table]:
+            del self._published[key]
+        return await self._apply(new)
+
+    async def _apply(self, new: dict[str, float]) -> ExcCodes | None:
+        plant = {k: v for k, v in new.items() if k not in CLOCK_COMMANDS}
+        if (
+            "lockstep_advance_s" in new
+            and self.clock.mode != LOCKSTEP
+            and (new.get("clock_mode", float(self.clock.mode)) != LOCKSTEP)
+        ):
+            return ExcCodes.ILLEGAL_VALUE  # time moves by itself in real-time mode
+        if "reset" in new and new["reset"] not in (0.0, 1.0):
+            return ExcCodes.ILLEGAL_VALUE
+        if plant:
+            self.emulator.set_commands(plant)
+        if "speed_factor" in new:
+            self.clock.speed = new["speed_factor"]
+            self._reanchor()
+        if "clock_mode" in new:
+            self.clock.mode = int(new["clock_mode"])
+            self._reanchor()
+        if new.get("reset") == 1.0:
+            self.emulator.reset()
+            self.lockstep_counter = 0
+            self._reanchor()
+            await self.publish()
+        if "lockstep_advance_s" in new:
+            await self.advance(new["lockstep_advance_s"])
+        return None

@@ -1,0 +1,25 @@
+"""Register maps as data (schema, validation, codec, Markdown reference); no protocol code."""
+
+from rig_emulator.registers.codec import decode, encode, precision
+from rig_emulator.registers.schema import (
+    MAP_DIR,
+    Device,
+    MapError,
+    Point,
+    RegisterMap,
+    load_map,
+    map_from_mapping,
+)
+
+__all__ = [
+    "MAP_DIR",
+    "Device",
+    "MapError",
+    "Point",
+    "RegisterMap",
+    "decode",
+    "encode",
+    "load_map",
+    "map_from_mapping",
+    "precision",
+]

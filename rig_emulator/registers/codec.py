@@ -1,0 +1,73 @@
+"""Encoding signal values into Modbus registers and back, as a point of a map says.
+
+Integers are scaled: raw = round((value - offset) / scale), saturated to the type's range
+(the way instruments clip at their range ends); a NaN reads as 0. Floats are IEEE 754,
+big-endian within each 16-bit word; ``ABCD`` sends the most significant word first, ``CDAB``
+the least significant first (word-swapped, as many PLCs and analysers do).
+
+Word-swapping falls out of the byte order: a little-endian value read as little-endian
+16-bit words gives the words in reverse order, each with its bytes in big-endian order.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from functools import cache
+
+from rig_emulator.registers.schema import Point
+
+_INT = {  # (min, max, struct code)
+    "int16": (-(2**15), 2**15 - 1, "h"),
+    "uint16": (0, 2**16 - 1, "H"),
+    "int32": (-(2**31), 2**31 - 1, "i"),
+    "uint32": (0, 2**32 - 1, "I"),
+}
+_FLOAT = {"float32": "f", "float64": "d"}
+
+
+@cache
+def _structs(point: Point) -> tuple[struct.Struct, struct.Struct]:
+    """(value struct, words struct) of a point, in its word order."""
+    code = _FLOAT.get(point.datatype) or _INT[point.datatype][2]
+    order = "<" if point.word_order == "CDAB" and point.width > 1 else ">"
+    return struct.Struct(order + code), struct.Struct(order + "H" * point.width)
+
+
+def _raw(point: Point, value: float) -> int:
+    lo, hi, _ = _INT[point.datatype]
+    if math.isnan(value):
+        return 0
+    scaled = (value - point.offset) / point.scale
+    return lo if scaled <= lo else hi if scaled >= hi else round(scaled)
+
+
+def encode(point: Point, value: float) -> list[int]:
+    """Registers (16-bit unsigned ints) that carry ``value`` as ``point`` says."""
+    if point.datatype == "bool":
+        return [1 if value >= 0.5 else 0]
+    values, words = _structs(point)
+    raw = value if point.datatype in _FLOAT else _raw(point, value)
+    return list(words.unpack(values.pack(raw)))
+
+
+def decode(point: Point, registers: list[int]) -> float:
+    """The value carried by ``registers`` (as many as the point is wide)."""
+    if point.datatype == "bool":
+        return 1.0 if registers[0] else 0.0
+    values, words = _structs(point)
+    raw = values.unpack(words.pack(*registers[: point.width]))[0]
+    if point.datatype in _FLOAT:
+        return raw
+    return raw * point.scale + point.offset
+
+
+def precision(point: Point, value: float) -> float:
+    """Largest difference between ``value`` and its decoded encoding (encoding precision)."""
+    if point.datatype == "bool":
+        return 0.5
+    if point.datatype == "float32":
+        return abs(value) * 2.0**-24 + 1e-45
+    if point.datatype == "float64":
+        return abs(value) * 2.0**-53
+    return abs(point.scale) / 2.0

@@ -1,0 +1,297 @@
+"""Register maps as data: the schema of ``register_maps/*.yaml`` and its validation.
+
+A map lists devices (Modbus unit IDs), each with points that publish one signal of
+:mod:`rig_emulator.signals` in one table:
+
+    name: wieselburg_bench
+    description: ...
+    devices:
+      - name: bench_plc               # unique
+        unit_id: 1                    # 1..247, unique
+        instrument: bench PLC         # free text
+        word_order: ABCD              # default for the device's 32/64-bit points
+        points:
+          - name: water_flow          # unique within the device
+            signal: water_flow_kg_h   # a signal of the catalog
+            table: input              # input | holding | coil | discrete
+            address: 0                # 0-based protocol address (register, or bit for coils)
+            datatype: float32         # int16 uint16 int32 uint32 float32 float64 (bool for bits)
+            word_order: CDAB          # ABCD (big-endian words) or CDAB (low word first)
+            scale: 0.01               # value = raw * scale + offset (integer types)
+            offset: 0
+            unit: kg/h                # default: the signal's unit
+            access: r                 # r | rw (rw only for command signals in holding/coil)
+            min: 0                    # accepted range of writes (default: the signal's range)
+            max: 2000
+            description: ...          # default: the signal's description
+
+A broken map is refused with the file, device and point named.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from rig_emulator.signals import SIGNALS
+
+MAP_DIR = Path(__file__).resolve().parents[2] / "register_maps"
+
+TABLES = ("input", "holding", "coil", "discrete")
+DATATYPES = {  # registers per value
+    "int16": 1,
+    "uint16": 1,
+    "int32": 2,
+    "uint32": 2,
+    "float32": 2,
+    "float64": 4,
+    "bool": 1,
+}
+WORD_ORDERS = ("ABCD", "CDAB")
+BIT_TABLES = ("coil", "discrete")
+
+
+class MapError(ValueError):
+    """A register map is malformed; the message names the file, device and point."""
+
+
+@dataclass(frozen=True, slots=True)
+class Point:
+    """One value on the wire (see the module docstring)."""
+
+    name: str
+    signal: str
+    table: str
+    address: int
+    datatype: str
+    word_order: str
+    scale: float
+    offset: float
+    unit: str
+    access: str
+    minimum: float
+    maximum: float
+    description: str
+
+    @property
+    def width(self) -> int:
+        """Registers (or bits) the point occupies."""
+        return DATATYPES[self.datatype]
+
+    @property
+    def writable(self) -> bool:
+        return self.access == "rw"
+
+
+@dataclass(frozen=True, slots=True)
+class Device:
+    """A Modbus unit: one instrument of the bench."""
+
+    name: str
+    unit_id: int
+    instrument: str
+    points: tuple[Point, ...]
+
+    def table(self, table: str) -> tuple[Point, ...]:
+        """Points of one table, by address."""
+        return tuple(sorted((p for p in self.points if p.table == table), key=lambda p: p.address))
+
+
+@dataclass(frozen=True, slots=True)
+class RegisterMap:
+    """A whole register map."""
+
+    name: str
+    description: str
+    devices: tuple[Device, ...]
+    source: str = "<map>"
+
+    def device(self, name: str) -> Device:
+        for dev in self.devices:
+            if dev.name == name:
+                return dev
+        raise KeyError(name)
+
+    def point(self, signal: str) -> tuple[Device, Point]:
+        """The first point publishing ``signal`` (and its device)."""
+        for dev in self.devices:
+            for point in dev.points:
+                if point.signal == signal:
+                    return dev, point
+        raise KeyError(signal)
+
+
+def _num(value: Any, where: str, key: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise MapError(f"{where}: '{key}' must be a finite number, got {value!r}")
+    return float(value)
+
+
+def _point(raw: Any, where: str, default_order: str) -> Point:
+    if not isinstance(raw, Mapping):
+        raise MapError(f"{where}: must be a mapping")
+    allowed = {
+        "name",
+        "signal",
+        "table",
+        "address",
+        "datatype",
+        "word_order",
+        "scale",
+        "offset",
+        "unit",
+        "access",
+        "min",
+        "max",
+        "description",
+    }
+    for key in raw:
+        if key not in allowed:
+            raise MapError(f"{where}: unknown key '{key}'")
+    for key in ("signal", "table", "address", "datatype"):
+        if key not in raw:
+            raise MapError(f"{where}: missing required key '{key}'")
+    signal_name = raw["signal"]
+    signal = SIGNALS.get(signal_name)
+    if signal is None:
+        raise MapError(f"{where}: unknown signal '{signal_name}'")
+    table = raw["table"]
+    if table not in TABLES:
+        raise MapError(f"{where}: bad table '{table}' (one of {', '.join(TABLES)})")
+    datatype = raw["datatype"]
+    if datatype not in DATATYPES:
+        raise MapError(f"{where}: bad type '{datatype}' (one of {', '.join(DATATYPES)})")
+    if (table in BIT_TABLES) != (datatype == "bool"):
+        raise MapError(f"{where}: bad type '{datatype}' for table '{table}' (bool iff bits)")
+    address = raw["address"]
+    if isinstance(address, bool) or not isinstance(address, int) or address < 0:
+        raise MapError(f"{where}: 'address' must be an integer >= 0")
+    if address + DATATYPES[datatype] > 65536:
+        raise MapError(f"{where}: 'address' {address} runs past 65535")
+    order = raw.get("word_order", default_order)
+    if order not in WORD_ORDERS:
+        raise MapError(f"{where}: bad word_order '{order}' (ABCD or CDAB)")
+    scale = _num(raw.get("scale", 1.0), where, "scale")
+    if scale == 0:
+        raise MapError(f"{where}: 'scale' must not be 0")
+    offset = _num(raw.get("offset", 0.0), where, "offset")
+    if datatype.startswith("float") and (scale != 1.0 or offset != 0.0):
+        raise MapError(f"{where}: 'scale'/'offset' apply to integer types only")
+    access = raw.get("access", "r")
+    if access not in ("r", "rw"):
+        raise MapError(f"{where}: bad access '{access}' (r or rw)")
+    if access == "rw":
+        if table not in ("holding", "coil"):
+            raise MapError(f"{where}: writable points live in 'holding' or 'coil', not '{table}'")
+        if signal.kind != "command":
+            raise MapError(f"{where}: signal '{signal_name}' is not a command, cannot be rw")
+    minimum = _num(raw.get("min", signal.minimum), where, "min") if "min" in raw else signal.minimum
+    maximum = _num(raw.get("max", signal.maximum), where, "max") if "max" in raw else signal.maximum
+    if minimum > maximum:
+        raise MapError(f"{where}: 'min' {minimum} exceeds 'max' {maximum}")
+    if access == "rw" and (minimum < signal.minimum or maximum > signal.maximum):
+        raise MapError(
+            f"{where}: range {minimum:g}..{maximum:g} exceeds the signal's "
+            f"{signal.minimum:g}..{signal.maximum:g}"
+        )
+    name = raw.get("name", signal_name)
+    if not isinstance(name, str) or not name:
+        raise MapError(f"{where}: 'name' must be a non-empty string")
+    return Point(
+        name=name,
+        signal=signal_name,
+        table=table,
+        address=address,
+        datatype=datatype,
+        word_order=order,
+        scale=scale,
+        offset=offset,
+        unit=str(raw.get("unit", signal.unit)),
+        access=access,
+        minimum=minimum,
+        maximum=maximum,
+        description=str(raw.get("description", signal.description)),
+    )
+
+
+def map_from_mapping(data: Any, source: str = "<map>") -> RegisterMap:
+    """Validate ``data`` and build a :class:`RegisterMap`."""
+    if not isinstance(data, Mapping):
+        raise MapError(f"{source}: expected a mapping")
+    for key in data:
+        if key not in ("name", "description", "devices"):
+            raise MapError(f"{source}: unknown key '{key}'")
+    devices_raw = data.get("devices")
+    if not isinstance(devices_raw, list) or not devices_raw:
+        raise MapError(f"{source}: 'devices' must be a non-empty list")
+    devices: list[Device] = []
+    seen_ids: dict[int, str] = {}
+    for i, raw in enumerate(devices_raw):
+        where = f"{source}: devices[{i}]"
+        if not isinstance(raw, Mapping):
+            raise MapError(f"{where}: must be a mapping")
+        name = raw.get("name")
+        if not isinstance(name, str) or not name:
+            raise MapError(f"{where}: missing required key 'name'")
+        where = f"{source}: device '{name}'"
+        for key in raw:
+            if key not in ("name", "unit_id", "instrument", "word_order", "points"):
+                raise MapError(f"{where}: unknown key '{key}'")
+        unit_id = raw.get("unit_id")
+        if isinstance(unit_id, bool) or not isinstance(unit_id, int) or not 1 <= unit_id <= 247:
+            raise MapError(f"{where}: 'unit_id' must be an integer 1..247")
+        if unit_id in seen_ids:
+            raise MapError(f"{where}: unit_id {unit_id} already used by '{seen_ids[unit_id]}'")
+        if name in seen_ids.values():
+            raise MapError(f"{where}: device name used twice")
+        seen_ids[unit_id] = name
+        order = raw.get("word_order", "ABCD")
+        if order not in WORD_ORDERS:
+            raise MapError(f"{where}: bad word_order '{order}' (ABCD or CDAB)")
+        points_raw = raw.get("points")
+        if not isinstance(points_raw, list) or not points_raw:
+            raise MapError(f"{where}: 'points' must be a non-empty list")
+        points: list[Point] = []
+        for j, praw in enumerate(points_raw):
+            label = praw.get("name", f"#{j}") if isinstance(praw, Mapping) else f"#{j}"
+            points.append(_point(praw, f"{where} point '{label}'", order))
+        names = [p.name for p in points]
+        for point in points:
+            if names.count(point.name) > 1:
+                raise MapError(f"{where} point '{point.name}': name used twice")
+        for table in TABLES:
+            used: dict[int, str] = {}
+            for point in sorted((p for p in points if p.table == table), key=lambda p: p.address):
+                for addr in range(point.address, point.address + point.width):
+                    if addr in used:
+                        raise MapError(
+                            f"{where} point '{point.name}': address {addr} in table '{table}' "
+                            f"overlaps point '{used[addr]}'"
+                        )
+                    used[addr] = point.name
+        devices.append(Device(name, unit_id, str(raw.get("instrument", "")), tuple(points)))
+    return RegisterMap(
+        name=str(data.get("name", Path(source).stem)),
+        description=str(data.get("description", "")),
+        devices=tuple(devices),
+        source=source,
+    )
+
+
+def load_map(path: str | Path | None = None) -> RegisterMap:
+    """Load and validate a register map (default: the shipped Wieselburg bench map)."""
+    path = Path(path) if path is not None else MAP_DIR / "wieselburg_bench.yaml"
+    try:
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise MapError(f"{path}: cannot read ({exc.strerror})") from None
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        raise MapError(f"{path}: not valid YAML{where}") from None
+    return map_from_mapping(data, source=str(path))

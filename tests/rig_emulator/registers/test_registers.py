@@ -1,0 +1,149 @@
+"""Register maps: the shipped map, the codec, validation of broken maps, the reference."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from rig_emulator.registers import (
+    MAP_DIR,
+    MapError,
+    decode,
+    encode,
+    load_map,
+    map_from_mapping,
+    precision,
+)
+from rig_emulator.registers.reference import markdown
+from rig_emulator.registers.schema import Point
+from rig_emulator.signals import MEASURED
+
+REPO = Path(__file__).resolve().parents[3]
+
+
+def _point(datatype: str, order: str = "ABCD", scale: float = 1.0, offset: float = 0.0) -> Point:
+    return Point(
+        "p",
+        "room_temp_C",
+        "input",
+        0,
+        datatype,
+        order,
+        scale,
+        offset,
+        "C",
+        "r",
+        -math.inf,
+        math.inf,
+        "",
+    )
+
+
+def test_shipped_map_has_every_instrument_and_varied_encodings():
+    m = load_map()
+    names = {d.name for d in m.devices}
+    assert names == {
+        "bench_plc",
+        "flue_gas_analyser",
+        "fid",
+        "flue_gas_probe",
+        "balance",
+        "power_meter",
+        "boiler_controller",
+        "sim_control",
+    }
+    points = [p for d in m.devices for p in d.points]
+    assert {p.signal for p in points} >= set(MEASURED)  # every measured signal is published
+    assert any(p.word_order == "CDAB" and p.datatype == "float32" for p in points)
+    assert any(p.datatype == "int16" and p.scale != 1.0 for p in points)
+    assert any(p.datatype == "float64" for p in points)
+    assert any(p.datatype == "uint32" for p in points)
+
+
+@pytest.mark.parametrize("datatype", ["float32", "float64"])
+@pytest.mark.parametrize("order", ["ABCD", "CDAB"])
+def test_float_round_trip(datatype, order):
+    p = _point(datatype, order)
+    for value in np.random.default_rng(1).normal(0, 1e3, 200):
+        assert abs(decode(p, encode(p, value)) - value) <= precision(p, value)
+
+
+@pytest.mark.parametrize("datatype", ["int16", "uint16", "int32", "uint32"])
+@pytest.mark.parametrize("order", ["ABCD", "CDAB"])
+def test_scaled_integer_round_trip_and_saturation(datatype, order):
+    p = _point(datatype, order, scale=0.01, offset=20.0)
+    for value in (20.0, 20.004, 25.37, 300.0):
+        assert abs(decode(p, encode(p, value)) - value) <= 0.005 + 1e-12
+    top = decode(p, encode(p, 1e12))
+    assert top == pytest.approx(
+        {"int16": 2**15 - 1, "uint16": 2**16 - 1, "int32": 2**31 - 1, "uint32": 2**32 - 1}[datatype]
+        * 0.01
+        + 20.0
+    )
+    assert decode(p, encode(p, math.nan)) == 20.0  # NaN reads as raw 0
+
+
+def test_word_orders_are_mirror_images():
+    a, b = _point("float32", "ABCD"), _point("float32", "CDAB")
+    assert encode(a, 6.123) == encode(b, 6.123)[::-1]
+    assert encode(a, 1.0) == [0x3F80, 0x0000]  # IEEE 754 of 1.0, high word first
+
+
+def _broken(mutate) -> dict:
+    data = yaml.safe_load((MAP_DIR / "wieselburg_bench.yaml").read_text())
+    mutate(data)
+    return data
+
+
+@pytest.mark.parametrize(
+    ("mutate", "message"),
+    [
+        (
+            lambda d: d["devices"][0]["points"][1].update(address=1),
+            "device 'bench_plc' point 'return_temp': address 1 in table 'input' overlaps point "
+            "'water_flow'",
+        ),
+        (
+            lambda d: d["devices"][1]["points"][0].update(signal="nope"),
+            "device 'flue_gas_analyser' point 'O2': unknown signal 'nope'",
+        ),
+        (
+            lambda d: d["devices"][2]["points"][0].update(datatype="int8"),
+            "device 'fid' point 'OGC': bad type 'int8'",
+        ),
+        (
+            lambda d: d["devices"][4]["points"][1].update(datatype="uint16"),
+            "device 'balance' point 'stable': bad type 'uint16' for table 'discrete'",
+        ),
+        (
+            lambda d: d["devices"][0]["points"][0].update(access="rw"),
+            "point 'water_flow': writable points live in 'holding' or 'coil'",
+        ),
+        (
+            lambda d: d["devices"][1].update(unit_id=1),
+            "device 'flue_gas_analyser': unit_id 1 already used by 'bench_plc'",
+        ),
+        (
+            lambda d: d["devices"][0]["points"][7].update(max=1e6),
+            "point 'flow_setpoint': range 0..1e+06 exceeds",
+        ),
+        (
+            lambda d: d["devices"][0]["points"][0].update(scale=0.5),
+            "'scale'/'offset' apply to integer types only",
+        ),
+    ],
+)
+def test_broken_maps_name_file_device_and_point(mutate, message):
+    with pytest.raises(MapError) as info:
+        map_from_mapping(_broken(mutate), "maps/x.yaml")
+    assert str(info.value).startswith("maps/x.yaml: ")
+    assert message in str(info.value)
+
+
+def test_committed_reference_is_generated_from_the_map():
+    committed = (REPO / "docs" / "register_map.md").read_text()
+    assert committed == markdown(load_map()), "run: rig-emulator map-doc --out docs/register_map.md"
