@@ -27,6 +27,7 @@ test: $(STAMP) tools
 
 bench: $(STAMP)
 	$(BIN)/python bench/run_bench.py
+	$(BIN)/python bench/bench_modbus.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

@@ -39,6 +39,7 @@ _WRITE_FC = {5: "coil", 15: "coil", 6: "holding", 16: "holding", 23: "holding"}
 _PUBLISH_FC = {"input": 4, "holding": 16, "discrete": 2, "coil": 15}
 _TABLE_INDEX = {"coil": 0, "discrete": 1, "holding": 2, "input": 3}
 CLOCK_COMMANDS = ("speed_factor", "clock_mode", "lockstep_advance_s", "reset")
+_PENDING: set[asyncio.Task] = set()  # strong references to running request tasks
 
 
 @dataclass(frozen=True, slots=True)
@@ -80,6 +81,17 @@ def _simdata(runs: list[_Run], bits: bool) -> list[SimData]:
     return blocks or [SimData(0, count=1, datatype=DataType.INVALID)]
 
 
+def device_layout(device: Device) -> tuple[list[SimData], ...]:
+    """The four tables (coils, discrete, holding, input) of a map device as pymodbus blocks;
+    gaps between runs stay invalid (exception 02)."""
+    return (
+        _simdata(_runs(device, "coil"), True),
+        _simdata(_runs(device, "discrete"), True),
+        _simdata(_runs(device, "holding"), False),
+        _simdata(_runs(device, "input"), False),
+    )
+
+
 def _catch_all_device() -> SimDevice:
     """Device id 0 answers every unknown unit ID with exception 0B."""
 
@@ -92,7 +104,17 @@ def _catch_all_device() -> SimDevice:
 
 
 class _LoggingHandler(ServerRequestHandler):
-    """Request handler that logs one line per client connect and disconnect."""
+    """Request handler that logs one line per client connect and disconnect.
+
+    It also schedules each request as a task of the running loop; pymodbus's own handler
+    goes through ``run_coroutine_threadsafe``, whose thread-safe wake-up costs a pipe write
+    per request although everything runs in one thread.
+    """
+
+    def handle_later(self) -> None:
+        task = self.loop.create_task(self.handle_request())
+        _PENDING.add(task)
+        task.add_done_callback(_PENDING.discard)
 
     def callback_connected(self) -> None:
         super().callback_connected()
@@ -174,12 +196,7 @@ class BenchServer:
                     for a in range(p.address, p.address + p.width):
                         index[a] = p
                 self._points[(dev.unit_id, table)] = index
-            simdata = (
-                _simdata(runs["coil"], True),
-                _simdata(runs["discrete"], True),
-                _simdata(runs["holding"], False),
-                _simdata(runs["input"], False),
-            )
+            simdata = device_layout(dev)
             tables_used = {t for t in _TABLE_INDEX if runs[t]}
             devices.append(
                 SimDevice(dev.unit_id, simdata=simdata, action=self._action(dev, tables_used))

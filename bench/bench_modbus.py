@@ -1,0 +1,255 @@
+"""Benchmarks of the Modbus emulator (issue 3), printed, never asserted.
+
+1. Requests per second for FC4 reads of a whole instrument block (bench PLC, 14 registers)
+   with 1 and 16 connections, against ``rig-emulator serve`` (real time, 10 Hz tick) and
+   against a bare pymodbus SimDevice server of the same layout, measured alternately in the
+   same run (median of rounds); target ratio >= 0.9.
+2. Tick lateness p50/p99/max at a 10 Hz tick while 16 clients poll every device at 10 Hz;
+   target p99 < 5 ms.
+3. Lockstep speed: one client advancing 1 s steps and reading every device each step.
+
+Servers and load generators run in separate processes (the machine has 2 cores).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import multiprocessing as mp
+import socket
+import statistics
+import struct
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+PLC_BLOCK = (1, 0, 14)
+ROUND_S = 2.0
+ROUNDS = 3
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _wait_for(port: int, timeout: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=1).close()
+            return
+        except OSError:
+            time.sleep(0.1)
+    raise RuntimeError(f"no server on port {port}")
+
+
+async def _connection(port: int) -> tuple[asyncio.StreamReader, asyncio.StreamWriter]:
+    reader, writer = await asyncio.open_connection("127.0.0.1", port)
+    writer.get_extra_info("socket").setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+    return reader, writer
+
+
+async def _request(reader, writer, tid: int, unit: int, pdu: bytes) -> bytes:
+    writer.write(struct.pack(">HHHB", tid & 0xFFFF, 0, len(pdu) + 1, unit) + pdu)
+    header = await reader.readexactly(7)
+    return await reader.readexactly(struct.unpack(">HHHB", header)[2] - 1)
+
+
+def _fc4(address: int, count: int) -> bytes:
+    return struct.pack(">BHH", 4, address, count)
+
+
+async def _hammer(port: int, connections: int, seconds: float) -> int:
+    unit, address, count = PLC_BLOCK
+    pdu = _fc4(address, count)
+    done = 0
+    stop = time.monotonic() + seconds
+
+    async def one() -> None:
+        nonlocal done
+        reader, writer = await _connection(port)
+        tid = 0
+        while time.monotonic() < stop:
+            tid += 1
+            await _request(reader, writer, tid, unit, pdu)
+            done += 1
+        writer.close()
+
+    await asyncio.gather(*(one() for _ in range(connections)))
+    return done
+
+
+def _hammer_process(port: int, connections: int, seconds: float, out) -> None:
+    out.put(asyncio.run(_hammer(port, connections, seconds)))
+
+
+def _rps(port: int, connections: int) -> float:
+    ctx = mp.get_context("spawn")
+    queue = ctx.Queue()
+    proc = ctx.Process(target=_hammer_process, args=(port, connections, ROUND_S, queue))
+    proc.start()
+    done = queue.get(timeout=120)
+    proc.join()
+    return done / ROUND_S
+
+
+DEVICE_BLOCKS = (
+    (1, 0, 14),
+    (2, 0, 11),
+    (3, 0, 1),
+    (4, 0, 3),
+    (5, 0, 2),
+    (6, 0, 4),
+    (7, 0, 4),
+    (100, 0, 7),
+)
+
+
+async def _poll_all(port: int, clients: int, seconds: float, period: float) -> int:
+    done = 0
+    start = time.monotonic()
+
+    async def one(k: int) -> None:
+        nonlocal done
+        reader, writer = await _connection(port)
+        tick = 0
+        tid = 0
+        while time.monotonic() - start < seconds:
+            tick += 1
+            for unit, address, count in DEVICE_BLOCKS:
+                tid += 1
+                await _request(reader, writer, tid, unit, _fc4(address, count))
+                done += 1
+            await asyncio.sleep(max(0.0, start + k * 0.005 + tick * period - time.monotonic()))
+        writer.close()
+
+    await asyncio.gather(*(one(k) for k in range(clients)))
+    return done
+
+
+def _poll_process(port: int, clients: int, seconds: float, out) -> None:
+    out.put(asyncio.run(_poll_all(port, clients, seconds, 0.1)))
+
+
+def bench_throughput() -> None:
+    ours_port, bare_port = _free_port(), _free_port()
+    ours = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "rig_emulator.cli",
+            "serve",
+            "--boiler",
+            "windhager_12kw",
+            "--port",
+            str(ours_port),
+            "--speed",
+            "1",
+        ],
+        stderr=subprocess.DEVNULL,
+    )
+    bare = subprocess.Popen([sys.executable, str(HERE / "bare_server.py"), str(bare_port)])
+    try:
+        _wait_for(ours_port)
+        _wait_for(bare_port)
+        for connections in (1, 16):
+            a, b = [], []
+            for _ in range(ROUNDS):  # alternate, so both see the same machine load
+                a.append(_rps(ours_port, connections))
+                b.append(_rps(bare_port, connections))
+            ma, mb = statistics.median(a), statistics.median(b)
+            print(
+                f"FC4 read of the bench PLC block, {connections:2d} connection(s): emulator "
+                f"{ma:7.0f} req/s, bare SimDevice server {mb:7.0f} req/s, ratio {ma / mb:.2f} "
+                f"(target >= 0.90; median of {ROUNDS} alternating {ROUND_S:.0f}-s rounds)"
+            )
+    finally:
+        for proc in (ours, bare):
+            proc.terminate()
+            proc.wait(timeout=30)
+
+
+async def _lateness() -> None:
+    from rig_emulator.boilers import load_boiler
+    from rig_emulator.emulator import Emulator
+    from rig_emulator.instruments import load_profile
+    from rig_emulator.modbus import BenchServer
+    from rig_emulator.registers import load_map
+
+    emulator = Emulator(load_boiler("windhager_12kw"), load_profile("lab"))
+    emulator.set_commands(
+        {"water_flow_setpoint_kg_h": 687.0, "return_setpoint_C": 55.0, "boiler_command": 1.0}
+    )
+    server = BenchServer(emulator, load_map(), port=0, speed=1.0, tick_hz=10.0)
+    await server.start()
+    seconds = 20.0
+    ctx = mp.get_context("spawn")
+    queue = ctx.Queue()
+    proc = ctx.Process(target=_poll_process, args=(server.port, 16, seconds, queue))
+    proc.start()
+    await asyncio.sleep(1.0)
+    server.lateness.samples.clear()
+    while proc.is_alive():
+        await asyncio.sleep(0.2)
+    done = queue.get()
+    await server.stop()
+    s = server.lateness.summary_ms()
+    print(
+        f"tick lateness at 10 Hz with 16 clients polling all 8 devices at 10 Hz "
+        f"({done / seconds:.0f} req/s served): p50 {s['p50_ms']:.2f} ms, p99 {s['p99_ms']:.2f} "
+        f"ms, max {s['max_ms']:.2f} ms over {s['ticks']:.0f} ticks (target p99 < 5 ms)"
+    )
+
+
+def bench_lockstep() -> None:
+    sys.path.insert(0, str(HERE))
+    from rawclient import RawClient
+
+    port = _free_port()
+    server = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "rig_emulator.cli",
+            "serve",
+            "--boiler",
+            "windhager_12kw",
+            "--port",
+            str(port),
+            "--lockstep",
+        ],
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        _wait_for(port)
+        client = RawClient("127.0.0.1", port)
+        steps = 0
+        start = time.perf_counter()
+        while time.perf_counter() - start < 5.0:
+            client.write_registers(100, 4, [0, 1])  # lockstep_advance = 1 s
+            for unit, address, count in DEVICE_BLOCKS:
+                client.read_input(unit, address, count)
+            steps += 1
+        wall = time.perf_counter() - start
+        client.close()
+        print(
+            f"lockstep: {steps / wall:.0f} simulated s per wall s (1-s advance + 8 device "
+            f"reads per step, {wall / steps * 1000:.2f} ms per step, raw-socket client)"
+        )
+    finally:
+        server.terminate()
+        server.wait(timeout=30)
+
+
+def main() -> int:
+    bench_throughput()
+    asyncio.run(_lateness())
+    bench_lockstep()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
