@@ -7,21 +7,30 @@ other failure.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from hil_client.lablog import LabLogWriter, write_meta
-from hil_client.progress import ProgressLine
+from hil_client.analysis.balance import as_json as balance_json
+from hil_client.analysis.balance import energy_balance
+from hil_client.analysis.balance import table as balance_table
+from hil_client.analysis.logio import LogError, read_log
+from hil_client.analysis.phases import find_phases
+from hil_client.lablog import LabLogWriter, meta_path, write_meta
+from hil_client.progress import LiveView, ProgressLine
 from hil_client.protocol.definition import ProtocolError, load_protocol
-from hil_client.protocol.runner import run_protocol
+from hil_client.protocol.rig import RigError
+from hil_client.protocol.runner import RunResult, run_protocol
 from hil_client.rigs.local import LocalRig
+from hil_client.rigs.modbus import ModbusRig, parse_url
 from hil_client.summary import RunSummary
 from rig_emulator.boilers import load_boiler
 from rig_emulator.cli_support import Parser, UsageError, report
 from rig_emulator.instruments import ProfileError, load_profile
 from rig_emulator.model.params import ParameterError
+from rig_emulator.registers import load_map
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -38,11 +47,82 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument(
         "--rig", default="local", help="local (in-process) or modbus://HOST:PORT [local]"
     )
-    run.add_argument("--profile", default="clean", help="instrument and plant profile [clean]")
+    run.add_argument(
+        "--profile", default="clean", help="clean | lab | PROFILE.yaml, for --rig local [clean]"
+    )
     run.add_argument("--seed", type=int, default=0, help="random seed of the profile [0]")
+    run.add_argument("--map", default=None, help="register map of a Modbus rig [shipped map]")
+    run.add_argument(
+        "--reconnect-timeout",
+        type=float,
+        default=60.0,
+        help="give up after a Modbus outage this long [60 s]",
+    )
     run.add_argument("--out", required=True, type=Path, help="lab log to write (CSV)")
+    run.add_argument(
+        "--live", action="store_true", help="live view of phase, sequence, time and key values"
+    )
     run.add_argument("--quiet", action="store_true", help="no progress line, no summary")
+    bal = sub.add_parser(
+        "balance",
+        help="energy balance per phase from the instruments (Eq. 3-7)",
+        description="Energy balance per phase from a lab log: fuel power from the balance "
+        "(cumulative), lambda from O2, flue-gas losses, heat to water; direct and indirect "
+        "efficiency. Printed as a table and written as JSON.",
+    )
+    bal.add_argument("log", type=Path, help="lab log (CSV)")
+    bal.add_argument(
+        "--boiler", default=None, help="boiler NAME or PATH (its fuel) [the meta file's boiler]"
+    )
+    bal.add_argument("--out", type=Path, default=None, help="JSON to write [LOG.balance.json]")
     return parser
+
+
+def _boiler_for(log, name: str | None):
+    """The boiler named on the command line, else in the log's meta file."""
+    name = name or log.meta.get("boiler")
+    if not isinstance(name, str):
+        raise UsageError(f"{log.path}: no boiler in the meta file; give --boiler")
+    try:
+        return load_boiler(name)
+    except ParameterError as exc:
+        raise UsageError(str(exc)) from None
+
+
+def _cmd_balance(args: argparse.Namespace) -> int:
+    try:
+        log = read_log(args.log)
+        params = _boiler_for(log, args.boiler)
+        phases = find_phases(log)
+    except LogError as exc:
+        raise UsageError(str(exc)) from None
+    rows = energy_balance(log, params, phases)
+    out = args.out or args.log.with_name(args.log.stem + ".balance.json")
+    out.write_text(json.dumps(balance_json(rows, phases), indent=2) + "\n", encoding="utf-8")
+    print(f"energy balance of {args.log} ({params.name}; phases from the {phases.source})")
+    print(balance_table(rows))
+    print(f"written: {out}")
+    return 0
+
+
+def _make_rig(args: argparse.Namespace, params):
+    """The rig named by --rig; bad options raise UsageError, an unreachable server RigError."""
+    if args.rig == "local":
+        try:
+            profile = load_profile(args.profile)
+        except ProfileError as exc:
+            raise UsageError(f"--profile: {exc}") from None
+        return LocalRig(params, profile, seed=args.seed)
+    if not args.rig.startswith("modbus://"):
+        raise UsageError(f"--rig: '{args.rig}' is neither 'local' nor modbus://HOST:PORT")
+    try:
+        parse_url(args.rig)
+        register_map = load_map(args.map)
+    except ValueError as exc:  # MapError is a ValueError too
+        raise UsageError(f"--rig/--map: {exc}") from None
+    if args.reconnect_timeout < 0:
+        raise UsageError("--reconnect-timeout must not be negative")
+    return ModbusRig(args.rig, register_map, reconnect_timeout_s=args.reconnect_timeout)
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -55,60 +135,90 @@ def _cmd_run(args: argparse.Namespace) -> int:
         protocol = load_protocol(args.protocol)
     except ProtocolError as exc:
         raise UsageError(str(exc)) from None
-    if args.rig != "local":
-        raise UsageError(f"--rig: unsupported rig '{args.rig}' (available: local)")
-    try:
-        profile = load_profile(args.profile)
-    except ProfileError as exc:
-        raise UsageError(f"--profile: {exc}") from None
     out: Path = args.out
     if out.suffix.lower() != ".csv":
         raise UsageError(f"--out: '{out}' must name a .csv file")
-    if out.exists() and out.is_dir():
+    if out.is_dir():
         raise UsageError(f"--out: '{out}' is a directory")
+    try:
+        rig = _make_rig(args, params)
+    except RigError as exc:
+        print(f"hil-client: error: {exc}", file=sys.stderr)
+        return 1
 
-    rig = LocalRig(params, profile, seed=args.seed)
-    summary = RunSummary()
-    expected = protocol.test_duration_s + protocol.cooling_2_until_after_t2_s + 2 * 3600
-    show = not args.quiet and sys.stderr.isatty()
-    progress = ProgressLine(expected) if show else None
-    started = time.monotonic()
-    with LabLogWriter(out) as writer:
-
-        def sink(row: tuple[object, ...]) -> None:
-            writer(row)
-            summary(row)
-
-        result = run_protocol(protocol, params.p_nom_kW, rig, sink, progress)
-    rig.close()
-    if progress is not None:
-        progress.done()
-    wall = time.monotonic() - started
+    remote = isinstance(rig, ModbusRig)
     meta = {
         "boiler": params.name,
         "boiler_source": str(args.boiler),
         "test": protocol.test,
         "protocol": protocol.name,
         "rig": args.rig,
-        "profile": args.profile,
-        "seed": args.seed,
+        "clock": ("lockstep" if rig.lockstep else f"real time x{rig.speed:g}")
+        if remote
+        else "offline",
+        "profile": "set by the server" if remote else args.profile,
+        "seed": None if remote else args.seed,
         "acquisition_period_s": protocol.acquisition_period_s,
-        **{key: result.times.get(key) for key in ("t0_s", "t1_s", "t2_s", "t3_s", "t4_s")},
-        "notes": result.notes,
+        **dict.fromkeys(("t0_s", "t1_s", "t2_s", "t3_s", "t4_s")),
+        "complete": False,
+        "notes": [],
+        "gaps": [],
     }
-    meta_file = write_meta(out, meta)
+    summary = RunSummary()
+    expected = protocol.test_duration_s + protocol.cooling_2_until_after_t2_s + 2 * 3600
+    if args.live:
+        progress = LiveView(expected)
+    elif not args.quiet and sys.stderr.isatty():
+        progress = ProgressLine(expected)
+    else:
+        progress = None
+    started = time.monotonic()
+
+    def save_meta(result: RunResult) -> None:
+        meta.update(result.times)
+        meta["notes"] = result.notes
+        meta["gaps"] = getattr(rig, "gaps", [])
+        write_meta(out, meta)
+
+    try:
+        with LabLogWriter(out) as writer:
+            write_meta(out, meta)
+
+            def sink(row: tuple[object, ...]) -> None:
+                writer(row)
+                summary(row)
+
+            result = run_protocol(
+                protocol, params.p_nom_kW, rig, sink, progress, on_phase=save_meta
+            )
+    except RigError as exc:
+        if progress is not None:
+            progress.done()
+        print(f"hil-client: error: {exc}; the log keeps every row acquired", file=sys.stderr)
+        return 1
+    finally:
+        rig.close()
+    if progress is not None:
+        progress.done()
+    wall = time.monotonic() - started
+    meta["complete"] = True
+    save_meta(result)
     if not args.quiet:
         times = "  ".join(f"{k[:2]}={v / 3600:.3f} h" for k, v in result.times.items())
-        print(f"{protocol.name} on {params.name} ({args.rig}, {args.profile}): {result.rows} rows")
+        print(
+            f"{protocol.name} on {params.name} ({args.rig}, {meta['profile']}): {result.rows} rows"
+        )
         print(times)
         print(summary.table())
         for note in result.notes:
             print(f"note: {note}")
+        for gap in meta["gaps"]:
+            print(f"gap: {gap}")
         print(
             f"simulated {result.duration_s / 3600:.2f} h in {wall:.2f} s "
             f"({result.duration_s / max(wall, 1e-9):,.0f} x real time)"
         )
-        print(f"log: {out}\nmeta: {meta_file}")
+        print(f"log: {out}\nmeta: {meta_path(out)}")
     return 0
 
 
@@ -119,6 +229,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = parser.parse_args(argv)
         if args.command == "run":
             return _cmd_run(args)
+        if args.command == "balance":
+            return _cmd_balance(args)
         raise UsageError(f"unknown command {args.command}")
     except UsageError as exc:
         return report(exc, "hil-client")

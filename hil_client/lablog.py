@@ -28,6 +28,9 @@ _DECIMALS = {
     "electric_power_W": 4,
     "water_flow_setpoint_kg_h": 4,
     "boiler_on": 0,
+    "flue_gas_NOx_ppm": 3,
+    "flue_gas_SO2_ppm": 3,
+    "flue_gas_OGC_ppm": 3,
 }
 _TEXT = {"phase", "sequence"}
 

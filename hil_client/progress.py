@@ -1,4 +1,7 @@
-"""A live progress line on a terminal (simulated time, phase, key values), throttled."""
+"""Showing a long run while it goes: a progress line, or a live view for demos.
+
+Both redraw at most a few times per second of wall time, on stderr, in place.
+"""
 
 from __future__ import annotations
 
@@ -8,9 +11,16 @@ from typing import TextIO
 
 from hil_client.protocol.runner import LOG_COLUMNS, Row
 
+_I = {name: i for i, name in enumerate(LOG_COLUMNS)}
+
+
+def _hms(seconds: float) -> str:
+    h, rem = divmod(int(seconds), 3600)
+    return f"{h:02d}:{rem // 60:02d}:{rem % 60:02d}"
+
 
 class ProgressLine:
-    """Rewrites one stderr line at most every ``interval_s`` of wall time."""
+    """A one-line progress bar with simulated time, phase and key values."""
 
     def __init__(self, expected_s: float, stream: TextIO | None = None, interval_s: float = 0.2):
         self.expected_s = max(expected_s, 1.0)
@@ -23,22 +33,60 @@ class ProgressLine:
         now = time.monotonic()
         if now < self._next:
             return
-        t, phase, sequence = row[0], row[1], row[2]
-        reading = dict(zip(LOG_COLUMNS, row, strict=True))
         self._next = now + self.interval_s
+        self.draw(row)
+
+    def draw(self, row: Row) -> None:
+        t = float(row[0])  # type: ignore[arg-type]
         frac = min(t / self.expected_s, 1.0)
         width = 24
         bar = "#" * int(frac * width) + "-" * (width - int(frac * width))
-        h, rem = divmod(int(t), 3600)
         self.stream.write(
-            f"\r[{bar}] {frac * 100:5.1f}%  t={h:02d}:{rem // 60:02d}:{rem % 60:02d}  "
-            f"{phase:<9} {sequence:<16} T_boiler={reading['boiler_water_temp_C']:6.2f} C  "
-            f"T_fg={reading['flue_gas_temp_C']:6.1f} C  "
-            f"flow={reading['water_flow_kg_h']:6.1f} kg/h "
+            f"\r[{bar}] {frac * 100:5.1f}%  t={_hms(t)}  {row[1]:<9} {row[2]:<16} "
+            f"T_boiler={row[_I['boiler_water_temp_C']]:6.2f} C  "
+            f"T_fg={row[_I['flue_gas_temp_C']]:6.1f} C "
         )
         self.stream.flush()
 
     def done(self) -> None:
-        self.stream.write(f"\r{' ' * 118}\r")
+        self.stream.write(f"\r{' ' * 110}\r")
+        self.stream.write(f"done in {time.monotonic() - self._start:.1f} s\n")
+        self.stream.flush()
+
+
+class LiveView(ProgressLine):
+    """A block of lines redrawn in place: phase, sequence, times and the key values."""
+
+    LINES = 5
+
+    def __init__(self, expected_s: float, stream: TextIO | None = None, interval_s: float = 0.25):
+        super().__init__(expected_s, stream, interval_s)
+        self._drawn = False
+
+    def draw(self, row: Row) -> None:
+        def v(name: str) -> float:
+            return float(row[_I[name]])  # type: ignore[arg-type]
+
+        t = float(row[0])  # type: ignore[arg-type]
+        wall = time.monotonic() - self._start
+        q_water = v("water_flow_kg_h") * 4.19 * (v("water_out_temp_C") - v("water_in_temp_C"))
+        lines = [
+            f"phase {row[1]:<10} sequence {row[2] or '-':<18} simulated {_hms(t)} "
+            f"({min(t / self.expected_s, 1) * 100:4.1f} %), wall {_hms(wall)}",
+            f"  boiler {'FIRING' if v('boiler_on') >= 0.5 else 'off   '}   T inside "
+            f"{v('boiler_water_temp_C'):6.2f} C   forward {v('water_out_temp_C'):6.2f} C   "
+            f"return {v('water_in_temp_C'):6.2f} C",
+            f"  flow {v('water_flow_kg_h'):7.1f} kg/h (setpoint "
+            f"{v('water_flow_setpoint_kg_h'):7.1f})   heat to water {q_water / 3600:6.2f} kW",
+            f"  flue gas {v('flue_gas_temp_C'):6.1f} C   O2 {v('flue_gas_O2_pct'):5.2f} %   "
+            f"CO {v('flue_gas_CO_ppm'):7.1f} ppm",
+            f"  balance {v('balance_mass_kg'):8.2f} kg   electric {v('electric_power_W'):6.1f} W",
+        ]
+        up = f"\x1b[{self.LINES}F" if self._drawn else ""
+        self.stream.write(up + "".join(f"\x1b[2K{line}\n" for line in lines))
+        self.stream.flush()
+        self._drawn = True
+
+    def done(self) -> None:
         self.stream.write(f"done in {time.monotonic() - self._start:.1f} s\n")
         self.stream.flush()

@@ -28,7 +28,13 @@ READING_KEYS: tuple[str, ...] = (
     "relative_humidity_pct",
     "electric_power_W",
     "boiler_on",
+    # optional columns beyond CONTRACT section 3: the other analyser gases and the FID
+    "flue_gas_NOx_ppm",
+    "flue_gas_SO2_ppm",
+    "flue_gas_OGC_ppm",
 )
+#: Readings before this index are the CONTRACT columns before the flow setpoint.
+N_CONTRACT_READINGS = READING_KEYS.index("boiler_on")
 
 
 @dataclass(slots=True)
@@ -52,8 +58,8 @@ class Rig(Protocol):
     def apply(self, command: RigCommand) -> None:
         """Write setpoints and commands."""
 
-    def advance(self, dt_s: float) -> None:
-        """Let ``dt_s`` seconds of simulated (or real) time pass."""
+    def advance(self, dt_s: float) -> float:
+        """Let ``dt_s`` seconds of simulated time pass; returns the time that passed [s]."""
 
     def read(self) -> Sequence[float]:
         """Read every instrument: values in :data:`READING_KEYS` order (NaN if missing)."""

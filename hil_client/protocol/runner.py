@@ -26,7 +26,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from hil_client.protocol.definition import ProtocolDefinition
-from hil_client.protocol.rig import READING_KEYS, Rig, RigCommand
+from hil_client.protocol.rig import N_CONTRACT_READINGS, READING_KEYS, Rig, RigCommand
 from rig_emulator.model.constants import CP_WATER
 
 #: Columns of the lab log (CONTRACT section 3), in file order.
@@ -34,9 +34,9 @@ LOG_COLUMNS: tuple[str, ...] = (
     "time_s",
     "phase",
     "sequence",
-    *READING_KEYS[:-1],
+    *READING_KEYS[:N_CONTRACT_READINGS],
     "water_flow_setpoint_kg_h",
-    "boiler_on",
+    *READING_KEYS[N_CONTRACT_READINGS:],
 )
 
 PHASES = ("preheat", "start_up", "test", "cooling_1", "cooling_2")
@@ -112,6 +112,7 @@ def run_protocol(
     rig: Rig,
     sink: Callable[[Row], None],
     progress: Callable[[Row], None] | None = None,
+    on_phase: Callable[[RunResult], None] | None = None,
 ) -> RunResult:
     """Play ``protocol`` on ``rig`` and hand every acquired row to ``sink``.
 
@@ -121,6 +122,7 @@ def run_protocol(
         rig: the bench (in-process or over Modbus).
         sink: receives one row per acquisition step, in :data:`LOG_COLUMNS` order.
         progress: optional callback receiving each row too.
+        on_phase: optional callback after each phase boundary (t0..t4) is found.
     """
     dt = protocol.acquisition_period_s
     spread = protocol.flow_spread_K
@@ -176,12 +178,18 @@ def run_protocol(
             command.pump_on, command.boiler_on = False, False
 
         rig.apply(command)
-        rig.advance(dt)
-        t += dt
+        t += rig.advance(dt)
         reading = rig.read()
         rows += 1
         setpoint = command.flow_setpoint_kg_h if command.pump_on else 0.0
-        row = (t, phase, sequence, *reading[:-1], setpoint, reading[-1])
+        row = (
+            t,
+            phase,
+            sequence,
+            *reading[:N_CONTRACT_READINGS],
+            setpoint,
+            *reading[N_CONTRACT_READINGS:],
+        )
         sink(row)
         if progress is not None:
             progress(row)
@@ -200,6 +208,8 @@ def run_protocol(
                     result.notes.append("t0: preheat timed out before the water was stable")
                 phase, phase_start = "start_up", t
                 times["t0_s"] = t
+                if on_phase is not None:
+                    on_phase(result)
         elif phase == "start_up":
             if reading[_ON] >= 0.5:
                 slope.add(t, reading[_T_FG])
@@ -215,10 +225,14 @@ def run_protocol(
                 phase, phase_start = "test", t
                 seq_start = t
                 times["t1_s"] = t
+                if on_phase is not None:
+                    on_phase(result)
         elif phase == "test":
             if elapsed_phase >= protocol.test_duration_s - 1e-9:
                 phase, phase_start = "cooling_1", t
                 times["t2_s"] = t
+                if on_phase is not None:
+                    on_phase(result)
         elif phase == "cooling_1":
             timed_out = elapsed_phase >= c1.max_duration_s
             if reading[_T_OUT] <= c1.until_forward_C or timed_out:
@@ -226,8 +240,12 @@ def run_protocol(
                     result.notes.append("t3: forward temperature rule not met, timed out")
                 phase, phase_start = "cooling_2", t
                 times["t3_s"] = t
+                if on_phase is not None:
+                    on_phase(result)
         elif t - times["t2_s"] >= t4_after - 1e-9:
             times["t4_s"] = t
+            if on_phase is not None:
+                on_phase(result)
             break
 
     result.rows = rows

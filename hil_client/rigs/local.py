@@ -4,14 +4,14 @@ from __future__ import annotations
 
 from operator import itemgetter
 
-from hil_client.protocol.rig import READING_KEYS, RigCommand
+from hil_client.protocol.rig import N_CONTRACT_READINGS, READING_KEYS, RigCommand
 from rig_emulator.bench import BenchConfig
 from rig_emulator.emulator import Emulator
 from rig_emulator.instruments import Profile
 from rig_emulator.signals import MEASURED
 
-# every reading but the last (boiler_on) is a measured signal of the emulator
-_PICK = itemgetter(*(MEASURED.index(key) for key in READING_KEYS[:-1]))
+_HEAD = itemgetter(*(MEASURED.index(key) for key in READING_KEYS[:N_CONTRACT_READINGS]))
+_TAIL = itemgetter(*(MEASURED.index(key) for key in READING_KEYS[N_CONTRACT_READINGS + 1 :]))
 
 
 class LocalRig:
@@ -49,14 +49,16 @@ class LocalRig:
             }
         )
 
-    def advance(self, dt_s: float) -> None:
+    def advance(self, dt_s: float) -> float:
         self.emulator.advance(dt_s)
         self._stepped = True
+        return dt_s
 
     def read(self) -> tuple[float, ...]:
         if not self._stepped:
             raise RuntimeError("read() before the first advance()")
-        return (*_PICK(self.emulator.readings), self.emulator.boiler_on)
+        readings = self.emulator.readings
+        return (*_HEAD(readings), self.emulator.boiler_on, *_TAIL(readings))
 
     def close(self) -> None:
         pass

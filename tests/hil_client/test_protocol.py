@@ -73,8 +73,13 @@ def test_load_to_flow():
     assert flow_for_load(100, 12.0, 15.0) == pytest.approx(12 * 3600 / (4.19 * 15))
 
 
-def test_log_columns_are_the_contract_columns():
-    assert list(LOG_COLUMNS) == CONTRACT_COLUMNS
+def test_log_columns_are_the_contract_columns_then_optional_ones():
+    assert list(LOG_COLUMNS[: len(CONTRACT_COLUMNS)]) == CONTRACT_COLUMNS
+    assert LOG_COLUMNS[len(CONTRACT_COLUMNS) :] == (
+        "flue_gas_NOx_ppm",
+        "flue_gas_SO2_ppm",
+        "flue_gas_OGC_ppm",
+    )
 
 
 @pytest.mark.parametrize(
@@ -112,7 +117,7 @@ def test_phase_rules(run_log, protocol, boiler):
     phase = np.array(rec["phase"])
     t0, t1, t2, t3, t4 = (meta[f"t{i}_s"] for i in range(5))
     assert meta["notes"] == []  # every rule was met, none timed out
-    assert rec.header == CONTRACT_COLUMNS
+    assert rec.header == list(LOG_COLUMNS)
     assert t[-1] == t4 and len(t) == t4  # one row per second, nothing lost
     # preheat: both temperatures within 0.5 K of 45 C at t0
     i0 = np.searchsorted(t, t0)

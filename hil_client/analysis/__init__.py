@@ -1,0 +1,1 @@
+"""Analysis of lab logs: reading, phases, energy balance, calibration, validation."""

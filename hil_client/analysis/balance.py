@@ -1,0 +1,164 @@
+"""Energy balance from the instruments, as the lab computes it (Eq. 3-7, EN 14785).
+
+Per phase:
+- fuel power on a cumulative basis (the balance does not resolve single seconds):
+  m_dry = (mass at start - mass at end) / (as-received per kg dry - ash), Q_fuel = m_dry HHV
+  / duration (Eq. 3);
+- excess air from the dry O2 reading (exact inverse of the stoichiometry, ~21/(21-O2));
+- flue-gas losses per kg of dry fuel from flue-gas temperature, composition and CO
+  (Eq. 4-6), averaged over the rows where the burner fires (O2 below 19 vol-%), times the
+  phase's fuel; ash loss 0.02 % of Q_fuel (EN 14785);
+- heat to water from flow and temperatures (Eq. 7), integrated row by row;
+- direct efficiency Q_water / Q_fuel, indirect efficiency 1 - (flue-gas + ash losses) /
+  Q_fuel (the loss to the room is not measured, so the indirect figure is an upper bound).
+
+Missing readings (empty fields) are interpolated in time.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from hil_client.analysis.logio import LabLog, fill_gaps
+from hil_client.analysis.phases import NAMES, Phases
+from rig_emulator.model import constants as k
+from rig_emulator.model.fuel import stoichiometry
+from rig_emulator.model.params import BoilerParams
+
+FIRING_O2_PCT = 19.0
+
+
+@dataclass(slots=True)
+class PhaseBalance:
+    """Energy balance of one phase (energies [kWh], mean powers [kW], fractions [-])."""
+
+    phase: str
+    duration_s: float
+    fuel_as_received_kg: float
+    fuel_dry_kg: float
+    q_fuel_kW: float
+    q_water_kW: float
+    q_flue_gas_kW: float
+    q_fg_sensible_kW: float
+    q_fg_latent_kW: float
+    q_fg_chemical_kW: float
+    lambda_mean: float
+    eta_direct: float
+    eta_indirect: float
+
+
+def flue_gas_loss_per_kg(
+    params: BoilerParams,
+    o2_pct: np.ndarray,
+    t_fg: np.ndarray,
+    t_room: np.ndarray,
+    co_ppm: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(lambda, sensible, latent, chemical loss [kJ per kg dry fuel]) per row (Eq. 4-6)."""
+    st = stoichiometry(params.fuel)
+    o2 = np.clip(o2_pct, 0.0, FIRING_O2_PCT)
+    lam = st.lambda_from_o2(o2)
+    b0, b1 = st.dry_heat_capacity_coeffs()
+    sens = (b0 + b1 * lam + st.m_h2o_kg * k.CP_VAPOUR) * (t_fg - t_room)
+    latent = np.full_like(lam, st.m_h2o_kg * k.DH_VAP_WATER)
+    chem = co_ppm * 1e-6 * st.dry_volume_m3(lam) * k.RHO_N_CO * k.DH_COMB_CO
+    return lam, sens, latent, chem
+
+
+def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[PhaseBalance]:
+    """Per-phase energy balance of a lab log (see the module docstring)."""
+    t = log.t
+    get = {
+        name: fill_gaps(log[name], t)
+        for name in (
+            "water_flow_kg_h",
+            "water_in_temp_C",
+            "water_out_temp_C",
+            "flue_gas_temp_C",
+            "flue_gas_O2_pct",
+            "balance_mass_kg",
+            "room_temp_C",
+        )
+    }
+    co = fill_gaps(log["flue_gas_CO_ppm"], t) if log.has("flue_gas_CO_ppm") else np.zeros(len(t))
+    co = np.nan_to_num(co)
+    dt = np.diff(t, prepend=t[0] - (t[1] - t[0] if len(t) > 1 else 1.0))
+    q_water = (
+        get["water_flow_kg_h"]
+        * k.CP_WATER
+        * (get["water_out_temp_C"] - get["water_in_temp_C"])
+        / 3600.0
+    )
+    lam, sens, lat, chem = flue_gas_loss_per_kg(
+        params, get["flue_gas_O2_pct"], get["flue_gas_temp_C"], get["room_temp_C"], co
+    )
+    firing = get["flue_gas_O2_pct"] < FIRING_O2_PCT
+    per_kg_dry = params.fuel.as_received_per_kg_dry - params.fuel.ash
+    hhv = params.fuel.hhv_dry_kJ_kg
+    out = []
+    for name in NAMES:
+        mask = phases.mask(name, t)
+        if not mask.any():
+            continue
+        idx = np.flatnonzero(mask)
+        duration = float(dt[idx].sum())
+        first = max(idx[0] - 1, 0)
+        fuel_ar = float(get["balance_mass_kg"][first] - get["balance_mass_kg"][idx[-1]])
+        fuel_dry = max(fuel_ar, 0.0) / per_kg_dry
+        q_fuel = fuel_dry * hhv / duration
+        q_w = float((q_water[idx] * dt[idx]).sum() / duration)
+        burn = idx[firing[idx]]
+        if len(burn) and fuel_dry > 0:
+            rate = fuel_dry / duration  # kg/s
+            s_, l_, c_ = (float(a[burn].mean()) * rate for a in (sens, lat, chem))
+            lam_mean = float(lam[burn].mean())
+        else:
+            s_ = l_ = c_ = 0.0
+            lam_mean = math.nan
+        q_fg = s_ + l_ + c_
+        eta_d = q_w / q_fuel if q_fuel > 0 else math.nan
+        eta_i = 1.0 - (q_fg + k.ASH_LOSS_FRACTION * q_fuel) / q_fuel if q_fuel > 0 else math.nan
+        out.append(
+            PhaseBalance(
+                name,
+                duration,
+                fuel_ar,
+                fuel_dry,
+                q_fuel,
+                q_w,
+                q_fg,
+                s_,
+                l_,
+                c_,
+                lam_mean,
+                eta_d,
+                eta_i,
+            )
+        )
+    return out
+
+
+def table(rows: list[PhaseBalance]) -> str:
+    """The balance as a text table."""
+    head = (
+        f"{'phase':<10} {'duration':>9} {'fuel kg':>8} {'Q_fuel':>8} {'Q_water':>8} "
+        f"{'Q_fluegas':>9} {'lambda':>7} {'eta dir':>8} {'eta ind':>8}"
+    )
+    lines = [head, f"{'':<10} {'h':>9} {'(a.r.)':>8} {'kW':>8} {'kW':>8} {'kW':>9}"]
+    for r in rows:
+        lines.append(
+            f"{r.phase:<10} {r.duration_s / 3600:>9.3f} {r.fuel_as_received_kg:>8.2f} "
+            f"{r.q_fuel_kW:>8.3f} {r.q_water_kW:>8.3f} {r.q_flue_gas_kW:>9.3f} "
+            f"{r.lambda_mean:>7.2f} {r.eta_direct * 100:>7.1f}% {r.eta_indirect * 100:>7.1f}%"
+        )
+    return "\n".join(lines)
+
+
+def as_json(rows: list[PhaseBalance], phases: Phases) -> dict:
+    return {
+        "phases": phases.as_dict() | {"source": phases.source},
+        "balance": [asdict(r) for r in rows],
+    }

@@ -1,0 +1,151 @@
+"""Reading lab logs (CONTRACT section 3) for analysis, validated before any work starts.
+
+Rules (each refusal is a :class:`LogError` naming the file, column, row or value):
+- the header must hold ``time_s`` and the columns an analysis requires;
+- ``time_s`` must be present in every row and strictly increasing;
+- a number column may have empty fields (missing values, e.g. a Modbus outage): they are
+  NaN, and analyses skip or interpolate them as they document; a field that is neither empty
+  nor a number is refused;
+- ``phase``/``sequence`` are text; other unknown columns are kept as numbers if they parse.
+
+The optional ``NAME.meta.json`` beside the log is read when present.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+TEXT_COLUMNS = ("phase", "sequence")
+#: Columns every analysis of CONTRACT section 3 may rely on.
+REQUIRED = (
+    "time_s",
+    "water_flow_kg_h",
+    "water_in_temp_C",
+    "water_out_temp_C",
+    "boiler_water_temp_C",
+    "flue_gas_temp_C",
+    "flue_gas_O2_pct",
+    "balance_mass_kg",
+    "room_temp_C",
+)
+
+
+class LogError(ValueError):
+    """A lab log cannot be analysed; the message names the file and what is wrong."""
+
+
+@dataclass(slots=True)
+class LabLog:
+    """A lab log in columns (numbers as float arrays, NaN where missing) and its meta."""
+
+    path: Path
+    columns: dict[str, np.ndarray]
+    text: dict[str, list[str]]
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.columns["time_s"]
+
+    def has(self, name: str) -> bool:
+        return name in self.columns or name in self.text
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.columns[name]
+
+    def __len__(self) -> int:
+        return len(self.columns["time_s"])
+
+
+def read_log(path: str | Path, required: tuple[str, ...] = REQUIRED) -> LabLog:
+    """Read and validate a lab log (see the module docstring)."""
+    path = Path(path)
+    try:
+        fh = path.open(newline="", encoding="utf-8")
+    except OSError as exc:
+        raise LogError(f"{path}: cannot read ({exc.strerror})") from None
+    with fh:
+        reader = csv.reader(fh)
+        try:
+            header = next(reader)
+        except StopIteration:
+            raise LogError(f"{path}: empty file (no header row)") from None
+        except csv.Error as exc:
+            raise LogError(f"{path}: not a CSV file ({exc})") from None
+        header = [h.strip() for h in header]
+        for name in required:
+            if name not in header:
+                raise LogError(f"{path}: missing required column '{name}'")
+        if len(set(header)) != len(header):
+            dup = next(h for h in header if header.count(h) > 1)
+            raise LogError(f"{path}: column '{dup}' appears twice")
+        raw: list[list[str]] = []
+        try:
+            for row in reader:
+                if not row:
+                    continue
+                if len(row) != len(header):
+                    raise LogError(
+                        f"{path}: row {reader.line_num} has {len(row)} fields, header has "
+                        f"{len(header)}"
+                    )
+                raw.append(row)
+        except csv.Error as exc:
+            raise LogError(f"{path}: line {reader.line_num}: {exc}") from None
+    if not raw:
+        raise LogError(f"{path}: no data rows")
+    columns: dict[str, np.ndarray] = {}
+    text: dict[str, list[str]] = {}
+    for j, name in enumerate(header):
+        values = [r[j] for r in raw]
+        if name in TEXT_COLUMNS:
+            text[name] = values
+            continue
+        try:
+            out = np.array([v if v.strip() else "nan" for v in values], dtype=float)
+        except ValueError:
+            i, v = next((i, v) for i, v in enumerate(values) if v.strip() and not _is_number(v))
+            raise LogError(f"{path}: column '{name}' row {i + 2}: '{v}' is not a number") from None
+        columns[name] = out
+    t = columns["time_s"]
+    if np.isnan(t).any():
+        i = int(np.flatnonzero(np.isnan(t))[0])
+        raise LogError(f"{path}: column 'time_s' row {i + 2} is empty")
+    steps = np.diff(t)
+    if (steps <= 0).any():
+        i = int(np.flatnonzero(steps <= 0)[0])
+        raise LogError(
+            f"{path}: column 'time_s' is not increasing at row {i + 3} ({t[i]:g} -> {t[i + 1]:g})"
+        )
+    meta_file = path.with_name(path.stem + ".meta.json")
+    meta: dict[str, Any] = {}
+    if meta_file.exists():
+        try:
+            meta = json.loads(meta_file.read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError) as exc:
+            raise LogError(f"{meta_file}: not valid JSON ({exc})") from None
+        if not isinstance(meta, dict):
+            raise LogError(f"{meta_file}: expected a JSON object")
+    return LabLog(path, columns, text, meta)
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def fill_gaps(values: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Missing values (NaN) linearly interpolated in time; ends held. All-NaN stays NaN."""
+    ok = ~np.isnan(values)
+    if ok.all() or not ok.any():
+        return values
+    return np.interp(t, t[ok], values[ok])

@@ -1,0 +1,143 @@
+"""Phase boundaries t0..t4 of a lab log (Fig. 3 of Carlon et al. 2015).
+
+Taken, in this order of preference, from the ``phase`` column, the meta file, or the signals:
+
+- t0: the burner first fires (``boiler_on``), or, without that column, the flue-gas
+  temperature first rises 20 K above its starting value;
+- t1: after t0, the least-squares rise of the flue-gas temperature over 5 min first falls
+  below 0.5 K/min (at least 5 min after t0): the rule the runner applies;
+- t3: circulation stops: the flow setpoint's last non-zero row, or, without that column,
+  the last row before which the flow falls below 5 % of its maximum for good;
+- t2: the first cooling is the constant-flow segment ending at t3; t2 is where the flow
+  (setpoint) last changed by more than 5 % before it;
+- t4: the end of the record.
+
+A boundary is the time of the last row of the phase before it (as the runner records it).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hil_client.analysis.logio import LabLog, LogError, fill_gaps
+
+NAMES = ("preheat", "start_up", "test", "cooling_1", "cooling_2")
+
+
+@dataclass(frozen=True, slots=True)
+class Phases:
+    """Phase boundaries [s] and where they came from."""
+
+    t0: float
+    t1: float
+    t2: float
+    t3: float
+    t4: float
+    source: str
+
+    def bounds(self, name: str) -> tuple[float, float]:
+        """(start, end] of a phase; ``preheat`` starts at -inf."""
+        edges = (-np.inf, self.t0, self.t1, self.t2, self.t3, self.t4)
+        i = NAMES.index(name)
+        return edges[i], edges[i + 1]
+
+    def mask(self, name: str, t: np.ndarray) -> np.ndarray:
+        lo, hi = self.bounds(name)
+        return (t > lo) & (t <= hi)
+
+    def as_dict(self) -> dict[str, float]:
+        return {"t0_s": self.t0, "t1_s": self.t1, "t2_s": self.t2, "t3_s": self.t3, "t4_s": self.t4}
+
+
+def _from_column(log: LabLog) -> Phases | None:
+    if not log.has("phase"):
+        return None
+    phase = log.text["phase"]
+    t = log.t
+    bounds = {}
+    for i in range(1, len(phase)):
+        if phase[i] != phase[i - 1] and phase[i] in NAMES:
+            bounds.setdefault(phase[i], t[i - 1])
+    if not {"start_up", "test", "cooling_1", "cooling_2"} <= set(bounds):
+        return None
+    return Phases(
+        bounds["start_up"],
+        bounds["test"],
+        bounds["cooling_1"],
+        bounds["cooling_2"],
+        float(t[-1]),
+        "phase column",
+    )
+
+
+def _from_meta(log: LabLog) -> Phases | None:
+    keys = ("t0_s", "t1_s", "t2_s", "t3_s", "t4_s")
+    values = [log.meta.get(k) for k in keys]
+    if any(not isinstance(v, int | float) for v in values):
+        return None
+    return Phases(*(float(v) for v in values), source="meta file")  # type: ignore[arg-type]
+
+
+def rise_rate_K_min(t: np.ndarray, y: np.ndarray, window_s: float = 300.0) -> np.ndarray:
+    """Least-squares slope of ``y`` over the trailing window at every row [K/min]
+    (NaN until the window is full)."""
+    y = fill_gaps(y, t)
+    cs, cy, ctt, cty = (np.concatenate(([0.0], np.cumsum(a))) for a in (t, y, t * t, t * y))
+    j = np.searchsorted(t, t - window_s, side="left")
+    i1 = np.arange(1, len(t) + 1)
+    n = i1 - j
+    st, sy = cs[i1] - cs[j], cy[i1] - cy[j]
+    stt, sty = ctt[i1] - ctt[j], cty[i1] - cty[j]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rate = (n * sty - st * sy) / (n * stt - st * st) * 60.0
+    full = (t - t[j] >= window_s * 0.98) & (n >= 3)
+    return np.where(full, rate, np.nan)
+
+
+def _from_signals(log: LabLog) -> Phases:
+    t = log.t
+    path = log.path
+    fg = fill_gaps(log["flue_gas_temp_C"], t)
+    if log.has("boiler_on") and np.nanmax(log["boiler_on"]) >= 0.5:
+        i0 = int(np.argmax(log["boiler_on"] >= 0.5))
+    else:
+        rising = np.flatnonzero(fg > fg[0] + 20.0)
+        if not len(rising):
+            raise LogError(f"{path}: cannot find t0: the burner never fires")
+        i0 = int(rising[0])
+    i0 = max(i0 - 1, 0)
+    t0 = float(t[i0])
+    rate = rise_rate_K_min(t, fg)
+    ok = np.flatnonzero((t >= t0 + 300.0) & (rate < 0.5))
+    if not len(ok):
+        raise LogError(f"{path}: cannot find t1: the flue-gas temperature never settles")
+    t1 = float(t[ok[0]])
+    if log.has("water_flow_setpoint_kg_h"):
+        flow = fill_gaps(log["water_flow_setpoint_kg_h"], t)
+        running = np.flatnonzero(flow > 0.0)
+    else:
+        flow = fill_gaps(log["water_flow_kg_h"], t)
+        running = np.flatnonzero(flow > 0.05 * np.nanmax(flow))
+    if not len(running) or running[-1] >= len(t) - 2:
+        raise LogError(f"{path}: cannot find t3: the circulation never stops")
+    i3 = int(running[-1])
+    t3 = float(t[i3])
+    # the first cooling: constant flow back from t3 (skip the lag at its end)
+    level = np.median(flow[max(i3 - 120, 0) : max(i3 - 30, 1)])
+    off = np.flatnonzero((np.abs(flow[: i3 - 30] - level) > 0.05 * level) & (t[: i3 - 30] > t1))
+    if not len(off):
+        raise LogError(f"{path}: cannot find t2: no change of flow before the first cooling")
+    t2 = float(t[off[-1]])
+    return Phases(t0, t1, t2, t3, float(t[-1]), "signals")
+
+
+def find_phases(log: LabLog, prefer_signals: bool = False) -> Phases:
+    """Phase boundaries from the phase column, the meta file, or the signals (see above)."""
+    if not prefer_signals:
+        for finder in (_from_column, _from_meta):
+            found = finder(log)
+            if found is not None:
+                return found
+    return _from_signals(log)

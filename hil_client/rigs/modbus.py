@@ -1,0 +1,298 @@
+"""The Modbus rig: drives a running ``rig-emulator serve`` as a test controller would.
+
+It reads the same register map as the server, writes the flow and return setpoints every
+step and the pump, heater and boiler switches when they change, lets one acquisition period
+of simulated time pass, and polls every instrument (one connection per unit, scatter-gather).
+
+Time: in lockstep the rig advances the server itself (writing ``lockstep_advance``; the
+reply means the new state is readable), so runs are deterministic; in real time or
+accelerated mode it follows the server's clock, waiting until its simulated time has moved
+on by the acquisition period.
+
+A lost connection is retried with exponential backoff (0.1 s doubling to 5 s, up to
+``reconnect_timeout_s``); commands are written again, a lockstep advance that may not have
+happened is settled by the server's simulated time, and the outage is recorded in
+:attr:`gaps`. Nothing already acquired is touched.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from urllib.parse import urlparse
+
+from hil_client.modbus_client import (
+    ConnectionLost,
+    ModbusExceptionResponse,
+    UnitConnection,
+    bits_of,
+    read_pdu,
+    registers_of,
+    write_coils_pdu,
+    write_registers_pdu,
+)
+from hil_client.protocol.rig import READING_KEYS, RigCommand, RigError
+from rig_emulator.registers import Point, RegisterMap, decode, encode
+
+_READ_FUNCTION = {"coil": 1, "discrete": 2, "holding": 3, "input": 4}
+
+
+@dataclass(frozen=True, slots=True)
+class _Read:
+    """One read request: a contiguous run of points of one table of one unit."""
+
+    unit: int
+    function: int
+    start: int
+    count: int
+    points: tuple[Point, ...]
+
+
+def parse_url(url: str) -> tuple[str, int]:
+    """(host, port) of ``modbus://HOST:PORT``."""
+    parsed = urlparse(url)
+    if parsed.scheme != "modbus" or not parsed.hostname:
+        raise ValueError(f"'{url}' is not modbus://HOST:PORT")
+    try:
+        port = parsed.port or 502
+    except ValueError:
+        raise ValueError(f"'{url}' has a bad port") from None
+    return parsed.hostname, port
+
+
+def _read_plan(register_map: RegisterMap, signals: tuple[str, ...]) -> list[_Read]:
+    """The fewest requests that read every signal (contiguous runs only: gaps answer 02)."""
+    wanted: dict[tuple[int, str], list[Point]] = {}
+    for signal in signals:
+        try:
+            device, point = register_map.point(signal)
+        except KeyError:
+            raise RigError(f"register map {register_map.source}: no point for '{signal}'") from None
+        wanted.setdefault((device.unit_id, point.table), []).append(point)
+    plan: list[_Read] = []
+    for (unit, table), points in wanted.items():
+        device = next(d for d in register_map.devices if d.unit_id == unit)
+        table_points = device.table(table)
+        points.sort(key=lambda p: p.address)
+        run: list[Point] = []
+        for p in table_points:
+            if run and p.address != run[-1].address + run[-1].width:
+                if any(q in points for q in run):
+                    plan.append(_make_read(unit, table, run))
+                run = []
+            run.append(p)
+        if run and any(q in points for q in run):
+            plan.append(_make_read(unit, table, run))
+    return plan
+
+
+def _make_read(unit: int, table: str, run: list[Point]) -> _Read:
+    start = run[0].address
+    count = run[-1].address + run[-1].width - start
+    return _Read(unit, _READ_FUNCTION[table], start, count, tuple(run))
+
+
+class ModbusRig:
+    """A remote bench reached over Modbus TCP (see the module docstring)."""
+
+    def __init__(
+        self,
+        url: str,
+        register_map: RegisterMap,
+        timeout_s: float = 5.0,
+        reconnect_timeout_s: float = 60.0,
+    ) -> None:
+        try:
+            self.host, self.port = parse_url(url)
+        except ValueError as exc:
+            raise RigError(str(exc)) from None
+        self.url = url
+        self.map = register_map
+        self.timeout_s = timeout_s
+        self.reconnect_timeout_s = reconnect_timeout_s
+        self.gaps: list[dict[str, float | str]] = []
+        self._plan = _read_plan(register_map, READING_KEYS)
+        self._clock_plan = _read_plan(register_map, ("sim_time_s",))
+        self._points = {
+            s: register_map.point(s)
+            for s in (
+                "water_flow_setpoint_kg_h",
+                "return_setpoint_C",
+                "pump_on",
+                "return_heating",
+                "boiler_command",
+                "lockstep_advance_s",
+                "clock_mode",
+                "speed_factor",
+                "sim_time_s",
+            )
+        }
+        self._units = sorted(
+            {r.unit for r in self._plan} | {d.unit_id for d, _ in self._points.values()}
+        )
+        self._conns: dict[int, UnitConnection] = {}
+        self._command: RigCommand | None = None
+        self._written_switches: tuple[bool, bool, bool] | None = None
+        self.values: dict[str, float] = {}
+        try:
+            self._connect()
+        except ConnectionLost as exc:
+            raise RigError(f"cannot reach {url}: {exc}") from None
+        self.lockstep = self._read_point("clock_mode") == 1.0
+        self.speed = self._read_point("speed_factor")
+        self.sim_time_s = self._read_point("sim_time_s")
+        # in lockstep the rig knows the time it advanced to; otherwise it polls the clock too
+        plan = self._plan if self.lockstep else self._plan + self._clock_plan
+        by_unit: dict[int, list[_Read]] = {}
+        for read in plan:
+            by_unit.setdefault(read.unit, []).append(read)
+        depth = max(len(reads) for reads in by_unit.values())
+        self._rounds = [[r[i] for r in by_unit.values() if i < len(r)] for i in range(depth)]
+
+    # ------------------------------------------------------------------ connections
+    def _connect(self) -> None:
+        self.close()
+        for unit in self._units:
+            self._conns[unit] = UnitConnection(self.host, self.port, unit, self.timeout_s)
+
+    def _reconnect(self, reason: str) -> None:
+        started = time.monotonic()
+        sim_before = self.sim_time_s
+        delay = 0.1
+        while True:
+            try:
+                self._connect()
+                self._written_switches = None
+                self.sim_time_s = self._read_point("sim_time_s")
+                break
+            except ConnectionLost:
+                if time.monotonic() - started > self.reconnect_timeout_s:
+                    raise RigError(
+                        f"{self.url}: connection lost ({reason}) and not back within "
+                        f"{self.reconnect_timeout_s:g} s"
+                    ) from None
+                time.sleep(delay)
+                delay = min(delay * 2, 5.0)
+        self.gaps.append(
+            {
+                "reason": reason,
+                "sim_time_lost_s": sim_before,
+                "sim_time_back_s": self.sim_time_s,
+                "outage_wall_s": round(time.monotonic() - started, 3),
+            }
+        )
+
+    def close(self) -> None:
+        for conn in self._conns.values():
+            conn.close()
+        self._conns.clear()
+
+    # ------------------------------------------------------------------ primitives
+    def _request(self, unit: int, pdu: bytes) -> bytes:
+        conn = self._conns[unit]
+        conn.send(pdu)
+        return conn.receive()
+
+    def _read_point(self, signal: str) -> float:
+        device, point = self._points[signal]
+        reply = self._request(
+            device.unit_id, read_pdu(_READ_FUNCTION[point.table], point.address, point.width)
+        )
+        if point.table in ("coil", "discrete"):
+            return 1.0 if bits_of(reply, 1)[0] else 0.0
+        return decode(point, registers_of(reply))
+
+    def _write(self, signal: str, value: float) -> None:
+        device, point = self._points[signal]
+        if point.table == "coil":
+            self._request(device.unit_id, write_coils_pdu(point.address, [value >= 0.5]))
+        else:
+            self._request(device.unit_id, write_registers_pdu(point.address, encode(point, value)))
+
+    def _write_commands(self) -> None:
+        cmd = self._command
+        if cmd is None:
+            return
+        flow_dev, flow = self._points["water_flow_setpoint_kg_h"]
+        ret_dev, ret = self._points["return_setpoint_C"]
+        if flow_dev is ret_dev and ret.address == flow.address + flow.width:
+            words = encode(flow, cmd.flow_setpoint_kg_h) + encode(ret, cmd.return_setpoint_C)
+            self._request(flow_dev.unit_id, write_registers_pdu(flow.address, words))
+        else:
+            self._write("water_flow_setpoint_kg_h", cmd.flow_setpoint_kg_h)
+            self._write("return_setpoint_C", cmd.return_setpoint_C)
+        switches = (cmd.pump_on, cmd.return_heating, cmd.boiler_on)
+        if switches != self._written_switches:
+            self._write("pump_on", float(cmd.pump_on))
+            self._write("return_heating", float(cmd.return_heating))
+            self._write("boiler_command", float(cmd.boiler_on))
+            self._written_switches = switches
+
+    def _poll(self) -> None:
+        """Send one read on every connection, then collect the replies; repeat for units
+        with more than one read (only one request is outstanding per connection)."""
+        values = self.values
+        for batch in self._rounds:
+            for read in batch:
+                self._conns[read.unit].send(read_pdu(read.function, read.start, read.count))
+            for read in batch:
+                reply = self._conns[read.unit].receive()
+                if read.function in (1, 2):
+                    bits = bits_of(reply, read.count)
+                    for p in read.points:
+                        values[p.signal] = 1.0 if bits[p.address - read.start] else 0.0
+                else:
+                    regs = registers_of(reply)
+                    for p in read.points:
+                        off = p.address - read.start
+                        values[p.signal] = decode(p, regs[off : off + p.width])
+
+    # ------------------------------------------------------------------ rig interface
+    def apply(self, command: RigCommand) -> None:
+        self._command = RigCommand(
+            command.flow_setpoint_kg_h,
+            command.return_setpoint_C,
+            command.pump_on,
+            command.boiler_on,
+            command.return_heating,
+        )
+
+    def advance(self, dt_s: float) -> float:
+        """Write the commands, let ``dt_s`` of simulated time pass, poll every instrument.
+
+        Returns the simulated time that actually passed [s] (more than ``dt_s`` in real-time
+        mode when the client fell behind or the connection was down).
+        """
+        before = self.sim_time_s
+        target = before + dt_s
+        for _ in range(1000):
+            try:
+                self._write_commands()
+                if self.lockstep:
+                    if self.sim_time_s < target - 1e-6:
+                        self._write("lockstep_advance_s", target - self.sim_time_s)
+                        self.sim_time_s = target
+                else:
+                    self._wait_until(target)
+                self._poll()
+                if not self.lockstep:
+                    self.sim_time_s = self.values["sim_time_s"]
+                return self.sim_time_s - before
+            except (ConnectionLost, OSError) as exc:
+                self._reconnect(str(exc))
+            except ModbusExceptionResponse as exc:
+                raise RigError(f"{self.url}: {exc}") from None
+        raise RigError(f"{self.url}: no progress after 1000 reconnections")
+
+    def _wait_until(self, target: float) -> None:
+        while True:
+            now = self._read_point("sim_time_s")
+            if now >= target - 1e-9:
+                return
+            wait = (target - now) / max(self.speed, 1e-9)
+            time.sleep(min(max(wait * 0.5, 0.001), 0.25))
+
+    def read(self) -> tuple[float, ...]:
+        values = self.values
+        return tuple(values.get(key, math.nan) for key in READING_KEYS)
