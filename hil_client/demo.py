@@ -1,28 +1,140 @@
-"""``make demo``: the load cycle of the 12 kW boiler, played offline on the in-process rig.
+"""``make demo``: the load cycle through Modbus, end to end, as a lab would run it.
 
-Writes ``out/demo/load_cycle.csv`` with its meta file and prints the run summary.
+1. starts ``rig-emulator serve --lockstep`` as a separate process on a free port;
+2. runs ``hil-client run load_cycle`` against it over Modbus TCP (the client advances the
+   server itself, so the run is as fast as the wire allows and fully deterministic);
+3. stops the server;
+4. writes the energy balance and a short report with a figure like the paper's Fig. 7
+   under ``out/demo/`` and prints where everything is.
+
+``python -m hil_client.demo [OUT_DIR] [--protocol P] [--boiler B]`` (tests use a short
+protocol).
 """
 
 from __future__ import annotations
 
+import argparse
+import json
+import signal
+import socket
+import subprocess
 import sys
+import time
 from collections.abc import Sequence
 from pathlib import Path
 
+from hil_client.analysis.balance import energy_balance
+from hil_client.analysis.balance import table as balance_table
+from hil_client.analysis.figures import energy_and_temperatures
+from hil_client.analysis.logio import read_log
+from hil_client.analysis.phases import find_phases
 from hil_client.cli import main as hil_client_main
+from rig_emulator.boilers import load_boiler
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _wait_for_port(port: int, proc: subprocess.Popen, timeout_s: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            raise RuntimeError(f"rig-emulator serve exited with code {proc.returncode}")
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=1).close()
+            return
+        except OSError:
+            time.sleep(0.1)
+    raise RuntimeError(f"rig-emulator serve did not listen on port {port}")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the demo; ``argv`` may name another output directory (default ``out/demo``)."""
-    args = list(argv) if argv is not None else sys.argv[1:]
-    out_dir = Path(args[0]) if args else Path("out/demo")
-    log = out_dir / "load_cycle.csv"
-    code = hil_client_main(
-        ["run", "load_cycle", "--boiler", "windhager_12kw", "--rig", "local", "--out", str(log)]
+    parser = argparse.ArgumentParser(prog="demo", description=__doc__.splitlines()[0])
+    parser.add_argument("out_dir", nargs="?", default="out/demo", type=Path)
+    parser.add_argument("--protocol", default="load_cycle")
+    parser.add_argument("--boiler", default="windhager_12kw")
+    args = parser.parse_args(argv)
+    out_dir: Path = args.out_dir
+    out_dir.mkdir(parents=True, exist_ok=True)
+    log_path = out_dir / f"{Path(args.protocol).stem}.csv"
+    port = _free_port()
+    started = time.monotonic()
+    server_log = (out_dir / "server.log").open("w")
+    server = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "rig_emulator.cli",
+            "serve",
+            "--boiler",
+            args.boiler,
+            "--port",
+            str(port),
+            "--lockstep",
+        ],
+        stderr=server_log,
     )
-    if code == 0:
-        print(f"\ndemo results in {out_dir.resolve()}/")
-    return code
+    try:
+        _wait_for_port(port, server)
+        print(f"rig-emulator serve --lockstep started on 127.0.0.1:{port} (pid {server.pid})")
+        code = hil_client_main(
+            [
+                "run",
+                args.protocol,
+                "--boiler",
+                args.boiler,
+                "--rig",
+                f"modbus://127.0.0.1:{port}",
+                "--out",
+                str(log_path),
+            ]
+        )
+    finally:
+        server.send_signal(signal.SIGTERM)
+        server.wait(timeout=30)
+        server_log.close()
+    if code != 0:
+        return code
+    params = load_boiler(args.boiler)
+    log = read_log(log_path)
+    phases = find_phases(log)
+    rows = energy_balance(log, params, phases)
+    figure = energy_and_temperatures(
+        log,
+        phases,
+        out_dir / "fig7_energy_temperatures.png",
+        f"{args.protocol} of {params.name} through Modbus (lockstep)",
+    )
+    table = balance_table(rows)
+    report = out_dir / "report.md"
+    report.write_text(
+        f"# Demo: {args.protocol} of {params.name} through Modbus TCP\n\n"
+        f"Emulator: `rig-emulator serve --boiler {args.boiler} --lockstep` (separate process);"
+        f" client: `hil-client run {args.protocol} --rig modbus://127.0.0.1:{port}`.\n\n"
+        f"Phases (from the {phases.source}): "
+        + ", ".join(f"{k[:2]} = {v / 3600:.3f} h" for k, v in phases.as_dict().items())
+        + "\n\n## Energy balance from the instruments (Eq. 3-7)\n\n```\n"
+        + table
+        + "\n```\n\n## Energy flows and temperatures (cf. Fig. 7 of the paper)\n\n"
+        + f"![energy and temperatures]({figure.name})\n\n"
+        + "Meta file:\n\n```json\n"
+        + json.dumps(log.meta, indent=2)
+        + "\n```\n",
+        encoding="utf-8",
+    )
+    print(f"\ndemo finished in {time.monotonic() - started:.0f} s; results in {out_dir.resolve()}/")
+    for path in (
+        log_path,
+        log_path.with_name(log_path.stem + ".meta.json"),
+        report,
+        figure,
+        out_dir / "server.log",
+    ):
+        print(f"  {path}")
+    return 0
 
 
 if __name__ == "__main__":

@@ -1,0 +1,105 @@
+"""Figures of a lab log (PNG, matplotlib without a display)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+
+from hil_client.analysis.logio import LabLog, fill_gaps
+from hil_client.analysis.phases import Phases
+from rig_emulator.model.constants import CP_WATER
+
+PHASE_LABELS = ("t0", "t1", "t2", "t3")
+
+
+def mark_phases(ax, phases: Phases, hours: bool = True) -> None:
+    """Vertical lines and labels at t0..t3."""
+    scale = 3600.0 if hours else 1.0
+    for label, x in zip(PHASE_LABELS, (phases.t0, phases.t1, phases.t2, phases.t3), strict=True):
+        ax.axvline(x / scale, color="0.6", lw=0.8, ls="--")
+        ax.text(
+            x / scale,
+            1.0,
+            label,
+            transform=ax.get_xaxis_transform(),
+            ha="center",
+            va="bottom",
+            fontsize=8,
+            color="0.4",
+        )
+
+
+def energy_and_temperatures(log: LabLog, phases: Phases, path: Path, title: str) -> Path:
+    """Energy flows and temperatures over time, like Fig. 7 of Carlon et al. (2015)."""
+    t = log.t
+    h = t / 3600.0
+    f = {
+        n: fill_gaps(log[n], t)
+        for n in (
+            "water_flow_kg_h",
+            "water_in_temp_C",
+            "water_out_temp_C",
+            "boiler_water_temp_C",
+            "flue_gas_temp_C",
+            "balance_mass_kg",
+            "room_temp_C",
+        )
+    }
+    q_water = f["water_flow_kg_h"] * CP_WATER * (f["water_out_temp_C"] - f["water_in_temp_C"])
+    q_water = q_water / 3600.0
+    window = max(int(60 / max(np.median(np.diff(t)), 1e-9)), 1)
+    smooth = np.convolve(q_water, np.ones(window) / window, mode="same")
+    fig, axes = plt.subplots(
+        3, 1, figsize=(11, 8.5), sharex=True, gridspec_kw={"height_ratios": [1.2, 1.2, 0.8]}
+    )
+    ax = axes[0]
+    ax.plot(h, q_water, color="tab:blue", lw=0.4, alpha=0.35)
+    ax.plot(h, smooth, color="tab:blue", lw=1.2, label="heat to water (Eq. 7), 1-min mean")
+    ax.axhline(0, color="0.3", lw=0.5)
+    ax.set_ylabel("power [kW]")
+    ax.legend(loc="upper right", fontsize=8)
+    mark_phases(ax, phases)
+    ax = axes[1]
+    for name, color, label in (
+        ("boiler_water_temp_C", "tab:red", "water inside the boiler"),
+        ("water_out_temp_C", "tab:orange", "forward (exit pipe)"),
+        ("water_in_temp_C", "tab:green", "return"),
+        ("room_temp_C", "0.5", "room"),
+    ):
+        ax.plot(h, f[name], color=color, lw=1.0, label=label)
+    ax.set_ylabel("temperature [C]")
+    twin = ax.twinx()
+    twin.plot(h, f["flue_gas_temp_C"], color="tab:purple", lw=0.8, label="flue gas")
+    twin.set_ylabel("flue gas [C]", color="tab:purple")
+    lines = ax.get_lines() + twin.get_lines()
+    ax.legend(lines, [ln.get_label() for ln in lines], loc="upper right", fontsize=8)
+    mark_phases(ax, phases)
+    ax = axes[2]
+    ax.plot(h, f["balance_mass_kg"], color="tab:brown", lw=1.0, label="balance")
+    ax.set_ylabel("balance [kg]")
+    if log.has("boiler_on"):
+        twin = ax.twinx()
+        twin.fill_between(
+            h,
+            0,
+            np.nan_to_num(log["boiler_on"]),
+            step="post",
+            color="tab:red",
+            alpha=0.15,
+            label="burner firing",
+        )
+        twin.set_yticks([0, 1])
+        twin.set_ylabel("firing")
+    ax.set_xlabel("time [h]")
+    mark_phases(ax, phases)
+    fig.suptitle(title)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

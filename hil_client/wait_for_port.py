@@ -1,0 +1,45 @@
+"""Wait until a TCP port accepts connections (for docker-compose and scripts).
+
+``python -m hil_client.wait_for_port HOST PORT [--timeout S]``: exit 0 once HOST:PORT
+accepts a connection, 1 after the timeout, 2 on bad usage.
+"""
+
+from __future__ import annotations
+
+import argparse
+import socket
+import sys
+import time
+from collections.abc import Sequence
+
+
+def wait_for_port(host: str, port: int, timeout_s: float) -> bool:
+    """True once ``host:port`` accepts a TCP connection, False after ``timeout_s``."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        try:
+            socket.create_connection((host, port), timeout=1.0).close()
+            return True
+        except OSError:
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(0.2)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="wait_for_port", description=__doc__.splitlines()[0])
+    parser.add_argument("host")
+    parser.add_argument("port", type=int)
+    parser.add_argument("--timeout", type=float, default=60.0)
+    args = parser.parse_args(argv)
+    if wait_for_port(args.host, args.port, args.timeout):
+        return 0
+    print(
+        f"wait_for_port: {args.host}:{args.port} not reachable after {args.timeout:g} s",
+        file=sys.stderr,
+    )
+    return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
