@@ -7,6 +7,7 @@
 2. Tick lateness p50/p99/max at a 10 Hz tick while 16 clients poll every device at 10 Hz;
    target p99 < 5 ms.
 3. Lockstep speed: one client advancing 1 s steps and reading every device each step.
+4. The whole load-cycle test through Modbus in lockstep with ``hil-client run`` (issue 4).
 
 Servers and load generators run in separate processes (the machine has 2 cores).
 """
@@ -244,10 +245,61 @@ def bench_lockstep() -> None:
         server.wait(timeout=30)
 
 
+def bench_load_cycle() -> None:
+    """Issue 4: the whole load-cycle test (preheat, t0..t4) through Modbus in lockstep."""
+    import tempfile
+
+    from hil_client.cli import main as client
+
+    port = _free_port()
+    server = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "rig_emulator.cli",
+            "serve",
+            "--boiler",
+            "windhager_12kw",
+            "--port",
+            str(port),
+            "--lockstep",
+        ],
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        _wait_for(port)
+        with tempfile.TemporaryDirectory() as tmp:
+            start = time.perf_counter()
+            code = client(
+                [
+                    "run",
+                    "load_cycle",
+                    "--boiler",
+                    "windhager_12kw",
+                    "--rig",
+                    f"modbus://127.0.0.1:{port}",
+                    "--out",
+                    f"{tmp}/lc.csv",
+                    "--quiet",
+                ]
+            )
+            wall = time.perf_counter() - start
+            rows = Path(f"{tmp}/lc.csv").read_text().count("\n") - 1
+        print(
+            f"load cycle through Modbus, lockstep (hil-client run, exit {code}): {rows} steps "
+            f"({rows / 3600:.2f} h simulated) in {wall:.1f} s wall = {rows / wall:.0f} x real "
+            f"time (target 1000)"
+        )
+    finally:
+        server.terminate()
+        server.wait(timeout=30)
+
+
 def main() -> int:
     bench_throughput()
     asyncio.run(_lateness())
     bench_lockstep()
+    bench_load_cycle()
     return 0
 
 

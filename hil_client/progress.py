@@ -30,6 +30,7 @@ class ProgressLine:
         self._start = time.monotonic()
 
     def __call__(self, row: Row) -> None:
+        self._last = row
         now = time.monotonic()
         if now < self._next:
             return
@@ -88,5 +89,7 @@ class LiveView(ProgressLine):
         self._drawn = True
 
     def done(self) -> None:
+        if getattr(self, "_last", None) is not None:
+            self.draw(self._last)  # the final state stays on screen
         self.stream.write(f"done in {time.monotonic() - self._start:.1f} s\n")
         self.stream.flush()

@@ -2,8 +2,8 @@
 
 Taken, in this order of preference, from the ``phase`` column, the meta file, or the signals:
 
-- t0: the burner first fires (``boiler_on``), or, without that column, the flue-gas
-  temperature first rises 20 K above its starting value;
+- t0: the burner first fires (``boiler_on``), or, without that column, the flue gas first
+  runs 20 K hotter than the water inside the boiler or its O2 falls below 19 vol-%;
 - t1: after t0, the least-squares rise of the flue-gas temperature over 5 min first falls
   below 0.5 K/min (at least 5 min after t0): the rule the runner applies;
 - t3: circulation stops: the flow setpoint's last non-zero row, or, without that column,
@@ -102,11 +102,13 @@ def _from_signals(log: LabLog) -> Phases:
     fg = fill_gaps(log["flue_gas_temp_C"], t)
     if log.has("boiler_on") and np.nanmax(log["boiler_on"]) >= 0.5:
         i0 = int(np.argmax(log["boiler_on"] >= 0.5))
-    else:
-        rising = np.flatnonzero(fg > fg[0] + 20.0)
-        if not len(rising):
+    else:  # firing shows as flue gas much hotter than the water, or as O2 falling
+        hot = fg > fill_gaps(log["boiler_water_temp_C"], t) + 20.0
+        lean = fill_gaps(log["flue_gas_O2_pct"], t) < 19.0
+        firing = np.flatnonzero(hot | lean)
+        if not len(firing):
             raise LogError(f"{path}: cannot find t0: the burner never fires")
-        i0 = int(rising[0])
+        i0 = int(firing[0])
     i0 = max(i0 - 1, 0)
     t0 = float(t[i0])
     rate = rise_rate_K_min(t, fg)

@@ -1,6 +1,5 @@
 """``hil-client`` as users call it: logs written, bad input refused with exit code 2."""
 
-import json
 import shutil
 import subprocess
 import sys
@@ -8,7 +7,6 @@ import sys
 import pytest
 
 from hil_client.cli import main
-from hil_client.demo import main as demo_main
 
 
 @pytest.mark.parametrize("script", ["hil-client", "rig-emulator"])
@@ -60,11 +58,3 @@ def test_broken_parameter_file_is_refused_before_any_work(tmp_path, capsys):
     assert main(["run", "stationary", "--boiler", str(bad), "--out", str(out)]) == 2
     assert "missing required key 'p_max_kW'" in capsys.readouterr().err
     assert not out.exists()
-
-
-def test_demo_writes_the_load_cycle(tmp_path, capsys):
-    assert demo_main([str(tmp_path)]) == 0
-    out = capsys.readouterr().out
-    assert "demo results in" in out
-    meta = json.loads((tmp_path / "load_cycle.meta.json").read_text())
-    assert meta["test"] == "load_cycle" and meta["t4_s"] > meta["t2_s"]

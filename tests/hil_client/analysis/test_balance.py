@@ -1,0 +1,75 @@
+"""The energy balance from the instruments against the model's own steady state."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hil_client.analysis.balance import energy_balance
+from hil_client.analysis.logio import LabLog
+from hil_client.analysis.phases import Phases
+from rig_emulator.model import pack_constants, steady_state
+from rig_emulator.model.fuel import stoichiometry
+
+
+def _steady_log(params, hours: float = 2.0) -> tuple[LabLog, object]:
+    """A hand-made log of stationary nominal operation, built from the closed-form state."""
+    c = pack_constants(params)
+    flow = params.nominal_flow_kg_h
+    ss = steady_state(c, flow, 55.0, 22.0)
+    n = int(hours * 3600)
+    t = np.arange(1.0, n + 1.0)
+    st = stoichiometry(params.fuel)
+    lam = params.fac_a_lambda + params.fac_b_lambda_h_kg * ss.fuel_dry_kg_h
+    o2 = st.composition_dry_pct(lam)[0]
+    per_kg_dry = params.fuel.as_received_per_kg_dry - params.fuel.ash
+    mass = 250.0 - ss.fuel_dry_kg_h * per_kg_dry * t / 3600.0
+    cols = {
+        "time_s": t,
+        "water_flow_kg_h": np.full(n, flow),
+        "water_in_temp_C": np.full(n, 55.0),
+        "water_out_temp_C": np.full(n, ss.t_boiler_C),
+        "boiler_water_temp_C": np.full(n, ss.t_boiler_C),
+        "flue_gas_temp_C": np.full(n, ss.t_flue_gas_C),
+        "flue_gas_O2_pct": np.full(n, o2),
+        "flue_gas_CO_ppm": np.full(n, params.co_ppm_at_p_max),
+        "balance_mass_kg": mass,
+        "room_temp_C": np.full(n, 22.0),
+    }
+    return LabLog(path=None, columns=cols, text={}), ss  # type: ignore[arg-type]
+
+
+def test_balance_recovers_the_closed_form_steady_state(params_12kw):
+    log, ss = _steady_log(params_12kw)
+    t_end = float(log.t[-1])
+    phases = Phases(0.0, 0.5, t_end, t_end + 1, t_end + 2, "test")
+    rows = {r.phase: r for r in energy_balance(log, params_12kw, phases)}
+    test = rows["test"]
+    # fuel power from the balance on a cumulative basis, heat to water from Eq. 7
+    assert test.q_fuel_kW == pytest.approx(ss.q_fuel_kW, rel=1e-3)
+    assert test.q_water_kW == pytest.approx(ss.q_water_kW, rel=1e-9)
+    # lambda from O2 inverts Eq. 9's lambda; the flue-gas loss matches the model's (Eq. 4-6)
+    assert test.lambda_mean == pytest.approx(
+        params_12kw.fac_a_lambda + params_12kw.fac_b_lambda_h_kg * ss.fuel_dry_kg_h, rel=1e-9
+    )
+    assert test.q_flue_gas_kW == pytest.approx(ss.q_flue_gas_kW, rel=1e-3)
+    # direct efficiency: water / fuel; indirect: 1 - losses / fuel, the room loss unmeasured
+    assert test.eta_direct == pytest.approx(ss.q_water_kW / ss.q_fuel_kW, rel=1e-3)
+    assert test.eta_indirect - test.eta_direct == pytest.approx(
+        ss.q_amb_kW / ss.q_fuel_kW, abs=2e-3
+    )
+
+
+def test_balance_cli_on_a_run(run_log, capsys):
+    import json
+
+    from hil_client.cli import main
+
+    rec = run_log("stationary", "windhager_12kw")
+    assert main(["balance", str(rec.path)]) == 0
+    out = capsys.readouterr().out
+    assert "eta dir" in out
+    data = json.loads(rec.path.with_name(rec.path.stem + ".balance.json").read_text())
+    test = next(r for r in data["balance"] if r["phase"] == "test")
+    # Section 3.2.1: about 85 % of Q_fuel to water in the 12 kW stationary test
+    assert test["eta_direct"] == pytest.approx(0.85, abs=0.01)

@@ -1,0 +1,82 @@
+"""Reading lab logs (bad input refused with a clear message) and finding phases."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hil_client.analysis.logio import LogError, fill_gaps, read_log
+from hil_client.analysis.phases import find_phases, rise_rate_K_min
+
+HEADER = (
+    "time_s,water_flow_kg_h,water_in_temp_C,water_out_temp_C,boiler_water_temp_C,"
+    "flue_gas_temp_C,flue_gas_O2_pct,balance_mass_kg,room_temp_C"
+)
+
+
+def _write(tmp_path, text: str):
+    path = tmp_path / "log.csv"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("time_s,water_flow_kg_h\n1,2\n", "missing required column 'water_in_temp_C'"),
+        (
+            HEADER + "\n1,1,1,1,1,1,1,1,1\n1,1,1,1,1,1,1,1,1\n",
+            "'time_s' is not increasing at row 3",
+        ),
+        (HEADER + "\n1,1,1,1,1,x,1,1,1\n", "column 'flue_gas_temp_C' row 2: 'x' is not a number"),
+        (HEADER + "\n1,1,1,1\n", "row 2 has 4 fields"),
+        (HEADER + "\n", "no data rows"),
+        ("", "empty file"),
+        (HEADER + "\n,1,1,1,1,1,1,1,1\n", "column 'time_s' row 2 is empty"),
+    ],
+)
+def test_bad_logs_are_refused_naming_what_is_wrong(tmp_path, text, message):
+    with pytest.raises(LogError) as info:
+        read_log(_write(tmp_path, text))
+    assert message in str(info.value) and "\n" not in str(info.value)
+
+
+def test_empty_fields_are_missing_values_and_can_be_filled(tmp_path):
+    log = read_log(
+        _write(tmp_path, HEADER + "\n1,1,,1,1,1,1,1,1\n2,1,3,1,1,1,1,1,1\n3,1,5,1,1,1,1,1,1\n")
+    )
+    assert np.isnan(log["water_in_temp_C"][0])
+    filled = fill_gaps(np.array([1.0, np.nan, 3.0, np.nan]), np.array([0.0, 1.0, 2.0, 3.0]))
+    assert filled.tolist() == [1.0, 2.0, 3.0, 3.0]
+
+
+def test_rise_rate_of_a_known_ramp():
+    t = np.arange(0.0, 1200.0)
+    y = np.where(t < 600, 0.02 * t, 12.0)  # 1.2 K/min, then flat
+    rate = rise_rate_K_min(t, y)
+    assert np.isnan(rate[100])
+    assert rate[500] == pytest.approx(1.2)
+    assert rate[1000] == pytest.approx(0.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("protocol", ["stationary", "load_cycle"])
+def test_phases_from_signals_match_the_runner(run_log, protocol, tmp_path):
+    rec = run_log(protocol, "windhager_12kw")
+    log = read_log(rec.path)
+    from_column = find_phases(log)
+    assert from_column.source == "phase column"
+    assert from_column.as_dict() == {k: rec.meta[k] for k in from_column.as_dict()}
+    signals = find_phases(log, prefer_signals=True)
+    assert signals.source == "signals"
+    # t0, t1, t3, t4 follow the runner's own rules exactly; t2 from the flow setpoint step
+    assert signals.as_dict() == from_column.as_dict()
+    # without the phase, setpoint and boiler_on columns (a real lab's CSV), from flow alone
+    keep = [c for c in log.columns if c not in ("water_flow_setpoint_kg_h", "boiler_on")]
+    bare = tmp_path / "bare.csv"
+    data = np.column_stack([log[c] for c in keep])
+    np.savetxt(bare, data, delimiter=",", header=",".join(keep), comments="", fmt="%.6f")
+    found = find_phases(read_log(bare))
+    assert found.source == "signals"
+    for key, value in from_column.as_dict().items():
+        # the flow meter's 10 s lag and the burner seen through the flue gas: within 1 min
+        assert found.as_dict()[key] == pytest.approx(value, abs=60), key

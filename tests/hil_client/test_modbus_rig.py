@@ -1,0 +1,177 @@
+"""The client over Modbus: equal to the in-process run, nothing lost, clear errors."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hil_client.analysis.logio import read_log
+from hil_client.cli import main
+from rig_emulator.registers import load_map, precision
+from tests.tcp_proxy import CuttableProxy
+
+SHORT = str(Path(__file__).resolve().parents[1] / "data" / "short_protocol.yaml")
+TEXT = ("phase", "sequence")
+
+
+def _run(args: list[str]) -> int:
+    return main(["run", SHORT, "--boiler", "windhager_12kw", "--quiet", *args])
+
+
+@pytest.fixture(scope="module")
+def local_log(tmp_path_factory):
+    out = tmp_path_factory.mktemp("local") / "local.csv"
+    assert _run(["--rig", "local", "--out", str(out)]) == 0
+    return read_log(out)
+
+
+def _tolerance(column: str, value: np.ndarray) -> np.ndarray:
+    """Encoding precision of the column's map point, plus the CSV's decimals, plus the
+    effect of the setpoints' own encoding: they travel as float32 (6e-8 relative), and the
+    ideal controller amplifies a state difference by C / (m cp dt), about 250, so readings
+    may differ by up to 1e-5 relative."""
+    from hil_client.lablog import _DECIMALS
+
+    csv = 10.0 ** -_DECIMALS.get(column, 5) + 1e-5 * np.abs(value)
+    try:
+        _, p = load_map().point(column if column != "boiler_on" else "boiler_on")
+    except KeyError:
+        return np.full_like(value, csv)
+    return np.array([precision(p, v) for v in value]) + csv + 1e-9
+
+
+def assert_logs_equal(a, b) -> None:
+    assert list(a.columns) == list(b.columns)
+    assert len(a) == len(b)
+    for name in TEXT:
+        assert a.text[name] == b.text[name]
+    for name, values in a.columns.items():
+        other = b.columns[name]
+        both = ~np.isnan(values)
+        assert np.array_equal(both, ~np.isnan(other)), name
+        diff = np.abs(values[both] - other[both])
+        assert np.all(diff <= _tolerance(name, values[both])), (name, diff.max())
+
+
+def test_modbus_lockstep_run_equals_the_local_run(serve, tmp_path, local_log):
+    srv = serve(lockstep=True)
+    out = tmp_path / "modbus.csv"
+    assert _run(["--rig", f"modbus://127.0.0.1:{srv.port}", "--out", str(out)]) == 0
+    remote = read_log(out)
+    assert remote.meta["clock"] == "lockstep" and remote.meta["complete"] is True
+    assert remote.meta["gaps"] == []
+    for key in ("t0_s", "t1_s", "t2_s", "t3_s", "t4_s"):
+        assert remote.meta[key] == local_log.meta[key]
+    assert_logs_equal(local_log, remote)
+
+
+def test_dropped_connections_are_retried_and_nothing_is_lost(serve, tmp_path, local_log):
+    srv = serve(lockstep=True)
+    proxy = CuttableProxy(srv.port)
+    out = tmp_path / "dropped.csv"
+    cutter_done = threading.Event()
+
+    def cutter() -> None:
+        # cut twice once rows are flowing
+        while not out.exists() or out.stat().st_size < 20_000:
+            time.sleep(0.05)
+        proxy.cut()
+        time.sleep(1.0)
+        proxy.cut()
+        cutter_done.set()
+
+    threading.Thread(target=cutter, daemon=True).start()
+    assert _run(["--rig", f"modbus://127.0.0.1:{proxy.port}", "--out", str(out)]) == 0
+    proxy.close()
+    assert cutter_done.is_set()
+    log = read_log(out)
+    assert len(log.meta["gaps"]) >= 1  # the outage is marked in the meta file
+    assert "sim_time_lost_s" in log.meta["gaps"][0]
+    # lockstep: the client settles the interrupted advance, so every row is there and equal
+    assert_logs_equal(local_log, log)
+
+
+def test_unreachable_server_gives_one_line_error(tmp_path, capsys):
+    out = tmp_path / "x.csv"
+    code = _run(["--rig", "modbus://127.0.0.1:1", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 1
+    assert "cannot reach modbus://127.0.0.1:1" in err and err.count("\n") == 1
+    assert not out.exists()
+
+
+def _start_client(port: int, out: Path, *extra: str) -> subprocess.Popen:
+    return subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "hil_client.cli",
+            "run",
+            SHORT,
+            "--boiler",
+            "windhager_12kw",
+            "--rig",
+            f"modbus://127.0.0.1:{port}",
+            "--out",
+            str(out),
+            "--quiet",
+            *extra,
+        ],
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+
+
+def _wait_rows(out: Path, n: int, timeout: float = 120.0) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if out.exists() and out.read_text().count("\n") > n:
+            return
+        time.sleep(0.05)
+    raise AssertionError("no rows arrived")
+
+
+def _assert_valid_partial(out: Path) -> int:
+    lines = out.read_text().splitlines()
+    header = lines[0].split(",")
+    assert all(len(line.split(",")) == len(header) for line in lines[1:])
+    log = read_log(out)  # parses and validates
+    assert np.all(np.diff(log.t) == 1.0)
+    return len(log)
+
+
+def test_killed_client_leaves_a_valid_log(serve, tmp_path):
+    srv = serve(lockstep=True)
+    out = tmp_path / "killed.csv"
+    proc = _start_client(srv.port, out)
+    _wait_rows(out, 300)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait(timeout=30)
+    rows = _assert_valid_partial(out)
+    assert rows >= 300
+    meta = read_log(out).meta
+    assert meta["complete"] is False  # written at the start, updated at each phase
+
+
+def test_killed_server_ends_the_client_cleanly(tmp_path):
+    from tests.conftest import RunningServer
+
+    srv = RunningServer(lockstep=True)
+    out = tmp_path / "server_killed.csv"
+    proc = _start_client(srv.port, out, "--reconnect-timeout", "1")
+    _wait_rows(out, 300)
+    srv.stop()
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 1
+    assert "not back within 1 s; the log keeps every row acquired" in err
+    assert "Traceback" not in err
+    assert _assert_valid_partial(out) >= 300
