@@ -16,8 +16,12 @@ from pathlib import Path
 from hil_client.analysis.balance import as_json as balance_json
 from hil_client.analysis.balance import energy_balance
 from hil_client.analysis.balance import table as balance_table
+from hil_client.analysis.calibrate import calibrate
+from hil_client.analysis.figures import calibration_figures, validation_figures
 from hil_client.analysis.logio import LogError, read_log
 from hil_client.analysis.phases import find_phases
+from hil_client.analysis.report import validation_report
+from hil_client.analysis.validate import compare, validation_metrics
 from hil_client.lablog import LabLogWriter, meta_path, write_meta
 from hil_client.progress import LiveView, ProgressLine
 from hil_client.protocol.definition import ProtocolError, load_protocol
@@ -26,10 +30,10 @@ from hil_client.protocol.runner import RunResult, run_protocol
 from hil_client.rigs.local import LocalRig
 from hil_client.rigs.modbus import ModbusRig, parse_url
 from hil_client.summary import RunSummary
-from rig_emulator.boilers import load_boiler
+from rig_emulator.boilers import dump_boiler, load_boiler
 from rig_emulator.cli_support import Parser, UsageError, report
 from rig_emulator.instruments import ProfileError, load_profile
-from rig_emulator.model.params import ParameterError
+from rig_emulator.model.params import ParameterError, params_from_mapping
 from rig_emulator.registers import load_map
 
 
@@ -75,7 +79,109 @@ def _build_parser() -> argparse.ArgumentParser:
         "--boiler", default=None, help="boiler NAME or PATH (its fuel) [the meta file's boiler]"
     )
     bal.add_argument("--out", type=Path, default=None, help="JSON to write [LOG.balance.json]")
+    cal = sub.add_parser(
+        "calibrate",
+        help="fit the model's parameters from lab logs (Section 3.1 of the paper)",
+        description="Fit dTnom, dThx,wat, facA/facB, UAamb,OFF/ON, Pel and Wel, Pstart from a "
+        "stationary-test and/or a load-cycle log, starting from the boiler's documentation "
+        "values. Writes a parameter file, its uncertainties and the Fig. 4/5 regressions.",
+    )
+    cal.add_argument("logs", nargs="+", type=Path, help="lab logs (CSV)")
+    cal.add_argument("--boiler", required=True, help="documentation values: NAME or PATH")
+    cal.add_argument("--out", required=True, type=Path, help="parameter file to write (YAML)")
+    val = sub.add_parser(
+        "validate",
+        help="simulate the model with a log's measured inputs and compare (Table 4)",
+        description="Simulate the model with the log's measured flow, return and room "
+        "temperature and on/off commands, and compare per phase with the lab (maximum "
+        "deviation, correlation, RMSD; flue-gas loss; cumulative fuel). Writes "
+        "validation.json, report.md and figures to DIR.",
+    )
+    val.add_argument("log", type=Path, help="lab log (CSV)")
+    val.add_argument("--boiler", required=True, help="parameters: NAME or PATH (calibrated)")
+    val.add_argument("--out", required=True, type=Path, help="output directory")
     return parser
+
+
+def _cmd_validate(args: argparse.Namespace) -> int:
+    try:
+        params = load_boiler(args.boiler)
+        log = read_log(args.log)
+        phases = find_phases(log)
+    except (ParameterError, LogError) as exc:
+        raise UsageError(str(exc)) from None
+    if args.out.exists() and not args.out.is_dir():
+        raise UsageError(f"--out: '{args.out}' exists and is not a directory")
+    args.out.mkdir(parents=True, exist_ok=True)
+    comp = compare(log, phases, params)
+    result = validation_metrics(comp, log, params)
+    result = {
+        "log": str(args.log),
+        "boiler": params.name,
+        "phases": phases.as_dict() | {"source": phases.source},
+        **result,
+    }
+    (args.out / "validation.json").write_text(json.dumps(result, indent=2) + "\n")
+    figures = validation_figures(
+        comp, phases, args.out / "validation", f"{args.log.name}: model ({params.name}) against lab"
+    )
+    report = validation_report(result, figures)
+    (args.out / "report.md").write_text(report)
+    print(report.split("## Figures")[0].rstrip())
+    print(
+        f"\nwritten: {args.out / 'validation.json'}, {args.out / 'report.md'}, "
+        + ", ".join(str(f) for f in figures)
+    )
+    return 0
+
+
+def _cmd_calibrate(args: argparse.Namespace) -> int:
+    try:
+        doc = load_boiler(args.boiler)
+    except ParameterError as exc:
+        raise UsageError(str(exc)) from None
+    if args.out.suffix not in (".yaml", ".yml"):
+        raise UsageError(f"--out: '{args.out}' must name a .yaml file")
+    logs = []
+    try:
+        for path in args.logs:
+            log = read_log(path)
+            logs.append((log, find_phases(log)))
+        result = calibrate(logs, doc)
+        params = params_from_mapping(result.params.to_mapping(), str(args.out))
+    except (LogError, ParameterError) as exc:
+        raise UsageError(str(exc)) from None
+    lines = [
+        f"# calibrated by hil-client from {', '.join(str(p) for p in args.logs)}",
+        f"# documentation values from {args.boiler}; fitted values +- expanded uncertainty (k=2):",
+    ]
+    for key, f in result.fitted.items():
+        lines.append(f"#   {key} = {f.value:.4g} +- {f.expanded:.2g}  ({f.method})")
+    dump_boiler(params, args.out, header="\n".join(lines))
+    side = args.out.with_suffix(".uncertainty.json")
+    side.write_text(
+        json.dumps(
+            {
+                key: {
+                    "value": f.value,
+                    "standard_uncertainty": f.u,
+                    "expanded_uncertainty_k2": f.expanded,
+                    "method": f.method,
+                    "points": f.n,
+                }
+                for key, f in result.fitted.items()
+            },
+            indent=2,
+        )
+        + "\n"
+    )
+    figures = calibration_figures(result, args.out.with_suffix(""))
+    print(f"calibrated {params.name} from {len(args.logs)} log(s):")
+    print(f"  {'parameter':<20} {'value':>10} {'+- (k=2)':>10}  {'documentation':>13}")
+    for key, f in result.fitted.items():
+        print(f"  {key:<20} {f.value:>10.4g} {f.expanded:>10.2g}  {getattr(doc, key):>13.4g}")
+    print(f"written: {args.out}, {side}, " + ", ".join(str(p) for p in figures))
+    return 0
 
 
 def _boiler_for(log, name: str | None):
@@ -231,6 +337,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_run(args)
         if args.command == "balance":
             return _cmd_balance(args)
+        if args.command == "calibrate":
+            return _cmd_calibrate(args)
+        if args.command == "validate":
+            return _cmd_validate(args)
         raise UsageError(f"unknown command {args.command}")
     except UsageError as exc:
         return report(exc, "hil-client")

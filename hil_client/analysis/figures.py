@@ -103,3 +103,89 @@ def energy_and_temperatures(log: LabLog, phases: Phases, path: Path, title: str)
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def calibration_figures(cal, stem: Path) -> list[Path]:
+    """Fig. 4 (flue-gas delta-T regression) and Fig. 5 (lambda against dry fuel flow)."""
+    paths = []
+    p = cal.params
+    fig, ax = plt.subplots(figsize=(6, 4.2))
+    x, y = cal.fig4["x"], cal.fig4["y"]
+    ax.plot(x, y, "o", color="tab:red", label="stationary intervals")
+    xs = np.linspace(0, max(1.0, float(np.max(x)) if len(x) else 1.0), 10)
+    ax.plot(
+        xs,
+        p.dt_nom_K + p.dt_hx_wat_K * xs,
+        "k-",
+        label=f"dTnom {p.dt_nom_K:.2f} K, dThx,wat {p.dt_hx_wat_K:.2f} K",
+    )
+    ax.set_xlabel("1 - m_w / m_w,nom [-]")
+    ax.set_ylabel("T_fg - T_w,in [K]")
+    ax.set_title("Flue-gas temperature (Eq. 8, cf. Fig. 4)")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    paths.append(stem.with_name(stem.name + "_fig4_flue_gas.png"))
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(6, 4.2))
+    f, lam = cal.fig5["fuel"], cal.fig5["lambda"]
+    ax.plot(f, lam, "o", color="tab:blue", label="stationary intervals")
+    fs = np.linspace(0, max(float(np.max(f)) * 1.1 if len(f) else 3.0, 0.5), 10)
+    ax.plot(
+        fs,
+        p.fac_a_lambda + p.fac_b_lambda_h_kg * fs,
+        "k-",
+        label=f"facA {p.fac_a_lambda:.2f}, facB {p.fac_b_lambda_h_kg:.2f} h/kg",
+    )
+    ax.set_xlabel("dry fuel flow [kg/h]")
+    ax.set_ylabel("lambda (from O2) [-]")
+    ax.set_title("Excess air (Eq. 9, cf. Fig. 5)")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    paths.append(stem.with_name(stem.name + "_fig5_lambda.png"))
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+    return paths
+
+
+def validation_figures(comp, phases: Phases, stem: Path, title: str) -> list[Path]:
+    """Model against lab over time (cf. Figs. 6, 7) and as scatter with the identity line and
+    a +-10 % band (cf. Figs. 8, 9)."""
+    paths = []
+    h = comp.t / 3600.0
+    fig, axes = plt.subplots(3, 1, figsize=(11, 8.5), sharex=True)
+    labels = (
+        ("boiler_water_temp_C", "water inside the boiler [C]"),
+        ("heat_to_water_kW", "heat to water [kW]"),
+        ("flue_gas_loss_kW", "flue-gas loss [kW]"),
+    )
+    for ax, (name, label) in zip(axes, labels, strict=True):
+        ax.plot(h, comp.lab[name], color="tab:red", lw=0.7, label="lab")
+        ax.plot(h, comp.model[name], color="k", lw=0.9, ls="--", label="model")
+        ax.set_ylabel(label)
+        mark_phases(ax, phases)
+        ax.legend(loc="upper right", fontsize=8)
+    axes[-1].set_xlabel("time [h]")
+    fig.suptitle(title)
+    fig.tight_layout()
+    paths.append(stem.with_name(stem.name + "_timeseries.png"))
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4.6))
+    for ax, (name, label) in zip(axes, labels[:2], strict=True):
+        mask = comp.segments["start_up"] | comp.segments["test"]
+        lab, model = comp.lab[name][mask], comp.model[name][mask]
+        ax.plot(lab, model, ".", ms=1.5, alpha=0.4, color="tab:blue")
+        lo, hi = float(min(lab.min(), model.min())), float(max(lab.max(), model.max()))
+        xs = np.linspace(lo, hi, 10)
+        ax.plot(xs, xs, "k-", lw=1, label="identity")
+        ax.fill_between(xs, 0.9 * xs, 1.1 * xs, color="0.8", alpha=0.5, label="+-10 %")
+        ax.set_xlabel(f"lab: {label}")
+        ax.set_ylabel(f"model: {label}")
+        ax.legend(fontsize=8)
+    fig.suptitle(title + " (t0..t2)")
+    fig.tight_layout()
+    paths.append(stem.with_name(stem.name + "_scatter.png"))
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+    return paths

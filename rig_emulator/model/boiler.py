@@ -30,7 +30,8 @@ temperature it stops, and it restarts once the water has cooled to the restart t
 Assumptions (ours, where the paper is silent):
 - firing powers are on the net (LHV, dry) basis; Q_fuel = P HHV/LHV (see params.py);
 - m_fuel,nom of Eq. 8 is the dry fuel flow at Pmax;
-- the ignition energy Wel is spread evenly over the start-up and heats the node;
+- the ignition energy Wel is spread evenly over ``startup_duration_s`` after each start
+  (also when the start-up at Pstart ends early at the set temperature) and heats the node;
 - when the burner is off the flue-gas probe sees draught air leaving the exchanger at the
   node temperature, and the analyser sees ambient air (plus the decaying burn-out CO);
 - electric power is linear in firing power between Pel,MIN at Pmin and Pel,MAX at Pmax;
@@ -334,16 +335,16 @@ def step(c, s, water_flow_kg_h, water_in_C, room_C, enabled, dt_s, y):
     if firing:
         ua = c[K_UA_ON]
         co_start = c[K_CO_START] * math.exp(-s[S_SINCE_START] / c[K_CO_TAU])
+        # the igniter runs for the start-up time after each start, whatever the mode
+        q_ign = c[K_IGNITION] if s[S_SINCE_START] < c[K_STARTUP_S] else 0.0
         if mode == STARTUP:
-            q_ign = c[K_IGNITION]
             firing_kW = c[K_P_START]
         else:
-            q_ign = 0.0
             # heat to the exchanger that brings the node to the set point by the step's end
             b = m_cp + ua
             decay = math.exp(-b * dt_s / cap)
             t_eq = (c[K_SET] - t0 * decay) / (1.0 - decay)
-            q_req = max(b * t_eq - m_cp * water_in_C - ua * room_C, 0.0)
+            q_req = max(b * t_eq - m_cp * water_in_C - ua * room_C - q_ign, 0.0)
             # losses evaluated at the previous firing power (one fixed-point pass)
             x_prev = s[S_FIRING] * 3600.0 / c[K_LHV]
             lam_prev = excess_air(c, x_prev)

@@ -1,0 +1,374 @@
+"""Calibration of the Type 869 parameters from lab logs (Section 3.1 of Carlon et al. 2015).
+
+From a stationary-test log and/or a load-cycle log plus the boiler's documentation values:
+
+- stationary intervals: the ``stationary_*`` sequences (or, without a ``sequence`` column,
+  flow plateaus of at least 20 min in the test phase), without their first 10 min, and only
+  where the burner fired throughout and the boiler water held within 3 K (the 13 % step,
+  below the modulation range, cycles and is left out);
+- dTnom and dThx,wat (Eq. 8): linear regression of (T_fg - T_w,in) against
+  (1 - m_w/m_w,nom) over the stationary intervals: the intercept is dTnom, the slope
+  dThx,wat (Fig. 4). With a single load level only dTnom is fitted (dThx,wat kept);
+- facA,lam and facB,lam (Eq. 9): lambda from the measured O2 against the dry fuel flow of
+  each interval, the flow from a linear fit of the balance over the interval (Fig. 5);
+- UAamb,OFF (Eq. 11-13): ln(T_boiler - T_room) is linear in time during the second cooling
+  (no flow, no firing): UAamb,OFF = -C x slope, C = Ctherm + Volwat rho_w cp_w (digest);
+- UAamb,ON (Eq. 14-16): (UAamb,OFF - UAamb,ON) (T_boiler - T_room) = Q_air, the heat the
+  draught air carries off the idle boiler; Q_air from the flue-gas velocity measured in
+  stand-by (rho_air cp_air v A (T_boiler - T_room)), the duct being DN100;
+- Pel,MAX, Pel,MIN: electric power against firing power (fuel flow times LHV) over the
+  stationary intervals, evaluated at Pmax and Pmin; Pel,OFF: mean power in stand-by;
+  Wel: the electric energy above Pel,MAX during the start-up time after t0;
+- Pstart: the dry fuel flow from the balance over the start-up at Pstart (from t0 until
+  the boiler water first reaches the set temperature, at most the start-up time), times LHV.
+
+Each fitted value carries a standard uncertainty: the regression's standard error combined
+with the propagated accuracy of the bench's instruments (:data:`BENCH_ACCURACY`; a fixed
+instrument error within a tolerance band +-a has standard uncertainty a/sqrt(3)). The files
+report it expanded with a coverage factor of 2.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from hil_client.analysis.logio import LabLog, LogError, fill_gaps
+from hil_client.analysis.phases import Phases
+from rig_emulator.model import constants as k
+from rig_emulator.model.fuel import stoichiometry
+from rig_emulator.model.params import BoilerParams
+
+#: The lab's instruments (Carlon et al. 2015, Section 2.2; typical classes where silent):
+#: (absolute, relative) half-width of the tolerance band.
+BENCH_ACCURACY = {
+    "flue_gas_temp_C": (0.30, 0.005),  # Pt100 class B
+    "water_temp_C": (0.15, 0.002),  # Pt100 class A
+    "flue_gas_O2_pct": (0.2, 0.0),  # paramagnetic analyser
+    "water_flow_kg_h": (0.0, 0.005),  # inductive meter
+    "balance_mass_kg": (0.02, 0.0),  # 0.02 kg precision
+    "flue_gas_velocity_m_s": (0.15, 0.0),  # vortex meter
+    "electric_power_W": (0.5, 0.01),  # power meter
+    "room_temp_C": (0.3, 0.0),
+}
+COVERAGE = 2.0
+DUCT_AREA_M2 = math.pi * 0.10**2 / 4  # DN100 chimney of the bench
+R_AIR = 287.05  # [J/(kg K)]
+CP_AIR = 1.006  # [kJ/(kg K)]
+SKIP_S = 600.0  # transient at the start of a stationary interval
+
+
+def _u(name: str, value: float) -> float:
+    """Standard uncertainty of a fixed instrument error at ``value`` (uniform in the band)."""
+    a, r = BENCH_ACCURACY[name]
+    return (a + r * abs(value)) / math.sqrt(3.0)
+
+
+@dataclass(frozen=True, slots=True)
+class Fitted:
+    """A calibrated value with its standard uncertainty and how it was found."""
+
+    value: float
+    u: float  # standard uncertainty
+    method: str
+    n: int = 0  # data points behind it
+
+    @property
+    def expanded(self) -> float:
+        return COVERAGE * self.u
+
+
+@dataclass(frozen=True, slots=True)
+class Interval:
+    """A stationary interval of a log: rows [i0, i1), mean flow, and its label."""
+
+    log: LabLog
+    i0: int
+    i1: int
+    label: str
+
+    def mean(self, name: str) -> float:
+        return float(np.nanmean(self.log[name][self.i0 : self.i1]))
+
+
+def _linfit(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float, float]:
+    """(intercept, slope, se_intercept, se_slope) of an ordinary least-squares line."""
+    n = len(x)
+    A = np.column_stack([np.ones(n), x])
+    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+    if n <= 2:
+        return float(coef[0]), float(coef[1]), 0.0, 0.0
+    resid = y - A @ coef
+    s2 = float(resid @ resid) / (n - 2)
+    cov = s2 * np.linalg.inv(A.T @ A)
+    return float(coef[0]), float(coef[1]), math.sqrt(cov[0, 0]), math.sqrt(cov[1, 1])
+
+
+def stationary_intervals(log: LabLog, phases: Phases) -> list[Interval]:
+    """Stationary intervals of the test phase (see the module docstring)."""
+    t = log.t
+    test = phases.mask("test", t)
+    segments: list[tuple[int, int, str]] = []
+    if log.has("sequence"):
+        seq = np.array(log.text["sequence"])
+        for name in dict.fromkeys(s for s in seq[test] if s.startswith("stationary")):
+            idx = np.flatnonzero(test & (seq == name))
+            segments.append((int(idx[0]), int(idx[-1]) + 1, name))
+    else:
+        column = (
+            "water_flow_setpoint_kg_h"
+            if log.has("water_flow_setpoint_kg_h")
+            else ("water_flow_kg_h")
+        )
+        flow = fill_gaps(log[column], t)
+        idx = np.flatnonzero(test)
+        start = idx[0]
+        for i in range(idx[0] + 1, idx[-1] + 2):
+            end = i == idx[-1] + 1
+            level = np.median(flow[start:i])
+            if end or abs(flow[i] - level) > 0.02 * max(level, 1.0):
+                if t[i - 1] - t[start] >= 1200.0:
+                    segments.append((int(start), int(i), f"plateau_{level:.0f}kg_h"))
+                start = i
+    out = []
+    for i0, i1, name in segments:
+        i0 = int(np.searchsorted(t, t[i0] + SKIP_S))
+        if i1 - i0 < 300:
+            continue
+        if log.has("boiler_on") and np.nanmin(log["boiler_on"][i0:i1]) < 0.5:
+            continue  # the burner stopped: below the modulation range
+        tb = log["boiler_water_temp_C"][i0:i1]
+        if np.nanmax(tb) - np.nanmin(tb) > 3.0:
+            continue
+        out.append(Interval(log, i0, i1, name))
+    return out
+
+
+def _fuel_rate_dry(iv: Interval, params: BoilerParams) -> tuple[float, float]:
+    """(dry fuel flow [kg/h], its standard uncertainty) from a linear fit of the balance."""
+    t = iv.log.t[iv.i0 : iv.i1]
+    m = iv.log["balance_mass_kg"][iv.i0 : iv.i1]
+    ok = ~np.isnan(m)
+    _, slope, _, se = _linfit(t[ok], m[ok])
+    per_kg_dry = params.fuel.as_received_per_kg_dry - params.fuel.ash
+    duration = t[-1] - t[0]
+    # the resolution of the two end readings bounds the mass difference: 0.02 kg each
+    u_res = math.sqrt(2) * _u("balance_mass_kg", 0.0) / duration
+    rate = -slope * 3600.0 / per_kg_dry
+    return rate, math.hypot(se, u_res) * 3600.0 / per_kg_dry
+
+
+def _lambda_rows(
+    log: LabLog, i0: int, i1: int, params: BoilerParams, o2_shift: float = 0.0
+) -> np.ndarray:
+    """Excess-air ratio of each row from the dry O2 reading (shifted by ``o2_shift``)."""
+    st = stoichiometry(params.fuel)
+    o2 = log["flue_gas_O2_pct"][i0:i1]
+    return st.lambda_from_o2(np.clip(o2[~np.isnan(o2)] + o2_shift, 0.0, 19.5))
+
+
+@dataclass
+class Calibration:
+    """The calibrated parameter set, each fitted value, and the data of Figs. 4 and 5."""
+
+    params: BoilerParams
+    fitted: dict[str, Fitted]
+    fig4: dict[str, np.ndarray]
+    fig5: dict[str, np.ndarray]
+
+
+def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibration:
+    """Calibrate from logs (each with its phases) starting from documentation values."""
+    fitted: dict[str, Fitted] = {}
+    intervals = [iv for log, ph in logs for iv in stationary_intervals(log, ph)]
+    if not intervals:
+        raise LogError(
+            "no stationary interval found in the logs (need a test phase with "
+            "steady firing of at least 30 min)"
+        )
+    m_nom = doc.nominal_flow_kg_h
+    # --- Eq. 8: dTnom, dThx,wat (Fig. 4)
+    x = np.array([1.0 - iv.mean("water_flow_kg_h") / m_nom for iv in intervals])
+    y = np.array([iv.mean("flue_gas_temp_C") - iv.mean("water_in_temp_C") for iv in intervals])
+    t_fg = np.mean([iv.mean("flue_gas_temp_C") for iv in intervals])
+    t_in = np.mean([iv.mean("water_in_temp_C") for iv in intervals])
+    u_instr = math.hypot(_u("flue_gas_temp_C", t_fg), _u("water_temp_C", t_in))
+    if np.ptp(x) > 0.1:
+        a, b, se_a, se_b = _linfit(x, y)
+        fitted["dt_hx_wat_K"] = Fitted(
+            b,
+            se_b,
+            "slope of (T_fg - T_in) vs (1 - m/m_nom), stationary intervals (Fig. 4)",
+            len(x),
+        )
+        fitted["dt_nom_K"] = Fitted(
+            a, math.hypot(se_a, u_instr), "intercept of the same regression (nominal flow)", len(x)
+        )
+    else:
+        b = doc.dt_hx_wat_K
+        dtn = float(np.mean(y - b * x))
+        se = float(np.std(y - b * x, ddof=1) / math.sqrt(len(y))) if len(y) > 1 else 0.0
+        fitted["dt_nom_K"] = Fitted(
+            dtn,
+            math.hypot(se, u_instr),
+            "mean (T_fg - T_in) at nominal load, dThx,wat kept",
+            len(x),
+        )
+    # --- Eq. 9: facA, facB (Fig. 5)
+    fuel = np.array([_fuel_rate_dry(iv, doc) for iv in intervals])
+    lam = np.array([float(np.mean(_lambda_rows(iv.log, iv.i0, iv.i1, doc))) for iv in intervals])
+    # a fixed O2 error (+-0.2 vol-%) moves lambda most where the air excess is high: refit
+    # with O2 shifted by its standard uncertainty to propagate it
+    o2_shift = _u("flue_gas_O2_pct", 0.0)
+    lam_shifted = np.array(
+        [float(np.mean(_lambda_rows(iv.log, iv.i0, iv.i1, doc, o2_shift))) for iv in intervals]
+    )
+    if np.ptp(fuel[:, 0]) > 0.2 * np.mean(fuel[:, 0]):
+        a, b, se_a, se_b = _linfit(fuel[:, 0], lam)
+        a_o2, b_o2, _, _ = _linfit(fuel[:, 0], lam_shifted)
+        # the fuel flows' own uncertainty, through the slope and onto the intercept
+        u_b_fuel = abs(b) * float(np.mean(fuel[:, 1] / fuel[:, 0]))
+        u_b = math.sqrt(se_b**2 + u_b_fuel**2 + (b_o2 - b) ** 2)
+        u_a = math.sqrt(se_a**2 + (u_b_fuel * float(np.mean(fuel[:, 0]))) ** 2 + (a_o2 - a) ** 2)
+        fitted["fac_b_lambda_h_kg"] = Fitted(
+            b, u_b, "slope of lambda (from O2) vs dry fuel flow (Fig. 5)", len(lam)
+        )
+        fitted["fac_a_lambda"] = Fitted(a, u_a, "intercept of the same regression", len(lam))
+    else:
+        b = doc.fac_b_lambda_h_kg
+        a = float(np.mean(lam - b * fuel[:, 0]))
+        a_o2 = float(np.mean(lam_shifted - b * fuel[:, 0]))
+        fitted["fac_a_lambda"] = Fitted(
+            a, abs(a_o2 - a), "lambda - facB m_fuel at one load, facB kept", len(lam)
+        )
+    # --- electric power against firing power
+    firing = fuel[:, 0] * doc.fuel.lhv_dry_kJ_kg / 3600.0
+    pel = (
+        np.array([iv.mean("electric_power_W") for iv in intervals])
+        if all(iv.log.has("electric_power_W") for iv in intervals)
+        else None
+    )
+    if pel is not None:
+        u_pel = _u("electric_power_W", float(np.mean(pel)))
+        if np.ptp(firing) > 0.2 * doc.p_max_kW:
+            a, b, se_a, se_b = _linfit(firing, pel)
+            for key, p in (("p_el_max_W", doc.p_max_kW), ("p_el_min_W", doc.p_min_kW)):
+                se = math.hypot(se_a, se_b * p)
+                fitted[key] = Fitted(
+                    a + b * p,
+                    math.hypot(se, u_pel),
+                    "electric vs firing power, stationary intervals, at " + key[5:8],
+                    len(pel),
+                )
+        else:
+            fitted["p_el_max_W"] = Fitted(
+                float(np.mean(pel)), u_pel, "mean at nominal load", len(pel)
+            )
+    # --- second cooling: UAamb,OFF (Eq. 13) and UAamb,ON (Eq. 14-16)
+    cap = doc.capacity_kJ_K
+    ua_off_values, ua_on_values, pel_off, starts = [], [], [], []
+    for log, ph in logs:
+        t = log.t
+        mask = ph.mask("cooling_2", t) & (t > ph.t3 + 1800.0)
+        if mask.sum() > 600:
+            tb, tr = log["boiler_water_temp_C"][mask], log["room_temp_C"][mask]
+            ok = ~(np.isnan(tb) | np.isnan(tr))
+            tt = t[mask][ok]
+            dT = tb[ok] - tr[ok]
+            _, slope, _, se = _linfit(tt, np.log(dT))
+            ua = -slope * cap * 1000.0
+            # a fixed error of the boiler or room sensor shifts dT: propagate by perturbation
+            u_t = math.hypot(_u("water_temp_C", float(np.mean(tb))), _u("room_temp_C", 0.0))
+            _, slope_p, _, _ = _linfit(tt, np.log(dT + u_t))
+            u_ua = math.hypot(se * cap * 1000.0, (slope - slope_p) * cap * 1000.0)
+            ua_off_values.append((ua, u_ua, int(ok.sum())))
+            if log.has("flue_gas_velocity_m_s"):
+                v = float(np.nanmean(log["flue_gas_velocity_m_s"][mask]))
+                t_air = float(np.nanmean(tb)) + k.T_NORMAL_K
+                p_pa = (
+                    float(np.nanmean(log["ambient_pressure_hPa"][mask])) * 100.0
+                    if log.has("ambient_pressure_hPa")
+                    else 101325.0
+                )
+                rho = p_pa / (R_AIR * t_air)
+                per_K = rho * CP_AIR * 1000.0 * DUCT_AREA_M2  # W/K per m/s
+                ua_on_values.append((v * per_K, _u("flue_gas_velocity_m_s", v) * per_K))
+            if log.has("electric_power_W"):
+                pel_off.append(float(np.nanmean(log["electric_power_W"][mask])))
+        # start-up: Wel and Pstart from the first start
+        i0 = int(np.searchsorted(t, ph.t0, side="right"))
+        i_end = int(np.searchsorted(t, ph.t0 + doc.startup_duration_s, side="right"))
+        starts.append((log, i0, i_end))
+    if ua_off_values:
+        vals = np.array(ua_off_values)
+        ua_off = float(np.mean(vals[:, 0]))
+        fitted["ua_amb_off_W_K"] = Fitted(
+            ua_off,
+            float(np.max(vals[:, 1])),
+            "exponential fit of the second cooling (Eq. 13)",
+            int(vals[:, 2].sum()),
+        )
+        if ua_on_values:
+            q_air = np.array(ua_on_values)
+            diff = float(np.mean(q_air[:, 0]))
+            fitted["ua_amb_on_W_K"] = Fitted(
+                ua_off - diff,
+                math.hypot(fitted["ua_amb_off_W_K"].u, float(np.max(q_air[:, 1]))),
+                "UA_off - draught-air heat per K in stand-by (Eq. 14-16)",
+                len(q_air),
+            )
+    if pel_off:
+        fitted["p_el_off_W"] = Fitted(
+            float(np.mean(pel_off)),
+            _u("electric_power_W", float(np.mean(pel_off))),
+            "mean power in stand-by (second cooling)",
+            len(pel_off),
+        )
+    p_el_max = fitted["p_el_max_W"].value if "p_el_max_W" in fitted else doc.p_el_max_W
+    w_el, p_start = [], []
+    for log, i0, i_end in starts:
+        t = log.t
+        if log.has("electric_power_W"):
+            pel_rows = fill_gaps(log["electric_power_W"], t)[i0:i_end]
+            dts = np.diff(t[i0 - 1 : i_end])
+            w_el.append(float(np.sum((pel_rows - p_el_max) * dts)) / 3600.0)
+        tb = log["boiler_water_temp_C"]
+        reach = np.flatnonzero(tb[i0:i_end] >= doc.set_temp_C - 0.5)
+        i_stop = i0 + int(reach[0]) if len(reach) else i_end
+        if i_stop - i0 >= 120:
+            mass = fill_gaps(log["balance_mass_kg"], t)
+            per_kg_dry = doc.fuel.as_received_per_kg_dry - doc.fuel.ash
+            duration = t[i_stop - 1] - t[i0 - 1]
+            dm = (mass[i0 - 1] - mass[i_stop - 1]) / per_kg_dry
+            p_start.append(
+                (
+                    dm / duration * doc.fuel.lhv_dry_kJ_kg,
+                    math.sqrt(2)
+                    * _u("balance_mass_kg", 0.0)
+                    / per_kg_dry
+                    / duration
+                    * doc.fuel.lhv_dry_kJ_kg,
+                )
+            )
+    if w_el:
+        fitted["w_el_Wh"] = Fitted(
+            float(np.mean(w_el)),
+            math.hypot(
+                _u("electric_power_W", 500.0) * doc.startup_duration_s / 3600.0,
+                float(np.std(w_el)) if len(w_el) > 1 else 0.0,
+            ),
+            "electric energy above Pel,MAX during the start-up time",
+            len(w_el),
+        )
+    if p_start:
+        vals = np.array(p_start)
+        fitted["p_start_kW"] = Fitted(
+            float(np.mean(vals[:, 0])),
+            float(np.max(vals[:, 1])),
+            "dry fuel flow over the start-up at Pstart x LHV",
+            len(vals),
+        )
+    params = replace(doc, **{key: f.value for key, f in fitted.items()}, dt_hx_fg_K=0.0)
+    return Calibration(params, fitted, {"x": x, "y": y}, {"fuel": fuel[:, 0], "lambda": lam})

@@ -1,0 +1,162 @@
+"""Validation of the model against a lab log, as the paper did (Section 3.2, Table 4).
+
+The model is simulated with the log's measured inputs (water flow, return temperature, room
+temperature) and the bench's on/off command (on from t0 to t2), the parameters held
+constant; the simulation starts from the measured water temperature of the first row. Each
+row's inputs are those of the step that ends at that row, as the logger records them.
+
+Compared per phase (start-up t0..t1, test sequence t1..t2, stand-by t2..t4, and for a test
+with several sequences its stationary and dynamic intervals):
+- the water temperature inside the boiler [C] and the heat to water [kW] (Eq. 7; the model's
+  outlet is its node temperature): maximum deviation, correlation coefficient, RMSD;
+- the flue-gas loss [kW]: the model's against the lab's, the latter from the measured
+  flue-gas temperature and composition (Eq. 4-6) times the fuel flow from the balance
+  (a linear fit over a centred 15-min window, since the balance resolves no single second);
+- the cumulative fuel (as received, less ash) against the balance.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hil_client.analysis.balance import flue_gas_loss_per_kg
+from hil_client.analysis.logio import LabLog, fill_gaps
+from hil_client.analysis.metrics import table4_metrics
+from hil_client.analysis.phases import Phases
+from rig_emulator.model import constants as k
+from rig_emulator.model import pack_constants
+from rig_emulator.model.layout import Y_FUEL, Y_Q_CHEM, Y_Q_LAT, Y_Q_SENS, Y_T_BOILER
+from rig_emulator.model.params import BoilerParams
+from rig_emulator.model.simulate import simulate
+
+FUEL_WINDOW_S = 900.0
+SIGNALS = ("boiler_water_temp_C", "heat_to_water_kW", "flue_gas_loss_kW")
+
+
+@dataclass
+class Comparison:
+    """Model and lab series of one log, aligned row by row."""
+
+    t: np.ndarray
+    model: dict[str, np.ndarray]
+    lab: dict[str, np.ndarray]
+    segments: dict[str, np.ndarray]  # name -> row mask
+
+
+def model_run(log: LabLog, phases: Phases, params: BoilerParams) -> np.ndarray:
+    """The model's outputs (rows x ``Y_*``) for the log's measured inputs."""
+    t = log.t
+    flow = np.nan_to_num(fill_gaps(log["water_flow_kg_h"], t))
+    t_in = fill_gaps(log["water_in_temp_C"], t)
+    room = fill_gaps(log["room_temp_C"], t)
+    enabled = (t > phases.t0) & (t <= phases.t2)
+    dt = np.diff(t, prepend=t[0] - (t[1] - t[0] if len(t) > 1 else 1.0))
+    t0 = float(fill_gaps(log["boiler_water_temp_C"], t)[0])
+    out = np.empty((len(t), 24))
+    out[1:] = simulate(
+        pack_constants(params), t0, dt[1:], flow[1:], t_in[1:], room[1:], enabled[1:]
+    )
+    out[0] = out[1]
+    out[0, Y_T_BOILER] = t0
+    return out
+
+
+def fuel_rate_from_balance(log: LabLog, params: BoilerParams) -> np.ndarray:
+    """Dry fuel flow [kg/h] per row from the balance: slope of a centred linear fit."""
+    t = log.t
+    m = fill_gaps(log["balance_mass_kg"], t)
+    per_kg_dry = params.fuel.as_received_per_kg_dry - params.fuel.ash
+    # running sums give the least-squares slope over a centred window at every row
+    cs, cm, ctt, ctm = (np.concatenate(([0.0], np.cumsum(a))) for a in (t, m, t * t, t * m))
+    lo = np.searchsorted(t, t - FUEL_WINDOW_S / 2, side="left")
+    hi = np.searchsorted(t, t + FUEL_WINDOW_S / 2, side="right")
+    n = hi - lo
+    st, sm = cs[hi] - cs[lo], cm[hi] - cm[lo]
+    stt, stm = ctt[hi] - ctt[lo], ctm[hi] - ctm[lo]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slope = (n * stm - st * sm) / (n * stt - st * st)
+    return np.maximum(np.nan_to_num(-slope), 0.0) * 3600.0 / per_kg_dry
+
+
+def segments_of(log: LabLog, phases: Phases) -> dict[str, np.ndarray]:
+    """Row masks of the validation segments (Table 4 phases plus the load cycle's
+    stationary and dynamic intervals)."""
+    t = log.t
+    out = {
+        "start_up": phases.mask("start_up", t),
+        "test": phases.mask("test", t),
+        "stand_by": phases.mask("cooling_1", t) | phases.mask("cooling_2", t),
+    }
+    if log.has("sequence"):
+        seq = np.array(log.text["sequence"])
+        names = {s for s in seq[out["test"]]}
+        if len(names) > 1:
+            stationary = np.array([s.startswith("stationary") for s in seq])
+            out["test_stationary"] = out["test"] & stationary
+            out["test_dynamic"] = out["test"] & ~stationary
+    return out
+
+
+def compare(log: LabLog, phases: Phases, params: BoilerParams) -> Comparison:
+    """Model and lab series of the validated signals."""
+    t = log.t
+    y = model_run(log, phases, params)
+    flow = fill_gaps(log["water_flow_kg_h"], t)
+    t_in = fill_gaps(log["water_in_temp_C"], t)
+    cp = k.CP_WATER / 3600.0
+    co = (
+        np.nan_to_num(fill_gaps(log["flue_gas_CO_ppm"], t))
+        if log.has("flue_gas_CO_ppm")
+        else np.zeros(len(t))
+    )
+    _, sens, lat, chem = flue_gas_loss_per_kg(
+        params,
+        fill_gaps(log["flue_gas_O2_pct"], t),
+        fill_gaps(log["flue_gas_temp_C"], t),
+        fill_gaps(log["room_temp_C"], t),
+        co,
+    )
+    firing = fill_gaps(log["flue_gas_O2_pct"], t) < 19.0
+    lab_fuel = fuel_rate_from_balance(log, params)
+    lab = {
+        "boiler_water_temp_C": fill_gaps(log["boiler_water_temp_C"], t),
+        "heat_to_water_kW": flow * cp * (fill_gaps(log["water_out_temp_C"], t) - t_in),
+        "flue_gas_loss_kW": np.where(firing, lab_fuel / 3600.0 * (sens + lat + chem), 0.0),
+    }
+    model = {
+        "boiler_water_temp_C": y[:, Y_T_BOILER],
+        # as the lab computes it (Eq. 7), the model's outlet being its node temperature
+        "heat_to_water_kW": flow * cp * (y[:, Y_T_BOILER] - t_in),
+        "flue_gas_loss_kW": y[:, Y_Q_SENS] + y[:, Y_Q_LAT] + y[:, Y_Q_CHEM],
+        "fuel_dry_kg_h": y[:, Y_FUEL],
+    }
+    return Comparison(t, model, lab, segments_of(log, phases))
+
+
+def validation_metrics(comp: Comparison, log: LabLog, params: BoilerParams) -> dict:
+    """Table 4 metrics per segment and signal, and the cumulative fuel per segment."""
+    metrics: dict[str, dict] = {}
+    for name, mask in comp.segments.items():
+        if mask.sum() < 2:
+            continue
+        metrics[name] = {s: table4_metrics(comp.model[s][mask], comp.lab[s][mask]) for s in SIGNALS}
+    t = comp.t
+    dt = np.diff(t, prepend=t[0] - (t[1] - t[0] if len(t) > 1 else 1.0))
+    per_kg_dry = params.fuel.as_received_per_kg_dry - params.fuel.ash
+    mass = fill_gaps(log["balance_mass_kg"], t)
+    fuel = {}
+    for name, mask in [*comp.segments.items(), ("total", np.ones(len(t), bool))]:
+        idx = np.flatnonzero(mask)
+        if not len(idx):
+            continue
+        model_kg = float(np.sum(comp.model["fuel_dry_kg_h"][idx] * dt[idx]) / 3600 * per_kg_dry)
+        first = max(idx[0] - 1, 0)
+        lab_kg = float(mass[first] - mass[idx[-1]])
+        fuel[name] = {
+            "model_kg": model_kg,
+            "balance_kg": lab_kg,
+            "deviation_pct": 100 * (model_kg - lab_kg) / lab_kg if lab_kg > 0.05 else None,
+        }
+    return {"metrics": metrics, "fuel": fuel}
