@@ -197,14 +197,23 @@ def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibrati
     u_instr = math.hypot(_u("flue_gas_temp_C", t_fg), _u("water_temp_C", t_in))
     if np.ptp(x) > 0.1:
         a, b, se_a, se_b = _linfit(x, y)
+        # fixed relative errors of the flow meter and the flue-gas sensor tilt the line:
+        # refit with each shifted by its standard uncertainty
+        u_flow = _u("water_flow_kg_h", 1.0)
+        a_f, b_f, _, _ = _linfit(1.0 - (1.0 - x) * (1.0 + u_flow), y)
+        t_fg_rows = np.array([iv.mean("flue_gas_temp_C") for iv in intervals])
+        rel_fg = BENCH_ACCURACY["flue_gas_temp_C"][1] / math.sqrt(3.0)
+        _, b_t, _, _ = _linfit(x, y + t_fg_rows * rel_fg)
+        u_b = math.sqrt(se_b**2 + (b_f - b) ** 2 + (b_t - b) ** 2)
+        u_a = math.sqrt(se_a**2 + u_instr**2 + (a_f - a) ** 2)
         fitted["dt_hx_wat_K"] = Fitted(
             b,
-            se_b,
+            u_b,
             "slope of (T_fg - T_in) vs (1 - m/m_nom), stationary intervals (Fig. 4)",
             len(x),
         )
         fitted["dt_nom_K"] = Fitted(
-            a, math.hypot(se_a, u_instr), "intercept of the same regression (nominal flow)", len(x)
+            a, u_a, "intercept of the same regression (nominal flow)", len(x)
         )
     else:
         b = doc.dt_hx_wat_K

@@ -50,10 +50,10 @@ def lag_at_peak(model: np.ndarray, lab: np.ndarray, dt_s: float, max_lag_s: floa
         return math.nan
     best, best_lag = -math.inf, 0
     for lag in range(-max_lag, max_lag + 1):
-        if lag >= 0:
-            c = float(np.dot(a[: n - lag], b[lag:]))
+        if lag >= 0:  # mean product over the overlap: no bias towards small lags
+            c = float(np.dot(a[: n - lag], b[lag:])) / (n - lag)
         else:
-            c = float(np.dot(a[-lag:], b[: n + lag]))
+            c = float(np.dot(a[-lag:], b[: n + lag])) / (n + lag)
         if c > best:
             best, best_lag = c, lag
     return best_lag * dt_s

@@ -1,0 +1,169 @@
+"""Calibration round trip on the emulator's own logs, and validation checks."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+
+from hil_client.cli import main
+from rig_emulator.boilers import BOILER_DIR, load_boiler
+from rig_emulator.instruments.profile import PROFILE_DIR
+
+# A parameter set that is not the paper's: every lab-calibrated value moved.
+TRUE = {
+    "dt_nom_K": 88.0,
+    "dt_hx_wat_K": -2.4,
+    "fac_a_lambda": 4.3,
+    "fac_b_lambda_h_kg": -1.15,
+    "ua_amb_off_W_K": 3.6,
+    "ua_amb_on_W_K": 1.9,
+    "p_start_kW": 12.6,
+    "w_el_Wh": 110.0,
+    "p_el_min_W": 24.0,
+    "p_el_max_W": 46.0,
+    "p_el_off_W": 6.0,
+}
+
+
+@pytest.fixture(scope="module")
+def round_trip(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("roundtrip")
+    data = yaml.safe_load((BOILER_DIR / "windhager_12kw.yaml").read_text())
+    data.update(TRUE, name="test_boiler")
+    boiler = tmp / "boiler.yaml"
+    boiler.write_text(yaml.safe_dump(data))
+    # the lab's instrument errors (noise, fixed errors, lags), without plant effects
+    lab = yaml.safe_load((PROFILE_DIR / "lab.yaml").read_text())
+    lab.pop("effects", None)
+    profile = tmp / "instruments.yaml"
+    profile.write_text(yaml.safe_dump(lab))
+    logs = []
+    for test in ("stationary", "load_cycle"):
+        out = tmp / f"{test}.csv"
+        assert (
+            main(
+                [
+                    "run",
+                    test,
+                    "--boiler",
+                    str(boiler),
+                    "--profile",
+                    str(profile),
+                    "--seed",
+                    "7",
+                    "--out",
+                    str(out),
+                    "--quiet",
+                ]
+            )
+            == 0
+        )
+        logs.append(out)
+    params = tmp / "calibrated.yaml"
+    assert main(["calibrate", *map(str, logs), "--boiler", str(boiler), "--out", str(params)]) == 0
+    return tmp, boiler, logs, params
+
+
+# Tolerances we accept on top of the stated uncertainty, from the instruments' own limits:
+# UA_on rests on the stand-by draught velocity, read by a vortex meter of +-0.15 m/s at
+# about 0.2 m/s (Eq. 14-16), so only its order is recoverable; every other value must lie
+# within its expanded (k = 2) uncertainty.
+def test_round_trip_recovers_every_fitted_parameter(round_trip):
+    _, _, _, params_file = round_trip
+    fitted = json.loads(params_file.with_suffix(".uncertainty.json").read_text())
+    assert set(TRUE) <= set(fitted)
+    for key, true in TRUE.items():
+        f = fitted[key]
+        assert abs(f["value"] - true) <= f["expanded_uncertainty_k2"], (key, f, true)
+    calibrated = load_boiler(str(params_file))  # a valid parameter file of CONTRACT form
+    assert calibrated.dt_nom_K == pytest.approx(fitted["dt_nom_K"]["value"])
+    for fig in ("_fig4_flue_gas.png", "_fig5_lambda.png"):
+        assert params_file.with_name(params_file.stem + fig).stat().st_size > 10_000
+
+
+def test_calibrate_from_the_stationary_test_alone_keeps_what_it_cannot_fit(round_trip):
+    tmp, boiler, logs, _ = round_trip
+    out = tmp / "stationary_only.yaml"
+    assert main(["calibrate", str(logs[0]), "--boiler", str(boiler), "--out", str(out)]) == 0
+    fitted = json.loads(out.with_suffix(".uncertainty.json").read_text())
+    assert "fac_b_lambda_h_kg" not in fitted and "dt_hx_wat_K" not in fitted
+    assert (
+        abs(fitted["dt_nom_K"]["value"] - TRUE["dt_nom_K"])
+        <= fitted["dt_nom_K"]["expanded_uncertainty_k2"]
+    )
+
+
+def test_validating_a_clean_run_against_its_own_parameters_gives_no_gap(run_log, tmp_path):
+    rec = run_log("load_cycle", "windhager_12kw")
+    assert (
+        main(["validate", str(rec.path), "--boiler", "windhager_12kw", "--out", str(tmp_path)]) == 0
+    )
+    result = json.loads((tmp_path / "validation.json").read_text())
+    for segment, signals in result["metrics"].items():
+        # inputs come from the CSV, rounded to 1e-5 K and 1e-4 kg/h: gaps to rounding only
+        assert signals["boiler_water_temp_C"]["rmsd"] < 1e-3, segment
+        assert signals["heat_to_water_kW"]["rmsd"] < 1e-3, segment
+    assert abs(result["fuel"]["total"]["deviation_pct"]) < 0.01
+    assert set(result["metrics"]) >= {
+        "start_up",
+        "test",
+        "stand_by",
+        "test_stationary",
+        "test_dynamic",
+    }
+    report = (tmp_path / "report.md").read_text()
+    assert "Table 4" in report and "validation_scatter.png" in report
+
+
+def test_validate_on_the_round_trip_logs_runs_and_reports(round_trip, tmp_path):
+    _, _, logs, params = round_trip
+    assert main(["validate", str(logs[1]), "--boiler", str(params), "--out", str(tmp_path)]) == 0
+    result = json.loads((tmp_path / "validation.json").read_text())
+    # calibrated model against instrument-error data: close but not identical
+    test = result["metrics"]["test"]["boiler_water_temp_C"]
+    assert 0.0 < test["rmsd"] < 1.5 and test["r"] > 0.8
+
+
+@pytest.mark.parametrize(
+    ("mutate", "message"),
+    [
+        (
+            lambda lines: [",".join(x.split(",")[:3] + x.split(",")[4:]) for x in lines],
+            "missing required column",
+        ),
+        (lambda lines: [lines[0], lines[2], lines[1], *lines[3:]], "is not increasing"),
+    ],
+)
+def test_bad_logs_exit_2_with_one_line(run_log, tmp_path, capsys, mutate, message):
+    rec = run_log("stationary", "windhager_12kw")
+    lines = Path(rec.path).read_text().splitlines()[:500]
+    bad = tmp_path / "bad.csv"
+    bad.write_text("\n".join(mutate(lines)) + "\n")
+    for argv in (
+        ["validate", str(bad), "--boiler", "windhager_12kw", "--out", str(tmp_path / "v")],
+        ["calibrate", str(bad), "--boiler", "windhager_12kw", "--out", str(tmp_path / "p.yaml")],
+    ):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert message in err and err.count("\n") == 1
+    assert not (tmp_path / "v").exists() and not (tmp_path / "p.yaml").exists()
+
+
+def test_missing_values_are_interpolated(run_log, tmp_path):
+    rec = run_log("stationary", "windhager_12kw")
+    lines = Path(rec.path).read_text().splitlines()
+    header = lines[0].split(",")
+    col = header.index("water_in_temp_C")
+    for i in range(3000, 3060):  # a one-minute outage of the return sensor
+        fields = lines[i].split(",")
+        fields[col] = ""
+        lines[i] = ",".join(fields)
+    gap = tmp_path / "gap.csv"
+    gap.write_text("\n".join(lines) + "\n")
+    assert (
+        main(["validate", str(gap), "--boiler", "windhager_12kw", "--out", str(tmp_path / "v")])
+        == 0
+    )
