@@ -17,10 +17,15 @@ from hil_client.analysis.balance import as_json as balance_json
 from hil_client.analysis.balance import energy_balance
 from hil_client.analysis.balance import table as balance_table
 from hil_client.analysis.calibrate import calibrate
-from hil_client.analysis.figures import calibration_figures, validation_figures
+from hil_client.analysis.diagnose import diagnose
+from hil_client.analysis.figures import (
+    calibration_figures,
+    diagnosis_figures,
+    validation_figures,
+)
 from hil_client.analysis.logio import LogError, read_log
 from hil_client.analysis.phases import find_phases
-from hil_client.analysis.report import validation_report
+from hil_client.analysis.report import diagnosis_report, validation_report
 from hil_client.analysis.validate import compare, validation_metrics
 from hil_client.lablog import LabLogWriter, meta_path, write_meta
 from hil_client.progress import LiveView, ProgressLine
@@ -100,7 +105,70 @@ def _build_parser() -> argparse.ArgumentParser:
     val.add_argument("log", type=Path, help="lab log (CSV)")
     val.add_argument("--boiler", required=True, help="parameters: NAME or PATH (calibrated)")
     val.add_argument("--out", required=True, type=Path, help="output directory")
+    dia = sub.add_parser(
+        "diagnose",
+        help="where the model departs from the lab, which unmodelled effect, how far it shrinks",
+        description="Calibrate on CAL, diagnose the sim-to-real gap, and check the chosen "
+        "effect on the held-out VAL log. Writes diagnosis.json, report.md and figures.",
+    )
+    dia.add_argument("--calibration", required=True, type=Path, help="CAL.csv (fitted on)")
+    dia.add_argument("--validation", required=True, type=Path, help="VAL.csv (held out)")
+    dia.add_argument("--boiler", required=True, help="documentation values: NAME or PATH")
+    dia.add_argument("--out", required=True, type=Path, help="output directory")
+    gap = sub.add_parser(
+        "gap-benchmark",
+        help="blind benchmark of the diagnosis on generated cases",
+        description="Generate cases (one effect or none, random strength and boiler, "
+        "instrument errors on), run the stationary test and the load cycle on the emulator, "
+        "keep the truth sealed, diagnose and score. Writes scores.json.",
+    )
+    gap.add_argument("--cases", type=int, default=24, help="number of cases [24]")
+    gap.add_argument("--seed", type=int, default=0, help="seed of the case generator [0]")
+    gap.add_argument("--out", required=True, type=Path, help="output directory")
+    gap.add_argument("--workers", type=int, default=2, help="parallel processes [2]")
     return parser
+
+
+def _cmd_diagnose(args: argparse.Namespace) -> int:
+    try:
+        doc = load_boiler(args.boiler)
+        logs = []
+        for path in (args.calibration, args.validation):
+            log = read_log(path)
+            logs.append((log, find_phases(log)))
+    except (ParameterError, LogError) as exc:
+        raise UsageError(str(exc)) from None
+    if args.out.exists() and not args.out.is_dir():
+        raise UsageError(f"--out: '{args.out}' exists and is not a directory")
+    try:
+        result = diagnose(logs[0][0], logs[0][1], logs[1][0], logs[1][1], doc)
+    except LogError as exc:
+        raise UsageError(str(exc)) from None
+    args.out.mkdir(parents=True, exist_ok=True)
+    figures = diagnosis_figures(result, args.out)
+    public = {key: value for key, value in result.items() if not key.startswith("_")}
+    (args.out / "diagnosis.json").write_text(json.dumps(public, indent=2) + "\n")
+    report = diagnosis_report(public, figures, str(args.calibration), str(args.validation))
+    (args.out / "report.md").write_text(report)
+    print(f"effect: {result['effect']} (confidence {result['confidence']:.2f})")
+    if result["shrinkage"]:
+        s = result["shrinkage"]
+        print(
+            f"gap: {s['signal']} in {s['phase']}; validation RMSD "
+            f"{s['validation_rmsd_before']:.4g} -> {s['validation_rmsd_after']:.4g} "
+            f"({s['shrink_pct']:.0f} % smaller)"
+        )
+    print(f"written: {args.out / 'diagnosis.json'}, {args.out / 'report.md'}")
+    return 0
+
+
+def _cmd_gap_benchmark(args: argparse.Namespace) -> int:
+    if args.cases < 1 or args.workers < 1:
+        raise UsageError("--cases and --workers must be at least 1")
+    from hil_client.analysis.gap_benchmark import run_benchmark
+
+    run_benchmark(args.cases, args.seed, args.out, args.workers)
+    return 0
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
@@ -341,6 +409,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_calibrate(args)
         if args.command == "validate":
             return _cmd_validate(args)
+        if args.command == "diagnose":
+            return _cmd_diagnose(args)
+        if args.command == "gap-benchmark":
+            return _cmd_gap_benchmark(args)
         raise UsageError(f"unknown command {args.command}")
     except UsageError as exc:
         return report(exc, "hil-client")

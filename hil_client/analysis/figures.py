@@ -189,3 +189,51 @@ def validation_figures(comp, phases: Phases, stem: Path, title: str) -> list[Pat
     fig.savefig(paths[-1], dpi=110)
     plt.close(fig)
     return paths
+
+
+def diagnosis_figures(result: dict, out_dir: Path) -> list[Path]:
+    """Residuals by phase (validation log, unaugmented model) and before/after overlays of
+    the signal where the gap lies."""
+    from hil_client.analysis.diagnose import SIGNALS, predict
+
+    series = result["_series"]
+    val = series["val"]
+    base = predict(val, "none", {})
+    paths = []
+    fig, axes = plt.subplots(len(SIGNALS), 1, figsize=(11, 10), sharex=True)
+    h = val.t / 3600.0
+    for ax, s in zip(axes, SIGNALS, strict=True):
+        ax.plot(h, val.lab[s] - base[s], color="tab:red", lw=0.6)
+        ax.axhline(0, color="0.3", lw=0.5)
+        ax.set_ylabel(f"lab - model\n{s}", fontsize=8)
+        mark_phases(ax, val.phases)
+    axes[-1].set_xlabel("time [h]")
+    fig.suptitle("Residuals of the calibrated one-node model on the validation log")
+    fig.tight_layout()
+    paths.append(out_dir / "residuals_by_phase.png")
+    fig.savefig(paths[-1], dpi=100)
+    plt.close(fig)
+    shrink = result.get("shrinkage")
+    effect = result["effect"]
+    if shrink is not None:
+        s = shrink["signal"]
+        fit = series["fits"][effect]
+        after = predict(val, effect, fit.params)
+        fig, ax = plt.subplots(figsize=(11, 4.5))
+        ax.plot(h, val.lab[s], color="tab:red", lw=0.8, label="lab")
+        ax.plot(h, base[s], color="k", lw=0.9, ls="--", label="model")
+        ax.plot(h, after[s], color="tab:blue", lw=0.9, label=f"model + {effect}")
+        ax.set_ylabel(s)
+        ax.set_xlabel("time [h]")
+        mark_phases(ax, val.phases)
+        ax.legend(fontsize=8)
+        ax.set_title(
+            f"validation log, {s}: RMSD in {shrink['phase']} "
+            f"{shrink['validation_rmsd_before']:.3g} -> "
+            f"{shrink['validation_rmsd_after']:.3g} ({shrink['shrink_pct']:.0f} % less)"
+        )
+        fig.tight_layout()
+        paths.append(out_dir / "before_after.png")
+        fig.savefig(paths[-1], dpi=100)
+        plt.close(fig)
+    return paths

@@ -60,3 +60,58 @@ def validation_report(result: dict, figures: list[Path]) -> str:
     lines += ["", "## Figures", ""]
     lines += [f"![{p.stem}]({p.name})" for p in figures]
     return "\n".join(lines) + "\n"
+
+
+def diagnosis_report(result: dict, figures: list[Path], cal: str, val: str) -> str:
+    """A readable account of the diagnosis."""
+    lines = [
+        "# Sim-to-real gap diagnosis",
+        "",
+        f"Calibration log (fitted on): `{cal}`; validation log (held out): `{val}`.",
+        "",
+        f"**Unmodelled effect: `{result['effect']}`** (confidence "
+        f"{result['confidence']:.2f}). Rule: {result['rule']}.",
+        "",
+    ]
+    shrink = result.get("shrinkage")
+    if shrink:
+        lines += [
+            f"Where the gap lies: **{shrink['signal']}** in **{shrink['phase']}**. With "
+            f"the effect added (parameters frozen from the calibration log) its RMSD on "
+            f"the validation log goes from {shrink['validation_rmsd_before']:.4g} to "
+            f"{shrink['validation_rmsd_after']:.4g}: **{shrink['shrink_pct']:.0f} % "
+            f"smaller** (whole log: {shrink['overall_validation_rmsd_before']:.4g} -> "
+            f"{shrink['overall_validation_rmsd_after']:.4g}).",
+            "",
+        ]
+    lines += [
+        "## Candidates (fitted on the calibration log)",
+        "",
+        "| effect | parameters | BIC gain | best RMSD gain (cal.) | where | val. RMSD "
+        "before | after |",
+        "|---|---|---:|---:|---|---:|---:|",
+    ]
+    for c in result["candidates"]:
+        params = ", ".join(f"{k} = {v:.3g}" for k, v in c["params"].items())
+        lines.append(
+            f"| {c['effect']} | {params} | {c['score']:.1f} | "
+            f"{100 * c['best_gain']:.0f} % | {c['signal']} / {c['phase']} | "
+            f"{c['validation_rmsd_before']:.4g} | {c['validation_rmsd_after']:.4g} |"
+        )
+    lines += [
+        "",
+        "## Where the model departs from the validation log (ranked)",
+        "",
+        "| phase | signal | RMSD | max dev | r | bias / var / cov share | lag (s) | "
+        "resid. autocorr. 1 min |",
+        "|---|---|---:|---:|---:|---|---:|---:|",
+    ]
+    for w in result["where"]:
+        lines.append(
+            f"| {w['phase']} | {w['signal']} | {_f(w['rmsd'])} | {_f(w['max_dev'])} | "
+            f"{_f(w['r'])} | {_f(w['bias_share'], 2)} / {_f(w['variance_share'], 2)} / "
+            f"{_f(w['covariance_share'], 2)} | {_f(w['lag_s'], 0)} | "
+            f"{_f(w['residual_autocorrelation_60s'], 2)} |"
+        )
+    lines += ["", "## Figures", ""] + [f"![{p.stem}]({p.name})" for p in figures]
+    return "\n".join(lines) + "\n"
