@@ -4,8 +4,9 @@ From a stationary-test log and/or a load-cycle log plus the boiler's documentati
 
 - stationary intervals: the ``stationary_*`` sequences (or, without a ``sequence`` column,
   flow plateaus of at least 20 min in the test phase), without their first 10 min, and only
-  where the burner fired throughout and the boiler water held within 3 K (the 13 % step,
-  below the modulation range, cycles and is left out);
+  where the burner fired throughout and the boiler water held within 3 K (a slow approach
+  at the start is cut off; the 13 % step, below the modulation range, cycles and is left
+  out);
 - dTnom and dThx,wat (Eq. 8): linear regression of (T_fg - T_w,in) against
   (1 - m_w/m_w,nom) over the stationary intervals: the intercept is dTnom, the slope
   dThx,wat (Fig. 4). With a single load level only dTnom is fitted (dThx,wat kept);
@@ -139,8 +140,12 @@ def stationary_intervals(log: LabLog, phases: Phases) -> list[Interval]:
             continue
         if log.has("boiler_on") and np.nanmin(log["boiler_on"][i0:i1]) < 0.5:
             continue  # the burner stopped: below the modulation range
+        # the water must hold within 3 K: drop a slow approach at the start, if any
         tb = log["boiler_water_temp_C"][i0:i1]
-        if np.nanmax(tb) - np.nanmin(tb) > 3.0:
+        while i1 - i0 >= 1200 and np.nanmax(tb) - np.nanmin(tb) > 3.0:
+            i0 += 300
+            tb = log["boiler_water_temp_C"][i0:i1]
+        if i1 - i0 < 1200 or np.nanmax(tb) - np.nanmin(tb) > 3.0:
             continue
         out.append(Interval(log, i0, i1, name))
     return out
