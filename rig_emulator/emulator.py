@@ -1,9 +1,10 @@
 """The emulated bench as instruments see it: plant, instruments and commands in one object.
 
 This is what the Modbus adapter publishes and what the in-process rig of the client reads;
-both therefore see exactly the same values. Time advances in sub-steps of at most
-``max_step_s`` so that a long advance (lockstep, accelerated real time) gives the same
-result as many short ones at the acquisition period.
+both therefore see exactly the same values. The profile gives the instruments and the
+plant's unmodelled effects (:mod:`rig_emulator.bench.effects`), which the bench applies.
+Time advances in sub-steps of at most ``max_step_s`` so that a long advance (lockstep,
+accelerated real time) gives the same result as many short ones at the acquisition period.
 
 Emissions the Type 869 model does not carry (assumptions ours, documented):
 - NOx: 35 % of the fuel nitrogen converted to NO (typical of wood pellets, 20-50 %),
@@ -82,7 +83,8 @@ class Emulator:
 
     Args:
         params: the boiler.
-        profile: instrument profile (``clean``: readings equal the plant).
+        profile: instrument profile (``clean``: readings equal the plant) and the plant's
+            unmodelled effects (``effects``; none: the plant is the model).
         seed: seed of the instruments' fixed errors and noise.
         config: the bench (loop, room, balance).
         max_step_s: longest physics step of an advance [s].
@@ -100,7 +102,7 @@ class Emulator:
         self.profile = profile
         self.seed = seed
         self.max_step_s = max_step_s
-        self.bench = Bench(params, config)
+        self.bench = Bench(params, config, profile.effects)
         fuel_n = params.fuel.n
         self._nox_per_v = 1e6 * NOX_CONVERSION * fuel_n / 14.007 * V_MOLAR_N
         self.reset()

@@ -8,17 +8,32 @@ Assumptions (ours, the paper is silent): the boiler stands on the balance with i
 so the balance loses the fuel as received (moisture included) less its ash; the chimney is
 DN100 and the bench holds the draught at -12 Pa (digest section 5); without firing, the
 draught pulls ``idle_velocity_m_s`` of air through the idle boiler.
+
+Unmodelled effects (CONTRACT section 4; :mod:`rig_emulator.bench.effects`) are given to the
+bench as resolved settings or a profile's ``effects`` mapping. With none on, the bench steps
+the pure model (:func:`bench_step`); otherwise :func:`bench_step_effects`, which steps the
+plant of :mod:`rig_emulator.bench.plant`. The fuel-energy bias needs no kernel of its own:
+it scales what the balance loses per kg of fuel the model burns.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
 
+from rig_emulator.bench.effects import EffectSettings, resolve_effects
 from rig_emulator.bench.loop import LoopConfig, condition_return, follow_flow
+from rig_emulator.bench.plant import (
+    FC_PIPE_ON,
+    new_effect_state,
+    pack_effect_constants,
+    pipe_sensor,
+    plant_step,
+)
 from rig_emulator.bench.room import RoomConditions
 from rig_emulator.model import boiler as bm
 from rig_emulator.model.constants import CO2_AMBIENT_PCT, CP_WATER, O2_AMBIENT_PCT, T_NORMAL_K
@@ -40,6 +55,8 @@ from rig_emulator.model.layout import (
     Y_T_OUT,
 )
 from rig_emulator.model.params import BoilerParams
+
+EffectsArg = EffectSettings | Mapping[str, Mapping[str, float]] | None
 
 # bench constants
 BC_TAU_FLOW, BC_LOOP_CAP, BC_LOOP_UA, BC_TAU_COND, BC_COOL_MAX, BC_HEAT_MAX = range(6)
@@ -125,6 +142,30 @@ def bench_step(c, s, bc, bs, u, y, yb, dt_s):
     bm.step(c, s, flow, t_in, room, u[U_BOILER_ON] > 0.5, dt_s, y)
     m_cp = flow * CP_WATER / 3600.0
     t_forward = t_in + y[Y_Q_WATER] / m_cp if m_cp > 0.0 else y[Y_T_OUT]
+    _loop_and_outputs(s, bc, bs, u, y, yb, dt_s, flow, t_in, t_forward)
+
+
+@njit(cache=True)
+def bench_step_effects(c, s, bc, bs, u, y, yb, dt_s, fc, fs, ph):
+    """:func:`bench_step` with the unmodelled effects of ``fc`` (state ``fs``, pipe
+    history ``ph``, see :mod:`rig_emulator.bench.plant`): the boiler is
+    :func:`~rig_emulator.bench.plant.plant_step` and the forward reading comes from the
+    sensor down the exit pipe when that effect is on."""
+    room = u[U_ROOM]
+    flow = follow_flow(bs[BS_FLOW], u[U_FLOW_SP], u[U_PUMP] > 0.5, dt_s, bc[BC_TAU_FLOW])
+    t_in = bs[BS_T_RETURN]
+    plant_step(c, s, fc, fs, flow, t_in, room, u[U_BOILER_ON] > 0.5, dt_s, y)
+    m_cp = flow * CP_WATER / 3600.0
+    t_forward = t_in + y[Y_Q_WATER] / m_cp if m_cp > 0.0 else y[Y_T_OUT]
+    _loop_and_outputs(s, bc, bs, u, y, yb, dt_s, flow, t_in, t_forward)
+    if fc[FC_PIPE_ON] > 0.5:
+        yb[YB_T_OUT] = pipe_sensor(fc, fs, ph, flow, t_forward, y[Y_T_OUT], room, dt_s)
+
+
+@njit(cache=True)
+def _loop_and_outputs(s, bc, bs, u, y, yb, dt_s, flow, t_in, t_forward):
+    """Return conditioning and bench outputs after the boiler's step (see bench_step)."""
+    room = u[U_ROOM]
     t_ret, q_cond = condition_return(
         t_in,
         flow,
@@ -168,14 +209,35 @@ class Bench:
 
     Attributes:
         c, s: boiler constants and state arrays; bc, bs: bench constants and state;
-        u: inputs (set with :meth:`set_inputs`); y, yb: outputs of the last step.
+        u: inputs (set with :meth:`set_inputs`); y, yb: outputs of the last step;
+        effects: the resolved unmodelled effects; fc, fs, ph: their constants, state and
+        exit-pipe history (:mod:`rig_emulator.bench.plant`; unused when no dynamic effect
+        is on).
+
+    Args:
+        params: the boiler; config: the bench;
+        effects: unmodelled effects, resolved (:class:`EffectSettings`) or as a profile's
+            ``effects`` mapping (validated here); None: none (the model).
     """
 
-    def __init__(self, params: BoilerParams, config: BenchConfig | None = None) -> None:
+    def __init__(
+        self,
+        params: BoilerParams,
+        config: BenchConfig | None = None,
+        effects: EffectsArg = None,
+    ) -> None:
         self.params = params
         self.config = config or BenchConfig()
+        if not isinstance(effects, EffectSettings):
+            effects = resolve_effects(effects)
+        self.effects = effects
         self.c = bm.pack_constants(params)
         self.bc = pack_bench_constants(params, self.config, self.c)
+        if effects.fuel_relative_bias != 0.0:
+            # the fuel delivers (1 + b) times the nominal energy per kg: 1 / (1 + b) the mass
+            self.bc[BC_BALANCE_PER_KG] /= 1.0 + effects.fuel_relative_bias
+        self._dynamic = effects.dynamic
+        self.fc = pack_effect_constants(effects, params)
         self.u = np.zeros(N_INPUTS)
         self.y = np.zeros(N_OUTPUTS)
         self.yb = np.zeros(N_BENCH_OUTPUTS)
@@ -187,6 +249,7 @@ class Bench:
         t = self.config.initial_water_temp_C
         self.s = bm.new_state(t)
         self.bs = np.array([0.0, t, 0.0])
+        self.fs, self.ph = new_effect_state(t)
         self.set_inputs(0.0, t, True, False, False)
         self.u[U_ROOM], self.u[U_PRESSURE], self.u[U_HUMIDITY] = self.config.room.at(0.0)
 
@@ -233,4 +296,19 @@ class Bench:
         u = self.u
         if self._room_varies:
             u[U_ROOM], u[U_PRESSURE], u[U_HUMIDITY] = self.config.room.at(float(self.bs[BS_TIME]))
-        bench_step(self.c, self.s, self.bc, self.bs, u, self.y, self.yb, dt_s)
+        if self._dynamic:
+            bench_step_effects(
+                self.c,
+                self.s,
+                self.bc,
+                self.bs,
+                u,
+                self.y,
+                self.yb,
+                dt_s,
+                self.fc,
+                self.fs,
+                self.ph,
+            )
+        else:
+            bench_step(self.c, self.s, self.bc, self.bs, u, self.y, self.yb, dt_s)

@@ -20,6 +20,17 @@ Keys of an instrument (all optional, default 0 = ideal):
 - ``update_period_s`` [s]: the reading is refreshed only this often and held in between.
 
 Signals not listed are ideal. ``clean`` lists none.
+
+A profile may also switch on unmodelled effects of the plant (CONTRACT section 4), each
+with a ``strength`` (0 off, 1 the lab default) and optional explicit parameters:
+
+    effects:
+      body_heat_diffusion: {strength: 1.0}
+      fuel_energy_bias: {relative_bias: -0.05}
+
+Names, parameters, units, defaults and ranges: :mod:`rig_emulator.bench.effects`. Shipped:
+``clean`` (ideal instruments, no effects), ``lab`` (the bench's instruments and all five
+effects at lab strength), ``lab_instruments`` (the same instruments, no effects).
 """
 
 from __future__ import annotations
@@ -32,6 +43,7 @@ from typing import Any
 
 import yaml
 
+from rig_emulator.bench.effects import EffectError, check_effects
 from rig_emulator.signals import MEASURED
 
 PROFILE_DIR = Path(__file__).resolve().parent.parent / "profiles"
@@ -72,7 +84,7 @@ class InstrumentSpec:
 
 @dataclass(frozen=True, slots=True)
 class Profile:
-    """A named set of instrument specs (and, later, plant effects)."""
+    """A named set of instrument specs and plant effects (validated, values as float)."""
 
     name: str
     description: str = ""
@@ -116,10 +128,11 @@ def profile_from_mapping(data: Any, source: str = "<profile>") -> Profile:
                 raise ProfileError(f"{source}: key '{full}' must be finite and >= 0")
             values[key] = float(value)
         instruments[signal] = InstrumentSpec(**values)
-    effects = data.get("effects") or {}
-    if not isinstance(effects, Mapping):
-        raise ProfileError(f"{source}: key 'effects' must be a mapping")
-    return Profile(name, str(data.get("description", "")), instruments, dict(effects))
+    try:
+        effects = check_effects(data.get("effects"))
+    except EffectError as exc:
+        raise ProfileError(f"{source}: {exc}") from None
+    return Profile(name, str(data.get("description", "")), instruments, effects)
 
 
 def available() -> list[str]:
@@ -128,7 +141,7 @@ def available() -> list[str]:
 
 
 def load_profile(name_or_path: str) -> Profile:
-    """Load a shipped profile (``clean``, ``lab``) or a YAML file."""
+    """Load a shipped profile (``clean``, ``lab``, ``lab_instruments``) or a YAML file."""
     path = Path(name_or_path)
     if path.suffix not in (".yaml", ".yml") and not path.exists():
         path = PROFILE_DIR / f"{name_or_path}.yaml"

@@ -1,0 +1,502 @@
+"""The boiler as the real bench has it: the Type 869 step with the unmodelled effects.
+
+:mod:`rig_emulator.bench.effects` describes the effects and their parameters; this module
+holds their compiled physics. :func:`plant_step` is :func:`rig_emulator.model.boiler.step`
+with the effects switched in (it reuses the model's own functions for everything the
+effects leave alone), and :func:`pipe_sensor` is the forward sensor down the exit pipe. The
+bench calls them only when an effect needs them; with every effect off it calls the pure
+model, so the plant is then the model bit for bit.
+
+Numerics (inputs held over a step, as in the model):
+- body chain: backward Euler over the metal nodes and the water node (a tridiagonal system,
+  L-stable for any conduction time constant). Its step-end temperatures define the heat
+  flows, so the balance Q_in = Q_water + Q_amb + sum C_i dT_i/dt closes to rounding. Without
+  the body effect the one node is solved exactly as in the model;
+- bed and flue-gas nodes: exact solutions of their linear equations over the step;
+- exit pipe: a history of the water that entered it (cumulated mass, temperature, time),
+  searched forward for the parcel now at the sensor (amortised O(1) per step).
+
+Layouts: constants ``FC_*`` (:func:`pack_effect_constants`), state ``FS_*``
+(:func:`new_effect_state`), pipe history ``PH_*`` rows of :data:`N_HISTORY` entries.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from rig_emulator.bench.effects import MAX_BODY_NODES, EffectSettings
+from rig_emulator.model import boiler as bm
+from rig_emulator.model import constants as k
+from rig_emulator.model.layout import (
+    K_A0,
+    K_A1,
+    K_CAP,
+    K_CO_START,
+    K_CO_STOP,
+    K_CO_TAU,
+    K_HHV,
+    K_IGNITION,
+    K_LHV,
+    K_P_MAX,
+    K_P_MIN,
+    K_P_START,
+    K_PEL_MIN,
+    K_PEL_OFF,
+    K_PEL_SLOPE,
+    K_SET,
+    K_STARTUP_S,
+    K_UA_OFF,
+    K_UA_ON,
+    K_VCO2,
+    K_VDRY0,
+    K_VDRY1,
+    K_VH2O,
+    K_VO2_PER_LAMBDA,
+    K_VSO2,
+    MODULATING,
+    S_ELECTRIC,
+    S_FIRING,
+    S_FUEL,
+    S_MODE,
+    S_MODE_TIME,
+    S_SINCE_START,
+    S_SINCE_STOP,
+    S_STARTS,
+    S_T,
+    STARTUP,
+    Y_CO,
+    Y_CO2,
+    Y_FG_DRY,
+    Y_FG_WET,
+    Y_FIRING,
+    Y_FUEL,
+    Y_LAMBDA,
+    Y_MODE,
+    Y_O2,
+    Y_P_EL,
+    Y_Q_AMB,
+    Y_Q_ASH,
+    Y_Q_CHEM,
+    Y_Q_FUEL,
+    Y_Q_HX,
+    Y_Q_IGN,
+    Y_Q_LAT,
+    Y_Q_SENS,
+    Y_Q_STORED,
+    Y_Q_WATER,
+    Y_SO2,
+    Y_T_BOILER,
+    Y_T_FG,
+    Y_T_OUT,
+)
+from rig_emulator.model.params import BoilerParams
+
+_CP_W_KWH = k.CP_WATER / 3600.0  # kg/h flow to kW/K
+_ASH = k.ASH_LOSS_FRACTION
+#: Bed content below which a bed without feed counts as burnt out [kg dry].
+BED_EMPTY_KG = 1e-4
+#: Share of the body's conduction time constant the controller waits out (assumption).
+HORIZON_PER_BODY_TAU = 0.8
+
+# --- effect constants
+(
+    FC_BODY_ON,  # 0/1
+    FC_BODY_N,  # metal nodes [-]
+    FC_BODY_CM,  # capacity of one metal node [kJ/K]
+    FC_BODY_CW,  # capacity of the water node [kJ/K]
+    FC_BODY_G,  # conductance of one link [kW/K]
+    FC_HORIZON,  # controller horizon beyond one step [s]
+    FC_IGN_ON,  # 0/1
+    FC_IGN_DELAY,  # [s]
+    FC_IGN_TAU,  # bed burn-out time constant [s]
+    FC_FG_ON,  # 0/1
+    FC_FG_TAU1,  # exchanger node [s]
+    FC_FG_TAU2,  # refractory node [s]
+    FC_PIPE_ON,  # 0/1
+    FC_PIPE_MASS,  # water in the pipe [kg]
+    FC_PIPE_K_ROOM,  # relaxation rate toward the room [1/s]
+    FC_PIPE_K_BOILER,  # relaxation rate toward the boiler water [1/s] (inf: instant)
+) = range(16)
+N_FX_CONSTANTS = 16
+
+# --- effect state
+FS_METAL = 0  # metal node temperatures [C], MAX_BODY_NODES slots
+FS_BED = MAX_BODY_NODES  # fuel in the bed [kg dry, nominal-energy equivalent]
+FS_LIT = FS_BED + 1  # 0/1: the bed burns
+FS_IGN_TIMER = FS_BED + 2  # time fed since the start while unlit [s]
+FS_SINCE_IGNITION = FS_BED + 3  # [s]
+FS_LAMBDA_FEED = FS_BED + 4  # feed rate that sets the fan (held in the burn-out) [kg/h]
+FS_FG1 = FS_BED + 5  # exchanger node of the flue-gas lag [C]
+FS_FG2 = FS_BED + 6  # refractory node = flue-gas temperature [C]
+FS_PIPE_T = FS_BED + 7  # temperature of the parcel at the sensor [C]
+FS_PIPE_MASS = FS_BED + 8  # cumulated mass that entered the pipe [kg]
+FS_PIPE_PARCEL = FS_BED + 9  # history index of the parcel at the sensor (-1: initial water)
+FS_PIPE_HEAD = FS_BED + 10  # entries written to the history so far
+FS_TIME = FS_BED + 11  # time [s]
+N_FX_STATE = FS_BED + 12
+
+# --- pipe history: rows of cumulated mass at the end of the entry [kg], temperature [C],
+# time at its end [s]
+PH_MASS, PH_TEMP, PH_TIME = range(3)
+N_HISTORY = 4096
+
+
+def pack_effect_constants(fx: EffectSettings, params: BoilerParams) -> np.ndarray:
+    """The effect constants (layout ``FC_*``) for resolved settings and a boiler."""
+    fc = np.zeros(N_FX_CONSTANTS)
+    cap = params.capacity_kJ_K
+    if fx.body_on:
+        n = fx.body_nodes
+        c_metal = fx.body_metal_share * cap
+        fc[FC_BODY_ON] = 1.0
+        fc[FC_BODY_N] = n
+        fc[FC_BODY_CM] = c_metal / n
+        fc[FC_BODY_CW] = cap - c_metal
+        fc[FC_BODY_G] = n * c_metal / fx.body_time_constant_s
+        fc[FC_HORIZON] += HORIZON_PER_BODY_TAU * fx.body_time_constant_s
+    if fx.ignition_on:
+        fc[FC_IGN_ON] = 1.0
+        fc[FC_IGN_DELAY] = fx.ignition_delay_s
+        fc[FC_IGN_TAU] = fx.burnout_time_constant_s
+        fc[FC_HORIZON] += fx.burnout_time_constant_s
+    if fx.flue_on:
+        fc[FC_FG_ON] = 1.0
+        fc[FC_FG_TAU1] = fx.flue_time_constant_s * (1.0 - fx.flue_refractory_share)
+        fc[FC_FG_TAU2] = fx.flue_time_constant_s * fx.flue_refractory_share
+    if fx.pipe_on:
+        fc[FC_PIPE_ON] = 1.0
+        fc[FC_PIPE_MASS] = fx.pipe_volume_l * 1e-3 * k.RHO_WATER
+        fc[FC_PIPE_K_ROOM] = 1.0 / fx.pipe_cooling_time_constant_s
+        tau_b = fx.pipe_coupling_time_constant_s
+        fc[FC_PIPE_K_BOILER] = 1.0 / tau_b if tau_b > 0 else math.inf
+    return fc
+
+
+def new_effect_state(t_C: float) -> tuple[np.ndarray, np.ndarray]:
+    """(state ``FS_*``, pipe history) of a plant at rest at ``t_C`` with an empty bed."""
+    fs = np.zeros(N_FX_STATE)
+    fs[FS_METAL : FS_METAL + MAX_BODY_NODES] = t_C
+    fs[FS_SINCE_IGNITION] = math.inf
+    fs[FS_FG1] = fs[FS_FG2] = fs[FS_PIPE_T] = t_C
+    fs[FS_PIPE_PARCEL] = -1.0
+    return fs, np.zeros((3, N_HISTORY))
+
+
+@njit(cache=True)
+def lag2(y1, y2, u, tau1, tau2, dt_s):
+    """Two first-order nodes in series, y1 -> u (tau1), y2 -> y1 (tau2), input held.
+
+    Exact: y1(t) = u + (y1_0 - u) e1, y2(t) = u + (y2_0 - u) e2 + (y1_0 - u) K with
+    e_i = exp(-t/tau_i) and K = tau1 (e1 - e2) / (tau1 - tau2), or (t/tau) e for equal
+    time constants. A zero time constant makes its node follow its input at once.
+    Returns (y1, y2) at the end of the step.
+    """
+    if tau1 <= 0.0:
+        y1n = u
+        if tau2 <= 0.0:
+            return u, u
+        return y1n, u + (y2 - u) * math.exp(-dt_s / tau2)
+    e1 = math.exp(-dt_s / tau1)
+    y1n = u + (y1 - u) * e1
+    if tau2 <= 0.0:
+        return y1n, y1n
+    e2 = math.exp(-dt_s / tau2)
+    equal = abs(tau1 - tau2) <= 1e-9 * tau1
+    kk = dt_s / tau1 * e1 if equal else tau1 * (e1 - e2) / (tau1 - tau2)
+    return y1n, u + (y2 - u) * e2 + (y1 - u) * kk
+
+
+@njit(cache=True)
+def body_chain(fc, fs, t_w0, q_in_kW, m_cp, water_in_C, ua, room_C, dt_s):
+    """Advance metal nodes and water node by backward Euler; metal temperatures in ``fs``.
+
+    C_m dT_1/dt = Q_in - G (T_1 - T_2)
+    C_m dT_i/dt = G (T_(i-1) - T_i) - G (T_i - T_(i+1))
+    C_w dT_w/dt = G (T_n - T_w) - m cp (T_w - T_in) - UA (T_w - T_room)
+
+    Returns (water temperature at the end [C], heat stored in all nodes [kW]).
+    """
+    n = int(fc[FC_BODY_N])
+    cm = fc[FC_BODY_CM] / dt_s
+    cw = fc[FC_BODY_CW] / dt_s
+    g = fc[FC_BODY_G]
+    # tridiagonal system over nodes 0..n (n = water): sub a, diagonal b, super c, rhs d
+    b = np.empty(n + 1)
+    d = np.empty(n + 1)
+    for i in range(n):
+        b[i] = cm + 2.0 * g
+        d[i] = cm * fs[FS_METAL + i]
+    b[0] = cm + g
+    d[0] += q_in_kW
+    b[n] = cw + g + m_cp + ua
+    d[n] = cw * t_w0 + m_cp * water_in_C + ua * room_C
+    # Thomas algorithm, a = c = -g everywhere
+    for i in range(1, n + 1):
+        w = -g / b[i - 1]
+        b[i] += w * g
+        d[i] -= w * d[i - 1]
+    t_new = d[n] / b[n]
+    stored = fc[FC_BODY_CW] * (t_new - t_w0)
+    t_next = t_new
+    for i in range(n - 1, -1, -1):
+        t_i = (d[i] + g * t_next) / b[i]
+        stored += fc[FC_BODY_CM] * (t_i - fs[FS_METAL + i])
+        fs[FS_METAL + i] = t_i
+        t_next = t_i
+    return t_new, stored / dt_s
+
+
+@njit(cache=True)
+def plant_step(c, s, fc, fs, water_flow_kg_h, water_in_C, room_C, enabled, dt_s, y):
+    """The model's :func:`~rig_emulator.model.boiler.step` with the effects of ``fc``.
+
+    Same arguments, state and outputs as the model, plus the effect constants ``fc`` and
+    state ``fs`` (updated in place). Differences from the model (each only if its effect
+    is on): the controller's horizon; the feed (what the balance loses: ``s[S_FUEL]``,
+    ``y[Y_FUEL]``) and the fuel that burns (``y[Y_Q_FUEL]``, the flue gas) differ by the
+    bed; the flue-gas temperature is lagged; the heat goes through the metal chain.
+    Fuel masses here are in kg of nominal energy (HHV); the fuel-energy bias is applied by
+    the balance (:class:`~rig_emulator.bench.bench.Bench`). Electric power follows the
+    controller, as in the model (the fan's share during a burn-out is neglected).
+    """
+    t0 = s[S_T]
+    mode = int(s[S_MODE])
+    new_mode = bm.controller_mode(c, mode, s[S_MODE_TIME], t0, enabled)
+    if new_mode != mode:
+        s[S_MODE_TIME] = 0.0
+        if new_mode == STARTUP:
+            s[S_SINCE_START] = 0.0
+            s[S_STARTS] += 1.0
+            fs[FS_IGN_TIMER] = 0.0
+        elif mode == STARTUP or mode == MODULATING:
+            s[S_SINCE_STOP] = 0.0
+        mode = new_mode
+    firing = mode == STARTUP or mode == MODULATING
+    m_cp = water_flow_kg_h * _CP_W_KWH
+    cap = c[K_CAP]
+    ign_on = fc[FC_IGN_ON] > 0.5
+
+    # start CO peak, decaying from the ignition (the start without the ignition effect)
+    since_ign = fs[FS_SINCE_IGNITION] if ign_on else s[S_SINCE_START]
+    co_start = c[K_CO_START] * math.exp(-since_ign / c[K_CO_TAU])
+
+    # --- what the controller commands: firing power (net basis) and the feed it implies
+    q_ign = 0.0
+    firing_kW = 0.0
+    if firing:
+        # the igniter runs for the start-up time after each start, whatever the mode
+        q_ign = c[K_IGNITION] if s[S_SINCE_START] < c[K_STARTUP_S] else 0.0
+        if mode == STARTUP:
+            firing_kW = c[K_P_START]
+        else:
+            # heat that brings the water to the set point over the horizon (the model's
+            # rule with the horizon dt + FC_HORIZON instead of dt)
+            ua = c[K_UA_ON]
+            b = m_cp + ua
+            decay = math.exp(-b * (dt_s + fc[FC_HORIZON]) / cap)
+            t_eq = (c[K_SET] - t0 * decay) / (1.0 - decay)
+            q_req = max(b * t_eq - m_cp * water_in_C - ua * room_C - q_ign, 0.0)
+            x_prev = s[S_FIRING] * 3600.0 / c[K_LHV]
+            lam_prev = bm.excess_air(c, x_prev)
+            co_prev = bm.co_stationary_ppm(c, s[S_FIRING]) + co_start
+            t_fg_prev = bm.flue_gas_temperature(c, water_in_C, water_flow_kg_h, x_prev)
+            chem_prev = bm.flue_gas_loss_per_kg(c, lam_prev, t_fg_prev, room_C, co_prev)[2]
+            x = bm.fuel_for_heat(c, q_req, t_fg_prev - room_C, chem_prev)
+            firing_kW = min(max(x * c[K_LHV] / 3600.0, c[K_P_MIN]), c[K_P_MAX])
+    feed = firing_kW * 3600.0 / c[K_LHV]  # [kg/h dry, nominal energy]
+
+    # --- the bed: fuel fed collects, burns once lit, burns out after a stop
+    if ign_on:
+        m0 = fs[FS_BED]
+        f_s = feed / 3600.0  # [kg/s]
+        t_unlit = 0.0  # part of the step before the bed lights [s]
+        if fs[FS_LIT] < 0.5:
+            t_unlit = dt_s
+            if firing:
+                wait = max(fc[FC_IGN_DELAY] - fs[FS_IGN_TIMER], 0.0)
+                if wait < dt_s:  # the bed lights within this step
+                    fs[FS_LIT] = 1.0
+                    fs[FS_SINCE_IGNITION] = -wait
+                    t_unlit = wait
+                    co_start = c[K_CO_START]
+        if firing:
+            fs[FS_LAMBDA_FEED] = feed
+            fs[FS_IGN_TIMER] += dt_s
+        m1 = m0 + f_s * t_unlit
+        t_lit = dt_s - t_unlit
+        if fs[FS_LIT] > 0.5 and t_lit > 0.0:
+            tau = fc[FC_IGN_TAU]
+            m1 = f_s * tau + (m1 - f_s * tau) * math.exp(-t_lit / tau) if tau > 0.0 else 0.0
+            if not firing and m1 < BED_EMPTY_KG:
+                m1 = 0.0
+                fs[FS_LIT] = 0.0
+        fs[FS_BED] = m1
+        burn = (m0 + f_s * dt_s - m1) * 3600.0 / dt_s  # mean over the step [kg/h]
+        x_lambda = fs[FS_LAMBDA_FEED]
+        fs[FS_SINCE_IGNITION] += dt_s
+    else:
+        burn = feed
+        x_lambda = feed
+    burning = burn > 0.0
+    fan = firing or burning
+    ua = c[K_UA_ON] if fan else c[K_UA_OFF]
+
+    if burning:
+        t_fg_target = bm.flue_gas_temperature(c, water_in_C, water_flow_kg_h, burn)
+        if fc[FC_FG_ON] > 0.5:
+            fs[FS_FG1], fs[FS_FG2] = lag2(
+                fs[FS_FG1], fs[FS_FG2], t_fg_target, fc[FC_FG_TAU1], fc[FC_FG_TAU2], dt_s
+            )
+            t_fg = fs[FS_FG2]
+        else:
+            t_fg = t_fg_target
+        lam = bm.excess_air(c, x_lambda)
+        if firing:
+            co = bm.co_stationary_ppm(c, burn * c[K_LHV] / 3600.0) + co_start
+        else:  # burn-out: the stop peak, as the model has it once the burner is off
+            co = c[K_CO_STOP] * math.exp(-s[S_SINCE_STOP] / c[K_CO_TAU])
+        sens, lat, chem = bm.flue_gas_loss_per_kg(c, lam, t_fg, room_C, co)
+        per_s = burn / 3600.0
+        q_fuel = per_s * c[K_HHV]
+        q_ash = _ASH * q_fuel
+        q_sens = per_s * sens
+        q_lat = per_s * lat
+        q_chem = per_s * chem
+        q_hx = q_fuel - q_ash - q_sens - q_lat - q_chem
+        v_dry = c[K_VDRY0] + c[K_VDRY1] * lam
+        y[Y_O2] = 100.0 * c[K_VO2_PER_LAMBDA] * (lam - 1.0) / v_dry
+        y[Y_CO2] = 100.0 * c[K_VCO2] / v_dry
+        y[Y_SO2] = 1e6 * c[K_VSO2] / v_dry
+        y[Y_FG_DRY] = burn * (c[K_A0] + c[K_A1] * lam)
+        y[Y_FG_WET] = burn * (v_dry + c[K_VH2O])
+    else:
+        q_fuel = q_ash = q_sens = q_lat = q_chem = q_hx = 0.0
+        lam = math.inf
+        # idle, or the fan and igniter run before the bed lights: the analyser sees air
+        # and the decaying burn-out CO of the last stop, as in the model
+        co = c[K_CO_STOP] * math.exp(-s[S_SINCE_STOP] / c[K_CO_TAU])
+        y[Y_O2] = k.O2_AMBIENT_PCT
+        y[Y_CO2] = k.CO2_AMBIENT_PCT
+        y[Y_SO2] = 0.0
+        y[Y_FG_DRY] = 0.0
+        y[Y_FG_WET] = 0.0
+        t_fg = 0.0  # set below: the water temperature (lagged if the lag is on)
+    if firing:
+        p_el = c[K_PEL_MIN] + c[K_PEL_SLOPE] * (firing_kW - c[K_P_MIN]) + q_ign * 1000.0
+    else:
+        p_el = c[K_PEL_OFF]
+
+    q_in = q_hx + q_ign
+    if fc[FC_BODY_ON] > 0.5:
+        t1, q_stored = body_chain(fc, fs, t0, q_in, m_cp, water_in_C, ua, room_C, dt_s)
+        t_mean = t1
+    else:
+        t1, t_mean = bm.node_exact(t0, q_in, m_cp, water_in_C, ua, room_C, cap, dt_s)
+        q_stored = cap * (t1 - t0) / dt_s
+    if not burning:
+        if fc[FC_FG_ON] > 0.5:
+            fs[FS_FG1], fs[FS_FG2] = lag2(
+                fs[FS_FG1], fs[FS_FG2], t1, fc[FC_FG_TAU1], fc[FC_FG_TAU2], dt_s
+            )
+            t_fg = fs[FS_FG2]
+        else:
+            t_fg = t1
+
+    s[S_T] = t1
+    s[S_MODE] = mode
+    s[S_MODE_TIME] += dt_s
+    s[S_FIRING] = firing_kW
+    s[S_SINCE_START] += dt_s
+    s[S_SINCE_STOP] += dt_s
+    s[S_FUEL] += feed * dt_s / 3600.0
+    s[S_ELECTRIC] += p_el * dt_s / 3600.0
+    fs[FS_TIME] += dt_s
+
+    y[Y_T_BOILER] = t1
+    y[Y_T_OUT] = t1
+    y[Y_T_FG] = t_fg
+    y[Y_MODE] = mode
+    y[Y_FIRING] = firing_kW
+    y[Y_FUEL] = feed
+    y[Y_LAMBDA] = lam
+    y[Y_CO] = co
+    y[Y_Q_FUEL] = q_fuel
+    y[Y_Q_IGN] = q_ign
+    y[Y_Q_ASH] = q_ash
+    y[Y_Q_SENS] = q_sens
+    y[Y_Q_LAT] = q_lat
+    y[Y_Q_CHEM] = q_chem
+    y[Y_Q_HX] = q_hx
+    y[Y_Q_WATER] = m_cp * (t_mean - water_in_C)
+    y[Y_Q_AMB] = ua * (t_mean - room_C)
+    y[Y_Q_STORED] = q_stored
+    y[Y_P_EL] = p_el
+
+
+@njit(cache=True)
+def pipe_sensor(fc, fs, ph, flow_kg_h, t_outlet_C, t_boiler_C, room_C, dt_s):
+    """Advance the exit pipe by a step; returns the forward sensor's temperature [C].
+
+    ``t_outlet_C`` is the mean temperature of the water leaving the boiler over the step
+    (it enters the pipe); the sensor's parcel is the water that entered one pipe content
+    (FC_PIPE_MASS) of flow ago. Parcels relax toward T_c = (k_b T_boiler + k_r T_room) /
+    (k_b + k_r) at the rate k_b + k_r: a parcel newly at the sensor has done so for its
+    residence time (with the present T_c, exact while T_boiler changes little over a
+    residence), the same parcel is advanced by ``dt_s``. Entries smaller than
+    1/256 of the pipe content (the trickle after the pump stops) are merged into the last
+    one, so the history always spans many pipe contents.
+    """
+    k_r = fc[FC_PIPE_K_ROOM]
+    k_b = fc[FC_PIPE_K_BOILER]
+    if math.isinf(k_b):  # instant coupling: the pipe's water is the boiler's
+        return t_boiler_C
+    rate = k_b + k_r
+    t_c = (k_b * t_boiler_C + k_r * room_C) / rate if rate > 0.0 else t_boiler_C
+    now = fs[FS_TIME]  # the plant step has already advanced the time
+    head = int(fs[FS_PIPE_HEAD])
+    inc = flow_kg_h * dt_s / 3600.0
+    if inc > 0.0:
+        mass = fs[FS_PIPE_MASS] + inc
+        eps = max(fc[FC_PIPE_MASS] / 256.0, 1e-6)
+        last_start = ph[PH_MASS, (head - 2) % N_HISTORY] if head >= 2 else 0.0
+        if head >= 1 and mass - last_start < eps:  # merge into the last entry
+            row = (head - 1) % N_HISTORY
+            size = ph[PH_MASS, row] - last_start
+            ph[PH_TEMP, row] = (ph[PH_TEMP, row] * size + t_outlet_C * inc) / (size + inc)
+        else:
+            row = head % N_HISTORY
+            ph[PH_TEMP, row] = t_outlet_C
+            head += 1
+            fs[FS_PIPE_HEAD] = head
+        ph[PH_MASS, row] = mass
+        ph[PH_TIME, row] = now
+        fs[FS_PIPE_MASS] = mass
+    target = fs[FS_PIPE_MASS] - fc[FC_PIPE_MASS]  # cumulated mass when the parcel entered
+    parcel = int(fs[FS_PIPE_PARCEL])
+    new = parcel
+    if target > 0.0 and head > 0:
+        new = max(parcel, head - N_HISTORY, 0)
+        while new < head - 1 and ph[PH_MASS, new % N_HISTORY] < target:
+            new += 1
+    if new != parcel:
+        fs[FS_PIPE_PARCEL] = new
+        row = new % N_HISTORY
+        end_mass = ph[PH_MASS, row]
+        end_time = ph[PH_TIME, row]
+        if new >= 1 and new - 1 >= head - N_HISTORY:
+            prev = (new - 1) % N_HISTORY
+            start_mass, start_time = ph[PH_MASS, prev], ph[PH_TIME, prev]
+        else:  # the first entry: it started with the cumulated mass 0 one step earlier
+            start_mass, start_time = 0.0, end_time - dt_s
+        # entry time of the parcel, interpolated within its history entry
+        w = (target - start_mass) / (end_mass - start_mass) if end_mass > start_mass else 1.0
+        w = min(max(w, 0.0), 1.0)
+        residence = max(now - (start_time + w * (end_time - start_time)), 0.0)
+        t_s = t_c + (ph[PH_TEMP, row] - t_c) * math.exp(-rate * residence)
+    else:
+        t_s = t_c + (fs[FS_PIPE_T] - t_c) * math.exp(-rate * dt_s)
+    fs[FS_PIPE_T] = t_s
+    return t_s
