@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import yaml
+from rig_emulator.yamlio import read_yaml
 
 DEFINITION_DIR = Path(__file__).parent / "definitions"
 
@@ -291,14 +291,5 @@ def load_protocol(name_or_path: str) -> ProtocolDefinition:
                 f"unknown protocol '{name_or_path}' (known: {', '.join(available())}, "
                 "or a YAML path)"
             )
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ProtocolError(f"{path}: cannot read ({exc.strerror})") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark is not None else ""
-        raise ProtocolError(f"{path}: not valid YAML{where}") from None
+    data = read_yaml(path, ProtocolError)
     return protocol_from_mapping(data, source=str(path))

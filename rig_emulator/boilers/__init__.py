@@ -7,6 +7,7 @@ from pathlib import Path
 import yaml
 
 from rig_emulator.model.params import BoilerParams, ParameterError, params_from_mapping
+from rig_emulator.yamlio import read_yaml
 
 BOILER_DIR = Path(__file__).parent
 
@@ -37,16 +38,7 @@ def load_boiler(name_or_path: str) -> BoilerParams:
             names the file and the key.
     """
     path = resolve(name_or_path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ParameterError(f"{path}: cannot read ({exc.strerror})") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark is not None else ""
-        raise ParameterError(f"{path}: not valid YAML{where}") from None
+    data = read_yaml(path, ParameterError)
     return params_from_mapping(data, source=str(path))
 
 

@@ -41,10 +41,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from rig_emulator.bench.effects import EffectError, check_effects
 from rig_emulator.signals import MEASURED
+from rig_emulator.yamlio import read_yaml
 
 PROFILE_DIR = Path(__file__).resolve().parent.parent / "profiles"
 
@@ -150,12 +149,5 @@ def load_profile(name_or_path: str) -> Profile:
                 f"unknown profile '{name_or_path}' (known: {', '.join(available())}, "
                 "or a YAML path)"
             )
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise ProfileError(f"{path}: cannot read ({exc.strerror})") from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark is not None else ""
-        raise ProfileError(f"{path}: not valid YAML{where}") from None
+    data = read_yaml(path, ProfileError)
     return profile_from_mapping(data, source=str(path))

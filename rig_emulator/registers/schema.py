@@ -36,9 +36,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from rig_emulator.signals import SIGNALS
+from rig_emulator.yamlio import read_yaml
 
 MAP_DIR = Path(__file__).resolve().parents[2] / "register_maps"
 
@@ -286,12 +285,5 @@ def map_from_mapping(data: Any, source: str = "<map>") -> RegisterMap:
 def load_map(path: str | Path | None = None) -> RegisterMap:
     """Load and validate a register map (default: the shipped Wieselburg bench map)."""
     path = Path(path) if path is not None else MAP_DIR / "wieselburg_bench.yaml"
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise MapError(f"{path}: cannot read ({exc.strerror})") from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark is not None else ""
-        raise MapError(f"{path}: not valid YAML{where}") from None
+    data = read_yaml(path, MapError)
     return map_from_mapping(data, source=str(path))
