@@ -15,6 +15,7 @@ Servers and load generators run in separate processes (the machine has 2 cores).
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import multiprocessing as mp
 import socket
 import statistics
@@ -205,10 +206,9 @@ async def _lateness() -> None:
     )
 
 
-def bench_lockstep() -> None:
-    sys.path.insert(0, str(HERE))
-    from rawclient import RawClient
-
+@contextlib.contextmanager
+def _lockstep_server():
+    """``rig-emulator serve --lockstep`` in its own process; yields its port."""
     port = _free_port()
     server = subprocess.Popen(
         [
@@ -226,6 +226,17 @@ def bench_lockstep() -> None:
     )
     try:
         _wait_for(port)
+        yield port
+    finally:
+        server.terminate()
+        server.wait(timeout=30)
+
+
+def bench_lockstep() -> None:
+    sys.path.insert(0, str(HERE))
+    from rawclient import RawClient
+
+    with _lockstep_server() as port:
         client = RawClient("127.0.0.1", port)
         steps = 0
         start = time.perf_counter()
@@ -240,9 +251,6 @@ def bench_lockstep() -> None:
             f"lockstep: {steps / wall:.0f} simulated s per wall s (1-s advance + 8 device "
             f"reads per step, {wall / steps * 1000:.2f} ms per step, raw-socket client)"
         )
-    finally:
-        server.terminate()
-        server.wait(timeout=30)
 
 
 def bench_load_cycle() -> None:
@@ -251,23 +259,7 @@ def bench_load_cycle() -> None:
 
     from hil_client.cli import main as client
 
-    port = _free_port()
-    server = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "rig_emulator.cli",
-            "serve",
-            "--boiler",
-            "windhager_12kw",
-            "--port",
-            str(port),
-            "--lockstep",
-        ],
-        stderr=subprocess.DEVNULL,
-    )
-    try:
-        _wait_for(port)
+    with _lockstep_server() as port:
         with tempfile.TemporaryDirectory() as tmp:
             start = time.perf_counter()
             code = client(
@@ -290,9 +282,6 @@ def bench_load_cycle() -> None:
             f"({rows / 3600:.2f} h simulated) in {wall:.1f} s wall = {rows / wall:.0f} x real "
             f"time (target 1000)"
         )
-    finally:
-        server.terminate()
-        server.wait(timeout=30)
 
 
 def main() -> int:

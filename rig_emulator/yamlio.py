@@ -21,3 +21,16 @@ def read_yaml(path: Path, error: type[Exception]) -> Any:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark is not None else ""
         raise error(f"{path}: not valid YAML{where}") from None
+
+
+def resolve_named(name_or_path: str, folder: Path, kind: str, error: type[Exception]) -> Path:
+    """A shipped file ``folder/NAME.yaml`` given by NAME, or a PATH to a YAML file; an
+    unknown NAME raises ``error`` listing the known ones."""
+    path = Path(name_or_path)
+    if path.suffix in (".yaml", ".yml") or path.exists():
+        return path
+    candidate = folder / f"{name_or_path}.yaml"
+    if not candidate.exists():
+        known = ", ".join(sorted(p.stem for p in folder.glob("*.yaml")))
+        raise error(f"unknown {kind} '{name_or_path}' (known: {known}, or a YAML path)")
+    return candidate

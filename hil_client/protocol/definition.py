@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from rig_emulator.yamlio import read_yaml
+from rig_emulator.yamlio import read_yaml, resolve_named
 
 DEFINITION_DIR = Path(__file__).parent / "definitions"
 
@@ -276,20 +276,8 @@ def protocol_from_mapping(data: Any, source: str = "<protocol>") -> ProtocolDefi
     )
 
 
-def available() -> list[str]:
-    """Names of the shipped protocol definitions."""
-    return sorted(p.stem for p in DEFINITION_DIR.glob("*.yaml"))
-
-
 def load_protocol(name_or_path: str) -> ProtocolDefinition:
     """Load a shipped protocol by name (``stationary``, ``load_cycle``) or a YAML path."""
-    path = Path(name_or_path)
-    if path.suffix not in (".yaml", ".yml") and not path.exists():
-        path = DEFINITION_DIR / f"{name_or_path}.yaml"
-        if not path.exists():
-            raise ProtocolError(
-                f"unknown protocol '{name_or_path}' (known: {', '.join(available())}, "
-                "or a YAML path)"
-            )
+    path = resolve_named(name_or_path, DEFINITION_DIR, "protocol", ProtocolError)
     data = read_yaml(path, ProtocolError)
     return protocol_from_mapping(data, source=str(path))

@@ -7,27 +7,14 @@ from pathlib import Path
 import yaml
 
 from rig_emulator.model.params import BoilerParams, ParameterError, params_from_mapping
-from rig_emulator.yamlio import read_yaml
+from rig_emulator.yamlio import read_yaml, resolve_named
 
 BOILER_DIR = Path(__file__).parent
 
 
-def available() -> list[str]:
-    """Names of the parameter files shipped with the package."""
-    return sorted(path.stem for path in BOILER_DIR.glob("*.yaml"))
-
-
 def resolve(name_or_path: str) -> Path:
     """Path of a boiler given as a shipped NAME or a PATH to a YAML file."""
-    path = Path(name_or_path)
-    if path.suffix in (".yaml", ".yml") or path.exists():
-        return path
-    candidate = BOILER_DIR / f"{name_or_path}.yaml"
-    if not candidate.exists():
-        raise ParameterError(
-            f"unknown boiler '{name_or_path}' (known: {', '.join(available())}, or a YAML path)"
-        )
-    return candidate
+    return resolve_named(name_or_path, BOILER_DIR, "boiler", ParameterError)
 
 
 def load_boiler(name_or_path: str) -> BoilerParams:

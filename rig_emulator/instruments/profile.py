@@ -43,7 +43,7 @@ from typing import Any
 
 from rig_emulator.bench.effects import EffectError, check_effects
 from rig_emulator.signals import MEASURED
-from rig_emulator.yamlio import read_yaml
+from rig_emulator.yamlio import read_yaml, resolve_named
 
 PROFILE_DIR = Path(__file__).resolve().parent.parent / "profiles"
 
@@ -134,20 +134,8 @@ def profile_from_mapping(data: Any, source: str = "<profile>") -> Profile:
     return Profile(name, str(data.get("description", "")), instruments, effects)
 
 
-def available() -> list[str]:
-    """Names of the shipped profiles."""
-    return sorted(p.stem for p in PROFILE_DIR.glob("*.yaml"))
-
-
 def load_profile(name_or_path: str) -> Profile:
     """Load a shipped profile (``clean``, ``lab``, ``lab_instruments``) or a YAML file."""
-    path = Path(name_or_path)
-    if path.suffix not in (".yaml", ".yml") and not path.exists():
-        path = PROFILE_DIR / f"{name_or_path}.yaml"
-        if not path.exists():
-            raise ProfileError(
-                f"unknown profile '{name_or_path}' (known: {', '.join(available())}, "
-                "or a YAML path)"
-            )
+    path = resolve_named(name_or_path, PROFILE_DIR, "profile", ProfileError)
     data = read_yaml(path, ProfileError)
     return profile_from_mapping(data, source=str(path))
