@@ -1,8 +1,9 @@
-"""A lean blocking Modbus TCP client: one socket per unit, scatter-gather polling.
+"""A lean blocking Modbus TCP client that pipelines: one connection, many requests in flight.
 
-Acquisition systems poll each instrument over its own connection; sending one request on
-every connection before reading any reply lets the instruments (here: the emulator) work
-while the others' replies travel. Only one request is ever outstanding per connection.
+Modbus TCP lets a client send several requests before the first reply comes back (the
+transaction ID pairs them); a server answers them in order. The rig sends all requests of
+one acquisition step (setpoint writes, the lockstep advance, one read per instrument) in one
+segment and then collects the replies, so a step costs one round trip, not one per request.
 
 Errors: :class:`ModbusExceptionResponse` for an exception reply (with its code),
 :class:`ConnectionLost` for a closed, reset or timed-out connection.
@@ -13,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import socket
 import struct
+from collections import deque
 from collections.abc import Sequence
 
 
@@ -33,13 +35,12 @@ class ModbusExceptionResponse(RuntimeError):
 _HEADER = struct.Struct(">HHHB")
 
 
-class UnitConnection:
-    """A TCP connection to one unit ID."""
+class Connection:
+    """A TCP connection to a Modbus server; requests to any unit ID, pipelined."""
 
-    def __init__(self, host: str, port: int, unit: int, timeout_s: float) -> None:
-        self.unit = unit
+    def __init__(self, host: str, port: int, timeout_s: float) -> None:
         self._tid = 0
-        self._expect: tuple[int, int] | None = None
+        self._expect: deque[tuple[int, int, int]] = deque()  # (tid, unit, function)
         self._buffer = b""
         try:
             self.sock = socket.create_connection((host, port), timeout=timeout_s)
@@ -49,40 +50,47 @@ class UnitConnection:
             ) from None
         self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
 
-    def send(self, pdu: bytes) -> None:
-        """Send a request; its reply is collected by :meth:`receive`."""
-        self._tid = (self._tid + 1) & 0xFFFF
-        self._expect = (self._tid, pdu[0])
+    def send(self, requests: Sequence[tuple[int, bytes]]) -> None:
+        """Send ``(unit, pdu)`` requests in one segment; :meth:`receive` returns their
+        replies in the same order."""
+        frames = []
+        for unit, pdu in requests:
+            self._tid = (self._tid + 1) & 0xFFFF
+            self._expect.append((self._tid, unit, pdu[0]))
+            frames.append(_HEADER.pack(self._tid, 0, len(pdu) + 1, unit) + pdu)
         try:
-            self.sock.sendall(_HEADER.pack(self._tid, 0, len(pdu) + 1, self.unit) + pdu)
+            self.sock.sendall(b"".join(frames))
         except OSError as exc:
-            raise ConnectionLost(f"unit {self.unit}: send failed ({exc})") from None
+            raise ConnectionLost(f"send failed ({exc})") from None
 
     def receive(self) -> bytes:
-        """The reply PDU (function code first) of the outstanding request."""
-        assert self._expect is not None
-        tid, function = self._expect
+        """The reply PDU (function code first) of the oldest outstanding request."""
+        tid, unit, function = self._expect.popleft()
         while True:
             header = self._recv(7)
             got_tid, _, length, _ = _HEADER.unpack(header)
             body = self._recv(length - 1)
             if got_tid == tid:
                 break  # a late reply to an earlier, timed-out request is skipped
-        self._expect = None
         if body[0] == function | 0x80:
-            raise ModbusExceptionResponse(self.unit, function, body[1])
+            raise ModbusExceptionResponse(unit, function, body[1])
         return body
 
+    def request(self, unit: int, pdu: bytes) -> bytes:
+        """Send one request and wait for its reply."""
+        self.send([(unit, pdu)])
+        return self.receive()
+
     def _recv(self, n: int) -> bytes:
-        """``n`` bytes; reads whatever has arrived (a whole reply in one call, usually)."""
+        """``n`` bytes; reads whatever has arrived (several replies in one call, usually)."""
         buffer = self._buffer
         while len(buffer) < n:
             try:
-                chunk = self.sock.recv(4096)
+                chunk = self.sock.recv(65536)
             except OSError as exc:
-                raise ConnectionLost(f"unit {self.unit}: receive failed ({exc})") from None
+                raise ConnectionLost(f"receive failed ({exc})") from None
             if not chunk:
-                raise ConnectionLost(f"unit {self.unit}: connection closed by the server")
+                raise ConnectionLost("connection closed by the server")
             buffer += chunk
         self._buffer = buffer[n:]
         return buffer[:n]

@@ -2,7 +2,9 @@
 
 It reads the same register map as the server, writes the flow and return setpoints every
 step and the pump, heater and boiler switches when they change, lets one acquisition period
-of simulated time pass, and polls every instrument (one connection per unit, scatter-gather).
+of simulated time pass, and polls every instrument. All requests go over one connection,
+addressed by unit ID, and those of one step are pipelined (sent together; the server answers
+them in order), so a lockstep step is a single round trip.
 
 Time: in lockstep the rig advances the server itself (writing ``lockstep_advance``; the
 reply means the new state is readable), so runs are deterministic; in real time or
@@ -23,9 +25,9 @@ from dataclasses import dataclass
 from urllib.parse import urlparse
 
 from hil_client.modbus_client import (
+    Connection,
     ConnectionLost,
     ModbusExceptionResponse,
-    UnitConnection,
     bits_of,
     read_pdu,
     registers_of,
@@ -128,10 +130,7 @@ class ModbusRig:
                 "sim_time_s",
             )
         }
-        self._units = sorted(
-            {r.unit for r in self._plan} | {d.unit_id for d, _ in self._points.values()}
-        )
-        self._conns: dict[int, UnitConnection] = {}
+        self._conn: Connection | None = None
         self._command: RigCommand | None = None
         self._written_switches: tuple[bool, bool, bool] | None = None
         self.values: dict[str, float] = {}
@@ -143,18 +142,15 @@ class ModbusRig:
         self.speed = self._read_point("speed_factor")
         self.sim_time_s = self._read_point("sim_time_s")
         # in lockstep the rig knows the time it advanced to; otherwise it polls the clock too
-        plan = self._plan if self.lockstep else self._plan + self._clock_plan
-        by_unit: dict[int, list[_Read]] = {}
-        for read in plan:
-            by_unit.setdefault(read.unit, []).append(read)
-        depth = max(len(reads) for reads in by_unit.values())
-        self._rounds = [[r[i] for r in by_unit.values() if i < len(r)] for i in range(depth)]
+        self._reads = self._plan if self.lockstep else self._plan + self._clock_plan
+        self._read_requests = [
+            (r.unit, read_pdu(r.function, r.start, r.count)) for r in self._reads
+        ]
 
     # ------------------------------------------------------------------ connections
     def _connect(self) -> None:
         self.close()
-        for unit in self._units:
-            self._conns[unit] = UnitConnection(self.host, self.port, unit, self.timeout_s)
+        self._conn = Connection(self.host, self.port, self.timeout_s)
 
     def _reconnect(self, reason: str) -> None:
         started = time.monotonic()
@@ -184,69 +180,72 @@ class ModbusRig:
         )
 
     def close(self) -> None:
-        for conn in self._conns.values():
-            conn.close()
-        self._conns.clear()
+        if self._conn is not None:
+            self._conn.close()
+            self._conn = None
 
     # ------------------------------------------------------------------ primitives
-    def _request(self, unit: int, pdu: bytes) -> bytes:
-        conn = self._conns[unit]
-        conn.send(pdu)
-        return conn.receive()
+    def _exchange(self, requests: list[tuple[int, bytes]]) -> list[bytes]:
+        """Send ``(unit, pdu)`` requests pipelined; their replies, in order."""
+        assert self._conn is not None
+        if not requests:
+            return []
+        self._conn.send(requests)
+        return [self._conn.receive() for _ in requests]
 
     def _read_point(self, signal: str) -> float:
         device, point = self._points[signal]
-        reply = self._request(
-            device.unit_id, read_pdu(_READ_FUNCTION[point.table], point.address, point.width)
+        (reply,) = self._exchange(
+            [(device.unit_id, read_pdu(_READ_FUNCTION[point.table], point.address, point.width))]
         )
         if point.table in ("coil", "discrete"):
             return 1.0 if bits_of(reply, 1)[0] else 0.0
         return decode(point, registers_of(reply))
 
-    def _write(self, signal: str, value: float) -> None:
+    def _write_request(self, signal: str, value: float) -> tuple[int, bytes]:
         device, point = self._points[signal]
         if point.table == "coil":
-            self._request(device.unit_id, write_coils_pdu(point.address, [value >= 0.5]))
-        else:
-            self._request(device.unit_id, write_registers_pdu(point.address, encode(point, value)))
+            return device.unit_id, write_coils_pdu(point.address, [value >= 0.5])
+        return device.unit_id, write_registers_pdu(point.address, encode(point, value))
 
-    def _write_commands(self) -> None:
+    def _command_requests(self) -> list[tuple[int, bytes]]:
+        """Writes of the setpoints (every step) and of the switches (when they change)."""
         cmd = self._command
         if cmd is None:
-            return
+            return []
         flow_dev, flow = self._points["water_flow_setpoint_kg_h"]
         ret_dev, ret = self._points["return_setpoint_C"]
         if flow_dev is ret_dev and ret.address == flow.address + flow.width:
             words = encode(flow, cmd.flow_setpoint_kg_h) + encode(ret, cmd.return_setpoint_C)
-            self._request(flow_dev.unit_id, write_registers_pdu(flow.address, words))
+            requests = [(flow_dev.unit_id, write_registers_pdu(flow.address, words))]
         else:
-            self._write("water_flow_setpoint_kg_h", cmd.flow_setpoint_kg_h)
-            self._write("return_setpoint_C", cmd.return_setpoint_C)
+            requests = [
+                self._write_request("water_flow_setpoint_kg_h", cmd.flow_setpoint_kg_h),
+                self._write_request("return_setpoint_C", cmd.return_setpoint_C),
+            ]
         switches = (cmd.pump_on, cmd.return_heating, cmd.boiler_on)
-        if switches != self._written_switches:
-            self._write("pump_on", float(cmd.pump_on))
-            self._write("return_heating", float(cmd.return_heating))
-            self._write("boiler_command", float(cmd.boiler_on))
+        if switches != self._written_switches:  # a lost connection resets this to None
+            requests += [
+                self._write_request("pump_on", float(cmd.pump_on)),
+                self._write_request("return_heating", float(cmd.return_heating)),
+                self._write_request("boiler_command", float(cmd.boiler_on)),
+            ]
             self._written_switches = switches
+        return requests
 
-    def _poll(self) -> None:
-        """Send one read on every connection, then collect the replies; repeat for units
-        with more than one read (only one request is outstanding per connection)."""
+    def _store(self, replies: list[bytes]) -> None:
+        """Decode the replies to :attr:`_read_requests` into :attr:`values`."""
         values = self.values
-        for batch in self._rounds:
-            for read in batch:
-                self._conns[read.unit].send(read_pdu(read.function, read.start, read.count))
-            for read in batch:
-                reply = self._conns[read.unit].receive()
-                if read.function in (1, 2):
-                    bits = bits_of(reply, read.count)
-                    for p in read.points:
-                        values[p.signal] = 1.0 if bits[p.address - read.start] else 0.0
-                else:
-                    regs = registers_of(reply)
-                    for p in read.points:
-                        off = p.address - read.start
-                        values[p.signal] = decode(p, regs[off : off + p.width])
+        for read, reply in zip(self._reads, replies, strict=True):
+            if read.function in (1, 2):
+                bits = bits_of(reply, read.count)
+                for p in read.points:
+                    values[p.signal] = 1.0 if bits[p.address - read.start] else 0.0
+            else:
+                regs = registers_of(reply)
+                for p in read.points:
+                    off = p.address - read.start
+                    values[p.signal] = decode(p, regs[off : off + p.width])
 
     # ------------------------------------------------------------------ rig interface
     def apply(self, command: RigCommand) -> None:
@@ -268,14 +267,18 @@ class ModbusRig:
         target = before + dt_s
         for _ in range(1000):
             try:
-                self._write_commands()
+                commands = self._command_requests()
                 if self.lockstep:
-                    if self.sim_time_s < target - 1e-6:
-                        self._write("lockstep_advance_s", target - self.sim_time_s)
-                        self.sim_time_s = target
+                    if self.sim_time_s < target - 1e-6:  # not yet advanced before a reconnect
+                        step = target - self.sim_time_s
+                        commands.append(self._write_request("lockstep_advance_s", step))
+                    replies = self._exchange(commands + self._read_requests)
+                    self.sim_time_s = target
                 else:
+                    self._exchange(commands)
                     self._wait_until(target)
-                self._poll()
+                    replies = self._exchange(self._read_requests)
+                self._store(replies[len(replies) - len(self._reads) :])
                 if not self.lockstep:
                     self.sim_time_s = self.values["sim_time_s"]
                 return self.sim_time_s - before

@@ -2,8 +2,8 @@
 
 Built on pymodbus 3.16's ``ModbusTcpServer`` with one ``SimDevice`` per map device (its own
 unit ID, separate coil, discrete, holding and input address spaces) and a catch-all device
-for unknown unit IDs. Values are published with ``server.async_setValues``; client writes
-are checked in the devices' action callback before pymodbus stores them:
+for unknown unit IDs. Values are published with ``server.async_setValues`` (the runs that
+changed); client writes are checked in the devices' action callback before pymodbus stores them:
 
 - only points declared ``rw`` accept writes (else exception 02, illegal data address);
 - a write that covers part of a multi-register value, or whose value is NaN, infinite or
@@ -11,8 +11,9 @@ are checked in the devices' action callback before pymodbus stores them:
 - unmapped addresses get exception 02 (pymodbus marks gaps invalid);
 - an unknown unit ID gets exception 0B (gateway target device failed to respond) at once.
 
-Everything runs in one asyncio loop: the tick never waits for a client, and a client that
-stops reading only fills its own socket buffer.
+Requests are answered in arrival order and at once, several in one TCP segment too
+(:mod:`rig_emulator.modbus.handler`). Everything runs in one asyncio loop: the tick never
+waits for a client, and a client that stops reading only fills its own socket buffer.
 """
 
 from __future__ import annotations
@@ -21,17 +22,16 @@ import asyncio
 import contextlib
 import logging
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from pymodbus.constants import ExcCodes
-from pymodbus.server import ModbusTcpServer
-from pymodbus.server.requesthandler import ServerRequestHandler
 from pymodbus.simulator import DataType, SimData, SimDevice
 
 from rig_emulator.clock import LOCKSTEP, REALTIME, LatenessStats, Pacer, SimClock
 from rig_emulator.emulator import CommandError, Emulator, check_command
-from rig_emulator.registers import Device, Point, RegisterMap, decode, encode
+from rig_emulator.modbus.handler import BenchModbusServer
+from rig_emulator.registers import Device, Point, RegisterMap, decode, run_encoder
 
 log = logging.getLogger("rig_emulator.serve")
 
@@ -39,7 +39,6 @@ _WRITE_FC = {5: "coil", 15: "coil", 6: "holding", 16: "holding", 23: "holding"}
 _PUBLISH_FC = {"input": 4, "holding": 16, "discrete": 2, "coil": 15}
 _TABLE_INDEX = {"coil": 0, "discrete": 1, "holding": 2, "input": 3}
 CLOCK_COMMANDS = ("speed_factor", "clock_mode", "lockstep_advance_s", "reset")
-_PENDING: set[asyncio.Task] = set()  # strong references to running request tasks
 
 
 @dataclass(frozen=True, slots=True)
@@ -49,6 +48,11 @@ class _Run:
     table: str
     start: int
     points: tuple[Point, ...]
+    encode: Callable[[Mapping[str, float]], list[int]]  # signal values -> the run's registers
+
+
+def _run(table: str, points: list[Point]) -> _Run:
+    return _Run(table, points[0].address, tuple(points), run_encoder(points))
 
 
 def _runs(device: Device, table: str) -> list[_Run]:
@@ -56,11 +60,11 @@ def _runs(device: Device, table: str) -> list[_Run]:
     current: list[Point] = []
     for point in device.table(table):
         if current and point.address != current[-1].address + current[-1].width:
-            runs.append(_Run(table, current[0].address, tuple(current)))
+            runs.append(_run(table, current))
             current = []
         current.append(point)
     if current:
-        runs.append(_Run(table, current[0].address, tuple(current)))
+        runs.append(_run(table, current))
     return runs
 
 
@@ -103,45 +107,6 @@ def _catch_all_device() -> SimDevice:
     return SimDevice(0, simdata=([bit], [bit], [regs], [regs]), action=refuse)
 
 
-class _LoggingHandler(ServerRequestHandler):
-    """Request handler that logs one line per client connect and disconnect.
-
-    It also schedules each request as a task of the running loop; pymodbus's own handler
-    goes through ``run_coroutine_threadsafe``, whose thread-safe wake-up costs a pipe write
-    per request although everything runs in one thread.
-    """
-
-    def handle_later(self) -> None:
-        task = self.loop.create_task(self.handle_request())
-        _PENDING.add(task)
-        task.add_done_callback(_PENDING.discard)
-
-    def callback_connected(self) -> None:
-        super().callback_connected()
-        peer = self.transport.get_extra_info("peername") if self.transport else None
-        self.peer = f"{peer[0]}:{peer[1]}" if peer else "?"
-        self.server.connections += 1
-        log.info("client %s connected (%d open)", self.peer, self.server.connections)
-
-    def callback_disconnected(self, exc: Exception | None) -> None:
-        super().callback_disconnected(exc)
-        self.server.connections -= 1
-        reason = f" ({exc})" if exc else ""
-        log.info(
-            "client %s disconnected%s (%d open)",
-            getattr(self, "peer", "?"),
-            reason,
-            self.server.connections,
-        )
-
-
-class _Server(ModbusTcpServer):
-    connections = 0
-
-    def callback_new_connection(self):
-        return _LoggingHandler(self, self.trace_packet, self.trace_pdu, self.trace_connect)
-
-
 class BenchServer:
     """The emulator published over Modbus TCP, paced in real time or in lockstep.
 
@@ -175,11 +140,12 @@ class BenchServer:
         self.lockstep_counter = 0
         self.last_advance_s = 0.0
         self._internal = False
-        self._server: _Server | None = None
+        self._server: BenchModbusServer | None = None
         self._tick_task: asyncio.Task | None = None
         self._runs: dict[int, list[_Run]] = {}
         self._points: dict[tuple[int, str], dict[int, Point]] = {}
-        self._published: dict[tuple[int, str, int], list] = {}
+        # what publish last wrote: (unit, table) -> {address: registers or [bit]}
+        self._published: dict[tuple[int, str], dict[int, list]] = {}
         self.on_tick: Callable[[], None] | None = None
 
     # ------------------------------------------------------------------ building
@@ -207,7 +173,7 @@ class BenchServer:
     async def start(self) -> None:
         """Listen, publish the initial state and start the tick."""
         loop = asyncio.get_running_loop()
-        self._server = _Server(self._devices(), address=(self.host, self.port))
+        self._server = BenchModbusServer(self._devices(), address=(self.host, self.port))
         await self._server.serve_forever(background=True)
         sock = self._server.transport.sockets[0] if self._server.transport else None
         if sock is not None:
@@ -265,28 +231,29 @@ class BenchServer:
         return out
 
     async def publish(self) -> None:
-        """Encode every point and write the registers (one call per contiguous run)."""
+        """Encode every point and write the registers that changed since the last publish
+        (one call per contiguous run of registers, one per bit)."""
         assert self._server is not None
         values = self.values()
         self._internal = True
         try:
             for unit_id, runs in self._runs.items():
                 for run in runs:
+                    function = _PUBLISH_FC[run.table]
+                    published = self._published.setdefault((unit_id, run.table), {})
                     if run.table in ("coil", "discrete"):
                         for p in run.points:
-                            await self._server.async_setValues(
-                                unit_id,
-                                _PUBLISH_FC[run.table],
-                                p.address,
-                                [values[p.signal] >= 0.5],
-                            )
+                            bit = [values[p.signal] >= 0.5]
+                            if published.get(p.address) != bit:
+                                await self._server.async_setValues(
+                                    unit_id, function, p.address, bit
+                                )
+                                published[p.address] = bit
                         continue
-                    regs: list[int] = []
-                    for p in run.points:
-                        regs += encode(p, values[p.signal])
-                    await self._server.async_setValues(
-                        unit_id, _PUBLISH_FC[run.table], run.start, regs
-                    )
+                    regs = run.encode(values)
+                    if published.get(run.start) != regs:
+                        await self._server.async_setValues(unit_id, function, run.start, regs)
+                        published[run.start] = regs
         finally:
             self._internal = False
 
@@ -333,8 +300,7 @@ class BenchServer:
             except CommandError:
                 return ExcCodes.ILLEGAL_VALUE
         # the client's registers are stored after this returns: publish them again next time
-        for key in [k for k in self._published if k[0] == device.unit_id and k[1] == table]:
-            del self._published[key]
+        self._published.pop((device.unit_id, table), None)
         return await self._apply(new)
 
     async def _apply(self, new: dict[str, float]) -> ExcCodes | None:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import struct
+from collections.abc import Callable, Mapping, Sequence
 from functools import cache
 
 from rig_emulator.registers.schema import Point
@@ -26,12 +27,17 @@ _INT = {  # (min, max, struct code)
 _FLOAT = {"float32": "f", "float64": "d"}
 
 
-@cache
 def _structs(point: Point) -> tuple[struct.Struct, struct.Struct]:
     """(value struct, words struct) of a point, in its word order."""
-    code = _FLOAT.get(point.datatype) or _INT[point.datatype][2]
-    order = "<" if point.word_order == "CDAB" and point.width > 1 else ">"
-    return struct.Struct(order + code), struct.Struct(order + "H" * point.width)
+    return _structs_of(point.datatype, point.word_order)
+
+
+@cache  # keyed by two short strings: hashing a whole Point costs more than the packing
+def _structs_of(datatype: str, word_order: str) -> tuple[struct.Struct, struct.Struct]:
+    code = _FLOAT.get(datatype) or _INT[datatype][2]
+    width = struct.calcsize(code) // 2
+    order = "<" if word_order == "CDAB" and width > 1 else ">"
+    return struct.Struct(order + code), struct.Struct(order + "H" * width)
 
 
 def _raw(point: Point, value: float) -> int:
@@ -49,6 +55,31 @@ def encode(point: Point, value: float) -> list[int]:
     values, words = _structs(point)
     raw = value if point.datatype in _FLOAT else _raw(point, value)
     return list(words.unpack(values.pack(raw)))
+
+
+def run_encoder(points: Sequence[Point]) -> Callable[[Mapping[str, float]], list[int]]:
+    """A function from signal values to the registers of ``points`` (a contiguous run):
+    the :func:`encode` of each point, concatenated, with the per-point lookups done once."""
+    plan: list[tuple[str, Callable[..., bytes] | None, Callable[[bytes], tuple], Point | None]]
+    plan = []
+    for p in points:
+        if p.datatype == "bool":
+            plan.append((p.signal, None, tuple, None))
+            continue
+        values, words = _structs(p)
+        plan.append((p.signal, values.pack, words.unpack, None if p.datatype in _FLOAT else p))
+
+    def encode_run(signals: Mapping[str, float]) -> list[int]:
+        regs: list[int] = []
+        for signal, pack, unpack, scaled in plan:
+            value = signals[signal]
+            if pack is None:
+                regs.append(1 if value >= 0.5 else 0)
+            else:
+                regs += unpack(pack(value if scaled is None else _raw(scaled, value)))
+        return regs
+
+    return encode_run
 
 
 def decode(point: Point, registers: list[int]) -> float:

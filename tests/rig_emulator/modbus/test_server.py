@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from rig_emulator.registers import encode, precision
+from rig_emulator.registers import decode, encode, precision
 from tests.modbus_helpers import ADVANCE, client, point, read_point, start_boiler, write
 
 
@@ -220,6 +220,70 @@ def test_lockstep_is_deterministic(serve):
     second = _lockstep_trace(serve, seed=4)
     assert first == second
     assert _lockstep_trace(serve, seed=5) != first  # the seed matters (lab profile)
+
+
+def _frame(tid: int, unit: int, pdu: bytes) -> bytes:
+    return struct.pack(">HHHB", tid, 0, len(pdu) + 1, unit) + pdu
+
+
+def _replies(sock: socket.socket, n: int) -> list[tuple[int, int, bytes]]:
+    """``n`` replies as (transaction ID, unit, PDU)."""
+    data = b""
+    out = []
+    while len(out) < n:
+        while len(data) < 7 or len(data) < 6 + struct.unpack(">H", data[4:6])[0]:
+            chunk = sock.recv(4096)
+            assert chunk, "connection closed"
+            data += chunk
+        tid, _, length, unit = struct.unpack(">HHHB", data[:7])
+        out.append((tid, unit, data[7 : 6 + length]))
+        data = data[6 + length :]
+    return out
+
+
+def test_pipelined_requests_are_answered_in_order(serve):
+    """Several requests in one TCP segment (and one cut across two) each get their own
+    answer, in order, as if sent one by one."""
+    srv = serve()
+    _, flow = point(srv, "bench_plc", "flow_setpoint")
+    _, advance = point(srv, *ADVANCE)
+    _, sim_time = point(srv, "sim_control", "sim_time")
+
+    def fc16(address: int, regs: list[int]) -> bytes:
+        return struct.pack(f">BHHB{len(regs)}H", 16, address, len(regs), 2 * len(regs), *regs)
+
+    frames = [
+        _frame(1, 1, fc16(flow.address, encode(flow, 500.0))),
+        _frame(2, 1, fc16(flow.address, encode(flow, 5000.0))),  # out of range: 03
+        _frame(3, 1, struct.pack(">BHH", 3, flow.address, 2)),
+        _frame(4, 100, fc16(advance.address, encode(advance, 10.0))),
+        _frame(5, 100, struct.pack(">BHH", 4, sim_time.address, 4)),
+        _frame(6, 42, struct.pack(">BHH", 4, 0, 1)),  # unknown unit: 0B
+    ]
+    stream = b"".join(frames)
+    with socket.create_connection(("127.0.0.1", srv.port), timeout=5) as s:
+        s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        cut = len(stream) - 5
+        s.sendall(stream[:cut])
+        time.sleep(0.05)
+        s.sendall(stream[cut:])
+        replies = _replies(s, len(frames))
+    assert [(tid, unit) for tid, unit, _ in replies] == [
+        (1, 1), (2, 1), (3, 1), (4, 100), (5, 100), (6, 42)
+    ]  # fmt: skip
+    pdus = [pdu for _, _, pdu in replies]
+    assert pdus[0][0] == 16
+    assert pdus[1] == bytes([0x90, 0x03])
+    assert decode_regs(flow, pdus[2]) == 500.0
+    assert pdus[3][0] == 16
+    assert decode_regs(sim_time, pdus[4]) == 10.0
+    assert pdus[5] == bytes([0x84, 0x0B])
+    assert srv.values()["water_flow_setpoint_kg_h"] == 500.0
+
+
+def decode_regs(p, pdu: bytes) -> float:
+    n = pdu[1] // 2
+    return decode(p, list(struct.unpack(f">{n}H", pdu[2 : 2 + 2 * n])))
 
 
 def test_malformed_frames_and_abrupt_disconnects_do_not_stop_the_server(serve):

@@ -17,6 +17,7 @@ from rig_emulator.registers import (
     load_map,
     map_from_mapping,
     precision,
+    run_encoder,
 )
 from rig_emulator.registers.reference import markdown
 from rig_emulator.registers.schema import Point
@@ -91,6 +92,21 @@ def test_word_orders_are_mirror_images():
     a, b = _point("float32", "ABCD"), _point("float32", "CDAB")
     assert encode(a, 6.123) == encode(b, 6.123)[::-1]
     assert encode(a, 1.0) == [0x3F80, 0x0000]  # IEEE 754 of 1.0, high word first
+
+
+def test_run_encoder_equals_the_points_encoded_one_by_one():
+    m = load_map()
+    rng = np.random.default_rng(3)
+    for device in m.devices:
+        for table in ("input", "holding", "coil", "discrete"):
+            points = device.table(table)
+            if not points:
+                continue
+            encode_run = run_encoder(points)
+            for _ in range(20):
+                values = {p.signal: float(rng.normal(0, 500)) for p in points}
+                want = [r for p in points for r in encode(p, values[p.signal])]
+                assert encode_run(values) == want, (device.name, table)
 
 
 def _broken(mutate) -> dict:
