@@ -129,6 +129,15 @@ class Emulator:
         self._balance_last = float(self._readings[_INDEX["balance_mass_kg"]])
         self._balance_since = 0.0
 
+    def compile_kernels(self) -> None:
+        """Compile (or load from numba's cache) the kernels this emulator runs, on a
+        throwaway copy, so that its first step need not wait for them. Safe to run in
+        another thread: a step that comes first waits for numba's compiler lock."""
+        copy = Emulator(self.params, self.profile, self.seed, self.bench.config)
+        copy.set_commands({"boiler_command": 1.0, "water_flow_setpoint_kg_h": 600.0})
+        copy.advance(2.0)
+        copy.values()
+
     # ------------------------------------------------------------------ commands
     def set_command(self, name: str, value: float) -> None:
         """Set a bench or boiler command (validated; :class:`CommandError` if not valid)."""

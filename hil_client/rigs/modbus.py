@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from urllib.parse import urlparse
 
@@ -35,7 +36,7 @@ from hil_client.modbus_client import (
     write_registers_pdu,
 )
 from hil_client.protocol.rig import READING_KEYS, RigCommand, RigError
-from rig_emulator.registers import Point, RegisterMap, decode, encode
+from rig_emulator.registers import Point, RegisterMap, decode, encode, run_decoder
 
 _READ_FUNCTION = {"coil": 1, "discrete": 2, "holding": 3, "input": 4}
 
@@ -49,6 +50,7 @@ class _Read:
     start: int
     count: int
     points: tuple[Point, ...]
+    decode: Callable[[Sequence[int]], list[float]]  # the run's registers -> its values
 
 
 def parse_url(url: str) -> tuple[str, int]:
@@ -92,7 +94,7 @@ def _read_plan(register_map: RegisterMap, signals: tuple[str, ...]) -> list[_Rea
 def _make_read(unit: int, table: str, run: list[Point]) -> _Read:
     start = run[0].address
     count = run[-1].address + run[-1].width - start
-    return _Read(unit, _READ_FUNCTION[table], start, count, tuple(run))
+    return _Read(unit, _READ_FUNCTION[table], start, count, tuple(run), run_decoder(run))
 
 
 class ModbusRig:
@@ -237,15 +239,9 @@ class ModbusRig:
         """Decode the replies to :attr:`_read_requests` into :attr:`values`."""
         values = self.values
         for read, reply in zip(self._reads, replies, strict=True):
-            if read.function in (1, 2):
-                bits = bits_of(reply, read.count)
-                for p in read.points:
-                    values[p.signal] = 1.0 if bits[p.address - read.start] else 0.0
-            else:
-                regs = registers_of(reply)
-                for p in read.points:
-                    off = p.address - read.start
-                    values[p.signal] = decode(p, regs[off : off + p.width])
+            words = bits_of(reply, read.count) if read.function in (1, 2) else registers_of(reply)
+            for p, value in zip(read.points, read.decode(words), strict=True):
+                values[p.signal] = value
 
     # ------------------------------------------------------------------ rig interface
     def apply(self, command: RigCommand) -> None:

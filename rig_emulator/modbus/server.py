@@ -22,6 +22,7 @@ import asyncio
 import contextlib
 import logging
 import math
+import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
@@ -36,6 +37,7 @@ from rig_emulator.registers import Device, Point, RegisterMap, decode, run_encod
 log = logging.getLogger("rig_emulator.serve")
 
 _WRITE_FC = {5: "coil", 15: "coil", 6: "holding", 16: "holding", 23: "holding"}
+_READ_FC = {1: "coil", 2: "discrete", 3: "holding", 4: "input"}
 _PUBLISH_FC = {"input": 4, "holding": 16, "discrete": 2, "coil": 15}
 _TABLE_INDEX = {"coil": 0, "discrete": 1, "holding": 2, "input": 3}
 CLOCK_COMMANDS = ("speed_factor", "clock_mode", "lockstep_advance_s", "reset")
@@ -49,6 +51,9 @@ class _Run:
     start: int
     points: tuple[Point, ...]
     encode: Callable[[Mapping[str, float]], list[int]]  # signal values -> the run's registers
+
+
+_WritePlan = tuple[tuple[Point, int], ...] | ExcCodes
 
 
 def _run(table: str, points: list[Point]) -> _Run:
@@ -146,6 +151,7 @@ class BenchServer:
         self._points: dict[tuple[int, str], dict[int, Point]] = {}
         # what publish last wrote: (unit, table) -> {address: registers or [bit]}
         self._published: dict[tuple[int, str], dict[int, list]] = {}
+        self._write_plans: dict[tuple[int, str, int, int], _WritePlan] = {}
         self.on_tick: Callable[[], None] | None = None
 
     # ------------------------------------------------------------------ building
@@ -178,6 +184,9 @@ class BenchServer:
         sock = self._server.transport.sockets[0] if self._server.transport else None
         if sock is not None:
             self.port = sock.getsockname()[1]
+        threading.Thread(
+            target=self.emulator.compile_kernels, name="compile kernels", daemon=True
+        ).start()  # listening already; the kernels load meanwhile
         now = loop.time()
         self.clock.anchor(now, self.emulator.sim_time_s)
         await self.publish()
@@ -262,37 +271,54 @@ class BenchServer:
         async def action(fc, _start, address, count, _registers, set_values):
             if self._internal:
                 return None
-            table = _WRITE_FC.get(fc) if set_values is not None else None
             if set_values is None:
-                read_table = {1: "coil", 2: "discrete", 3: "holding", 4: "input"}.get(fc)
+                read_table = _READ_FC.get(fc)
                 if read_table is not None and read_table not in tables_used:
                     return ExcCodes.ILLEGAL_ADDRESS
                 return None
+            table = _WRITE_FC.get(fc)
             if table is None:
                 return ExcCodes.ILLEGAL_FUNCTION
             return await self._write(device, table, address, set_values)
 
         return action
 
-    async def _write(self, device: Device, table: str, address: int, values) -> ExcCodes | None:
-        """Check a client write of ``values`` at ``address``; apply it or refuse it whole."""
-        index = self._points[(device.unit_id, table)]
+    def _write_plan(self, unit_id: int, table: str, address: int, count: int) -> _WritePlan:
+        """The points a write of ``count`` registers (or bits) at ``address`` sets, each with
+        its offset in the write; or the exception the write gets whatever its values."""
+        key = (unit_id, table, address, count)
+        plan = self._write_plans.get(key)
+        if plan is not None:
+            return plan
+        index = self._points[(unit_id, table)]
         touched: dict[str, Point] = {}
-        for i in range(len(values)):
+        for i in range(count):
             point = index.get(address + i)
             if point is None or not point.writable:
-                return ExcCodes.ILLEGAL_ADDRESS
+                plan = ExcCodes.ILLEGAL_ADDRESS
+                break
             touched[point.name] = point
-        end = address + len(values)
+        else:
+            end = address + count
+            parts = tuple((p, p.address - address) for p in touched.values())
+            if any(first < 0 or p.address + p.width > end for p, first in parts):
+                plan = ExcCodes.ILLEGAL_VALUE  # part of a multi-register value
+            else:
+                plan = parts
+        self._write_plans[key] = plan
+        return plan
+
+    async def _write(self, device: Device, table: str, address: int, values) -> ExcCodes | None:
+        """Check a client write of ``values`` at ``address``; apply it or refuse it whole."""
+        plan = self._write_plan(device.unit_id, table, address, len(values))
+        if isinstance(plan, ExcCodes):
+            return plan
         new: dict[str, float] = {}
-        for point in touched.values():
-            first = point.address - address
-            if first < 0 or point.address + point.width > end:
-                return ExcCodes.ILLEGAL_VALUE  # part of a multi-register value
+        for point, first in plan:
             if table == "coil":
                 value = 1.0 if values[first] else 0.0
             else:
-                value = decode(point, list(values[first : first + point.width]))
+                value = decode(point, values[first : first + point.width])
             if not (math.isfinite(value) and point.minimum <= value <= point.maximum):
                 return ExcCodes.ILLEGAL_VALUE
             try:

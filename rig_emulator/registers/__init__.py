@@ -1,6 +1,6 @@
 """Register maps as data (schema, validation, codec, Markdown reference); no protocol code."""
 
-from rig_emulator.registers.codec import decode, encode, precision, run_encoder
+from rig_emulator.registers.codec import decode, encode, precision, run_decoder, run_encoder
 from rig_emulator.registers.schema import (
     MAP_DIR,
     Device,
@@ -22,5 +22,6 @@ __all__ = [
     "load_map",
     "map_from_mapping",
     "precision",
+    "run_decoder",
     "run_encoder",
 ]

@@ -57,29 +57,93 @@ def encode(point: Point, value: float) -> list[int]:
     return list(words.unpack(values.pack(raw)))
 
 
-def run_encoder(points: Sequence[Point]) -> Callable[[Mapping[str, float]], list[int]]:
-    """A function from signal values to the registers of ``points`` (a contiguous run):
-    the :func:`encode` of each point, concatenated, with the per-point lookups done once."""
-    plan: list[tuple[str, Callable[..., bytes] | None, Callable[[bytes], tuple], Point | None]]
-    plan = []
+_Segment = tuple[struct.Struct | None, struct.Struct | None, tuple[Point | None, ...]]
+
+
+def _segments(points: Sequence[Point]) -> list[_Segment]:
+    """A contiguous run of points cut into segments that one struct packs at once.
+
+    A segment is (value struct, words struct, per point: the point if its value is a scaled
+    integer, else None); bools are segments of their own with no structs. Consecutive points
+    of one byte order pack as one: a word-swapped (CDAB) value is its little-endian bytes read
+    as little-endian words, so several of them concatenate the same way.
+    """
+    segments: list[_Segment] = []
+    order, codes, words, scaled = "", "", 0, []
+
+    def close() -> None:
+        if codes:
+            segments.append(
+                (struct.Struct(order + codes), struct.Struct(order + "H" * words), tuple(scaled))
+            )
+
     for p in points:
         if p.datatype == "bool":
-            plan.append((p.signal, None, tuple, None))
+            close()
+            order, codes, words, scaled = "", "", 0, []
+            segments.append((None, None, (None,)))
             continue
-        values, words = _structs(p)
-        plan.append((p.signal, values.pack, words.unpack, None if p.datatype in _FLOAT else p))
+        p_order = "<" if p.word_order == "CDAB" and p.width > 1 else ">"
+        if p_order != order:
+            close()
+            order, codes, words, scaled = p_order, "", 0, []
+        codes += _FLOAT.get(p.datatype) or _INT[p.datatype][2]
+        words += p.width
+        scaled.append(None if p.datatype in _FLOAT else p)
+    close()
+    return segments
 
-    def encode_run(signals: Mapping[str, float]) -> list[int]:
+
+def run_encoder(points: Sequence[Point]) -> Callable[[Mapping[str, float]], list[int]]:
+    """A function from signal values to the registers of ``points`` (a contiguous run):
+    the :func:`encode` of each point, concatenated, a segment at a time."""
+    signals = iter([p.signal for p in points])
+    plan = [
+        (values, words, tuple((next(signals), p) for p in scaled))
+        for values, words, scaled in _segments(points)
+    ]
+
+    def encode_run(signal_values: Mapping[str, float]) -> list[int]:
         regs: list[int] = []
-        for signal, pack, unpack, scaled in plan:
-            value = signals[signal]
-            if pack is None:
-                regs.append(1 if value >= 0.5 else 0)
+        for values, words, items in plan:
+            if values is None or words is None:
+                regs += [1 if signal_values[name] >= 0.5 else 0 for name, _ in items]
             else:
-                regs += unpack(pack(value if scaled is None else _raw(scaled, value)))
+                raw = [
+                    signal_values[name] if p is None else _raw(p, signal_values[name])
+                    for name, p in items
+                ]
+                regs += words.unpack(values.pack(*raw))
         return regs
 
     return encode_run
+
+
+def run_decoder(points: Sequence[Point]) -> Callable[[Sequence[int]], list[float]]:
+    """A function from the registers of ``points`` (a contiguous run, from its first
+    address) to their values, in order: :func:`decode` of each, a segment at a time."""
+    plan = [
+        (values, words, scaled, words.size // 2 if words else len(scaled))
+        for values, words, scaled in _segments(points)
+    ]
+
+    def decode_run(registers: Sequence[int]) -> list[float]:
+        out: list[float] = []
+        i = 0
+        for values, words, scaled, n in plan:
+            chunk = registers[i : i + n]
+            i += n
+            if values is None or words is None:
+                out += [1.0 if r else 0.0 for r in chunk]
+            else:
+                raw = values.unpack(words.pack(*chunk))
+                out += [
+                    r if p is None else r * p.scale + p.offset
+                    for r, p in zip(raw, scaled, strict=True)
+                ]
+        return out
+
+    return decode_run
 
 
 def decode(point: Point, registers: list[int]) -> float:

@@ -84,3 +84,16 @@ def test_measured_catalog_order_matches_plant_vector(params_12kw):
     plant = emu.plant()
     assert list(plant) == list(MEASURED)
     assert plant["water_flow_kg_h"] == pytest.approx(emu.bench.bs[0])
+
+
+def test_compiling_the_kernels_leaves_the_emulator_alone(params_12kw):
+    emulator = Emulator(params_12kw, load_profile("lab"), seed=3)
+    emulator.advance(30.0)
+    before = (emulator.sim_time_s, dict(emulator.commands), emulator.values())
+    emulator.compile_kernels()
+    assert (emulator.sim_time_s, dict(emulator.commands), emulator.values()) == before
+    twin = Emulator(params_12kw, load_profile("lab"), seed=3)
+    twin.advance(30.0)
+    emulator.advance(60.0)
+    twin.advance(60.0)
+    assert emulator.values() == twin.values()  # same noise draws: nothing was consumed

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,7 @@ from rig_emulator.registers import (
     load_map,
     map_from_mapping,
     precision,
+    run_decoder,
     run_encoder,
 )
 from rig_emulator.registers.reference import markdown
@@ -94,19 +96,38 @@ def test_word_orders_are_mirror_images():
     assert encode(a, 1.0) == [0x3F80, 0x0000]  # IEEE 754 of 1.0, high word first
 
 
-def test_run_encoder_equals_the_points_encoded_one_by_one():
-    m = load_map()
+def _mixed_run() -> list[Point]:
+    """A contiguous run mixing every datatype and both word orders."""
+    kinds = [("float32", "CDAB"), ("float32", "CDAB"), ("int16", "ABCD"), ("float64", "ABCD"),
+             ("uint32", "CDAB"), ("float32", "ABCD"), ("bool", "ABCD"), ("int32", "ABCD"),
+             ("uint16", "CDAB"), ("float64", "CDAB")]  # fmt: skip
+    run, address = [], 0
+    for i, (datatype, order) in enumerate(kinds):
+        p = _point(datatype, order, scale=0.01 if "int" in datatype else 1.0, offset=3.0)
+        p = replace(p, name=f"p{i}", signal=f"s{i}", address=address)
+        run.append(p)
+        address += p.width
+    return run
+
+
+def test_run_encoder_and_decoder_equal_the_points_one_by_one():
+    runs = [_mixed_run()] + [
+        list(device.table(table))
+        for device in load_map().devices
+        for table in ("input", "holding", "coil", "discrete")
+        if device.table(table)
+    ]
     rng = np.random.default_rng(3)
-    for device in m.devices:
-        for table in ("input", "holding", "coil", "discrete"):
-            points = device.table(table)
-            if not points:
-                continue
-            encode_run = run_encoder(points)
-            for _ in range(20):
-                values = {p.signal: float(rng.normal(0, 500)) for p in points}
-                want = [r for p in points for r in encode(p, values[p.signal])]
-                assert encode_run(values) == want, (device.name, table)
+    for run in runs:
+        encode_run, decode_run = run_encoder(run), run_decoder(run)
+        for _ in range(20):
+            values = {p.signal: float(rng.normal(0, 500)) for p in run}
+            values[run[0].signal] = math.nan if rng.random() < 0.2 else values[run[0].signal]
+            want = [r for p in run for r in encode(p, values[p.signal])]
+            assert encode_run(values) == want, [p.name for p in run]
+            decoded = [decode(p, encode(p, values[p.signal])) for p in run]
+            got = decode_run(want)
+            assert np.allclose(got, decoded, equal_nan=True, rtol=0, atol=0), [p.name for p in run]
 
 
 def _broken(mutate) -> dict:
