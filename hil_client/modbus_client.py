@@ -76,11 +76,6 @@ class Connection:
             raise ModbusExceptionResponse(unit, function, body[1])
         return body
 
-    def request(self, unit: int, pdu: bytes) -> bytes:
-        """Send one request and wait for its reply."""
-        self.send([(unit, pdu)])
-        return self.receive()
-
     def _recv(self, n: int) -> bytes:
         """``n`` bytes; reads whatever has arrived (several replies in one call, usually)."""
         buffer = self._buffer

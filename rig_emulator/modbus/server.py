@@ -305,7 +305,7 @@ class BenchServer:
                 plan = ExcCodes.ILLEGAL_VALUE  # part of a multi-register value
             else:
                 plan = parts
-        self._write_plans[key] = plan
+                self._write_plans[key] = plan  # valid writes only: few, whatever clients send
         return plan
 
     async def _write(self, device: Device, table: str, address: int, values) -> ExcCodes | None:
