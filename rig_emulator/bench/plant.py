@@ -31,66 +31,16 @@ from rig_emulator.bench.effects import MAX_BODY_NODES, EffectSettings
 from rig_emulator.model import boiler as bm
 from rig_emulator.model import constants as k
 from rig_emulator.model.layout import (
-    K_A0,
-    K_A1,
     K_CAP,
     K_CO_START,
-    K_CO_STOP,
     K_CO_TAU,
-    K_HHV,
-    K_IGNITION,
     K_LHV,
-    K_P_MAX,
-    K_P_MIN,
-    K_P_START,
-    K_PEL_MIN,
-    K_PEL_OFF,
-    K_PEL_SLOPE,
-    K_SET,
-    K_STARTUP_S,
     K_UA_OFF,
     K_UA_ON,
-    K_VCO2,
-    K_VDRY0,
-    K_VDRY1,
-    K_VH2O,
-    K_VO2_PER_LAMBDA,
-    K_VSO2,
     MODULATING,
-    S_ELECTRIC,
-    S_FIRING,
-    S_FUEL,
-    S_MODE,
-    S_MODE_TIME,
     S_SINCE_START,
-    S_SINCE_STOP,
-    S_STARTS,
     S_T,
     STARTUP,
-    Y_CO,
-    Y_CO2,
-    Y_FG_DRY,
-    Y_FG_WET,
-    Y_FIRING,
-    Y_FUEL,
-    Y_LAMBDA,
-    Y_MODE,
-    Y_O2,
-    Y_P_EL,
-    Y_Q_AMB,
-    Y_Q_ASH,
-    Y_Q_CHEM,
-    Y_Q_FUEL,
-    Y_Q_HX,
-    Y_Q_IGN,
-    Y_Q_LAT,
-    Y_Q_SENS,
-    Y_Q_STORED,
-    Y_Q_WATER,
-    Y_SO2,
-    Y_T_BOILER,
-    Y_T_FG,
-    Y_T_OUT,
 )
 from rig_emulator.model.params import BoilerParams
 
@@ -263,49 +213,27 @@ def plant_step(c, s, fc, fs, water_flow_kg_h, water_in_C, room_C, enabled, dt_s,
     controller, as in the model (the fan's share during a burn-out is neglected).
     """
     t0 = s[S_T]
-    mode = int(s[S_MODE])
-    new_mode = bm.controller_mode(c, mode, s[S_MODE_TIME], t0, enabled)
-    if new_mode != mode:
-        s[S_MODE_TIME] = 0.0
-        if new_mode == STARTUP:
-            s[S_SINCE_START] = 0.0
-            s[S_STARTS] += 1.0
-            fs[FS_IGN_TIMER] = 0.0
-        elif mode == STARTUP or mode == MODULATING:
-            s[S_SINCE_STOP] = 0.0
-        mode = new_mode
+    mode, started = bm.update_mode(c, s, enabled)
+    if started:
+        fs[FS_IGN_TIMER] = 0.0
     firing = mode == STARTUP or mode == MODULATING
     m_cp = water_flow_kg_h * _CP_W_KWH
-    cap = c[K_CAP]
     ign_on = fc[FC_IGN_ON] > 0.5
 
     # start CO peak, decaying from the ignition (the start without the ignition effect)
     since_ign = fs[FS_SINCE_IGNITION] if ign_on else s[S_SINCE_START]
     co_start = c[K_CO_START] * math.exp(-since_ign / c[K_CO_TAU])
 
-    # --- what the controller commands: firing power (net basis) and the feed it implies
+    # --- what the controller commands: firing power (net basis) and the feed it implies;
+    # the model's rule with the horizon dt + FC_HORIZON instead of dt
     q_ign = 0.0
     firing_kW = 0.0
     if firing:
-        # the igniter runs for the start-up time after each start, whatever the mode
-        q_ign = c[K_IGNITION] if s[S_SINCE_START] < c[K_STARTUP_S] else 0.0
-        if mode == STARTUP:
-            firing_kW = c[K_P_START]
-        else:
-            # heat that brings the water to the set point over the horizon (the model's
-            # rule with the horizon dt + FC_HORIZON instead of dt)
-            ua = c[K_UA_ON]
-            b = m_cp + ua
-            decay = math.exp(-b * (dt_s + fc[FC_HORIZON]) / cap)
-            t_eq = (c[K_SET] - t0 * decay) / (1.0 - decay)
-            q_req = max(b * t_eq - m_cp * water_in_C - ua * room_C - q_ign, 0.0)
-            x_prev = s[S_FIRING] * 3600.0 / c[K_LHV]
-            lam_prev = bm.excess_air(c, x_prev)
-            co_prev = bm.co_stationary_ppm(c, s[S_FIRING]) + co_start
-            t_fg_prev = bm.flue_gas_temperature(c, water_in_C, water_flow_kg_h, x_prev)
-            chem_prev = bm.flue_gas_loss_per_kg(c, lam_prev, t_fg_prev, room_C, co_prev)[2]
-            x = bm.fuel_for_heat(c, q_req, t_fg_prev - room_C, chem_prev)
-            firing_kW = min(max(x * c[K_LHV] / 3600.0, c[K_P_MIN]), c[K_P_MAX])
+        q_ign = bm.igniter_kW(c, s)
+        horizon = dt_s + fc[FC_HORIZON]
+        firing_kW = bm.firing_power_kW(
+            c, s, mode, m_cp, water_flow_kg_h, water_in_C, room_C, q_ign, co_start, horizon
+        )
     feed = firing_kW * 3600.0 / c[K_LHV]  # [kg/h dry, nominal energy]
 
     # --- the bed: fuel fed collects, burns once lit, burns out after a stop
@@ -341,99 +269,55 @@ def plant_step(c, s, fc, fs, water_flow_kg_h, water_in_C, room_C, enabled, dt_s,
         burn = feed
         x_lambda = feed
     burning = burn > 0.0
-    fan = firing or burning
-    ua = c[K_UA_ON] if fan else c[K_UA_OFF]
+    ua = c[K_UA_ON] if firing or burning else c[K_UA_OFF]  # the fan runs
 
     if burning:
-        t_fg_target = bm.flue_gas_temperature(c, water_in_C, water_flow_kg_h, burn)
-        if fc[FC_FG_ON] > 0.5:
-            fs[FS_FG1], fs[FS_FG2] = lag2(
-                fs[FS_FG1], fs[FS_FG2], t_fg_target, fc[FC_FG_TAU1], fc[FC_FG_TAU2], dt_s
-            )
-            t_fg = fs[FS_FG2]
-        else:
-            t_fg = t_fg_target
+        t_fg = _flue_gas_lag(
+            fc, fs, bm.flue_gas_temperature(c, water_in_C, water_flow_kg_h, burn), dt_s
+        )
         lam = bm.excess_air(c, x_lambda)
         if firing:
             co = bm.co_stationary_ppm(c, burn * c[K_LHV] / 3600.0) + co_start
         else:  # burn-out: the stop peak, as the model has it once the burner is off
-            co = c[K_CO_STOP] * math.exp(-s[S_SINCE_STOP] / c[K_CO_TAU])
-        sens, lat, chem = bm.flue_gas_loss_per_kg(c, lam, t_fg, room_C, co)
-        per_s = burn / 3600.0
-        q_fuel = per_s * c[K_HHV]
-        q_ash = _ASH * q_fuel
-        q_sens = per_s * sens
-        q_lat = per_s * lat
-        q_chem = per_s * chem
-        q_hx = q_fuel - q_ash - q_sens - q_lat - q_chem
-        v_dry = c[K_VDRY0] + c[K_VDRY1] * lam
-        y[Y_O2] = 100.0 * c[K_VO2_PER_LAMBDA] * (lam - 1.0) / v_dry
-        y[Y_CO2] = 100.0 * c[K_VCO2] / v_dry
-        y[Y_SO2] = 1e6 * c[K_VSO2] / v_dry
-        y[Y_FG_DRY] = burn * (c[K_A0] + c[K_A1] * lam)
-        y[Y_FG_WET] = burn * (v_dry + c[K_VH2O])
+            co = bm.burnout_co_ppm(c, s)
+        q_hx = bm.combustion(c, burn, lam, t_fg, room_C, co, y)
     else:
-        q_fuel = q_ash = q_sens = q_lat = q_chem = q_hx = 0.0
-        lam = math.inf
         # idle, or the fan and igniter run before the bed lights: the analyser sees air
         # and the decaying burn-out CO of the last stop, as in the model
-        co = c[K_CO_STOP] * math.exp(-s[S_SINCE_STOP] / c[K_CO_TAU])
-        y[Y_O2] = k.O2_AMBIENT_PCT
-        y[Y_CO2] = k.CO2_AMBIENT_PCT
-        y[Y_SO2] = 0.0
-        y[Y_FG_DRY] = 0.0
-        y[Y_FG_WET] = 0.0
+        q_hx = 0.0
+        lam = math.inf
+        co = bm.burnout_co_ppm(c, s)
+        bm.no_combustion(y)
         t_fg = 0.0  # set below: the water temperature (lagged if the lag is on)
-    if firing:
-        p_el = c[K_PEL_MIN] + c[K_PEL_SLOPE] * (firing_kW - c[K_P_MIN]) + q_ign * 1000.0
-    else:
-        p_el = c[K_PEL_OFF]
+    p_el = bm.electric_power_W(c, firing, firing_kW, q_ign)
 
     q_in = q_hx + q_ign
     if fc[FC_BODY_ON] > 0.5:
         t1, q_stored = body_chain(fc, fs, t0, q_in, m_cp, water_in_C, ua, room_C, dt_s)
         t_mean = t1
     else:
+        cap = c[K_CAP]
         t1, t_mean = bm.node_exact(t0, q_in, m_cp, water_in_C, ua, room_C, cap, dt_s)
         q_stored = cap * (t1 - t0) / dt_s
     if not burning:
-        if fc[FC_FG_ON] > 0.5:
-            fs[FS_FG1], fs[FS_FG2] = lag2(
-                fs[FS_FG1], fs[FS_FG2], t1, fc[FC_FG_TAU1], fc[FC_FG_TAU2], dt_s
-            )
-            t_fg = fs[FS_FG2]
-        else:
-            t_fg = t1
+        t_fg = _flue_gas_lag(fc, fs, t1, dt_s)
 
-    s[S_T] = t1
-    s[S_MODE] = mode
-    s[S_MODE_TIME] += dt_s
-    s[S_FIRING] = firing_kW
-    s[S_SINCE_START] += dt_s
-    s[S_SINCE_STOP] += dt_s
-    s[S_FUEL] += feed * dt_s / 3600.0
-    s[S_ELECTRIC] += p_el * dt_s / 3600.0
     fs[FS_TIME] += dt_s
+    bm.close_step(
+        s, y, dt_s, mode, firing_kW, feed, p_el, t1, t_mean, t_fg, lam, co, q_ign, m_cp,
+        water_in_C, ua, room_C, q_stored,
+    )  # fmt: skip
 
-    y[Y_T_BOILER] = t1
-    y[Y_T_OUT] = t1
-    y[Y_T_FG] = t_fg
-    y[Y_MODE] = mode
-    y[Y_FIRING] = firing_kW
-    y[Y_FUEL] = feed
-    y[Y_LAMBDA] = lam
-    y[Y_CO] = co
-    y[Y_Q_FUEL] = q_fuel
-    y[Y_Q_IGN] = q_ign
-    y[Y_Q_ASH] = q_ash
-    y[Y_Q_SENS] = q_sens
-    y[Y_Q_LAT] = q_lat
-    y[Y_Q_CHEM] = q_chem
-    y[Y_Q_HX] = q_hx
-    y[Y_Q_WATER] = m_cp * (t_mean - water_in_C)
-    y[Y_Q_AMB] = ua * (t_mean - room_C)
-    y[Y_Q_STORED] = q_stored
-    y[Y_P_EL] = p_el
+
+@njit(cache=True)
+def _flue_gas_lag(fc, fs, t_target_C, dt_s):
+    """Flue-gas temperature [C]: ``t_target_C`` through the two-node lag if it is on."""
+    if fc[FC_FG_ON] < 0.5:
+        return t_target_C
+    fs[FS_FG1], fs[FS_FG2] = lag2(
+        fs[FS_FG1], fs[FS_FG2], t_target_C, fc[FC_FG_TAU1], fc[FC_FG_TAU2], dt_s
+    )
+    return fs[FS_FG2]
 
 
 @njit(cache=True)

@@ -307,6 +307,149 @@ def controller_mode(c, mode, mode_time_s, t_boiler_C, enabled):
 
 
 @njit(cache=True)
+def update_mode(c, s, enabled):
+    """Switch the controller (:func:`controller_mode`) and keep its clocks in ``s``.
+
+    Returns (mode for this step, True if the burner starts with this step).
+    """
+    mode = int(s[S_MODE])
+    new_mode = controller_mode(c, mode, s[S_MODE_TIME], s[S_T], enabled)
+    started = False
+    if new_mode != mode:
+        s[S_MODE_TIME] = 0.0
+        if new_mode == STARTUP:
+            s[S_SINCE_START] = 0.0
+            s[S_STARTS] += 1.0
+            started = True
+        elif mode == STARTUP or mode == MODULATING:
+            s[S_SINCE_STOP] = 0.0
+    return new_mode, started
+
+
+@njit(cache=True)
+def igniter_kW(c, s):
+    """Ignition power [kW]: the igniter runs for the start-up time after each start,
+    whatever the mode (Wel spread over ``startup_duration_s``)."""
+    return c[K_IGNITION] if s[S_SINCE_START] < c[K_STARTUP_S] else 0.0
+
+
+@njit(cache=True)
+def firing_power_kW(
+    c, s, mode, m_cp, water_flow_kg_h, water_in_C, room_C, q_ign, co_start, horizon_s
+):
+    """Firing power the controller commands while firing [kW, net basis].
+
+    Pstart in the start-up; otherwise the heat to the exchanger that brings the node to
+    the set point at the end of ``horizon_s`` (the step, for the paper's ideal controller),
+    with the flue-gas losses evaluated at the previous firing power (one fixed-point
+    pass), turned into fuel (:func:`fuel_for_heat`) and clipped to [Pmin, Pmax].
+    """
+    if mode == STARTUP:
+        return c[K_P_START]
+    ua = c[K_UA_ON]
+    b = m_cp + ua
+    decay = math.exp(-b * horizon_s / c[K_CAP])
+    t_eq = (c[K_SET] - s[S_T] * decay) / (1.0 - decay)
+    q_req = max(b * t_eq - m_cp * water_in_C - ua * room_C - q_ign, 0.0)
+    x_prev = s[S_FIRING] * 3600.0 / c[K_LHV]
+    lam_prev = excess_air(c, x_prev)
+    co_prev = co_stationary_ppm(c, s[S_FIRING]) + co_start
+    t_fg_prev = flue_gas_temperature(c, water_in_C, water_flow_kg_h, x_prev)
+    chem_prev = flue_gas_loss_per_kg(c, lam_prev, t_fg_prev, room_C, co_prev)[2]
+    x = fuel_for_heat(c, q_req, t_fg_prev - room_C, chem_prev)
+    return min(max(x * c[K_LHV] / 3600.0, c[K_P_MIN]), c[K_P_MAX])
+
+
+@njit(cache=True)
+def burnout_co_ppm(c, s):
+    """CO after a stop [ppm]: the burn-out peak decaying since the stop."""
+    return c[K_CO_STOP] * math.exp(-s[S_SINCE_STOP] / c[K_CO_TAU])
+
+
+@njit(cache=True)
+def combustion(c, fuel_kg_h, lam, t_fg_C, room_C, co_ppm, y):
+    """Burn ``fuel_kg_h`` of dry fuel at ``lam``: the heat flows of Eq. 1, 3-6 (ash per
+    EN 14785) and the flue gas (analyser, volume and mass flows) into ``y``.
+
+    Returns the heat to the exchanger Q_hx [kW].
+    """
+    sens, lat, chem = flue_gas_loss_per_kg(c, lam, t_fg_C, room_C, co_ppm)
+    per_s = fuel_kg_h / 3600.0
+    q_fuel = per_s * c[K_HHV]
+    q_ash = _ASH * q_fuel
+    q_sens = per_s * sens
+    q_lat = per_s * lat
+    q_chem = per_s * chem
+    q_hx = q_fuel - q_ash - q_sens - q_lat - q_chem
+    v_dry = c[K_VDRY0] + c[K_VDRY1] * lam
+    y[Y_O2] = 100.0 * c[K_VO2_PER_LAMBDA] * (lam - 1.0) / v_dry
+    y[Y_CO2] = 100.0 * c[K_VCO2] / v_dry
+    y[Y_SO2] = 1e6 * c[K_VSO2] / v_dry
+    y[Y_FG_DRY] = fuel_kg_h * (c[K_A0] + c[K_A1] * lam)
+    y[Y_FG_WET] = fuel_kg_h * (v_dry + c[K_VH2O])
+    y[Y_Q_FUEL] = q_fuel
+    y[Y_Q_ASH] = q_ash
+    y[Y_Q_SENS] = q_sens
+    y[Y_Q_LAT] = q_lat
+    y[Y_Q_CHEM] = q_chem
+    y[Y_Q_HX] = q_hx
+    return q_hx
+
+
+@njit(cache=True)
+def no_combustion(y):
+    """Nothing burns: no combustion heat, the analyser sees ambient air."""
+    y[Y_O2] = k.O2_AMBIENT_PCT
+    y[Y_CO2] = k.CO2_AMBIENT_PCT
+    y[Y_SO2] = 0.0
+    y[Y_FG_DRY] = 0.0
+    y[Y_FG_WET] = 0.0
+    y[Y_Q_FUEL] = y[Y_Q_ASH] = y[Y_Q_SENS] = y[Y_Q_LAT] = y[Y_Q_CHEM] = y[Y_Q_HX] = 0.0
+
+
+@njit(cache=True)
+def electric_power_W(c, firing, firing_kW, q_ign):
+    """Electric power [W]: linear in firing power between Pel,MIN and Pel,MAX plus the
+    igniter while firing; Pel,OFF otherwise."""
+    if firing:
+        return c[K_PEL_MIN] + c[K_PEL_SLOPE] * (firing_kW - c[K_P_MIN]) + q_ign * 1000.0
+    return c[K_PEL_OFF]
+
+
+@njit(cache=True)
+def close_step(
+    s, y, dt_s, mode, firing_kW, fuel_kg_h, p_el, t1, t_mean, t_fg, lam, co, q_ign, m_cp,
+    water_in_C, ua, room_C, q_stored,
+):  # fmt: skip
+    """Advance the state's clocks and counters and write the remaining outputs.
+
+    ``fuel_kg_h`` is the feed (what the balance loses); ``t1``/``t_mean`` the node
+    temperature at the end of and over the step; ``q_stored`` the heat stored [kW].
+    """
+    s[S_T] = t1
+    s[S_MODE] = mode
+    s[S_MODE_TIME] += dt_s
+    s[S_FIRING] = firing_kW
+    s[S_SINCE_START] += dt_s
+    s[S_SINCE_STOP] += dt_s
+    s[S_FUEL] += fuel_kg_h * dt_s / 3600.0
+    s[S_ELECTRIC] += p_el * dt_s / 3600.0
+    y[Y_T_BOILER] = t1
+    y[Y_T_OUT] = t1
+    y[Y_T_FG] = t_fg
+    y[Y_MODE] = mode
+    y[Y_FIRING] = firing_kW
+    y[Y_FUEL] = fuel_kg_h
+    y[Y_LAMBDA] = lam
+    y[Y_CO] = co
+    y[Y_Q_IGN] = q_ign
+    y[Y_Q_WATER] = m_cp * (t_mean - water_in_C)
+    y[Y_Q_AMB] = ua * (t_mean - room_C)
+    y[Y_Q_STORED] = q_stored
+    y[Y_P_EL] = p_el
+
+
+@njit(cache=True)
 def step(c, s, water_flow_kg_h, water_in_C, room_C, enabled, dt_s, y):
     """Advance the boiler by ``dt_s`` seconds with inputs held over the step.
 
@@ -318,16 +461,7 @@ def step(c, s, water_flow_kg_h, water_in_C, room_C, enabled, dt_s, y):
         y: output array (layout ``Y_*``), filled in place.
     """
     t0 = s[S_T]
-    mode = int(s[S_MODE])
-    new_mode = controller_mode(c, mode, s[S_MODE_TIME], t0, enabled)
-    if new_mode != mode:
-        s[S_MODE_TIME] = 0.0
-        if new_mode == STARTUP:
-            s[S_SINCE_START] = 0.0
-            s[S_STARTS] += 1.0
-        elif mode == STARTUP or mode == MODULATING:
-            s[S_SINCE_STOP] = 0.0
-        mode = new_mode
+    mode = update_mode(c, s, enabled)[0]
     firing = mode == STARTUP or mode == MODULATING
     m_cp = water_flow_kg_h * _CP_W_KWH
     cap = c[K_CAP]
@@ -335,88 +469,32 @@ def step(c, s, water_flow_kg_h, water_in_C, room_C, enabled, dt_s, y):
     if firing:
         ua = c[K_UA_ON]
         co_start = c[K_CO_START] * math.exp(-s[S_SINCE_START] / c[K_CO_TAU])
-        # the igniter runs for the start-up time after each start, whatever the mode
-        q_ign = c[K_IGNITION] if s[S_SINCE_START] < c[K_STARTUP_S] else 0.0
-        if mode == STARTUP:
-            firing_kW = c[K_P_START]
-        else:
-            # heat to the exchanger that brings the node to the set point by the step's end
-            b = m_cp + ua
-            decay = math.exp(-b * dt_s / cap)
-            t_eq = (c[K_SET] - t0 * decay) / (1.0 - decay)
-            q_req = max(b * t_eq - m_cp * water_in_C - ua * room_C - q_ign, 0.0)
-            # losses evaluated at the previous firing power (one fixed-point pass)
-            x_prev = s[S_FIRING] * 3600.0 / c[K_LHV]
-            lam_prev = excess_air(c, x_prev)
-            co_prev = co_stationary_ppm(c, s[S_FIRING]) + co_start
-            t_fg_prev = flue_gas_temperature(c, water_in_C, water_flow_kg_h, x_prev)
-            chem_prev = flue_gas_loss_per_kg(c, lam_prev, t_fg_prev, room_C, co_prev)[2]
-            x = fuel_for_heat(c, q_req, t_fg_prev - room_C, chem_prev)
-            firing_kW = min(max(x * c[K_LHV] / 3600.0, c[K_P_MIN]), c[K_P_MAX])
+        q_ign = igniter_kW(c, s)
+        firing_kW = firing_power_kW(
+            c, s, mode, m_cp, water_flow_kg_h, water_in_C, room_C, q_ign, co_start, dt_s
+        )
         fuel = firing_kW * 3600.0 / c[K_LHV]
         t_fg = flue_gas_temperature(c, water_in_C, water_flow_kg_h, fuel)
         lam = excess_air(c, fuel)
         co = co_stationary_ppm(c, firing_kW) + co_start
-        sens, lat, chem = flue_gas_loss_per_kg(c, lam, t_fg, room_C, co)
-        per_s = fuel / 3600.0
-        q_fuel = per_s * c[K_HHV]
-        q_ash = _ASH * q_fuel
-        q_sens = per_s * sens
-        q_lat = per_s * lat
-        q_chem = per_s * chem
-        q_hx = q_fuel - q_ash - q_sens - q_lat - q_chem
-        v_dry = c[K_VDRY0] + c[K_VDRY1] * lam
-        y[Y_O2] = 100.0 * c[K_VO2_PER_LAMBDA] * (lam - 1.0) / v_dry
-        y[Y_CO2] = 100.0 * c[K_VCO2] / v_dry
-        y[Y_SO2] = 1e6 * c[K_VSO2] / v_dry
-        y[Y_FG_DRY] = fuel * (c[K_A0] + c[K_A1] * lam)
-        y[Y_FG_WET] = fuel * (v_dry + c[K_VH2O])
-        p_el = c[K_PEL_MIN] + c[K_PEL_SLOPE] * (firing_kW - c[K_P_MIN]) + q_ign * 1000.0
+        q_hx = combustion(c, fuel, lam, t_fg, room_C, co, y)
     else:
         ua = c[K_UA_OFF]
-        q_ign = firing_kW = fuel = q_fuel = q_ash = q_sens = q_lat = q_chem = q_hx = 0.0
+        q_ign = firing_kW = fuel = q_hx = 0.0
         lam = math.inf
-        co = c[K_CO_STOP] * math.exp(-s[S_SINCE_STOP] / c[K_CO_TAU])
-        y[Y_O2] = k.O2_AMBIENT_PCT
-        y[Y_CO2] = k.CO2_AMBIENT_PCT
-        y[Y_SO2] = 0.0
-        y[Y_FG_DRY] = 0.0
-        y[Y_FG_WET] = 0.0
-        p_el = c[K_PEL_OFF]
-        t_fg = 0.0  # set below: the node temperature
+        co = burnout_co_ppm(c, s)
+        no_combustion(y)
+        t_fg = 0.0  # set below: the probe sees draught air leaving at the node temperature
+    p_el = electric_power_W(c, firing, firing_kW, q_ign)
 
     t1, t_mean = node_exact(t0, q_hx + q_ign, m_cp, water_in_C, ua, room_C, cap, dt_s)
     if not firing:
         t_fg = t1
-
-    s[S_T] = t1
-    s[S_MODE] = mode
-    s[S_MODE_TIME] += dt_s
-    s[S_FIRING] = firing_kW
-    s[S_SINCE_START] += dt_s
-    s[S_SINCE_STOP] += dt_s
-    s[S_FUEL] += fuel * dt_s / 3600.0
-    s[S_ELECTRIC] += p_el * dt_s / 3600.0
-
-    y[Y_T_BOILER] = t1
-    y[Y_T_OUT] = t1
-    y[Y_T_FG] = t_fg
-    y[Y_MODE] = mode
-    y[Y_FIRING] = firing_kW
-    y[Y_FUEL] = fuel
-    y[Y_LAMBDA] = lam
-    y[Y_CO] = co
-    y[Y_Q_FUEL] = q_fuel
-    y[Y_Q_IGN] = q_ign
-    y[Y_Q_ASH] = q_ash
-    y[Y_Q_SENS] = q_sens
-    y[Y_Q_LAT] = q_lat
-    y[Y_Q_CHEM] = q_chem
-    y[Y_Q_HX] = q_hx
-    y[Y_Q_WATER] = m_cp * (t_mean - water_in_C)
-    y[Y_Q_AMB] = ua * (t_mean - room_C)
-    y[Y_Q_STORED] = cap * (t1 - t0) / dt_s
-    y[Y_P_EL] = p_el
+    q_stored = cap * (t1 - t0) / dt_s
+    close_step(
+        s, y, dt_s, mode, firing_kW, fuel, p_el, t1, t_mean, t_fg, lam, co, q_ign, m_cp,
+        water_in_C, ua, room_C, q_stored,
+    )  # fmt: skip
 
 
 def balance_residual_kW(y: np.ndarray) -> float:
