@@ -21,6 +21,7 @@ class CuttableProxy:
         self.lock = threading.Lock()
         self.open: list[socket.socket] = []
         self.cuts = 0
+        self.segments_to_server = 0  # reads of client data (one per segment, usually)
         self.running = True
         threading.Thread(target=self._accept, daemon=True).start()
 
@@ -37,13 +38,14 @@ class CuttableProxy:
                 continue
             with self.lock:
                 self.open += [client, server]
-            for a, b in ((client, server), (server, client)):
-                threading.Thread(target=self._pump, args=(a, b), daemon=True).start()
+            for a, b, up in ((client, server, True), (server, client, False)):
+                threading.Thread(target=self._pump, args=(a, b, up), daemon=True).start()
 
-    @staticmethod
-    def _pump(src: socket.socket, dst: socket.socket) -> None:
+    def _pump(self, src: socket.socket, dst: socket.socket, to_server: bool) -> None:
         try:
             while data := src.recv(65536):
+                if to_server:
+                    self.segments_to_server += 1
                 dst.sendall(data)
         except OSError:
             pass

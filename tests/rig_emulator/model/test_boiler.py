@@ -62,13 +62,17 @@ def test_energy_balance_closes_every_step(params, dt):
 def test_fuel_mass_is_conserved(params):
     c = pack_constants(params)
     s = new_state(45.0)
-    flows = np.full(5000, params.nominal_flow_kg_h * 0.6)
-    out = run(c, s, flows, np.full(5000, 55.0), np.ones(5000, bool))
-    # state integral equals the sum of the step flows (kg/h over 1 s steps)
-    assert s[S_FUEL] == pytest.approx(out[:, Y_FUEL].sum() / 3600.0, rel=1e-12)
-    # and the fuel power is the flow times HHV (Eq. 3)
-    hhv = params.fuel.hhv_dry_kJ_kg
-    np.testing.assert_allclose(out[:, Y_Q_FUEL], out[:, Y_FUEL] * hhv / 3600.0, rtol=1e-12)
+    n = 5000
+    flow = params.nominal_flow_kg_h * 0.6
+    out = run(c, s, np.full(n, flow), np.full(n, 55.0), np.ones(n, bool))
+    hhv, lhv = params.fuel.hhv_dry_kJ_kg, params.fuel.lhv_dry_kJ_kg
+    # the fuel power is the firing power (net, LHV basis) on the HHV basis of Eq. 3
+    np.testing.assert_allclose(out[:, Y_Q_FUEL], out[:, Y_FIRING] * hhv / lhv, rtol=1e-12)
+    # the fuel counter is the time integral of the fuel power over HHV (1-s steps)
+    assert s[S_FUEL] == pytest.approx(out[:, Y_Q_FUEL].sum() / hhv, rel=1e-12)
+    # settled, the fuel flow is the closed-form steady state's (Eq. 1-10 solved directly)
+    ss = steady_state(c, flow, 55.0, 22.0)
+    assert out[-1, Y_FUEL] == pytest.approx(ss.fuel_dry_kg_h, rel=1e-9)
 
 
 @pytest.mark.parametrize("load", [0.30, 0.63, 1.00])
