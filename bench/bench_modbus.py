@@ -15,7 +15,6 @@ Servers and load generators run in separate processes (the machine has 2 cores).
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import multiprocessing as mp
 import socket
 import statistics
@@ -25,27 +24,12 @@ import sys
 import time
 from pathlib import Path
 
+from hil_client.wait_for_port import free_port, wait_for_port
+
 HERE = Path(__file__).resolve().parent
 PLC_BLOCK = (1, 0, 14)
 ROUND_S = 2.0
 ROUNDS = 3
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _wait_for(port: int, timeout: float = 60.0) -> None:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        try:
-            socket.create_connection(("127.0.0.1", port), timeout=1).close()
-            return
-        except OSError:
-            time.sleep(0.1)
-    raise RuntimeError(f"no server on port {port}")
 
 
 async def _connection(port: int) -> tuple[asyncio.StreamReader, asyncio.StreamWriter]:
@@ -137,41 +121,29 @@ def _poll_process(port: int, clients: int, seconds: float, out) -> None:
 
 
 def bench_throughput() -> None:
-    ours_port, bare_port = _free_port(), _free_port()
-    ours = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "rig_emulator.cli",
-            "serve",
-            "--boiler",
-            "windhager_12kw",
-            "--port",
-            str(ours_port),
-            "--speed",
-            "1",
-        ],
-        stderr=subprocess.DEVNULL,
-    )
+    from hil_client.demo import rig_emulator_serve
+
+    bare_port = free_port()
     bare = subprocess.Popen([sys.executable, str(HERE / "bare_server.py"), str(bare_port)])
     try:
-        _wait_for(ours_port)
-        _wait_for(bare_port)
-        for connections in (1, 16):
-            a, b = [], []
-            for _ in range(ROUNDS):  # alternate, so both see the same machine load
-                a.append(_rps(ours_port, connections))
-                b.append(_rps(bare_port, connections))
-            ma, mb = statistics.median(a), statistics.median(b)
-            print(
-                f"FC4 read of the bench PLC block, {connections:2d} connection(s): emulator "
-                f"{ma:7.0f} req/s, bare SimDevice server {mb:7.0f} req/s, ratio {ma / mb:.2f} "
-                f"(target >= 0.90; median of {ROUNDS} alternating {ROUND_S:.0f}-s rounds)"
-            )
+        with rig_emulator_serve("windhager_12kw", "--speed", "1") as (ours_port, _):
+            if not wait_for_port("127.0.0.1", bare_port, 60.0):
+                raise RuntimeError(f"no server on port {bare_port}")
+            for connections in (1, 16):
+                a, b = [], []
+                for _ in range(ROUNDS):  # alternate, so both see the same machine load
+                    a.append(_rps(ours_port, connections))
+                    b.append(_rps(bare_port, connections))
+                ma, mb = statistics.median(a), statistics.median(b)
+                print(
+                    f"FC4 read of the bench PLC block, {connections:2d} connection(s): emulator "
+                    f"{ma:7.0f} req/s, bare SimDevice server {mb:7.0f} req/s, ratio "
+                    f"{ma / mb:.2f} (target >= 0.90; median of {ROUNDS} alternating "
+                    f"{ROUND_S:.0f}-s rounds)"
+                )
     finally:
-        for proc in (ours, bare):
-            proc.terminate()
-            proc.wait(timeout=30)
+        bare.terminate()
+        bare.wait(timeout=30)
 
 
 async def _lateness() -> None:
@@ -206,37 +178,13 @@ async def _lateness() -> None:
     )
 
 
-@contextlib.contextmanager
-def _lockstep_server():
-    """``rig-emulator serve --lockstep`` in its own process; yields its port."""
-    port = _free_port()
-    server = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "rig_emulator.cli",
-            "serve",
-            "--boiler",
-            "windhager_12kw",
-            "--port",
-            str(port),
-            "--lockstep",
-        ],
-        stderr=subprocess.DEVNULL,
-    )
-    try:
-        _wait_for(port)
-        yield port
-    finally:
-        server.terminate()
-        server.wait(timeout=30)
-
-
 def bench_lockstep() -> None:
     sys.path.insert(0, str(HERE))
     from rawclient import RawClient
 
-    with _lockstep_server() as port:
+    from hil_client.demo import rig_emulator_serve
+
+    with rig_emulator_serve("windhager_12kw", "--lockstep") as (port, _):
         client = RawClient("127.0.0.1", port)
         steps = 0
         start = time.perf_counter()
@@ -258,8 +206,9 @@ def bench_load_cycle() -> None:
     import tempfile
 
     from hil_client.cli import main as client
+    from hil_client.demo import rig_emulator_serve
 
-    with _lockstep_server() as port:
+    with rig_emulator_serve("windhager_12kw", "--lockstep") as (port, _):
         with tempfile.TemporaryDirectory() as tmp:
             start = time.perf_counter()
             code = client(

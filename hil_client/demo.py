@@ -14,13 +14,13 @@ protocol).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import signal
-import socket
 import subprocess
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from hil_client.analysis.balance import energy_balance
@@ -29,26 +29,42 @@ from hil_client.analysis.figures import energy_and_temperatures
 from hil_client.analysis.logio import read_log
 from hil_client.analysis.phases import find_phases
 from hil_client.cli import main as hil_client_main
+from hil_client.wait_for_port import free_port, wait_for_port
 from rig_emulator.boilers import load_boiler
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+@contextlib.contextmanager
+def rig_emulator_serve(
+    boiler: str, *options: str, stderr=subprocess.DEVNULL, timeout_s: float = 60.0
+) -> Iterator[tuple[int, subprocess.Popen]]:
+    """``rig-emulator serve --boiler BOILER OPTIONS`` in its own process on a free port.
 
-
-def _wait_for_port(port: int, proc: subprocess.Popen, timeout_s: float = 60.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if proc.poll() is not None:
-            raise RuntimeError(f"rig-emulator serve exited with code {proc.returncode}")
-        try:
-            socket.create_connection(("127.0.0.1", port), timeout=1).close()
-            return
-        except OSError:
-            time.sleep(0.1)
-    raise RuntimeError(f"rig-emulator serve did not listen on port {port}")
+    Yields ``(port, process)`` once 127.0.0.1:port accepts connections; SIGTERM on exit.
+    """
+    port = free_port()
+    server = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "rig_emulator.cli",
+            "serve",
+            "--boiler",
+            boiler,
+            "--port",
+            str(port),
+            *options,
+        ],
+        stderr=stderr,
+    )
+    try:
+        if not wait_for_port("127.0.0.1", port, timeout_s, alive=lambda: server.poll() is None):
+            if server.returncode is not None:
+                raise RuntimeError(f"rig-emulator serve exited with code {server.returncode}")
+            raise RuntimeError(f"rig-emulator serve did not listen on port {port}")
+        yield port, server
+    finally:
+        server.send_signal(signal.SIGTERM)
+        server.wait(timeout=30)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -60,25 +76,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     out_dir: Path = args.out_dir
     out_dir.mkdir(parents=True, exist_ok=True)
     log_path = out_dir / f"{Path(args.protocol).stem}.csv"
-    port = _free_port()
     started = time.monotonic()
-    server_log = (out_dir / "server.log").open("w")
-    server = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "rig_emulator.cli",
-            "serve",
-            "--boiler",
-            args.boiler,
-            "--port",
-            str(port),
-            "--lockstep",
-        ],
-        stderr=server_log,
-    )
-    try:
-        _wait_for_port(port, server)
+    with (
+        (out_dir / "server.log").open("w") as server_log,
+        rig_emulator_serve(args.boiler, "--lockstep", stderr=server_log) as (port, server),
+    ):
         print(f"rig-emulator serve --lockstep started on 127.0.0.1:{port} (pid {server.pid})")
         code = hil_client_main(
             [
@@ -92,10 +94,6 @@ def main(argv: Sequence[str] | None = None) -> int:
                 str(log_path),
             ]
         )
-    finally:
-        server.send_signal(signal.SIGTERM)
-        server.wait(timeout=30)
-        server_log.close()
     if code != 0:
         return code
     params = load_boiler(args.boiler)

@@ -10,13 +10,25 @@ import argparse
 import socket
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 
-def wait_for_port(host: str, port: int, timeout_s: float) -> bool:
-    """True once ``host:port`` accepts a TCP connection, False after ``timeout_s``."""
+def free_port(host: str = "127.0.0.1") -> int:
+    """A TCP port that is free on ``host`` right now (the OS picks it)."""
+    with socket.socket() as s:
+        s.bind((host, 0))
+        return s.getsockname()[1]
+
+
+def wait_for_port(
+    host: str, port: int, timeout_s: float, alive: Callable[[], bool] | None = None
+) -> bool:
+    """True once ``host:port`` accepts a TCP connection, False after ``timeout_s``.
+
+    With ``alive`` (e.g. "the server process still runs"), False as soon as it returns False.
+    """
     deadline = time.monotonic() + timeout_s
-    while True:
+    while alive is None or alive():
         try:
             socket.create_connection((host, port), timeout=1.0).close()
             return True
@@ -24,6 +36,7 @@ def wait_for_port(host: str, port: int, timeout_s: float) -> bool:
             if time.monotonic() >= deadline:
                 return False
             time.sleep(0.2)
+    return False
 
 
 def main(argv: Sequence[str] | None = None) -> int:

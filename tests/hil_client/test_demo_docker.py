@@ -10,6 +10,7 @@ from hil_client.cli import _build_parser as client_parser
 from hil_client.cli import main
 from hil_client.demo import main as demo_main
 from hil_client.wait_for_port import main as wait_main
+from hil_client.wait_for_port import wait_for_port
 from rig_emulator.cli import _build_parser as emulator_parser
 
 REPO = Path(__file__).resolve().parents[2]
@@ -82,3 +83,4 @@ def test_wait_for_port(capsys):
         assert wait_main(["127.0.0.1", str(s.getsockname()[1]), "--timeout", "5"]) == 0
     assert wait_main(["127.0.0.1", "1", "--timeout", "0.3"]) == 1
     assert "not reachable" in capsys.readouterr().err
+    assert not wait_for_port("127.0.0.1", 1, 60.0, alive=lambda: False)  # gives up at once

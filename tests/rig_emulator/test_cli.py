@@ -25,52 +25,22 @@ def test_bad_input_exit_2(capsys, args):
     assert err.startswith("rig-emulator: error:") and err.count("\n") == 1
 
 
-def _free_port() -> int:
-    import socket
-
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def test_serve_runs_logs_connections_and_stops_on_sigterm():
     import signal
     import subprocess
-    import sys
     import time
 
     from pyModbusTCP.client import ModbusClient
 
-    port = _free_port()
-    proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "rig_emulator.cli",
-            "serve",
-            "--boiler",
-            "windhager_12kw",
-            "--port",
-            str(port),
-            "--lockstep",
-        ],
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    try:
+    from hil_client.demo import rig_emulator_serve
+
+    with rig_emulator_serve("windhager_12kw", "--lockstep", stderr=subprocess.PIPE) as (port, proc):
         client = ModbusClient(host="127.0.0.1", port=port, unit_id=100, timeout=2)
-        deadline = time.monotonic() + 60
-        regs = None
-        while regs is None and time.monotonic() < deadline:
-            regs = client.read_input_registers(0, 4)  # sim_time (float64)
-            if regs is None:
-                time.sleep(0.2)
-        assert regs == [0, 0, 0, 0]
+        assert client.read_input_registers(0, 4) == [0, 0, 0, 0]  # sim_time (float64)
         client.close()
         time.sleep(0.3)
-    finally:
         proc.send_signal(signal.SIGTERM)
-        _, err = proc.communicate(timeout=30)
+        err = proc.communicate(timeout=30)[1].decode()
     assert proc.returncode == 0
     assert f"serving windhager_12kw on 127.0.0.1:{port} (lockstep" in err
     assert "connected (1 open)" in err and "disconnected" in err
