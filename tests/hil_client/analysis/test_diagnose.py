@@ -21,6 +21,23 @@ def small_benchmark(tmp_path_factory):
     return out, scores
 
 
+def _diagnose(calibration, validation, boiler, out) -> int:
+    """Exit code of `hil-client diagnose` on two logs."""
+    return main(
+        [
+            "diagnose",
+            "--calibration",
+            str(calibration),
+            "--validation",
+            str(validation),
+            "--boiler",
+            str(boiler),
+            "--out",
+            str(out),
+        ]
+    )
+
+
 def test_small_benchmark_is_blind_and_scored(small_benchmark):
     out, scores = small_benchmark
     truth = json.loads((out / "sealed" / "truth.json").read_text())
@@ -58,19 +75,7 @@ def test_diagnosis_works_on_a_real_labs_csv(small_benchmark, tmp_path):
         )
         bare[name] = path
     assert (
-        main(
-            [
-                "diagnose",
-                "--calibration",
-                str(bare["calibration"]),
-                "--validation",
-                str(bare["validation"]),
-                "--boiler",
-                str(case / "boiler.yaml"),
-                "--out",
-                str(tmp_path / "d"),
-            ]
-        )
+        _diagnose(bare["calibration"], bare["validation"], case / "boiler.yaml", tmp_path / "d")
         == 0
     )
     diagnosis = json.loads((tmp_path / "d" / "diagnosis.json").read_text())
@@ -116,22 +121,7 @@ def test_one_case_end_to_end_through_modbus(serve, tmp_path):
         assert not write(c, srv, "sim_control", "reset", 1).isError()
         c.close()
         logs[name] = tmp_path / f"{name}.csv"
-    assert (
-        main(
-            [
-                "diagnose",
-                "--calibration",
-                str(logs["calibration"]),
-                "--validation",
-                str(logs["validation"]),
-                "--boiler",
-                "windhager_12kw",
-                "--out",
-                str(tmp_path / "d"),
-            ]
-        )
-        == 0
-    )
+    assert _diagnose(logs["calibration"], logs["validation"], "windhager_12kw", tmp_path / "d") == 0
     diagnosis = json.loads((tmp_path / "d" / "diagnosis.json").read_text())
     assert diagnosis["effect"] == "outlet_sensor_pipe"
     assert diagnosis["shrinkage"]["shrink_pct"] > 0
@@ -140,22 +130,7 @@ def test_one_case_end_to_end_through_modbus(serve, tmp_path):
 def test_diagnose_refuses_bad_input(tmp_path, capsys):
     bad = tmp_path / "bad.csv"
     bad.write_text("time_s,water_flow_kg_h\n1,2\n")
-    assert (
-        main(
-            [
-                "diagnose",
-                "--calibration",
-                str(bad),
-                "--validation",
-                str(bad),
-                "--boiler",
-                "windhager_12kw",
-                "--out",
-                str(tmp_path / "d"),
-            ]
-        )
-        == 2
-    )
+    assert _diagnose(bad, bad, "windhager_12kw", tmp_path / "d") == 2
     err = capsys.readouterr().err
     assert "missing required column" in err and err.count("\n") == 1
     assert not (tmp_path / "d").exists()
