@@ -68,6 +68,11 @@ def flue_gas_loss_per_kg(
     return lam, sens, latent, chem
 
 
+def heat_to_water_kW(flow_kg_h: np.ndarray, t_in_C: np.ndarray, t_out_C: np.ndarray) -> np.ndarray:
+    """Heat to water per row [kW] from flow and temperatures (Eq. 7)."""
+    return flow_kg_h * k.CP_WATER * (t_out_C - t_in_C) / 3600.0
+
+
 def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[PhaseBalance]:
     """Per-phase energy balance of a lab log (see the module docstring)."""
     t = log.t
@@ -83,14 +88,14 @@ def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[Ph
             "room_temp_C",
         )
     }
-    co = fill_gaps(log["flue_gas_CO_ppm"], t) if log.has("flue_gas_CO_ppm") else np.zeros(len(t))
-    co = np.nan_to_num(co)
+    co = (
+        np.nan_to_num(fill_gaps(log["flue_gas_CO_ppm"], t))
+        if log.has("flue_gas_CO_ppm")
+        else np.zeros(len(t))
+    )
     dt = np.diff(t, prepend=t[0] - (t[1] - t[0] if len(t) > 1 else 1.0))
-    q_water = (
-        get["water_flow_kg_h"]
-        * k.CP_WATER
-        * (get["water_out_temp_C"] - get["water_in_temp_C"])
-        / 3600.0
+    q_water = heat_to_water_kW(
+        get["water_flow_kg_h"], get["water_in_temp_C"], get["water_out_temp_C"]
     )
     lam, sens, lat, chem = flue_gas_loss_per_kg(
         params, get["flue_gas_O2_pct"], get["flue_gas_temp_C"], get["room_temp_C"], co

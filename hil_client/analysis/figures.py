@@ -10,20 +10,19 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from hil_client.analysis.balance import heat_to_water_kW
 from hil_client.analysis.logio import LabLog, fill_gaps
 from hil_client.analysis.phases import Phases
-from rig_emulator.model.constants import CP_WATER
 
 PHASE_LABELS = ("t0", "t1", "t2", "t3")
 
 
-def mark_phases(ax, phases: Phases, hours: bool = True) -> None:
-    """Vertical lines and labels at t0..t3."""
-    scale = 3600.0 if hours else 1.0
+def mark_phases(ax, phases: Phases) -> None:
+    """Vertical lines and labels at t0..t3 (time axis in hours)."""
     for label, x in zip(PHASE_LABELS, (phases.t0, phases.t1, phases.t2, phases.t3), strict=True):
-        ax.axvline(x / scale, color="0.6", lw=0.8, ls="--")
+        ax.axvline(x / 3600.0, color="0.6", lw=0.8, ls="--")
         ax.text(
-            x / scale,
+            x / 3600.0,
             1.0,
             label,
             transform=ax.get_xaxis_transform(),
@@ -32,6 +31,14 @@ def mark_phases(ax, phases: Phases, hours: bool = True) -> None:
             fontsize=8,
             color="0.4",
         )
+
+
+def _save(fig, path: Path, dpi: int = 110) -> Path:
+    """Lay out, write and close a figure."""
+    fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return path
 
 
 def energy_and_temperatures(log: LabLog, phases: Phases, path: Path, title: str) -> Path:
@@ -50,8 +57,7 @@ def energy_and_temperatures(log: LabLog, phases: Phases, path: Path, title: str)
             "room_temp_C",
         )
     }
-    q_water = f["water_flow_kg_h"] * CP_WATER * (f["water_out_temp_C"] - f["water_in_temp_C"])
-    q_water = q_water / 3600.0
+    q_water = heat_to_water_kW(f["water_flow_kg_h"], f["water_in_temp_C"], f["water_out_temp_C"])
     window = max(int(60 / max(np.median(np.diff(t)), 1e-9)), 1)
     smooth = np.convolve(q_water, np.ones(window) / window, mode="same")
     fig, axes = plt.subplots(
@@ -98,60 +104,74 @@ def energy_and_temperatures(log: LabLog, phases: Phases, path: Path, title: str)
     ax.set_xlabel("time [h]")
     mark_phases(ax, phases)
     fig.suptitle(title)
-    fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
+
+
+def _fit_figure(
+    path: Path,
+    x,
+    y,
+    *,
+    color: str,
+    x_max: float,
+    a: float,
+    b: float,
+    fit_label: str,
+    xlabel: str,
+    ylabel: str,
+    title: str,
+) -> Path:
+    """Stationary-interval points and the fitted line a + b x from 0 to x_max."""
+    fig, ax = plt.subplots(figsize=(6, 4.2))
+    ax.plot(x, y, "o", color=color, label="stationary intervals")
+    xs = np.linspace(0, x_max, 10)
+    ax.plot(xs, a + b * xs, "k-", label=fit_label)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.legend(fontsize=8)
+    return _save(fig, path)
 
 
 def calibration_figures(cal, stem: Path) -> list[Path]:
     """Fig. 4 (flue-gas delta-T regression) and Fig. 5 (lambda against dry fuel flow)."""
-    paths = []
     p = cal.params
-    fig, ax = plt.subplots(figsize=(6, 4.2))
     x, y = cal.fig4["x"], cal.fig4["y"]
-    ax.plot(x, y, "o", color="tab:red", label="stationary intervals")
-    xs = np.linspace(0, max(1.0, float(np.max(x)) if len(x) else 1.0), 10)
-    ax.plot(
-        xs,
-        p.dt_nom_K + p.dt_hx_wat_K * xs,
-        "k-",
-        label=f"dTnom {p.dt_nom_K:.2f} K, dThx,wat {p.dt_hx_wat_K:.2f} K",
-    )
-    ax.set_xlabel("1 - m_w / m_w,nom [-]")
-    ax.set_ylabel("T_fg - T_w,in [K]")
-    ax.set_title("Flue-gas temperature (Eq. 8, cf. Fig. 4)")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    paths.append(stem.with_name(stem.name + "_fig4_flue_gas.png"))
-    fig.savefig(paths[-1], dpi=110)
-    plt.close(fig)
-    fig, ax = plt.subplots(figsize=(6, 4.2))
     f, lam = cal.fig5["fuel"], cal.fig5["lambda"]
-    ax.plot(f, lam, "o", color="tab:blue", label="stationary intervals")
-    fs = np.linspace(0, max(float(np.max(f)) * 1.1 if len(f) else 3.0, 0.5), 10)
-    ax.plot(
-        fs,
-        p.fac_a_lambda + p.fac_b_lambda_h_kg * fs,
-        "k-",
-        label=f"facA {p.fac_a_lambda:.2f}, facB {p.fac_b_lambda_h_kg:.2f} h/kg",
-    )
-    ax.set_xlabel("dry fuel flow [kg/h]")
-    ax.set_ylabel("lambda (from O2) [-]")
-    ax.set_title("Excess air (Eq. 9, cf. Fig. 5)")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    paths.append(stem.with_name(stem.name + "_fig5_lambda.png"))
-    fig.savefig(paths[-1], dpi=110)
-    plt.close(fig)
-    return paths
+    return [
+        _fit_figure(
+            stem.with_name(stem.name + "_fig4_flue_gas.png"),
+            x,
+            y,
+            color="tab:red",
+            x_max=max(1.0, float(np.max(x)) if len(x) else 1.0),
+            a=p.dt_nom_K,
+            b=p.dt_hx_wat_K,
+            fit_label=f"dTnom {p.dt_nom_K:.2f} K, dThx,wat {p.dt_hx_wat_K:.2f} K",
+            xlabel="1 - m_w / m_w,nom [-]",
+            ylabel="T_fg - T_w,in [K]",
+            title="Flue-gas temperature (Eq. 8, cf. Fig. 4)",
+        ),
+        _fit_figure(
+            stem.with_name(stem.name + "_fig5_lambda.png"),
+            f,
+            lam,
+            color="tab:blue",
+            x_max=max(float(np.max(f)) * 1.1 if len(f) else 3.0, 0.5),
+            a=p.fac_a_lambda,
+            b=p.fac_b_lambda_h_kg,
+            fit_label=f"facA {p.fac_a_lambda:.2f}, facB {p.fac_b_lambda_h_kg:.2f} h/kg",
+            xlabel="dry fuel flow [kg/h]",
+            ylabel="lambda (from O2) [-]",
+            title="Excess air (Eq. 9, cf. Fig. 5)",
+        ),
+    ]
 
 
 def validation_figures(comp, phases: Phases, stem: Path, title: str) -> list[Path]:
     """Model against lab over time (cf. Figs. 6, 7) and as scatter with the identity line and
     a +-10 % band (cf. Figs. 8, 9)."""
-    paths = []
     h = comp.t / 3600.0
     fig, axes = plt.subplots(3, 1, figsize=(11, 8.5), sharex=True)
     labels = (
@@ -167,13 +187,10 @@ def validation_figures(comp, phases: Phases, stem: Path, title: str) -> list[Pat
         ax.legend(loc="upper right", fontsize=8)
     axes[-1].set_xlabel("time [h]")
     fig.suptitle(title)
-    fig.tight_layout()
-    paths.append(stem.with_name(stem.name + "_timeseries.png"))
-    fig.savefig(paths[-1], dpi=110)
-    plt.close(fig)
+    paths = [_save(fig, stem.with_name(stem.name + "_timeseries.png"))]
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.6))
+    mask = comp.segments["start_up"] | comp.segments["test"]
     for ax, (name, label) in zip(axes, labels[:2], strict=True):
-        mask = comp.segments["start_up"] | comp.segments["test"]
         lab, model = comp.lab[name][mask], comp.model[name][mask]
         ax.plot(lab, model, ".", ms=1.5, alpha=0.4, color="tab:blue")
         lo, hi = float(min(lab.min(), model.min())), float(max(lab.max(), model.max()))
@@ -184,10 +201,7 @@ def validation_figures(comp, phases: Phases, stem: Path, title: str) -> list[Pat
         ax.set_ylabel(f"model: {label}")
         ax.legend(fontsize=8)
     fig.suptitle(title + " (t0..t2)")
-    fig.tight_layout()
-    paths.append(stem.with_name(stem.name + "_scatter.png"))
-    fig.savefig(paths[-1], dpi=110)
-    plt.close(fig)
+    paths.append(_save(fig, stem.with_name(stem.name + "_scatter.png")))
     return paths
 
 
@@ -199,7 +213,6 @@ def diagnosis_figures(result: dict, out_dir: Path) -> list[Path]:
     series = result["_series"]
     val = series["val"]
     base = predict(val, "none", {})
-    paths = []
     fig, axes = plt.subplots(len(SIGNALS), 1, figsize=(11, 10), sharex=True)
     h = val.t / 3600.0
     for ax, s in zip(axes, SIGNALS, strict=True):
@@ -209,10 +222,7 @@ def diagnosis_figures(result: dict, out_dir: Path) -> list[Path]:
         mark_phases(ax, val.phases)
     axes[-1].set_xlabel("time [h]")
     fig.suptitle("Residuals of the calibrated one-node model on the validation log")
-    fig.tight_layout()
-    paths.append(out_dir / "residuals_by_phase.png")
-    fig.savefig(paths[-1], dpi=100)
-    plt.close(fig)
+    paths = [_save(fig, out_dir / "residuals_by_phase.png", dpi=100)]
     shrink = result.get("shrinkage")
     effect = result["effect"]
     if shrink is not None:
@@ -232,8 +242,5 @@ def diagnosis_figures(result: dict, out_dir: Path) -> list[Path]:
             f"{shrink['validation_rmsd_before']:.3g} -> "
             f"{shrink['validation_rmsd_after']:.3g} ({shrink['shrink_pct']:.0f} % less)"
         )
-        fig.tight_layout()
-        paths.append(out_dir / "before_after.png")
-        fig.savefig(paths[-1], dpi=100)
-        plt.close(fig)
+        paths.append(_save(fig, out_dir / "before_after.png", dpi=100))
     return paths
