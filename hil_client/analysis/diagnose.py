@@ -39,6 +39,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from hil_client.analysis.augment import EFFECTS, PARAMETERS, first_order_lag, pipe_sensor
+from hil_client.analysis.balance import heat_to_water_kW
 from hil_client.analysis.calibrate import calibrate
 from hil_client.analysis.logio import LabLog, fill_gaps
 from hil_client.analysis.metrics import (
@@ -48,7 +49,6 @@ from hil_client.analysis.metrics import (
     theil_shares,
 )
 from hil_client.analysis.phases import Phases
-from rig_emulator.model import constants as k
 from rig_emulator.model import pack_constants
 from rig_emulator.model.layout import Y_FUEL, Y_T_BOILER, Y_T_FG
 from rig_emulator.model.params import BoilerParams
@@ -139,7 +139,7 @@ def prepare(log: LabLog, phases: Phases, params: BoilerParams) -> Case:
     lab = {
         "boiler_water_temp_C": fill_gaps(log["boiler_water_temp_C"], t),
         "water_out_temp_C": out_t,
-        "heat_to_water_kW": flow * k.CP_WATER / 3600.0 * (out_t - t_in),
+        "heat_to_water_kW": heat_to_water_kW(flow, t_in, out_t),
         "flue_gas_temp_C": fill_gaps(log["flue_gas_temp_C"], t),
         "fuel_cum_kg": mass[0] - mass,
     }
@@ -199,7 +199,7 @@ def predict(case: Case, effect: str, theta: dict[str, float]) -> dict[str, np.nd
     return {
         "boiler_water_temp_C": sensed_water,
         "water_out_temp_C": sensed_forward,
-        "heat_to_water_kW": case.flow * k.CP_WATER / 3600.0 * (forward - case.t_in),
+        "heat_to_water_kW": heat_to_water_kW(case.flow, case.t_in, forward),
         "flue_gas_temp_C": first_order_lag(t_fg, case.dt, SENSOR_TAU_S["flue_gas_temp_C"]),
         "fuel_cum_kg": fuel,
     }

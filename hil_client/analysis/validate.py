@@ -21,11 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hil_client.analysis.balance import flue_gas_loss_per_kg
+from hil_client.analysis.balance import flue_gas_loss_per_kg, heat_to_water_kW
 from hil_client.analysis.logio import LabLog, fill_gaps
 from hil_client.analysis.metrics import table4_metrics
 from hil_client.analysis.phases import Phases
-from rig_emulator.model import constants as k
 from rig_emulator.model import pack_constants
 from rig_emulator.model.layout import Y_FUEL, Y_Q_CHEM, Y_Q_LAT, Y_Q_SENS, Y_T_BOILER
 from rig_emulator.model.params import BoilerParams
@@ -105,7 +104,6 @@ def compare(log: LabLog, phases: Phases, params: BoilerParams) -> Comparison:
     y = model_run(log, phases, params)
     flow = fill_gaps(log["water_flow_kg_h"], t)
     t_in = fill_gaps(log["water_in_temp_C"], t)
-    cp = k.CP_WATER / 3600.0
     co = (
         np.nan_to_num(fill_gaps(log["flue_gas_CO_ppm"], t))
         if log.has("flue_gas_CO_ppm")
@@ -122,13 +120,13 @@ def compare(log: LabLog, phases: Phases, params: BoilerParams) -> Comparison:
     lab_fuel = fuel_rate_from_balance(log, params)
     lab = {
         "boiler_water_temp_C": fill_gaps(log["boiler_water_temp_C"], t),
-        "heat_to_water_kW": flow * cp * (fill_gaps(log["water_out_temp_C"], t) - t_in),
+        "heat_to_water_kW": heat_to_water_kW(flow, t_in, fill_gaps(log["water_out_temp_C"], t)),
         "flue_gas_loss_kW": np.where(firing, lab_fuel / 3600.0 * (sens + lat + chem), 0.0),
     }
     model = {
         "boiler_water_temp_C": y[:, Y_T_BOILER],
         # as the lab computes it (Eq. 7), the model's outlet being its node temperature
-        "heat_to_water_kW": flow * cp * (y[:, Y_T_BOILER] - t_in),
+        "heat_to_water_kW": heat_to_water_kW(flow, t_in, y[:, Y_T_BOILER]),
         "flue_gas_loss_kW": y[:, Y_Q_SENS] + y[:, Y_Q_LAT] + y[:, Y_Q_CHEM],
         "fuel_dry_kg_h": y[:, Y_FUEL],
     }

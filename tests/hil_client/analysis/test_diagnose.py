@@ -49,16 +49,24 @@ def test_small_benchmark_is_blind_and_scored(small_benchmark):
     assert sum(sum(row.values()) for row in scores["confusion"].values()) == 6
     on_disk = json.loads((out / "scores.json").read_text())
     assert on_disk["accuracy"] == scores["accuracy"]
-    # a sanity floor, not the benchmark's target (>= 90 % on 24 cases, `make bench`)
-    assert scores["accuracy"] >= 0.5
-    for effect, shrink in scores["median_validation_shrink_pct"].items():
+    # seed 2 scores 6 of 6 here; one miss is allowed (the target is >= 90 % on 24 cases,
+    # `hil-client gap-benchmark`), and only a missed effect may lack a shrinkage figure
+    misses = round((1.0 - scores["accuracy"]) * 6)
+    assert misses <= 1
+    shrinks = scores["median_validation_shrink_pct"]
+    assert sum(v is None for v in shrinks.values()) <= misses
+    for effect, shrink in shrinks.items():
         assert shrink is None or shrink > 0, effect
 
 
 def test_diagnosis_works_on_a_real_labs_csv(small_benchmark, tmp_path):
     """No phase, sequence or setpoint columns and no meta file: phases from the signals."""
     out, scores = small_benchmark
-    result = next(r for r in scores["results"] if r["found"] != "none")
+    truth = {
+        c["case"]: c["effect"] for c in json.loads((out / "sealed" / "truth.json").read_text())
+    }
+    # a case the full logs diagnose right: the bare logs must find the same true effect
+    result = next(r for r in scores["results"] if r["found"] == truth[r["case"]] != "none")
     case = out / "cases" / f"case_{result['case']:02d}"
     bare = {}
     for name in ("calibration", "validation"):
@@ -79,7 +87,7 @@ def test_diagnosis_works_on_a_real_labs_csv(small_benchmark, tmp_path):
         == 0
     )
     diagnosis = json.loads((tmp_path / "d" / "diagnosis.json").read_text())
-    assert diagnosis["effect"] == result["found"]
+    assert diagnosis["effect"] == truth[result["case"]]
     for key in ("confidence", "where", "candidates", "shrinkage"):
         assert key in diagnosis
     assert {"phase", "signal", "rmsd", "max_dev", "r"} <= set(diagnosis["where"][0])
