@@ -5,9 +5,11 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
+from hil_client.analysis.logio import read_log
 from hil_client.cli import main
 from rig_emulator.boilers import BOILER_DIR, load_boiler
 from rig_emulator.instruments.profile import PROFILE_DIR
@@ -157,13 +159,20 @@ def test_missing_values_are_interpolated(run_log, tmp_path):
     lines = Path(rec.path).read_text().splitlines()
     header = lines[0].split(",")
     col = header.index("water_in_temp_C")
-    for i in range(3000, 3060):  # a one-minute outage of the return sensor
+    for i in range(3000, 3060):  # a one-minute outage of the return sensor in the test
         fields = lines[i].split(",")
         fields[col] = ""
         lines[i] = ",".join(fields)
     gap = tmp_path / "gap.csv"
     gap.write_text("\n".join(lines) + "\n")
+    assert np.isnan(read_log(gap)["water_in_temp_C"][2999:3059]).all()
     assert (
         main(["validate", str(gap), "--boiler", "windhager_12kw", "--out", str(tmp_path / "v")])
         == 0
     )
+    # the clean run against its own parameters: the outage, bridged by interpolation of a
+    # return held at 55 C, leaves the gap at rounding level (as without the outage)
+    result = json.loads((tmp_path / "v" / "validation.json").read_text())
+    for segment, signals in result["metrics"].items():
+        assert signals["boiler_water_temp_C"]["rmsd"] < 1e-3, segment
+        assert signals["heat_to_water_kW"]["rmsd"] < 1e-3, segment
