@@ -23,8 +23,8 @@ from hil_client.analysis.figures import (
     diagnosis_figures,
     validation_figures,
 )
-from hil_client.analysis.logio import LogError, read_log
-from hil_client.analysis.phases import find_phases
+from hil_client.analysis.logio import LabLog, LogError, read_log
+from hil_client.analysis.phases import Phases, find_phases
 from hil_client.analysis.report import diagnosis_report, validation_report
 from hil_client.analysis.validate import compare, validation_metrics
 from hil_client.lablog import LabLogWriter, meta_path, write_meta
@@ -35,8 +35,8 @@ from hil_client.protocol.runner import RunResult, run_protocol
 from hil_client.rigs.local import LocalRig
 from hil_client.rigs.modbus import ModbusRig, parse_url
 from hil_client.summary import RunSummary
-from rig_emulator.boilers import dump_boiler, load_boiler
-from rig_emulator.cli_support import Parser, UsageError, report
+from rig_emulator.boilers import dump_boiler
+from rig_emulator.cli_support import Parser, UsageError, bad_input, boiler_arg, report
 from rig_emulator.instruments import ProfileError, load_profile
 from rig_emulator.model.params import ParameterError, params_from_mapping
 from rig_emulator.registers import load_map
@@ -129,21 +129,23 @@ def _build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _logs_with_phases(paths: Sequence[Path]) -> list[tuple[LabLog, Phases]]:
+    """Each lab log with its phases; a bad log is bad input."""
+    with bad_input(LogError):
+        return [(log, find_phases(log)) for log in map(read_log, paths)]
+
+
+def _check_out_dir(out: Path) -> None:
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"--out: '{out}' exists and is not a directory")
+
+
 def _cmd_diagnose(args: argparse.Namespace) -> int:
-    try:
-        doc = load_boiler(args.boiler)
-        logs = []
-        for path in (args.calibration, args.validation):
-            log = read_log(path)
-            logs.append((log, find_phases(log)))
-    except (ParameterError, LogError) as exc:
-        raise UsageError(str(exc)) from None
-    if args.out.exists() and not args.out.is_dir():
-        raise UsageError(f"--out: '{args.out}' exists and is not a directory")
-    try:
-        result = diagnose(logs[0][0], logs[0][1], logs[1][0], logs[1][1], doc)
-    except LogError as exc:
-        raise UsageError(str(exc)) from None
+    doc = boiler_arg(args.boiler)
+    cal, val = _logs_with_phases([args.calibration, args.validation])
+    _check_out_dir(args.out)
+    with bad_input(LogError):
+        result = diagnose(*cal, *val, doc)
     args.out.mkdir(parents=True, exist_ok=True)
     figures = diagnosis_figures(result, args.out)
     public = {key: value for key, value in result.items() if not key.startswith("_")}
@@ -172,14 +174,9 @@ def _cmd_gap_benchmark(args: argparse.Namespace) -> int:
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
-    try:
-        params = load_boiler(args.boiler)
-        log = read_log(args.log)
-        phases = find_phases(log)
-    except (ParameterError, LogError) as exc:
-        raise UsageError(str(exc)) from None
-    if args.out.exists() and not args.out.is_dir():
-        raise UsageError(f"--out: '{args.out}' exists and is not a directory")
+    params = boiler_arg(args.boiler)
+    [(log, phases)] = _logs_with_phases([args.log])
+    _check_out_dir(args.out)
     args.out.mkdir(parents=True, exist_ok=True)
     comp = compare(log, phases, params)
     result = validation_metrics(comp, log, params)
@@ -204,21 +201,13 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
-    try:
-        doc = load_boiler(args.boiler)
-    except ParameterError as exc:
-        raise UsageError(str(exc)) from None
+    doc = boiler_arg(args.boiler)
     if args.out.suffix not in (".yaml", ".yml"):
         raise UsageError(f"--out: '{args.out}' must name a .yaml file")
-    logs = []
-    try:
-        for path in args.logs:
-            log = read_log(path)
-            logs.append((log, find_phases(log)))
+    logs = _logs_with_phases(args.logs)
+    with bad_input(LogError, ParameterError):
         result = calibrate(logs, doc)
         params = params_from_mapping(result.params.to_mapping(), str(args.out))
-    except (LogError, ParameterError) as exc:
-        raise UsageError(str(exc)) from None
     lines = [
         f"# calibrated by hil-client from {', '.join(str(p) for p in args.logs)}",
         f"# documentation values from {args.boiler}; fitted values +- expanded uncertainty (k=2):",
@@ -252,24 +241,19 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _boiler_for(log, name: str | None):
+def _boiler_for(log: LabLog, name: str | None):
     """The boiler named on the command line, else in the log's meta file."""
     name = name or log.meta.get("boiler")
     if not isinstance(name, str):
         raise UsageError(f"{log.path}: no boiler in the meta file; give --boiler")
-    try:
-        return load_boiler(name)
-    except ParameterError as exc:
-        raise UsageError(str(exc)) from None
+    return boiler_arg(name)
 
 
 def _cmd_balance(args: argparse.Namespace) -> int:
-    try:
+    with bad_input(LogError):
         log = read_log(args.log)
         params = _boiler_for(log, args.boiler)
         phases = find_phases(log)
-    except LogError as exc:
-        raise UsageError(str(exc)) from None
     rows = energy_balance(log, params, phases)
     out = args.out or args.log.with_name(args.log.stem + ".balance.json")
     out.write_text(json.dumps(balance_json(rows, phases), indent=2) + "\n", encoding="utf-8")
@@ -282,18 +266,14 @@ def _cmd_balance(args: argparse.Namespace) -> int:
 def _make_rig(args: argparse.Namespace, params):
     """The rig named by --rig; bad options raise UsageError, an unreachable server RigError."""
     if args.rig == "local":
-        try:
+        with bad_input(ProfileError, prefix="--profile: "):
             profile = load_profile(args.profile)
-        except ProfileError as exc:
-            raise UsageError(f"--profile: {exc}") from None
         return LocalRig(params, profile, seed=args.seed)
     if not args.rig.startswith("modbus://"):
         raise UsageError(f"--rig: '{args.rig}' is neither 'local' nor modbus://HOST:PORT")
-    try:
+    with bad_input(ValueError, prefix="--rig/--map: "):  # MapError is a ValueError too
         parse_url(args.rig)
         register_map = load_map(args.map)
-    except ValueError as exc:  # MapError is a ValueError too
-        raise UsageError(f"--rig/--map: {exc}") from None
     if args.reconnect_timeout < 0:
         raise UsageError("--reconnect-timeout must not be negative")
     return ModbusRig(args.rig, register_map, reconnect_timeout_s=args.reconnect_timeout)
@@ -301,14 +281,9 @@ def _make_rig(args: argparse.Namespace, params):
 
 def _cmd_run(args: argparse.Namespace) -> int:
     # validate everything before any file is written
-    try:
-        params = load_boiler(args.boiler)
-    except ParameterError as exc:
-        raise UsageError(str(exc)) from None
-    try:
+    params = boiler_arg(args.boiler)
+    with bad_input(ProtocolError):
         protocol = load_protocol(args.protocol)
-    except ProtocolError as exc:
-        raise UsageError(str(exc)) from None
     out: Path = args.out
     if out.suffix.lower() != ".csv":
         raise UsageError(f"--out: '{out}' must name a .csv file")
@@ -398,22 +373,17 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``hil-client``; returns the exit code."""
-    parser = _build_parser()
+    commands = {
+        "run": _cmd_run,
+        "balance": _cmd_balance,
+        "calibrate": _cmd_calibrate,
+        "validate": _cmd_validate,
+        "diagnose": _cmd_diagnose,
+        "gap-benchmark": _cmd_gap_benchmark,
+    }
     try:
-        args = parser.parse_args(argv)
-        if args.command == "run":
-            return _cmd_run(args)
-        if args.command == "balance":
-            return _cmd_balance(args)
-        if args.command == "calibrate":
-            return _cmd_calibrate(args)
-        if args.command == "validate":
-            return _cmd_validate(args)
-        if args.command == "diagnose":
-            return _cmd_diagnose(args)
-        if args.command == "gap-benchmark":
-            return _cmd_gap_benchmark(args)
-        raise UsageError(f"unknown command {args.command}")
+        args = _build_parser().parse_args(argv)
+        return commands[args.command](args)
     except UsageError as exc:
         return report(exc, "hil-client")
     except KeyboardInterrupt:

@@ -14,13 +14,11 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from rig_emulator.boilers import load_boiler
-from rig_emulator.cli_support import Parser, UsageError, report
+from rig_emulator.cli_support import Parser, UsageError, bad_input, boiler_arg, report
 from rig_emulator.emulator import CommandError, Emulator, check_command
 from rig_emulator.instruments import ProfileError, load_profile
 from rig_emulator.modbus import BenchServer
 from rig_emulator.model import pack_constants, steady_state
-from rig_emulator.model.params import ParameterError
 from rig_emulator.registers import MapError, load_map
 from rig_emulator.registers.reference import markdown
 
@@ -69,22 +67,15 @@ def _build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _load(name: str):
-    try:
-        return load_boiler(name)
-    except ParameterError as exc:
-        raise UsageError(str(exc)) from None
-
-
 def _cmd_check(args: argparse.Namespace) -> int:
-    params = _load(args.boiler)
+    params = boiler_arg(args.boiler)
     for key, value in params.to_mapping().items():
         print(f"{key}: {value}")
     return 0
 
 
 def _cmd_steady(args: argparse.Namespace) -> int:
-    params = _load(args.boiler)
+    params = boiler_arg(args.boiler)
     if not 0.0 < args.load <= 150.0:
         raise UsageError(f"--load: {args.load} is outside 0..150 %")
     flow = args.load / 100.0 * params.nominal_flow_kg_h
@@ -101,10 +92,8 @@ def _cmd_steady(args: argparse.Namespace) -> int:
 
 
 def _cmd_map_doc(args: argparse.Namespace) -> int:
-    try:
+    with bad_input(MapError):
         text = markdown(load_map(args.map))
-    except MapError as exc:
-        raise UsageError(str(exc)) from None
     if args.out:
         Path(args.out).write_text(text, encoding="utf-8")
     else:
@@ -113,15 +102,12 @@ def _cmd_map_doc(args: argparse.Namespace) -> int:
 
 
 def _cmd_serve(args: argparse.Namespace) -> int:
-    params = _load(args.boiler)
-    try:
+    params = boiler_arg(args.boiler)
+    with bad_input(MapError, ProfileError):
         register_map = load_map(args.map)
         profile = load_profile(args.profile)
+    with bad_input(CommandError, prefix="--speed: "):
         check_command("speed_factor", args.speed)
-    except (MapError, ProfileError) as exc:
-        raise UsageError(str(exc)) from None
-    except CommandError as exc:
-        raise UsageError(f"--speed: {exc}") from None
     if not 0 <= args.port <= 65535:
         raise UsageError(f"--port: {args.port} is not a TCP port")
     if not 0.1 <= args.tick_hz <= 1000:

@@ -4,6 +4,11 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+from rig_emulator.boilers import load_boiler
+from rig_emulator.model.params import BoilerParams, ParameterError
 
 
 class UsageError(Exception):
@@ -19,6 +24,21 @@ class Parser(argparse.ArgumentParser):
 
     def error(self, message: str) -> None:  # type: ignore[override]
         raise UsageError(message, self.prog)
+
+
+@contextmanager
+def bad_input(*errors: type[Exception], prefix: str = "") -> Iterator[None]:
+    """Turn ``errors`` raised in the block into a :class:`UsageError` ``PREFIX + message``."""
+    try:
+        yield
+    except errors as exc:
+        raise UsageError(f"{prefix}{exc}") from None
+
+
+def boiler_arg(name: str) -> BoilerParams:
+    """The boiler of a ``--boiler NAME|PATH`` option; a bad one is a :class:`UsageError`."""
+    with bad_input(ParameterError):
+        return load_boiler(name)
 
 
 def report(exc: UsageError, default_prog: str) -> int:

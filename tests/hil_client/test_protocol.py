@@ -29,6 +29,8 @@ TABLE_2 = [
     ("stationary_13", (13, 13), "02:50:17"),
 ]
 
+# CONTRACT.md section 3, written out on purpose: the pin must not be derived from
+# READING_KEYS/LOG_COLUMNS, the code it checks.
 CONTRACT_COLUMNS = [
     "time_s",
     "phase",
