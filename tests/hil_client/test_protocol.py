@@ -150,8 +150,8 @@ def test_phase_rules(run_log, protocol, boiler):
 
 def test_load_cycle_cuts_out_at_85_and_restarts_at_55(run_log):
     """Section 3.2.3: below the modulation range (13 % step) the boiler stops at 85 C and
-    restarts at 55 C. The paper's second stop falls after t2 here: our water takes 1.9 h
-    instead of the paper's 1.5 h to cool back to 55 C, so the restart comes later."""
+    restarts at 55 C. The paper's second stop falls after t2 here: our water takes longer
+    than the paper's 1.5 h to cool back to 55 C (1.84 h), so the restart comes later."""
     rec = run_log("load_cycle", "windhager_12kw")
     seq = np.array(rec["sequence"])
     on = _arr(rec, "boiler_on")[seq == "stationary_13"]
@@ -163,6 +163,11 @@ def test_load_cycle_cuts_out_at_85_and_restarts_at_55(run_log):
         assert temp[i - 1] >= 85.0
     assert temp[starts[0] - 1] <= 55.0
     assert temp.max() < 85.1
+    # cool-back from the cut-out to the restart: the paper's 1.5 h as the floor (ours is
+    # slower, never faster), 2 h as the ceiling of "about" (measured 1.84 h)
+    t = _arr(rec, "time_s")[seq == "stationary_13"]
+    restart = starts[starts > stops[0]][0]
+    assert 1.5 <= (t[restart] - t[stops[0]]) / 3600 <= 2.0
 
 
 def test_second_cooling_loses_about_10_K(run_log):
