@@ -7,7 +7,10 @@
 2. Tick lateness p50/p99/max at a 10 Hz tick while 16 clients poll every device at 10 Hz;
    target p99 < 5 ms.
 3. Lockstep speed: one client advancing 1 s steps and reading every device each step.
-4. The whole load-cycle test through Modbus in lockstep with ``hil-client run`` (issue 4).
+4. The server's own work per lockstep step, in-process (no sockets): the segment a
+   ``hil-client`` step sends (setpoint write, advance, seven reads), and the publishing of
+   the new state alone.
+5. The whole load-cycle test through Modbus in lockstep with ``hil-client run`` (issue 4).
 
 Servers and load generators run in separate processes (the machine has 2 cores).
 """
@@ -201,6 +204,69 @@ def bench_lockstep() -> None:
         )
 
 
+class _NullTransport:
+    """Stands in for the socket of :func:`bench_server_step`: replies are dropped."""
+
+    def write(self, data: bytes) -> None:
+        pass
+
+
+async def _server_step() -> tuple[float, float]:
+    from hil_client.modbus_client import read_pdu, write_registers_pdu
+    from hil_client.protocol.rig import READING_KEYS
+    from hil_client.rigs.modbus import _read_plan
+    from rig_emulator.boilers import load_boiler
+    from rig_emulator.emulator import Emulator
+    from rig_emulator.instruments import load_profile
+    from rig_emulator.modbus import BenchServer
+    from rig_emulator.registers import encode, load_map
+
+    register_map = load_map()
+    emulator = Emulator(load_boiler("windhager_12kw"), load_profile("clean"))  # as serve
+    server = BenchServer(emulator, register_map, port=0, lockstep=True)
+    await server.start()
+    handler = server._server.callback_new_connection()
+    handler.transport = _NullTransport()
+    flow_dev, flow = register_map.point("water_flow_setpoint_kg_h")
+    _, ret = register_map.point("return_setpoint_C")
+    adv_dev, adv = register_map.point("lockstep_advance_s")
+    requests = [
+        (flow_dev.unit_id, write_registers_pdu(flow.address, encode(flow, 600) + encode(ret, 55))),
+        (adv_dev.unit_id, write_registers_pdu(adv.address, encode(adv, 1.0))),
+    ] + [
+        (r.unit, read_pdu(r.function, r.start, r.count))
+        for r in _read_plan(register_map, READING_KEYS)
+    ]
+    segment = b"".join(
+        struct.pack(">HHHB", i + 1, 0, len(pdu) + 1, unit) + pdu
+        for i, (unit, pdu) in enumerate(requests)
+    )
+    emulator.set_commands({"boiler_command": 1.0})
+    n = 2000
+    rounds_step, rounds_publish = [], []
+    for _ in range(5):
+        start = time.perf_counter()
+        for _ in range(n):
+            handler.datagram_received(segment, None)
+        rounds_step.append((time.perf_counter() - start) / n)
+        start = time.perf_counter()
+        for _ in range(n):
+            await server.publish()
+        rounds_publish.append((time.perf_counter() - start) / n)
+    await server.stop()
+    return statistics.median(rounds_step), statistics.median(rounds_publish)
+
+
+def bench_server_step() -> None:
+    step_s, publish_s = asyncio.run(_server_step())
+    print(
+        f"server work per lockstep step, in-process: {step_s * 1e6:.0f} us for the 9 requests "
+        f"of a hil-client step (about {(step_s - publish_s) / 9 * 1e6:.0f} us per request "
+        f"besides publishing); publishing the new state alone {publish_s * 1e6:.0f} us "
+        f"(median of 5 rounds of 2000)"
+    )
+
+
 def bench_load_cycle() -> None:
     """Issue 4: the whole load-cycle test (preheat, t0..t4) through Modbus in lockstep."""
     import tempfile
@@ -237,6 +303,7 @@ def main() -> int:
     bench_throughput()
     asyncio.run(_lateness())
     bench_lockstep()
+    bench_server_step()
     bench_load_cycle()
     return 0
 
