@@ -306,7 +306,7 @@ def controller_mode(c, mode, mode_time_s, t_boiler_C, enabled):
     return mode
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def update_mode(c, s, enabled):
     """Switch the controller (:func:`controller_mode`) and keep its clocks in ``s``.
 
@@ -326,14 +326,14 @@ def update_mode(c, s, enabled):
     return new_mode, started
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def igniter_kW(c, s):
     """Ignition power [kW]: the igniter runs for the start-up time after each start,
     whatever the mode (Wel spread over ``startup_duration_s``)."""
     return c[K_IGNITION] if s[S_SINCE_START] < c[K_STARTUP_S] else 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def firing_power_kW(
     c, s, mode, m_cp, water_flow_kg_h, water_in_C, room_C, q_ign, co_start, horizon_s
 ):
@@ -360,13 +360,13 @@ def firing_power_kW(
     return min(max(x * c[K_LHV] / 3600.0, c[K_P_MIN]), c[K_P_MAX])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def burnout_co_ppm(c, s):
     """CO after a stop [ppm]: the burn-out peak decaying since the stop."""
     return c[K_CO_STOP] * math.exp(-s[S_SINCE_STOP] / c[K_CO_TAU])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def combustion(c, fuel_kg_h, lam, t_fg_C, room_C, co_ppm, y):
     """Burn ``fuel_kg_h`` of dry fuel at ``lam``: the heat flows of Eq. 1, 3-6 (ash per
     EN 14785) and the flue gas (analyser, volume and mass flows) into ``y``.
@@ -396,7 +396,7 @@ def combustion(c, fuel_kg_h, lam, t_fg_C, room_C, co_ppm, y):
     return q_hx
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def no_combustion(y):
     """Nothing burns: no combustion heat, the analyser sees ambient air."""
     y[Y_O2] = k.O2_AMBIENT_PCT
@@ -407,7 +407,7 @@ def no_combustion(y):
     y[Y_Q_FUEL] = y[Y_Q_ASH] = y[Y_Q_SENS] = y[Y_Q_LAT] = y[Y_Q_CHEM] = y[Y_Q_HX] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def electric_power_W(c, firing, firing_kW, q_ign):
     """Electric power [W]: linear in firing power between Pel,MIN and Pel,MAX plus the
     igniter while firing; Pel,OFF otherwise."""
@@ -416,7 +416,7 @@ def electric_power_W(c, firing, firing_kW, q_ign):
     return c[K_PEL_OFF]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def close_step(
     s, y, dt_s, mode, firing_kW, fuel_kg_h, p_el, t1, t_mean, t_fg, lam, co, q_ign, m_cp,
     water_in_C, ua, room_C, q_stored,
