@@ -116,8 +116,8 @@ class ModbusRig:
         self.timeout_s = timeout_s
         self.reconnect_timeout_s = reconnect_timeout_s
         self.gaps: list[dict[str, float | str]] = []
-        self._plan = _read_plan(register_map, READING_KEYS)
-        self._clock_plan = _read_plan(register_map, ("sim_time_s",))
+        plan = _read_plan(register_map, READING_KEYS)  # a map without a reading fails here
+        clock_plan = _read_plan(register_map, ("sim_time_s",))
         self._points = {
             s: register_map.point(s)
             for s in (
@@ -144,7 +144,7 @@ class ModbusRig:
         self.speed = self._read_point("speed_factor")
         self.sim_time_s = self._read_point("sim_time_s")
         # in lockstep the rig knows the time it advanced to; otherwise it polls the clock too
-        self._reads = self._plan if self.lockstep else self._plan + self._clock_plan
+        self._reads = plan if self.lockstep else plan + clock_plan
         self._read_requests = [
             (r.unit, read_pdu(r.function, r.start, r.count)) for r in self._reads
         ]
