@@ -1,20 +1,14 @@
-"""Low-order augmentations of the calibrated one-node model, one per candidate effect.
+"""Low-order augmentations of the calibrated one-node model, the kernels of the candidates
+of :mod:`hil_client.analysis.candidates`.
 
-Each augmentation adds one or two parameters to the model's predictions of the lab signals;
-the diagnosis fits them on the calibration log only (:mod:`hil_client.analysis.diagnose`).
-They are deliberately simpler than the emulator's plant effects:
+They are deliberately simpler than any real plant's effects (and than the emulator's):
 
-- ``body_heat_diffusion`` (tau_body [s]): the water sees the node temperature through a
-  first-order lag (the metal between flame and water), so it lags at start-up and after
-  load steps: T_w' = T_w + (T_node - T_w) dt / tau_body;
-- ``outlet_sensor_pipe`` (pipe_kg [kg], tau_loss [s]): the forward sensor reads a mixed pipe
-  volume fed by the flow and losing heat to the room:
-  m_p dT_s/dt = m_w (T_node - T_s) - m_p (T_s - T_room) / tau_loss;
-- ``ignition_delay`` (delay [s]): the bed releases heat ``delay`` after the bench switches
-  the boiler on, while the balance loses fuel from the switch-on;
-- ``flue_gas_lag`` (tau_fg [s]): the flue-gas temperature follows the model's with a
-  first-order lag;
-- ``fuel_energy_bias`` (bias [-]): the balance loses (1 + bias) times the model's fuel.
+- a first-order lag, exact per step for piecewise-constant input:
+  y_i = x_i + (y_(i-1) - x_i) exp(-dt_i / tau) (the body between flame and water, the flue
+  gas's storage, a sensor's response);
+- the forward sensor in a mixed pipe volume fed by the flow, losing heat to the room and
+  coupled to the boiler by conduction along the pipe:
+  m_p dT_s/dt = m_w (T_b - T_s) + (m_p / tau_c) (T_b - T_s) - (m_p / tau_loss) (T_s - T_room).
 """
 
 from __future__ import annotations
@@ -30,18 +24,6 @@ EFFECTS = (
     "fuel_energy_bias",
 )
 
-#: Parameters of each augmentation: name -> (initial value, lower bound, upper bound).
-PARAMETERS: dict[str, dict[str, tuple[float, float, float]]] = {
-    "none": {},
-    # time constants below 30 s are the sensors' own (thermowells, probes), not the body's
-    "body_heat_diffusion": {"tau_body_s": (300.0, 30.0, 5000.0)},
-    # a pipe of 30 cm holds 0.1-0.4 kg of water: up to 2 kg allowed
-    "outlet_sensor_pipe": {"pipe_kg": (0.3, 0.02, 2.0), "tau_loss_s": (1800.0, 60.0, 1e5)},
-    "ignition_delay": {"delay_s": (60.0, 0.0, 900.0)},
-    "flue_gas_lag": {"tau_fg_s": (120.0, 30.0, 3000.0)},
-    "fuel_energy_bias": {"bias": (0.0, -0.3, 0.3)},
-}
-
 
 @njit(cache=True)
 def first_order_lag(x, dt, tau):
@@ -49,22 +31,61 @@ def first_order_lag(x, dt, tau):
     out = np.empty_like(x)
     y = x[0]
     for i in range(x.size):
-        a = np.exp(-dt[i] / tau)
+        a = np.exp(-dt[i] / tau) if tau > 0.0 else 0.0
         y = x[i] + (y - x[i]) * a
         out[i] = y
     return out
 
 
 @njit(cache=True)
-def pipe_sensor(t_node, flow_kg_h, room, dt, pipe_kg, tau_loss):
-    """Forward sensor in a mixed pipe volume fed by the flow, losing heat to the room."""
-    out = np.empty_like(t_node)
-    ts = t_node[0]
-    for i in range(t_node.size):
-        k_flow = flow_kg_h[i] / 3600.0 / pipe_kg  # [1/s]
-        k_loss = 1.0 / tau_loss
-        k = k_flow + k_loss
-        target = (k_flow * t_node[i] + k_loss * room[i]) / k
+def pipe_sensor(t_boiler, flow_kg_h, room, dt, pipe_kg, tau_loss, tau_coupling):
+    """Forward sensor in a mixed pipe volume (see the module docstring); exact per step.
+
+    ``pipe_kg`` [kg] > 0, ``tau_loss`` and ``tau_coupling`` [s] > 0 (a very large value
+    switches the loss or the coupling off)."""
+    out = np.empty_like(t_boiler)
+    ts = t_boiler[0]
+    k_loss = 1.0 / tau_loss
+    k_couple = 1.0 / tau_coupling
+    for i in range(t_boiler.size):
+        k_flow = max(flow_kg_h[i], 0.0) / 3600.0 / pipe_kg  # [1/s]
+        k = k_flow + k_couple + k_loss
+        target = ((k_flow + k_couple) * t_boiler[i] + k_loss * room[i]) / k
         ts = target + (ts - target) * np.exp(-k * dt[i])
         out[i] = ts
+    return out
+
+
+@njit(cache=True)
+def two_lump_water(q_hx_kW, flow_kg_h, t_in, room, ua_kW_K, dt, t0, c_metal, c_water, g_kW_K):
+    """Water temperature of a body split into metal and water (``body_heat_diffusion``).
+
+    The exchanger's heat enters the metal (capacity ``c_metal`` [kJ/K]), which passes it to
+    the water (``c_water``) through the conductance ``g_kW_K``; the water carries the flow
+    and the loss to the room:
+
+        C_m dT_m/dt = Q_hx - G (T_m - T_w)
+        C_w dT_w/dt = G (T_m - T_w) - m_w cp_w (T_w - T_in) - UA (T_w - T_room)
+
+    Backward Euler per step (stable for any step). Both start at ``t0`` [C]."""
+    cp = 4.19
+    out = np.empty_like(q_hx_kW)
+    tm = t0
+    tw = t0
+    for i in range(q_hx_kW.size):
+        h = dt[i]
+        a = max(flow_kg_h[i], 0.0) * cp / 3600.0 + ua_kW_K[i]
+        # [C_m/h + G, -G; -G, C_w/h + G + a] [tm', tw'] = [C_m tm/h + Q, C_w tw/h + a_src]
+        a11 = c_metal / h + g_kW_K
+        a22 = c_water / h + g_kW_K + a
+        b1 = c_metal * tm / h + q_hx_kW[i]
+        b2 = (
+            c_water * tw / h
+            + max(flow_kg_h[i], 0.0) * cp / 3600.0 * t_in[i]
+            + ua_kW_K[i] * room[i]
+        )
+        det = a11 * a22 - g_kW_K * g_kW_K
+        tm = (b1 * a22 + g_kW_K * b2) / det
+        tw = (a11 * b2 + g_kW_K * b1) / det
+        out[i] = tw
     return out

@@ -208,11 +208,11 @@ def validation_figures(comp, phases: Phases, stem: Path, title: str) -> list[Pat
 def diagnosis_figures(result: dict, out_dir: Path) -> list[Path]:
     """Residuals by phase (validation log, unaugmented model) and before/after overlays of
     the signal where the gap lies."""
-    from hil_client.analysis.diagnose import SIGNALS, predict
+    from hil_client.analysis.diagnose import predict
+    from hil_client.analysis.replay import SIGNALS
 
-    series = result["_series"]
-    val = series["val"]
-    base = predict(val, "none", {})
+    val = result["_series"]["val"]
+    base = val.base_prediction()
     fig, axes = plt.subplots(len(SIGNALS), 1, figsize=(11, 10), sharex=True)
     h = val.t / 3600.0
     for ax, s in zip(axes, SIGNALS, strict=True):
@@ -227,8 +227,8 @@ def diagnosis_figures(result: dict, out_dir: Path) -> list[Path]:
     effect = result["effect"]
     if shrink is not None:
         s = shrink["signal"]
-        fit = series["fits"][effect]
-        after = predict(val, effect, fit.params)
+        params = next(c["params"] for c in result["candidates"] if c["effect"] == effect)
+        after = predict(val, effect, params)
         fig, ax = plt.subplots(figsize=(11, 4.5))
         ax.plot(h, val.lab[s], color="tab:red", lw=0.8, label="lab")
         ax.plot(h, base[s], color="k", lw=0.9, ls="--", label="model")
@@ -237,10 +237,16 @@ def diagnosis_figures(result: dict, out_dir: Path) -> list[Path]:
         ax.set_xlabel("time [h]")
         mark_phases(ax, val.phases)
         ax.legend(fontsize=8)
+        pct = shrink["shrink_pct"]
         ax.set_title(
-            f"validation log, {s}: RMSD in {shrink['phase']} "
-            f"{shrink['validation_rmsd_before']:.3g} -> "
-            f"{shrink['validation_rmsd_after']:.3g} ({shrink['shrink_pct']:.0f} % less)"
+            f"validation log, {s}: RMSD where the effect acts ({shrink['phase']}) "
+            f"{_num(shrink['validation_rmsd_before'])} -> "
+            f"{_num(shrink['validation_rmsd_after'])} "
+            + (f"({pct:.0f} % less)" if pct is not None else "(not measurable)")
         )
         paths.append(_save(fig, out_dir / "before_after.png", dpi=100))
     return paths
+
+
+def _num(x: float | None) -> str:
+    return "-" if x is None else f"{x:.3g}"

@@ -70,33 +70,54 @@ def diagnosis_report(result: dict, figures: list[Path], cal: str, val: str) -> s
         f"Calibration log (fitted on): `{cal}`; validation log (held out): `{val}`.",
         "",
         f"**Unmodelled effect: `{result['effect']}`** (confidence "
-        f"{result['confidence']:.2f}). Rule: {result['rule']}.",
+        f"{result['confidence']:.2f}: the share of bootstrap draws of the evidence that "
+        f"give this answer). Rule: {result['rule']}.",
         "",
     ]
-    shrink = result.get("shrinkage")
-    if shrink:
+    if result.get("unexplained_gap"):
+        top = result["where"][0] if result["where"] else None
         lines += [
-            f"Where the gap lies: **{shrink['signal']}** in **{shrink['phase']}**. With "
-            f"the effect added (parameters frozen from the calibration log) its RMSD on "
-            f"the validation log goes from {shrink['validation_rmsd_before']:.4g} to "
-            f"{shrink['validation_rmsd_after']:.4g}: **{shrink['shrink_pct']:.0f} % "
-            f"smaller** (whole log: {shrink['overall_validation_rmsd_before']:.4g} -> "
-            f"{shrink['overall_validation_rmsd_after']:.4g}).",
+            "**A gap remains that none of the listed effects explains out of sample**"
+            + (
+                f"; it is largest in {top['signal']} during {top['phase']} (RMSD "
+                f"{_f(top['rmsd'])})."
+                if top
+                else "."
+            ),
             "",
         ]
+    shrink = result.get("shrinkage")
+    if shrink:
+        verdict = "confirmed" if shrink["confirmed"] else "**not confirmed**"
+        pct = shrink["shrink_pct"]
+        lines += [
+            f"Where the effect acts: **{shrink['signal']}**, {shrink['phase']}. With the "
+            f"effect added (parameters frozen from the calibration log) the RMSD there on "
+            f"the validation log goes from {_f(shrink['validation_rmsd_before'])} to "
+            f"{_f(shrink['validation_rmsd_after'])}"
+            + (f": {pct:.0f} % smaller" if pct is not None else "")
+            + f" ({verdict} on held-out data).",
+            "",
+        ]
+    flags = result.get("calibration_flags") or {}
+    if flags:
+        lines += ["Calibration values kept at their documentation value:", ""]
+        lines += [f"- `{key}`: {why}" for key, why in flags.items()]
+        lines.append("")
     lines += [
-        "## Candidates (fitted on the calibration log)",
+        "## Candidates (tested out of sample on the calibration log)",
         "",
-        "| effect | parameters | BIC gain | best RMSD gain (cal.) | where | val. RMSD "
-        "before | after |",
-        "|---|---|---:|---:|---|---:|---:|",
+        "| effect | parameters | evidence (SE) | verdict | where it acts | cal. RMSD held out "
+        "before / after | val. RMSD before / after |",
+        "|---|---|---:|---|---|---|---|",
     ]
     for c in result["candidates"]:
         params = ", ".join(f"{k} = {v:.3g}" for k, v in c["params"].items())
         lines.append(
-            f"| {c['effect']} | {params} | {c['score']:.1f} | "
-            f"{100 * c['best_gain']:.0f} % | {c['signal']} / {c['phase']} | "
-            f"{c['validation_rmsd_before']:.4g} | {c['validation_rmsd_after']:.4g} |"
+            f"| {c['effect']} | {params} | {_f(c['score'], 1)} | {c['reason']} | "
+            f"{c['signal']} / {c['phase']} | {_f(c['calibration_rmsd_before'])} / "
+            f"{_f(c['calibration_rmsd_after'])} | {_f(c['validation_rmsd_before'])} / "
+            f"{_f(c['validation_rmsd_after'])} |"
         )
     lines += [
         "",

@@ -1,0 +1,561 @@
+"""The candidate effects of the diagnosis, each with its physical fingerprint.
+
+Every effect of CONTRACT section 4 leaves its mark on one signal, in the rows where its
+physics acts, and nowhere else; each candidate looks only there, with a predictor that
+takes as much as it can from the lab's own measurements so that what the real boiler does
+differently from Type 869 (its controller, its start-up, its exchanger) cannot be mistaken
+for the effect:
+
+``outlet_sensor_pipe`` (signal: forward temperature; rows: low flow and stagnation)
+    The forward sensor is predicted from the *measured* boiler water through a mixed pipe
+    volume fed by the flow, losing heat to the room and coupled to the boiler by
+    conduction (:func:`hil_client.analysis.augment.pipe_sensor`); base: the boiler water
+    itself. Sensor offset and slow drift of forward minus boiler water are fitted on the
+    settled, flowing rows, where a pipe does nothing.
+``body_heat_diffusion`` (boiler water; 30 min after each start and stop of the burner)
+    The water sees the model's node through a first-order lag (the metal between flame and
+    water). Fingerprint: after a stop the lagged water keeps warming from the hot metal, so
+    the held-out gain must show after stops, not only after starts (where a real boiler's
+    fuel ramp or ignition looks alike).
+``flue_gas_lag`` (flue gas; 30 min after each start and stop)
+    The flue gas follows the model's with a first-order lag (exchanger and refractory
+    storage). Fingerprint: the slow fall after a stop.
+``ignition_delay`` (balance; around each start)
+    Measured directly: the fuel the balance lost before the flue gas showed combustion
+    (the mass before the start less the back-extrapolated mass at the onset). Without the
+    effect it is what the auger feeds within the onset's detection time, well under two
+    balance steps (0.04 kg).
+``fuel_energy_bias`` (balance; test phase, 1-h blocks without starts or stops)
+    Energy closure from the instruments: the fuel the measured heat to water, storage,
+    loss to the room and flue-gas losses (from the measured flue-gas temperature and O2,
+    Eq. 4-7) need at the nominal calorific value, against what the balance lost. The
+    forward-return difference is checked at the isothermal end of the preheat, where the
+    bench holds supply = return (Section 2.3), so a fixed sensor error does not pass for a
+    fuel bias.
+
+Each candidate gives *units* of evidence that can be drawn again in a bootstrap (held-out
+blocks, starts, closure blocks) and a rule deciding from them whether it is named.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from hil_client.analysis.augment import first_order_lag, pipe_sensor, two_lump_water
+from hil_client.analysis.balance import flue_gas_loss_per_kg, heat_to_water_kW
+from hil_client.analysis.evidence import BlockGain, Evidence, block_gain, cross_validate
+from hil_client.analysis.firing import windows_after
+from hil_client.analysis.logio import fill_gaps
+from hil_client.analysis.replay import SENSOR_TAU_S, Case
+from rig_emulator.model import constants as k
+from rig_emulator.model.layout import Y_Q_HX, Y_Q_IGN, Y_T_BOILER, Y_T_FG
+
+#: Out-of-sample evidence needed to name an effect [standard errors]: one-sided p ~ 0.001,
+#: about 0.007 over the five candidates.
+Z_MIN = 3.0
+#: Share of the held-out squared residual where the effect acts that it must remove.
+REL_MIN = 0.2
+#: Held-out RMSD an effect must remove where it acts [signal units]: what the bench's
+#: sensors resolve (Pt100 class A/B tolerances, Section 2.2).
+ABS_MIN = {"water_out_temp_C": 0.2, "boiler_water_temp_C": 0.2, "flue_gas_temp_C": 1.0}
+#: Resolution of each signal [signal units]: readings 0.01 K, Pt100 noise (Section 2.2).
+NOISE_FLOOR = {"water_out_temp_C": 0.02, "boiler_water_temp_C": 0.02, "flue_gas_temp_C": 0.1}
+WINDOW_S = 1800.0
+BLOCK_S = 3600.0
+BALANCE_STEP_KG = 0.02  # the balance's resolution (Section 2.2)
+PRE_FEED_MIN_KG = 2 * BALANCE_STEP_KG
+#: Systematic relative uncertainty of the energy closure: flow meter 0.5 %/sqrt(3), forward
+#: minus return after the isothermal check 0.1 K of about 15 K, loss to the room and the
+#: flue-gas stoichiometry about 0.5 % each.
+CLOSURE_U_SYS = math.sqrt((0.005 / math.sqrt(3)) ** 2 + (0.1 / 15.0) ** 2 + 2 * 0.005**2)
+BIAS_MIN = 0.03  # the calorific value of a lab analysis is known to about 2-3 %
+
+
+@dataclass
+class Assessment:
+    """What a candidate found on the calibration log."""
+
+    effect: str
+    signal: str
+    locus: str
+    params: dict[str, float]
+    units: list  # bootstrap units
+    decide: Callable[[Sequence], tuple[bool, float, str]]  # units -> (named?, z, reason)
+    rmsd_before: float
+    rmsd_after: float
+
+    def verdict(self) -> tuple[bool, float, str]:
+        return self.decide(self.units)
+
+
+# --------------------------------------------------------------------------------------
+# curve candidates: a predicted signal, scored by blocked cross-validation
+
+
+@dataclass(frozen=True)
+class CurveCandidate:
+    effect: str
+    signal: str
+    locus: str
+    grid: dict[str, np.ndarray]
+    predict: Callable[[Case, dict[str, float] | None], np.ndarray]
+    blocks: Callable[[Case], list[tuple[str, np.ndarray]]]
+    nuisance_drift: bool
+    fingerprint_kind: str | None  # block kind whose held-out gain must be positive
+
+    def residual(self, case: Case, theta: dict[str, float] | None) -> np.ndarray:
+        """Lab minus prediction, less the sensor's offset (and drift) fitted on the settled
+        rows, where no candidate acts."""
+        r = case.lab[self.signal] - self.predict(case, theta)
+        ref = case.settled
+        x = case.t - case.t[ref].mean()
+        if self.nuisance_drift and np.ptp(case.t[ref]) >= 7200.0:
+            slope, intercept = np.polyfit(x[ref], r[ref], 1)
+            return r - (intercept + slope * x)
+        return r - float(np.mean(r[ref]))
+
+    def fit(self, case: Case, rows: np.ndarray) -> dict[str, float]:
+        names = list(self.grid)
+        best, best_sse = None, math.inf
+        for point in np.array(np.meshgrid(*self.grid.values())).reshape(len(names), -1).T:
+            theta = dict(zip(names, point.tolist(), strict=True))
+            r = self.residual(case, theta)[rows]
+            sse = float(np.dot(r, r))
+            if sse < best_sse:
+                best, best_sse = theta, sse
+        assert best is not None
+        return best
+
+    def decide(self, units: Sequence[BlockGain]) -> tuple[bool, float, str]:
+        ev = Evidence(tuple(units))
+        z = ev.z
+        if not ev.blocks:
+            return False, 0.0, "too few blocks to test out of sample"
+        before, after = ev.rmsd()
+        if z < Z_MIN:
+            return False, z, f"held-out evidence {z:.1f} < {Z_MIN:g} standard errors"
+        if ev.relative_gain < REL_MIN:
+            return False, z, f"explains {ev.relative_gain:.0%} < {REL_MIN:.0%} where it acts"
+        if before - after < ABS_MIN[self.signal]:
+            return False, z, f"removes {before - after:.2g} < {ABS_MIN[self.signal]:g} RMSD"
+        if self.fingerprint_kind is not None:
+            fp = ev.of_kind(self.fingerprint_kind)
+            if not fp.blocks or fp.gain <= 0.0 or fp.z < 1.0:
+                return False, z, f"fingerprint missing: no gain after {self.fingerprint_kind}s"
+        return True, z, "named"
+
+    def assess(self, case: Case) -> Assessment:
+        blocks = self.blocks(case)
+        ev, _ = cross_validate(
+            blocks,
+            lambda rows: self.fit(case, rows),
+            lambda theta, rows: self.residual(case, theta)[rows],
+            NOISE_FLOOR[self.signal],
+        )
+        theta = self.fit(case, np.concatenate([b[1] for b in blocks])) if blocks else {}
+        before, after = ev.rmsd() if ev.blocks else (math.nan, math.nan)
+        return Assessment(
+            self.effect,
+            self.signal,
+            self.locus,
+            theta,
+            list(ev.blocks),
+            self.decide,
+            before,
+            after,
+        )
+
+    def held_out(self, case: Case, theta: dict[str, float]) -> tuple[float, float]:
+        """RMSD before and after on another log, where the effect acts (parameters frozen)."""
+        blocks = self.blocks(case)
+        if not blocks or not theta:
+            return math.nan, math.nan
+        rows = np.concatenate([b[1] for b in blocks])
+        r0, r1 = self.residual(case, None)[rows], self.residual(case, theta)[rows]
+        return float(np.sqrt(np.mean(r0**2))), float(np.sqrt(np.mean(r1**2)))
+
+
+def _split(rows: np.ndarray, t: np.ndarray, length_s: float) -> list[np.ndarray]:
+    """Contiguous runs of ``rows``, cut into pieces of at most ``length_s``."""
+    if not len(rows):
+        return []
+    runs = np.split(rows, np.flatnonzero(np.diff(rows) > 1) + 1)
+    out = []
+    for run in runs:
+        piece = (t[run] - t[run[0]]) // length_s
+        out += [run[piece == p] for p in np.unique(piece)]
+    return [p for p in out if len(p) >= 10]
+
+
+def _low_flow_blocks(case: Case) -> list[tuple[str, np.ndarray]]:
+    test = case.phases.mask("test", case.t)
+    nominal = float(np.median(case.flow[test])) if test.any() else float(np.max(case.flow))
+    after_start = case.t > case.phases.t0
+    low = np.flatnonzero(after_start & (case.flow < 0.3 * nominal))
+    return [
+        ("stagnant" if np.median(case.flow[p]) < 0.01 * nominal else "low_flow", p)
+        for p in _split(low, case.t, BLOCK_S)
+    ]
+
+
+def _transition_blocks(case: Case) -> list[tuple[str, np.ndarray]]:
+    """30 min after each start and each stop of the burner, cut at the next one."""
+    t = case.t
+    edges = case.transitions
+    out = []
+    for kind, rows in (("start", case.firing.starts), ("stop", case.firing.stops)):
+        for i in rows:
+            later = edges[edges > i]
+            end = int(later[0]) if len(later) else len(t)
+            for w in windows_after(t, np.array([i]), WINDOW_S, end):
+                out.append((kind, w))
+    out.sort(key=lambda b: int(b[1][0]))
+    return out
+
+
+def _pipe_predict(case: Case, theta: dict[str, float] | None) -> np.ndarray:
+    water = case.lab["boiler_water_temp_C"]
+    if theta is not None:
+        water = pipe_sensor(
+            water,
+            case.flow,
+            case.room,
+            case.dt,
+            theta["pipe_kg"],
+            theta["tau_loss_s"],
+            theta["tau_coupling_s"],
+        )
+        return first_order_lag(water, case.dt, SENSOR_TAU_S["water_out_temp_C"])
+    return water
+
+
+def body_water(case: Case, tau_body_s: float) -> np.ndarray:
+    """The water of a two-lump body (metal: the documented Ctherm) driven by the replayed
+    model's heat to the exchanger; ``tau_body_s`` = C_metal / G."""
+    p = case.params
+    c_metal = p.c_therm_kJ_K
+    c_water = p.capacity_kJ_K - c_metal
+    ua = np.where(case.firing.burning, p.ua_amb_on_W_K, p.ua_amb_off_W_K) / 1000.0
+    return two_lump_water(
+        case.model[:, Y_Q_HX] + case.model[:, Y_Q_IGN],
+        case.flow,
+        case.t_in,
+        case.room,
+        ua,
+        case.dt,
+        float(case.model[0, Y_T_BOILER]),
+        c_metal,
+        c_water,
+        c_metal / tau_body_s,
+    )
+
+
+def _body_predict(case: Case, theta: dict[str, float] | None) -> np.ndarray:
+    # the base: the same two lumps tied by a 1-s conductance, i.e. the one node
+    water = body_water(case, theta["tau_body_s"] if theta else 1.0)
+    return first_order_lag(water, case.dt, SENSOR_TAU_S["boiler_water_temp_C"])
+
+
+def _flue_predict(case: Case, theta: dict[str, float] | None) -> np.ndarray:
+    t_fg = case.model[:, Y_T_FG]
+    gas = case.lagged("t_fg", t_fg, theta["tau_fg_s"]) if theta else t_fg
+    return first_order_lag(gas, case.dt, SENSOR_TAU_S["flue_gas_temp_C"])
+
+
+PIPE = CurveCandidate(
+    "outlet_sensor_pipe",
+    "water_out_temp_C",
+    "stand_by",
+    {
+        # a pipe of 30 cm holds 0.1-0.4 kg of water; up to 3 kg allowed
+        "pipe_kg": np.geomspace(0.05, 3.0, 6),
+        "tau_loss_s": np.geomspace(120.0, 1e5, 7),
+        "tau_coupling_s": np.array([3e3, 1e4, 3e4, 1e9]),
+    },
+    _pipe_predict,
+    _low_flow_blocks,
+    nuisance_drift=True,
+    fingerprint_kind=None,
+)
+BODY = CurveCandidate(
+    "body_heat_diffusion",
+    "boiler_water_temp_C",
+    "after_starts_and_stops",
+    # time constants below 20 s are the sensors' own, not the body's
+    {"tau_body_s": np.geomspace(20.0, 3000.0, 16)},
+    _body_predict,
+    _transition_blocks,
+    nuisance_drift=False,
+    fingerprint_kind="stop",
+)
+FLUE = CurveCandidate(
+    "flue_gas_lag",
+    "flue_gas_temp_C",
+    "after_starts_and_stops",
+    {"tau_fg_s": np.geomspace(20.0, 3000.0, 16)},
+    _flue_predict,
+    _transition_blocks,
+    nuisance_drift=False,
+    fingerprint_kind="stop",
+)
+
+
+# --------------------------------------------------------------------------------------
+# ignition delay: fuel fed before the bed burns, measured at each start
+
+
+def _pre_feed(case: Case) -> list[tuple[float, float, float]]:
+    """(fuel lost before the onset of combustion [kg], its standard error [kg], feed rate
+    after the onset [kg/h]) per start that follows at least 20 min without burning.
+
+    The mass before is the mean reading 20 to 12 min before the onset; the mass at the onset
+    is the line through the readings of the 5 min after it, taken back to the onset. Each
+    has the standard error of its fit, at least that of the balance's 0.02-kg steps
+    (uniform rounding: 0.02 / sqrt(12) per reading)."""
+    t = case.t
+    mass = case.log["balance_mass_kg"]
+    rounding = BALANCE_STEP_KG / math.sqrt(12.0)
+    out = []
+    stops = case.firing.stops
+    for i in case.firing.starts:
+        ts = t[i]
+        before = stops[stops < i]
+        quiet_since = t[before[-1]] if len(before) else t[0]
+        if ts - quiet_since < 1200.0 or ts - t[0] < 1200.0:
+            continue
+        pre = (t >= ts - 1200.0) & (t <= ts - 720.0) & ~np.isnan(mass)
+        post = (t >= ts) & (t <= ts + 300.0) & ~np.isnan(mass)
+        if pre.sum() < 5 or post.sum() < 10:
+            continue
+        m0 = float(np.mean(mass[pre]))
+        u0 = max(float(np.std(mass[pre])), rounding) / math.sqrt(pre.sum())
+        x = t[post] - ts
+        slope, intercept = np.polyfit(x, mass[post], 1)
+        resid = mass[post] - (intercept + slope * x)
+        s_res = max(float(np.std(resid, ddof=2)), rounding)
+        sxx = float(np.sum((x - x.mean()) ** 2))
+        u1 = s_res * math.sqrt(1.0 / len(x) + x.mean() ** 2 / sxx) if sxx > 0 else s_res
+        out.append((m0 - float(intercept), math.hypot(u0, u1), max(-slope * 3600.0, 0.0)))
+    return out
+
+
+def _decide_ignition(units: Sequence[tuple[float, float, float]]) -> tuple[bool, float, str]:
+    if not units:
+        return False, 0.0, "no start after a quiet balance"
+    pre = np.array([u[0] for u in units])
+    se = math.sqrt(sum(u[1] ** 2 for u in units)) / len(units)
+    mean = float(pre.mean())
+    z = mean / se
+    if mean < PRE_FEED_MIN_KG:
+        return False, z, f"pre-feed {mean:.3f} kg < {PRE_FEED_MIN_KG:g} kg per start"
+    if z < Z_MIN:
+        return False, z, f"evidence {z:.1f} < {Z_MIN:g} standard errors"
+    return True, z, "named"
+
+
+def _delay_s(units: Sequence[tuple[float, float]]) -> float:
+    pre = np.array([u[0] for u in units])
+    rate = np.array([u[2] for u in units])
+    return float(max(pre.mean(), 0.0) / max(rate.mean(), 1e-6) * 3600.0) if len(pre) else 0.0
+
+
+def _ignition_rmsd(units, delay_s: float) -> tuple[float, float]:
+    if not units:
+        return math.nan, math.nan
+    pre = np.array([u[0] for u in units])
+    rate = np.array([u[2] for u in units])
+    after = pre - delay_s * rate / 3600.0
+    return float(np.sqrt(np.mean(pre**2))), float(np.sqrt(np.mean(after**2)))
+
+
+class IgnitionCandidate:
+    effect = "ignition_delay"
+    signal = "fuel_cum_kg"
+    locus = "start_up"
+
+    def assess(self, case: Case) -> Assessment:
+        units = _pre_feed(case)
+        delay = _delay_s(units)
+        # held out: each start predicted with the delay of the others
+        res0, res1 = [], []
+        for j, (pre, _, rate) in enumerate(units):
+            rest = units[:j] + units[j + 1 :]
+            if rest:
+                res0.append(pre)
+                res1.append(pre - _delay_s(rest) * rate / 3600.0)
+        before = float(np.sqrt(np.mean(np.square(res0)))) if res0 else math.nan
+        after = float(np.sqrt(np.mean(np.square(res1)))) if res1 else math.nan
+        return Assessment(
+            self.effect,
+            self.signal,
+            self.locus,
+            {"delay_s": delay},
+            units,
+            _decide_ignition,
+            before,
+            after,
+        )
+
+    def held_out(self, case: Case, theta: dict[str, float]) -> tuple[float, float]:
+        return _ignition_rmsd(_pre_feed(case), theta.get("delay_s", 0.0))
+
+
+# --------------------------------------------------------------------------------------
+# fuel energy: closure of the measured energy balance
+
+
+def _forward_return_offset(case: Case) -> float:
+    """Forward minus return sensor error [K] from the isothermal end of the preheat (the
+    bench holds supply = return; the idle boiler's own loss cools the water a little)."""
+    t = case.t
+    pre = (t > case.phases.t0 - 600.0) & (t <= case.phases.t0) & (case.flow > 50.0)
+    if pre.sum() < 30:
+        return 0.0
+    measured = case.log["water_out_temp_C"][pre] - case.log["water_in_temp_C"][pre]
+    measured = measured[~np.isnan(measured)]
+    if len(measured) < 30:
+        return 0.0
+    water = case.lab["boiler_water_temp_C"][pre]
+    loss = case.params.ua_amb_off_W_K / 1000.0 * (water - case.room[pre])
+    expected = -loss / (case.flow[pre] * k.CP_WATER / 3600.0)
+    offset = float(np.median(measured) - np.median(expected))
+    return offset if abs(offset) < 1.0 else 0.0
+
+
+def _closure_blocks(case: Case) -> list[tuple[float, float]]:
+    """(fuel the balance lost, fuel the measured energy needs) [kg] per 1-h block of the
+    test phase without a start or stop."""
+    t, p = case.t, case.params
+    log = case.log
+    offset = _forward_return_offset(case)
+    t_out = case.lab["water_out_temp_C"] - offset
+    q_water = heat_to_water_kW(case.flow, case.t_in, t_out)
+    water = case.lab["boiler_water_temp_C"]
+    q_amb = p.ua_amb_on_W_K / 1000.0 * (water - case.room)
+    co = np.nan_to_num(log["flue_gas_CO_ppm"]) if log.has("flue_gas_CO_ppm") else np.zeros(len(t))
+    o2 = fill_gaps(log["flue_gas_O2_pct"], t)
+    _, sens, lat, chem = flue_gas_loss_per_kg(p, o2, case.lab["flue_gas_temp_C"], case.room, co)
+    usable = p.fuel.hhv_dry_kJ_kg * (1.0 - k.ASH_LOSS_FRACTION) - sens - lat - chem
+    per_kg = p.fuel.as_received_per_kg_dry - p.fuel.ash
+    mass = log["balance_mass_kg"]
+    start = case.phases.t1 + 1200.0
+    rows = np.flatnonzero((t > start) & (t <= case.phases.t2) & case.firing.burning)
+    out = []
+    edges = case.transitions
+    for block in _split(rows, t, BLOCK_S):
+        if t[block[-1]] - t[block[0]] < 1800.0:
+            continue
+        if ((edges >= block[0]) & (edges <= block[-1])).any():
+            continue
+        ok = block[~np.isnan(mass[block])]
+        if len(ok) < 30 or (usable[block] <= 0).any():
+            continue
+        slope, _ = np.polyfit(t[ok], mass[ok], 1)
+        duration = t[block[-1]] - t[block[0]]
+        lost = -slope * duration
+        c_kJ_K = p.capacity_kJ_K
+        stored = c_kJ_K * (water[block[-1]] - water[block[0]])  # [kJ]
+        q = (q_water[block] + q_amb[block]) * case.dt[block]  # [kJ]
+        need_dry = (float(np.sum(q / usable[block])) + stored / float(np.mean(usable[block])))
+        out.append((float(lost), need_dry * per_kg))
+    return out
+
+
+def _decide_bias(units: Sequence[tuple[float, float]]) -> tuple[bool, float, str]:
+    if not units:
+        return False, 0.0, "no steady firing hour in the test phase"
+    lost = np.array([u[0] for u in units])
+    need = np.array([u[1] for u in units])
+    bias = float(lost.sum() / need.sum() - 1.0)
+    ratios = lost / need - 1.0
+    se = float(np.std(ratios, ddof=1) / math.sqrt(len(ratios))) if len(ratios) > 1 else 0.02
+    z = abs(bias) / math.hypot(se, CLOSURE_U_SYS)
+    if abs(bias) < BIAS_MIN:
+        return False, z, f"closure off by {bias:+.1%}, within +-{BIAS_MIN:.0%}"
+    if z < Z_MIN:
+        return False, z, f"evidence {z:.1f} < {Z_MIN:g} standard errors"
+    return True, z, "named"
+
+
+def _bias(units) -> float:
+    if not units:
+        return 0.0
+    return float(sum(u[0] for u in units) / sum(u[1] for u in units) - 1.0)
+
+
+def _bias_rmsd(units, bias: float) -> tuple[float, float]:
+    if not units:
+        return math.nan, math.nan
+    lost = np.array([u[0] for u in units])
+    need = np.array([u[1] for u in units])
+    return (
+        float(np.sqrt(np.mean((lost - need) ** 2))),
+        float(np.sqrt(np.mean((lost - need * (1.0 + bias)) ** 2))),
+    )
+
+
+class BiasCandidate:
+    effect = "fuel_energy_bias"
+    signal = "fuel_cum_kg"
+    locus = "test"
+
+    def assess(self, case: Case) -> Assessment:
+        units = _closure_blocks(case)
+        res0, res1 = [], []
+        for j, (lost, need) in enumerate(units):
+            rest = units[:j] + units[j + 1 :]
+            if rest:
+                res0.append(lost - need)
+                res1.append(lost - need * (1.0 + _bias(rest)))
+        before = float(np.sqrt(np.mean(np.square(res0)))) if res0 else math.nan
+        after = float(np.sqrt(np.mean(np.square(res1)))) if res1 else math.nan
+        return Assessment(
+            self.effect,
+            self.signal,
+            self.locus,
+            {"bias": _bias(units)},
+            units,
+            _decide_bias,
+            before,
+            after,
+        )
+
+    def held_out(self, case: Case, theta: dict[str, float]) -> tuple[float, float]:
+        return _bias_rmsd(_closure_blocks(case), theta.get("bias", 0.0))
+
+
+CANDIDATES = {
+    c.effect: c
+    for c in (PIPE, BODY, IgnitionCandidate(), FLUE, BiasCandidate())
+}
+
+
+def full_prediction(case: Case, effect: str, theta: dict[str, float]) -> dict[str, np.ndarray]:
+    """The model's prediction of every lab signal with one effect added (for the figures)."""
+    pred = case.base_prediction()
+    if effect == "outlet_sensor_pipe" and theta:
+        node = case.model[:, Y_T_BOILER]
+        pipe = pipe_sensor(
+            node, case.flow, case.room, case.dt, theta["pipe_kg"], theta["tau_loss_s"],
+            theta["tau_coupling_s"],
+        )
+        pred["water_out_temp_C"] = first_order_lag(pipe, case.dt, SENSOR_TAU_S["water_out_temp_C"])
+        pred["heat_to_water_kW"] = heat_to_water_kW(case.flow, case.t_in, pipe)
+    elif effect == "body_heat_diffusion" and theta:
+        pred["boiler_water_temp_C"] = _body_predict(case, theta)
+    elif effect == "flue_gas_lag" and theta:
+        pred["flue_gas_temp_C"] = _flue_predict(case, theta)
+    elif effect == "fuel_energy_bias" and theta:
+        pred["fuel_cum_kg"] = case.fuel_cum(1.0 + theta["bias"])
+    elif effect == "ignition_delay" and theta:
+        fuel = pred["fuel_cum_kg"].copy()
+        per_start = theta["delay_s"] * case.params.p_start_kW / case.params.fuel.lhv_dry_kJ_kg
+        per_start *= case.params.fuel.as_received_per_kg_dry - case.params.fuel.ash
+        for i in case.firing.starts:
+            fuel[i:] += per_start
+        pred["fuel_cum_kg"] = fuel
+    return pred

@@ -1,0 +1,144 @@
+"""A lab log prepared for the diagnosis: inputs, lab signals, and the model replaying it.
+
+The calibrated one-node model (Type 869) runs with the log's measured inputs (water flow,
+return and room temperature) and with the combustion the lab observed
+(:mod:`hil_client.analysis.firing`) as its on/off command, as the paper validated it
+(Carlon et al. 2015, Section 3.2): the real boiler's own restart rule and start-up
+sequence are not the model's and are not what the diagnosis looks for. The model's
+thermostat cut-out is lifted for the replay (shut-off 99 C) so it burns whenever the lab
+burned; within a burn it modulates to its set temperature as Type 869 does.
+
+Predictions include the response times of the bench's sensors (:data:`SENSOR_TAU_S`, data
+sheets), so a thermowell's lag is not mistaken for an effect.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from hil_client.analysis.augment import first_order_lag
+from hil_client.analysis.balance import heat_to_water_kW
+from hil_client.analysis.firing import Firing, observe_firing
+from hil_client.analysis.logio import LabLog, LogError, fill_gaps
+from hil_client.analysis.phases import Phases
+from rig_emulator.model import pack_constants
+from rig_emulator.model.layout import Y_FUEL, Y_T_BOILER, Y_T_FG
+from rig_emulator.model.params import BoilerParams
+from rig_emulator.model.simulate import simulate
+
+SIGNALS = (
+    "boiler_water_temp_C",
+    "water_out_temp_C",
+    "heat_to_water_kW",
+    "flue_gas_temp_C",
+    "fuel_cum_kg",
+)
+#: Response times of the bench's sensors [s] (thermowells, duct probe; data sheets).
+SENSOR_TAU_S = {
+    "boiler_water_temp_C": 10.0,
+    "water_out_temp_C": 4.0,
+    "water_in_temp_C": 4.0,
+    "flue_gas_temp_C": 8.0,
+}
+#: Rows further than this from any start or stop of the burner are "settled" [s].
+SETTLED_AFTER_S = 1800.0
+REPLAY_SHUTOFF_C = 99.0
+
+
+@dataclass
+class Case:
+    """One log prepared for the diagnosis (see the module docstring)."""
+
+    log: LabLog
+    phases: Phases
+    params: BoilerParams
+    t: np.ndarray
+    dt: np.ndarray
+    flow: np.ndarray
+    t_in: np.ndarray
+    room: np.ndarray
+    firing: Firing
+    lab: dict[str, np.ndarray]
+    model: np.ndarray  # replay outputs, rows x layout Y_*
+    settled: np.ndarray  # test-phase rows far from any start or stop, with flow
+    _lag_cache: dict = field(default_factory=dict)
+
+    @property
+    def transitions(self) -> np.ndarray:
+        return np.sort(np.concatenate([self.firing.starts, self.firing.stops]))
+
+    def lagged(self, x_name: str, x: np.ndarray, tau_s: float) -> np.ndarray:
+        """``x`` through a first-order lag (cached by name and rounded tau)."""
+        key = (x_name, round(float(tau_s), 2))
+        if key not in self._lag_cache:
+            if len(self._lag_cache) > 256:
+                self._lag_cache.clear()
+            self._lag_cache[key] = first_order_lag(x, self.dt, float(tau_s))
+        return self._lag_cache[key]
+
+    def fuel_cum(self, scale: float = 1.0) -> np.ndarray:
+        """The model's cumulative fuel as the balance sees it [kg as received, ash stays]."""
+        per_kg = self.params.fuel.as_received_per_kg_dry - self.params.fuel.ash
+        fuel = np.cumsum(self.model[:, Y_FUEL] * self.dt) / 3600.0 * per_kg * scale
+        return fuel - fuel[0]
+
+    def base_prediction(self) -> dict[str, np.ndarray]:
+        """The calibrated model's prediction of every lab signal (sensor lags included)."""
+        node = self.model[:, Y_T_BOILER]
+        return {
+            "boiler_water_temp_C": self.lagged("node", node, SENSOR_TAU_S["boiler_water_temp_C"]),
+            "water_out_temp_C": self.lagged("node", node, SENSOR_TAU_S["water_out_temp_C"]),
+            "heat_to_water_kW": heat_to_water_kW(self.flow, self.t_in, node),
+            "flue_gas_temp_C": self.lagged(
+                "t_fg", self.model[:, Y_T_FG], SENSOR_TAU_S["flue_gas_temp_C"]
+            ),
+            "fuel_cum_kg": self.fuel_cum(),
+        }
+
+
+def _filled(log: LabLog, name: str) -> np.ndarray:
+    values = log[name]
+    if np.isnan(values).all():
+        raise LogError(f"{log.path}: column '{name}' has no values")
+    return fill_gaps(values, log.t)
+
+
+def _step_lengths(t: np.ndarray) -> np.ndarray:
+    """Each row's step [s]: the time since the row before (the first: the median step)."""
+    if len(t) < 2:
+        raise LogError("the log has fewer than two rows")
+    steps = np.diff(t)
+    return np.concatenate(([float(np.median(steps))], steps))
+
+
+def prepare(log: LabLog, phases: Phases, params: BoilerParams) -> Case:
+    """Fill gaps, observe the firing, and replay the log through the model."""
+    t = log.t
+    dt = _step_lengths(t)
+    flow = np.clip(np.nan_to_num(fill_gaps(log["water_flow_kg_h"], t)), 0.0, None)
+    t_in = _filled(log, "water_in_temp_C")
+    room = _filled(log, "room_temp_C")
+    water = _filled(log, "boiler_water_temp_C")
+    out_t = _filled(log, "water_out_temp_C")
+    mass = _filled(log, "balance_mass_kg")
+    lab = {
+        "boiler_water_temp_C": water,
+        "water_out_temp_C": out_t,
+        "heat_to_water_kW": heat_to_water_kW(flow, t_in, out_t),
+        "flue_gas_temp_C": _filled(log, "flue_gas_temp_C"),
+        "fuel_cum_kg": mass[0] - mass,
+    }
+    firing = observe_firing(log)
+    replay = replace(params, shutoff_temp_C=max(params.shutoff_temp_C, REPLAY_SHUTOFF_C))
+    model = simulate(pack_constants(replay), float(water[0]), dt, flow, t_in, room, firing.burning)
+    test = phases.mask("test", t)
+    settled = test.copy()
+    for i in np.concatenate([firing.starts, firing.stops]):
+        settled &= np.abs(t - t[i]) > SETTLED_AFTER_S
+    if test.any():
+        settled &= flow > 0.3 * float(np.median(flow[test]))
+    if settled.sum() < 60:
+        settled = test if test.sum() >= 60 else np.ones(len(t), bool)
+    return Case(log, phases, params, t, dt, flow, t_in, room, firing, lab, model, settled)
