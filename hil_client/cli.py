@@ -18,14 +18,14 @@ from hil_client.analysis.balance import energy_balance
 from hil_client.analysis.balance import table as balance_table
 from hil_client.analysis.calibrate import calibrate
 from hil_client.analysis.diagnose import diagnose
+from hil_client.analysis.diagnosis_files import write_diagnosis
 from hil_client.analysis.figures import (
     calibration_figures,
-    diagnosis_figures,
     validation_figures,
 )
 from hil_client.analysis.logio import LabLog, LogError, read_log
 from hil_client.analysis.phases import Phases, find_phases
-from hil_client.analysis.report import diagnosis_report, validation_report
+from hil_client.analysis.report import validation_report
 from hil_client.analysis.validate import compare, validation_metrics
 from hil_client.lablog import LabLogWriter, meta_path, write_meta
 from hil_client.progress import LiveView, ProgressLine
@@ -118,11 +118,19 @@ def _build_parser() -> argparse.ArgumentParser:
     gap = sub.add_parser(
         "gap-benchmark",
         help="blind benchmark of the diagnosis on generated cases",
-        description="Generate cases (one effect or none, random strength and boiler, "
-        "instrument errors on), run the stationary test and the load cycle on the emulator, "
-        "keep the truth sealed, diagnose and score. Writes scores.json.",
+        description="Generate cases (one effect or none, strengths from barely detectable "
+        "to strong, both boilers, both log pairs), write the stationary test and the load "
+        "cycle with the chosen reality, keep the truth sealed, diagnose blind and score. "
+        "Writes scores.json (with the confidence's reliability table).",
     )
-    gap.add_argument("--cases", type=int, default=24, help="number of cases [24]")
+    gap.add_argument("--cases", type=int, default=48, help="number of cases [48]")
+    gap.add_argument(
+        "--reality",
+        choices=("independent", "emulator"),
+        default="independent",
+        help="what writes the lab logs: an independently written plant, or the emulator's "
+        "own [independent]",
+    )
     gap.add_argument("--seed", type=int, default=0, help="seed of the case generator [0]")
     gap.add_argument("--out", required=True, type=Path, help="output directory")
     gap.add_argument("--workers", type=int, default=2, help="parallel processes [2]")
@@ -146,20 +154,21 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     _check_out_dir(args.out)
     with bad_input(LogError):
         result = diagnose(*cal, *val, doc)
-    args.out.mkdir(parents=True, exist_ok=True)
-    figures = diagnosis_figures(result, args.out)
-    public = {key: value for key, value in result.items() if not key.startswith("_")}
-    (args.out / "diagnosis.json").write_text(json.dumps(public, indent=2) + "\n")
-    report = diagnosis_report(public, figures, str(args.calibration), str(args.validation))
-    (args.out / "report.md").write_text(report)
+    write_diagnosis(result, args.out, str(args.calibration), str(args.validation))
     print(f"effect: {result['effect']} (confidence {result['confidence']:.2f})")
-    if result["shrinkage"]:
-        s = result["shrinkage"]
+    if result["unexplained_gap"]:
+        top = result["where"][0]
+        print(f"unexplained gap: largest in {top['signal']} during {top['phase']}")
+    s = result["shrinkage"]
+    if s and s["shrink_pct"] is not None:
+        verdict = "" if s["confirmed"] else "; not confirmed on held-out data"
         print(
-            f"gap: {s['signal']} in {s['phase']}; validation RMSD "
+            f"where it acts: {s['signal']} ({s['phase']}); validation RMSD "
             f"{s['validation_rmsd_before']:.4g} -> {s['validation_rmsd_after']:.4g} "
-            f"({s['shrink_pct']:.0f} % smaller)"
+            f"({s['shrink_pct']:.0f} % smaller{verdict})"
         )
+    elif s:
+        print(f"where it acts: {s['signal']} ({s['phase']}); not measurable on the validation log")
     print(f"written: {args.out / 'diagnosis.json'}, {args.out / 'report.md'}")
     return 0
 
@@ -169,7 +178,7 @@ def _cmd_gap_benchmark(args: argparse.Namespace) -> int:
         raise UsageError("--cases and --workers must be at least 1")
     from hil_client.analysis.gap_benchmark import run_benchmark
 
-    run_benchmark(args.cases, args.seed, args.out, args.workers)
+    run_benchmark(args.cases, args.seed, args.out, args.workers, args.reality)
     return 0
 
 

@@ -80,9 +80,7 @@ def two_lump_water(q_hx_kW, flow_kg_h, t_in, room, ua_kW_K, dt, t0, c_metal, c_w
         a22 = c_water / h + g_kW_K + a
         b1 = c_metal * tm / h + q_hx_kW[i]
         b2 = (
-            c_water * tw / h
-            + max(flow_kg_h[i], 0.0) * cp / 3600.0 * t_in[i]
-            + ua_kW_K[i] * room[i]
+            c_water * tw / h + max(flow_kg_h[i], 0.0) * cp / 3600.0 * t_in[i] + ua_kW_K[i] * room[i]
         )
         det = a11 * a22 - g_kW_K * g_kW_K
         tm = (b1 * a22 + g_kW_K * b2) / det

@@ -47,7 +47,7 @@ import numpy as np
 
 from hil_client.analysis.augment import first_order_lag, pipe_sensor, two_lump_water
 from hil_client.analysis.balance import flue_gas_loss_per_kg, heat_to_water_kW
-from hil_client.analysis.evidence import BlockGain, Evidence, block_gain, cross_validate
+from hil_client.analysis.evidence import BlockGain, Evidence, cross_validate
 from hil_client.analysis.firing import windows_after
 from hil_client.analysis.logio import fill_gaps
 from hil_client.analysis.replay import SENSOR_TAU_S, Case
@@ -65,9 +65,12 @@ ABS_MIN = {"water_out_temp_C": 0.2, "boiler_water_temp_C": 0.2, "flue_gas_temp_C
 #: Resolution of each signal [signal units]: readings 0.01 K, Pt100 noise (Section 2.2).
 NOISE_FLOOR = {"water_out_temp_C": 0.02, "boiler_water_temp_C": 0.02, "flue_gas_temp_C": 0.1}
 WINDOW_S = 1800.0
+ANCHOR_S = 120.0
 BLOCK_S = 3600.0
 BALANCE_STEP_KG = 0.02  # the balance's resolution (Section 2.2)
-PRE_FEED_MIN_KG = 2 * BALANCE_STEP_KG
+#: The pre-feed an effect must exceed [s of feed]: the onset of combustion is seen in the
+#: flue gas (+3 K) some 10-20 s after the bed lights; twice that is the floor.
+PRE_FEED_MIN_S = 40.0
 #: Systematic relative uncertainty of the energy closure: flow meter 0.5 %/sqrt(3), forward
 #: minus return after the isothermal check 0.1 K of about 15 K, loss to the room and the
 #: flue-gas stoichiometry about 0.5 % each.
@@ -106,6 +109,9 @@ class CurveCandidate:
     blocks: Callable[[Case], list[tuple[str, np.ndarray]]]
     nuisance_drift: bool
     fingerprint_kind: str | None  # block kind whose held-out gain must be positive
+    #: a block's residual is taken relative to its mean over this long before the block [s]
+    #: (the response to a start or stop, not the mismatch the plant carried into it)
+    anchor_s: float | None = None
 
     def residual(self, case: Case, theta: dict[str, float] | None) -> np.ndarray:
         """Lab minus prediction, less the sensor's offset (and drift) fitted on the settled
@@ -118,13 +124,21 @@ class CurveCandidate:
             return r - (intercept + slope * x)
         return r - float(np.mean(r[ref]))
 
-    def fit(self, case: Case, rows: np.ndarray) -> dict[str, float]:
+    def block_residual(self, case: Case, r: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """The residual on one block, anchored before it when the candidate says so."""
+        if self.anchor_s is None:
+            return r[rows]
+        i0 = int(rows[0])
+        j = int(np.searchsorted(case.t, case.t[i0] - self.anchor_s))
+        return r[rows] - (float(np.mean(r[j:i0])) if i0 > j else float(r[i0]))
+
+    def fit(self, case: Case, blocks: list[np.ndarray]) -> dict[str, float]:
         names = list(self.grid)
         best, best_sse = None, math.inf
         for point in np.array(np.meshgrid(*self.grid.values())).reshape(len(names), -1).T:
             theta = dict(zip(names, point.tolist(), strict=True))
-            r = self.residual(case, theta)[rows]
-            sse = float(np.dot(r, r))
+            full = self.residual(case, theta)
+            sse = sum(float(np.sum(self.block_residual(case, full, b) ** 2)) for b in blocks)
             if sse < best_sse:
                 best, best_sse = theta, sse
         assert best is not None
@@ -152,11 +166,11 @@ class CurveCandidate:
         blocks = self.blocks(case)
         ev, _ = cross_validate(
             blocks,
-            lambda rows: self.fit(case, rows),
-            lambda theta, rows: self.residual(case, theta)[rows],
+            lambda train: self.fit(case, train),
+            lambda theta, rows: self.block_residual(case, self.residual(case, theta), rows),
             NOISE_FLOOR[self.signal],
         )
-        theta = self.fit(case, np.concatenate([b[1] for b in blocks])) if blocks else {}
+        theta = self.fit(case, [b[1] for b in blocks]) if blocks else {}
         before, after = ev.rmsd() if ev.blocks else (math.nan, math.nan)
         return Assessment(
             self.effect,
@@ -174,8 +188,9 @@ class CurveCandidate:
         blocks = self.blocks(case)
         if not blocks or not theta:
             return math.nan, math.nan
-        rows = np.concatenate([b[1] for b in blocks])
-        r0, r1 = self.residual(case, None)[rows], self.residual(case, theta)[rows]
+        full0, full1 = self.residual(case, None), self.residual(case, theta)
+        r0 = np.concatenate([self.block_residual(case, full0, b[1]) for b in blocks])
+        r1 = np.concatenate([self.block_residual(case, full1, b[1]) for b in blocks])
         return float(np.sqrt(np.mean(r0**2))), float(np.sqrt(np.mean(r1**2)))
 
 
@@ -291,6 +306,7 @@ BODY = CurveCandidate(
     _transition_blocks,
     nuisance_drift=False,
     fingerprint_kind="stop",
+    anchor_s=ANCHOR_S,
 )
 FLUE = CurveCandidate(
     "flue_gas_lag",
@@ -301,6 +317,7 @@ FLUE = CurveCandidate(
     _transition_blocks,
     nuisance_drift=False,
     fingerprint_kind="stop",
+    anchor_s=ANCHOR_S,
 )
 
 
@@ -350,8 +367,9 @@ def _decide_ignition(units: Sequence[tuple[float, float, float]]) -> tuple[bool,
     se = math.sqrt(sum(u[1] ** 2 for u in units)) / len(units)
     mean = float(pre.mean())
     z = mean / se
-    if mean < PRE_FEED_MIN_KG:
-        return False, z, f"pre-feed {mean:.3f} kg < {PRE_FEED_MIN_KG:g} kg per start"
+    delay = _delay_s(units)
+    if delay < PRE_FEED_MIN_S:
+        return False, z, f"pre-feed {mean:.3f} kg, {delay:.0f} s < {PRE_FEED_MIN_S:g} s of feed"
     if z < Z_MIN:
         return False, z, f"evidence {z:.1f} < {Z_MIN:g} standard errors"
     return True, z, "named"
@@ -460,7 +478,7 @@ def _closure_blocks(case: Case) -> list[tuple[float, float]]:
         c_kJ_K = p.capacity_kJ_K
         stored = c_kJ_K * (water[block[-1]] - water[block[0]])  # [kJ]
         q = (q_water[block] + q_amb[block]) * case.dt[block]  # [kJ]
-        need_dry = (float(np.sum(q / usable[block])) + stored / float(np.mean(usable[block])))
+        need_dry = float(np.sum(q / usable[block])) + stored / float(np.mean(usable[block]))
         out.append((float(lost), need_dry * per_kg))
     return out
 
@@ -528,10 +546,7 @@ class BiasCandidate:
         return _bias_rmsd(_closure_blocks(case), theta.get("bias", 0.0))
 
 
-CANDIDATES = {
-    c.effect: c
-    for c in (PIPE, BODY, IgnitionCandidate(), FLUE, BiasCandidate())
-}
+CANDIDATES = {c.effect: c for c in (PIPE, BODY, IgnitionCandidate(), FLUE, BiasCandidate())}
 
 
 def full_prediction(case: Case, effect: str, theta: dict[str, float]) -> dict[str, np.ndarray]:
@@ -540,7 +555,12 @@ def full_prediction(case: Case, effect: str, theta: dict[str, float]) -> dict[st
     if effect == "outlet_sensor_pipe" and theta:
         node = case.model[:, Y_T_BOILER]
         pipe = pipe_sensor(
-            node, case.flow, case.room, case.dt, theta["pipe_kg"], theta["tau_loss_s"],
+            node,
+            case.flow,
+            case.room,
+            case.dt,
+            theta["pipe_kg"],
+            theta["tau_loss_s"],
             theta["tau_coupling_s"],
         )
         pred["water_out_temp_C"] = first_order_lag(pipe, case.dt, SENSOR_TAU_S["water_out_temp_C"])

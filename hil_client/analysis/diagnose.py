@@ -98,7 +98,10 @@ def where(case: Case, pred: dict[str, np.ndarray]) -> list[dict]:
                 }
             )
     rows.sort(key=lambda r: -r["normalised_rmsd"])
-    return [{k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in r.items()} for r in rows]
+    return [
+        {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in r.items()}
+        for r in rows
+    ]
 
 
 def _answer(verdicts: dict[str, tuple[bool, float, str]]) -> str:

@@ -61,9 +61,7 @@ class BlockGain:
         return self.sse_base - self.sse_cand
 
 
-def block_gain(
-    kind: str, r_base: np.ndarray, r_cand: np.ndarray, noise_floor: float
-) -> BlockGain:
+def block_gain(kind: str, r_base: np.ndarray, r_cand: np.ndarray, noise_floor: float) -> BlockGain:
     return BlockGain(
         kind,
         float(np.dot(r_base, r_base)),
@@ -127,19 +125,19 @@ def folds(n_blocks: int, k_max: int = 6) -> list[list[int]]:
 
 def cross_validate(
     blocks: Sequence[tuple[str, np.ndarray]],
-    fit: Callable[[np.ndarray], dict[str, float]],
+    fit: Callable[[list[np.ndarray]], dict[str, float]],
     residuals: Callable[[dict[str, float] | None, np.ndarray], np.ndarray],
     noise_floor: float,
 ) -> tuple[Evidence, list[dict[str, float]]]:
-    """Blocked cross-validation: for each fold, ``fit`` on the rows of the other blocks and
-    score the fold's blocks; ``residuals(None, rows)`` are the base model's. With a single
-    block there is nothing to fit on: the evidence is empty."""
+    """Blocked cross-validation: for each fold, ``fit`` on the other blocks (their row
+    arrays) and score the fold's blocks; ``residuals(None, rows)`` are the base model's on
+    one block. With a single block there is nothing to fit on: the evidence is empty."""
     gains: list[BlockGain] = []
     thetas: list[dict[str, float]] = []
     if len(blocks) < 2:
         return Evidence(()), thetas
     for fold in folds(len(blocks)):
-        train = np.concatenate([blocks[i][1] for i in range(len(blocks)) if i not in fold])
+        train = [blocks[i][1] for i in range(len(blocks)) if i not in fold]
         theta = fit(train)
         thetas.append(theta)
         for i in fold:

@@ -20,6 +20,7 @@ risen :data:`ONSET_RISE_K` above its value before the burn.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,7 +50,7 @@ def _merge_short_runs(state: np.ndarray, t: np.ndarray, min_run_s: float) -> np.
         edges = np.flatnonzero(np.diff(state.astype(np.int8))) + 1
         bounds = np.concatenate(([0], edges, [len(state)]))
         changed = False
-        for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        for a, b in itertools.pairwise(bounds):
             if a == 0 or b >= len(state):
                 continue  # the first and last runs are cut by the record, not short
             if t[b - 1] - t[a] < min_run_s:

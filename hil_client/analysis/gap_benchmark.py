@@ -1,17 +1,31 @@
 """Blind benchmark of the gap diagnosis (``hil-client gap-benchmark``).
 
-Each case: one effect of CONTRACT section 4 (or ``none``) at a strength drawn uniformly from
-its documented range (:func:`rig_emulator.bench.effects.strength_ranges`), a random boiler
-(one of the two shipped sets with its lab-calibrated values moved by up to +-10 to 30 %), the
-lab's instrument errors with a random seed. The emulator runs the stationary test (the
-calibration log) and the load cycle (the validation log); the truth goes to ``sealed/``,
-which the diagnosis never reads; the logs lose their meta files (the profile path is in
-them), so the diagnosis sees CSVs only. Cases are balanced over the six answers and run on
-``workers`` processes.
+Two "realities" write the lab logs the diagnosis sees:
+
+- ``independent`` (default): :mod:`hil_client.reality`, a pellet-boiler plant written from
+  the paper without the emulator's model or bench, with its own controller, start-up,
+  exchanger, return conditioning and sensor drifts drawn at random per case, and every
+  listed effect in functional forms the diagnosis's candidates do not share;
+- ``emulator``: the emulator's own plant with the ``lab`` profile (the effect at a strength
+  from its documented range).
+
+Cases are balanced: a sixth (at least one) carry no listed effect (``none``; only the
+background gap), the rest cycle through the five effects and, for the independent plant,
+through each effect's forms; strengths are spread evenly from barely detectable to strong;
+both boilers and both log pairs alternate (the stationary test as calibration with the load
+cycle held out, and the reverse). The truth goes to ``sealed/``, which the diagnosis never
+reads; logs have no meta files and no phase columns.
+
+Scoring: a case counts as right when the answer is the truth and, for an effect, its
+held-out shrinkage is positive ("not confirmed" otherwise). ``scores.json`` adds the
+confusion matrix, false alarms on ``none``, the median held-out shrinkage of the right
+answers, and the reliability table of the confidence.
 """
 
 from __future__ import annotations
 
+import csv
+import itertools
 import json
 import multiprocessing as mp
 import statistics
@@ -23,131 +37,177 @@ import numpy as np
 import yaml
 
 from hil_client.analysis.augment import EFFECTS
-from rig_emulator.bench.effects import strength_ranges
+from hil_client.analysis.diagnose import diagnose
+from hil_client.analysis.diagnosis_files import write_diagnosis
+from hil_client.analysis.logio import read_log
+from hil_client.analysis.phases import find_phases
 from rig_emulator.boilers import BOILER_DIR
-from rig_emulator.instruments.profile import PROFILE_DIR
-from rig_emulator.model.params import ParameterError, params_from_mapping
+from rig_emulator.model.params import params_from_mapping
 
 ANSWERS = ("none", *EFFECTS)
-#: Lab-calibrated values of a random boiler: relative half-range of the uniform draw.
-PARAMETER_SPREAD = {
-    "dt_nom_K": 0.10,
-    "dt_hx_wat_K": 0.30,
-    "fac_a_lambda": 0.08,
-    "fac_b_lambda_h_kg": 0.15,
-    "ua_amb_off_W_K": 0.15,
-    "ua_amb_on_W_K": 0.15,
-    "w_el_Wh": 0.10,
-}
+REALITIES = ("independent", "emulator")
+BOILERS = ("windhager_6kw", "windhager_12kw")
+PAIRS = (("stationary", "load_cycle"), ("load_cycle", "stationary"))  # (calibration, held out)
+#: Confidence bins of the reliability table.
+CONFIDENCE_BINS = (0.0, 0.5, 0.8, 0.95, 1.0000001)
+#: Logged columns a real lab's CSV lacks: the diagnosis must not need them.
+DROPPED_COLUMNS = ("phase", "sequence")
 
 
-def _random_boiler(base: str, rng: np.random.Generator) -> dict:
-    """A shipped boiler with its lab-calibrated values moved; drawn again until the set is
-    valid and burns with lambda >= 1.2 at Pmax."""
-    shipped = yaml.safe_load((BOILER_DIR / f"{base}.yaml").read_text())
-    while True:
-        params = dict(shipped)
-        for key, spread in PARAMETER_SPREAD.items():
-            params[key] = round(float(params[key]) * (1 + rng.uniform(-spread, spread)), 4)
-        try:
-            p = params_from_mapping(params)
-        except ParameterError:
-            continue
-        fuel_max = p.p_max_kW * 3600.0 / p.fuel.lhv_dry_kJ_kg
-        if p.fac_a_lambda + p.fac_b_lambda_h_kg * fuel_max >= 1.2:
-            return params
-
-
-def make_cases(n: int, seed: int) -> list[dict]:
-    """The cases' truth: answer, strength, boiler parameters, instrument seed."""
+def make_cases(n: int, seed: int, reality: str) -> list[dict]:
+    """The cases' truth (see the module docstring)."""
     rng = np.random.default_rng(seed)
-    answers = [ANSWERS[i % len(ANSWERS)] for i in range(n)]
-    answers = [answers[i] for i in rng.permutation(n)]
-    ranges = strength_ranges()
+    n_none = max(1, round(n / 6)) if n >= 6 else (1 if n > 1 else 0)
+    answers = ["none"] * n_none + [EFFECTS[i % len(EFFECTS)] for i in range(n - n_none)]
+    forms = _forms(reality)
+    seen: dict[str, int] = {}
     cases = []
     for i, answer in enumerate(answers):
-        base = str(rng.choice(["windhager_6kw", "windhager_12kw"]))
-        params = _random_boiler(base, rng)
-        params["name"] = f"case_{i:02d}_boiler"
-        strength = float(rng.uniform(*ranges[answer])) if answer != "none" else 0.0
+        k = seen.get(answer, 0)
+        seen[answer] = k + 1
+        per_effect = answers.count(answer)
+        strength = (k + 0.5) / per_effect if answer != "none" else 0.0  # evenly, weak to strong
         cases.append(
             {
-                "case": i,
                 "effect": answer,
+                "form": forms[answer][k % len(forms[answer])] if answer != "none" else None,
                 "strength": round(strength, 3),
-                "base_boiler": base,
-                "params": params,
-                "instrument_seed": int(rng.integers(1, 1_000_000)),
+                "boiler": BOILERS[(k + (i % 2)) % 2],
+                "pair": list(PAIRS[(k // 2 + i) % 2]),
+                "seed": int(rng.integers(1, 1_000_000)),
             }
         )
+    order = rng.permutation(n)
+    cases = [cases[j] for j in order]
+    for i, c in enumerate(cases):
+        c["case"] = i
     return cases
 
 
-def _run_case(job: tuple[dict, str]) -> dict:
-    """Worker: emulate both tests, then diagnose blind; returns the diagnosis summary."""
-    from hil_client.cli import main as client
+def _forms(reality: str) -> dict[str, tuple]:
+    if reality == "independent":
+        from hil_client.reality import EFFECT_FORMS
 
-    truth, out = job
-    out_dir = Path(out)
-    case_dir = out_dir / "cases" / f"case_{truth['case']:02d}"
-    sealed = out_dir / "sealed"
-    case_dir.mkdir(parents=True, exist_ok=True)
-    boiler = case_dir / "boiler.yaml"
-    boiler.write_text(yaml.safe_dump(truth["params"], sort_keys=False))
+        return {effect: tuple(EFFECT_FORMS[effect]) for effect in EFFECTS}
+    return {effect: ("lab",) for effect in EFFECTS}
+
+
+def _write_csv_without(columns: dict[str, np.ndarray], path: Path, writer) -> None:
+    kept = {k: v for k, v in columns.items() if k not in DROPPED_COLUMNS}
+    writer(kept, path)
+
+
+def _independent_logs(truth: dict, case_dir: Path) -> dict[str, Path]:
+    from hil_client.reality import draw_background, simulate_log, write_log_csv
+
+    boiler = yaml.safe_load((BOILER_DIR / f"{truth['boiler']}.yaml").read_text())
+    rng = np.random.default_rng(truth["seed"])
+    background = draw_background(rng, boiler)
+    sample_s = float(rng.choice([1.0, 2.0, 5.0, 10.0]))
+    jitter = bool(rng.random() < 0.3)
+    logs = {}
+    for test in ("stationary", "load_cycle"):
+        columns, _ = simulate_log(
+            boiler,
+            test,
+            background=background,
+            effect=None if truth["effect"] == "none" else truth["effect"],
+            form=truth["form"],
+            strength=truth["strength"],
+            seed=truth["seed"],
+            sample_s=sample_s,
+            jitter=jitter,
+        )
+        path = case_dir / f"{test}.csv"
+        _write_csv_without(columns, path, write_log_csv)
+        logs[test] = path
+    (case_dir / "boiler.yaml").write_text(yaml.safe_dump(boiler, sort_keys=False))
+    return logs
+
+
+def _emulator_logs(truth: dict, case_dir: Path) -> dict[str, Path]:
+    from hil_client.lablog import LabLogWriter
+    from hil_client.protocol.definition import load_protocol
+    from hil_client.protocol.runner import run_protocol
+    from hil_client.rigs.local import LocalRig
+    from rig_emulator.bench.effects import strength_ranges
+    from rig_emulator.instruments import load_profile
+    from rig_emulator.instruments.profile import PROFILE_DIR
+
+    boiler = yaml.safe_load((BOILER_DIR / f"{truth['boiler']}.yaml").read_text())
+    params = params_from_mapping(boiler)
     profile = yaml.safe_load((PROFILE_DIR / "lab.yaml").read_text())
     profile["name"] = f"p{truth['case']:02d}"
-    profile["effects"] = (
-        {truth["effect"]: {"strength": truth["strength"]}} if truth["effect"] != "none" else {}
-    )
-    profile_file = sealed / f"p{truth['case']:02d}.yaml"
-    profile_file.write_text(yaml.safe_dump(profile, sort_keys=False))
-    started = time.monotonic()
+    if truth["effect"] != "none":
+        lo, hi = strength_ranges()[truth["effect"]]
+        profile["effects"] = {truth["effect"]: {"strength": lo + truth["strength"] * (hi - lo)}}
+    else:
+        profile["effects"] = {}
+    sealed = case_dir.parent.parent / "sealed" / f"profile_{truth['case']:02d}.yaml"
+    sealed.write_text(yaml.safe_dump(profile, sort_keys=False))
     logs = {}
-    for name, test in (("calibration", "stationary"), ("validation", "load_cycle")):
-        log = case_dir / f"{name}.csv"
-        code = client(
-            [
-                "run",
-                test,
-                "--boiler",
-                str(boiler),
-                "--profile",
-                str(profile_file),
-                "--seed",
-                str(truth["instrument_seed"]),
-                "--out",
-                str(log),
-                "--quiet",
-            ]
-        )
-        if code != 0:
-            raise RuntimeError(f"case {truth['case']}: hil-client run {test} failed")
-        log.with_name(log.stem + ".meta.json").unlink()  # the meta names the profile
-        logs[name] = log
+    for test in ("stationary", "load_cycle"):
+        protocol = load_protocol(test)
+        rig = LocalRig(params, load_profile(str(sealed)), seed=truth["seed"])
+        path = case_dir / f"{test}.csv"
+        full = case_dir / f"{test}.full.csv"
+        try:
+            with LabLogWriter(full) as writer:
+                run_protocol(protocol, params.p_nom_kW, rig, writer)
+        finally:
+            rig.close()
+        _strip_columns(full, path)
+        full.unlink()
+        logs[test] = path
+    (case_dir / "boiler.yaml").write_text(yaml.safe_dump(boiler, sort_keys=False))
+    return logs
+
+
+def _strip_columns(src: Path, dst: Path) -> None:
+    with src.open(newline="") as fin, dst.open("w", newline="") as fout:
+        reader = csv.reader(fin)
+        header = next(reader)
+        keep = [i for i, h in enumerate(header) if h not in DROPPED_COLUMNS]
+        writer = csv.writer(fout)
+        writer.writerow([header[i] for i in keep])
+        for row in reader:
+            writer.writerow([row[i] for i in keep])
+
+
+def _run_case(job: tuple[dict, str, str]) -> dict:
+    """Worker: write both logs of one plant, then diagnose blind."""
+    truth, out, reality = job
+    case_dir = Path(out) / "cases" / f"case_{truth['case']:02d}"
+    case_dir.mkdir(parents=True, exist_ok=True)
+    started = time.monotonic()
+    make = _independent_logs if reality == "independent" else _emulator_logs
+    logs = make(truth, case_dir)
     emulated = time.monotonic() - started
     started = time.monotonic()
-    diag_dir = case_dir / "diagnosis"
-    code = client(
-        [
-            "diagnose",
-            "--calibration",
-            str(logs["calibration"]),
-            "--validation",
-            str(logs["validation"]),
-            "--boiler",
-            str(boiler),
-            "--out",
-            str(diag_dir),
-        ]
-    )
+    cal_name, val_name = truth["pair"]
+    result: dict = {}
+    error = None
+    try:
+        cal_log, val_log = read_log(logs[cal_name]), read_log(logs[val_name])
+        doc = params_from_mapping(
+            yaml.safe_load((case_dir / "boiler.yaml").read_text()), str(case_dir / "boiler.yaml")
+        )
+        full = diagnose(cal_log, find_phases(cal_log), val_log, find_phases(val_log), doc)
+        result = write_diagnosis(
+            full, case_dir / "diagnosis", str(logs[cal_name]), str(logs[val_name])
+        )
+    except ValueError as exc:  # LogError, ParameterError: the one-line error a user would see
+        error = str(exc)
     diagnosed = time.monotonic() - started
-    result = json.loads((diag_dir / "diagnosis.json").read_text()) if code == 0 else {}
     shrink = result.get("shrinkage") or {}
     return {
         "case": truth["case"],
         "found": result.get("effect", "error"),
+        "error": error,
         "confidence": result.get("confidence"),
+        "unexplained_gap": result.get("unexplained_gap"),
         "shrink_pct": shrink.get("shrink_pct"),
+        "confirmed": shrink.get("confirmed"),
         "gap_signal": shrink.get("signal"),
         "gap_phase": shrink.get("phase"),
         "emulation_s": round(emulated, 2),
@@ -155,79 +215,136 @@ def _run_case(job: tuple[dict, str]) -> dict:
     }
 
 
+def is_right(truth: str, result: dict) -> bool:
+    """Right: the true answer, and for an effect a positive held-out shrinkage."""
+    if result["found"] != truth:
+        return False
+    return truth == "none" or bool(result.get("confirmed"))
+
+
+def reliability(cases: list[dict], results: list[dict]) -> list[dict]:
+    """Share of right answers per confidence bin."""
+    truth = {c["case"]: c["effect"] for c in cases}
+    rows = []
+    for lo, hi in itertools.pairwise(CONFIDENCE_BINS):
+        inside = [r for r in results if r["confidence"] is not None and lo <= r["confidence"] < hi]
+        right = sum(is_right(truth[r["case"]], r) for r in inside)
+        rows.append(
+            {
+                "confidence_from": lo,
+                "confidence_to": min(hi, 1.0),
+                "answers": len(inside),
+                "right": right,
+                "share_right": right / len(inside) if inside else None,
+            }
+        )
+    return rows
+
+
 def score(cases: list[dict], results: list[dict]) -> dict:
-    """Accuracy, confusion matrix, false alarms on none, median shrinkage per effect."""
+    """Accuracy, confusion, false alarms on none, shrinkage, reliability of the confidence."""
     truth = {c["case"]: c["effect"] for c in cases}
     confusion = {t: dict.fromkeys((*ANSWERS, "error"), 0) for t in ANSWERS}
     for r in results:
         confusion[truth[r["case"]]][r["found"]] += 1
-    correct = sum(truth[r["case"]] == r["found"] for r in results)
+    right = [r for r in results if is_right(truth[r["case"]], r)]
+    named_right = [r for r in results if r["found"] == truth[r["case"]] != "none"]
     none_cases = [r for r in results if truth[r["case"]] == "none"]
-    shrink = {}
+    shrinks = [r["shrink_pct"] for r in named_right if r["shrink_pct"] is not None]
+    per_effect = {}
     for effect in EFFECTS:
         values = [
             r["shrink_pct"]
-            for r in results
-            if truth[r["case"]] == effect and r["found"] == effect and r["shrink_pct"] is not None
+            for r in named_right
+            if truth[r["case"]] == effect and r["shrink_pct"] is not None
         ]
-        shrink[effect] = statistics.median(values) if values else None
+        per_effect[effect] = statistics.median(values) if values else None
+    confident = [r for r in results if (r["confidence"] or 0.0) >= 0.8]
     return {
         "cases": len(results),
-        "accuracy": correct / len(results) if results else 0.0,
+        "accuracy": len(right) / len(results) if results else 0.0,
         "false_alarms_on_none": sum(r["found"] != "none" for r in none_cases),
         "none_cases": len(none_cases),
-        "median_validation_shrink_pct": shrink,
+        "not_confirmed": sum(not r.get("confirmed") for r in named_right),
+        "median_validation_shrink_pct": statistics.median(shrinks) if shrinks else None,
+        "negative_shrinks_on_right_effect": sum(s <= 0 for s in shrinks),
+        "median_validation_shrink_pct_by_effect": per_effect,
+        "confident_answers": len(confident),
+        "confident_share_right": (
+            sum(is_right(truth[r["case"]], r) for r in confident) / len(confident)
+            if confident
+            else None
+        ),
+        "reliability": reliability(cases, results),
         "confusion": confusion,
+        "errors": sum(r["found"] == "error" for r in results),
+        "max_diagnosis_s": max(r["diagnosis_s"] for r in results) if results else None,
         "median_diagnosis_s": statistics.median(r["diagnosis_s"] for r in results),
-        "median_case_s": statistics.median(r["emulation_s"] + r["diagnosis_s"] for r in results),
     }
 
 
-def run_benchmark(n: int, seed: int, out: Path, workers: int) -> dict:
-    """Generate, emulate, diagnose and score ``n`` cases; prints and writes scores.json."""
+def run_benchmark(n: int, seed: int, out: Path, workers: int, reality: str) -> dict:
+    """Generate, diagnose and score ``n`` cases; prints progress and writes scores.json."""
     out.mkdir(parents=True, exist_ok=True)
     (out / "sealed").mkdir(exist_ok=True)
-    cases = make_cases(n, seed)
+    cases = make_cases(n, seed, reality)
     (out / "sealed" / "truth.json").write_text(json.dumps(cases, indent=2) + "\n")
     started = time.monotonic()
     results = []
-    jobs = [(c, str(out)) for c in cases]
+    jobs = [(c, str(out), reality) for c in cases]
     ctx = mp.get_context("spawn")
     with ctx.Pool(min(workers, n)) as pool:
         for r in pool.imap_unordered(_run_case, jobs):
             results.append(r)
-            truth = cases[r["case"]]["effect"]
-            mark = "ok " if truth == r["found"] else "MISS"
+            c = cases[r["case"]]
+            mark = "ok  " if is_right(c["effect"], r) else "MISS"
+            shrink = "-" if r["shrink_pct"] is None else f"{r['shrink_pct']:.0f} %"
+            conf = "-" if r["confidence"] is None else f"{r['confidence']:.2f}"
             print(
-                f"[{len(results):2d}/{n}] case {r['case']:02d} {mark} truth {truth:<20} "
-                f"found {r['found']:<20} shrink {r['shrink_pct'] or 0:5.0f} %  "
-                f"({r['emulation_s'] + r['diagnosis_s']:.0f} s)",
+                f"[{len(results):2d}/{n}] case {r['case']:02d} {mark} truth {c['effect']:<20} "
+                f"({c['form'] or '-'}, {c['strength']:.2f}, {c['boiler'][-4:]}, cal "
+                f"{c['pair'][0]}) found {r['found']:<20} conf {conf} shrink {shrink} "
+                f"({r['emulation_s'] + r['diagnosis_s']:.0f} s)"
+                + (f" error: {r['error']}" if r["error"] else ""),
                 flush=True,
             )
     wall = time.monotonic() - started
     results.sort(key=lambda r: r["case"])
     scores = score(cases, results) | {
+        "reality": reality,
         "wall_s": round(wall, 1),
         "workers": workers,
         "seed": seed,
         "results": results,
     }
     (out / "scores.json").write_text(json.dumps(scores, indent=2) + "\n")
+    _print_scores(scores, n, wall)
+    return scores
+
+
+def _print_scores(scores: dict, n: int, wall: float) -> None:
     print(
-        f"\naccuracy {scores['accuracy']:.0%} on {n} cases; false alarms on none: "
-        f"{scores['false_alarms_on_none']} of {scores['none_cases']}"
+        f"\n[{scores['reality']}] accuracy {scores['accuracy']:.0%} on {n} cases; false alarms "
+        f"on none: {scores['false_alarms_on_none']} of {scores['none_cases']}; named right but "
+        f"not confirmed on held-out data: {scores['not_confirmed']}"
     )
-    print("median validation shrinkage where the gap lies (correctly named cases):")
-    for effect, value in scores["median_validation_shrink_pct"].items():
-        print(f"  {effect:<20} {'-' if value is None else f'{value:.0f} %'}")
+    med = scores["median_validation_shrink_pct"]
+    print(f"median held-out shrinkage of right answers: {'-' if med is None else f'{med:.0f} %'}")
+    print("confidence reliability (bin: right / answers):")
+    for row in scores["reliability"]:
+        share = "-" if row["share_right"] is None else f"{row['share_right']:.0%}"
+        print(
+            f"  [{row['confidence_from']:.2f}, {row['confidence_to']:.2f}): "
+            f"{row['right']} / {row['answers']}  ({share})"
+        )
     print("confusion (rows: truth, columns: found):")
-    print("  " + " " * 20 + " ".join(f"{a[:8]:>8}" for a in ANSWERS))
+    print("  " + " " * 20 + " ".join(f"{a[:8]:>8}" for a in (*ANSWERS, "error")))
     for t in ANSWERS:
-        print(f"  {t:<20}" + " ".join(f"{scores['confusion'][t][a]:>8}" for a in ANSWERS))
+        row = scores["confusion"][t]
+        print(f"  {t:<20}" + " ".join(f"{row[a]:>8}" for a in (*ANSWERS, "error")))
     print(
-        f"time: median {scores['median_case_s']:.0f} s per case (diagnosis "
-        f"{scores['median_diagnosis_s']:.0f} s), {wall:.0f} s for {n} cases on {workers} "
-        f"processes; written {out / 'scores.json'}"
+        f"time: diagnosis median {scores['median_diagnosis_s']:.1f} s, max "
+        f"{scores['max_diagnosis_s']:.1f} s; {wall:.0f} s for {n} cases; written "
+        "scores.json"
     )
     sys.stdout.flush()
-    return scores

@@ -1,0 +1,24 @@
+"""Writing a diagnosis: ``diagnosis.json`` (CONTRACT section 4), ``report.md`` and figures."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from hil_client.analysis.figures import diagnosis_figures
+from hil_client.analysis.report import diagnosis_report
+
+
+def public(result: dict) -> dict:
+    """What ``diagnosis.json`` holds: everything but the series kept for the figures."""
+    return {key: value for key, value in result.items() if not key.startswith("_")}
+
+
+def write_diagnosis(result: dict, out: Path, calibration: str, validation: str) -> dict:
+    """Write the three outputs into ``out`` (created); returns the public result."""
+    out.mkdir(parents=True, exist_ok=True)
+    figures = diagnosis_figures(result, out)
+    content = public(result)
+    (out / "diagnosis.json").write_text(json.dumps(content, indent=2, allow_nan=False) + "\n")
+    (out / "report.md").write_text(diagnosis_report(content, figures, calibration, validation))
+    return content
