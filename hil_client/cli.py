@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from collections.abc import Sequence
@@ -209,6 +210,10 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _finite_or_none(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
 def _cmd_calibrate(args: argparse.Namespace) -> int:
     doc = boiler_arg(args.boiler)
     if args.out.suffix not in (".yaml", ".yml"):
@@ -222,22 +227,30 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         f"# documentation values from {args.boiler}; fitted values +- expanded uncertainty (k=2):",
     ]
     for key, f in result.fitted.items():
-        lines.append(f"#   {key} = {f.value:.4g} +- {f.expanded:.2g}  ({f.method})")
+        kept = "  IMPLAUSIBLE, documentation value kept" if key in result.flags else ""
+        lines.append(f"#   {key} = {f.value:.4g} +- {f.expanded:.2g}  ({f.method}){kept}")
     dump_boiler(params, args.out, header="\n".join(lines))
     side = args.out.with_suffix(".uncertainty.json")
     side.write_text(
         json.dumps(
             {
                 key: {
-                    "value": f.value,
-                    "standard_uncertainty": f.u,
-                    "expanded_uncertainty_k2": f.expanded,
+                    "value": _finite_or_none(f.value),
+                    "standard_uncertainty": _finite_or_none(f.u),
+                    "expanded_uncertainty_k2": _finite_or_none(f.expanded),
                     "method": f.method,
                     "points": f.n,
+                    "implausible": key in result.flags,
+                    **(
+                        {"kept": getattr(doc, key), "why": result.flags[key]}
+                        if key in result.flags
+                        else {}
+                    ),
                 }
                 for key, f in result.fitted.items()
             },
             indent=2,
+            allow_nan=False,
         )
         + "\n"
     )
@@ -246,6 +259,8 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     print(f"  {'parameter':<20} {'value':>10} {'+- (k=2)':>10}  {'documentation':>13}")
     for key, f in result.fitted.items():
         print(f"  {key:<20} {f.value:>10.4g} {f.expanded:>10.2g}  {getattr(doc, key):>13.4g}")
+    for key, why in result.flags.items():
+        print(f"warning: {key}: {why}; documentation value {getattr(doc, key):.4g} kept")
     print(f"written: {args.out}, {side}, " + ", ".join(str(p) for p in figures))
     return 0
 

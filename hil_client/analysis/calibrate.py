@@ -32,7 +32,7 @@ report it expanded with a coverage factor of 2.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -176,12 +176,64 @@ def _lambda_rows(
 
 @dataclass
 class Calibration:
-    """The calibrated parameter set, each fitted value, and the data of Figs. 4 and 5."""
+    """The calibrated parameter set, each fitted value, the data of Figs. 4 and 5, and the
+    fitted values that were implausible (kept at their documentation value; ``flags``:
+    key -> why)."""
 
     params: BoilerParams
     fitted: dict[str, Fitted]
     fig4: dict[str, np.ndarray]
     fig5: dict[str, np.ndarray]
+    flags: dict[str, str] = field(default_factory=dict)
+
+
+def _lambda_ok(params: BoilerParams) -> bool:
+    """Eq. 9 gives lambda > 1 over the whole modulation range."""
+    lhv = params.fuel.lhv_dry_kJ_kg
+    return all(
+        params.fac_a_lambda + params.fac_b_lambda_h_kg * p * 3600.0 / lhv > 1.0
+        for p in (params.p_min_kW, params.p_max_kW)
+    )
+
+
+#: What each fitted value must satisfy to be physical (the checks of the parameter files,
+#: CONTRACT section 2): a value that fails keeps its documentation value and is flagged.
+PLAUSIBLE = {
+    "ua_amb_off_W_K": ("positive", lambda v, p: v > 0),
+    "ua_amb_on_W_K": ("positive", lambda v, p: v > 0),
+    "dt_nom_K": ("positive", lambda v, p: v > 0),
+    "p_start_kW": ("positive and at most 1.5 Pmax", lambda v, p: 0 < v <= 1.5 * p.p_max_kW),
+    "w_el_Wh": ("not negative", lambda v, p: v >= 0),
+    "p_el_min_W": ("not negative", lambda v, p: v >= 0),
+    "p_el_max_W": ("not negative", lambda v, p: v >= 0),
+    "p_el_off_W": ("not negative", lambda v, p: v >= 0),
+}
+
+
+def _plausible(doc: BoilerParams, fitted: dict[str, Fitted]) -> tuple[BoilerParams, dict[str, str]]:
+    """The calibrated set with every implausible fitted value replaced by its documentation
+    value, and why each was replaced."""
+    flags: dict[str, str] = {}
+    values = {}
+    for key, f in fitted.items():
+        rule = PLAUSIBLE.get(key)
+        if not math.isfinite(f.value):
+            flags[key] = f"fitted value {f.value} is not a number"
+        elif rule is not None and not rule[1](f.value, doc):
+            flags[key] = f"fitted {f.value:.4g} is not {rule[0]} ({f.method})"
+        else:
+            values[key] = f.value
+    params = replace(doc, **values, dt_hx_fg_K=0.0)
+    if not _lambda_ok(params):
+        for key in ("fac_a_lambda", "fac_b_lambda_h_kg"):
+            if key in values:
+                flags[key] = (
+                    f"fitted {values[key]:.4g} gives lambda <= 1 in the modulation range (Eq. 9)"
+                )
+        params = replace(
+            params, fac_a_lambda=doc.fac_a_lambda, fac_b_lambda_h_kg=doc.fac_b_lambda_h_kg
+        )
+    return params, flags
 
 
 def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibration:
@@ -294,7 +346,7 @@ def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibrati
             _, slope, _, se = _linfit(tt, np.log(dT))
             ua = -slope * cap * 1000.0
             # a fixed error of the boiler or room sensor shifts dT: propagate by perturbation
-            u_t = math.hypot(_u("water_temp_C", float(np.mean(tb))), _u("room_temp_C", 0.0))
+            u_t = math.hypot(_u("water_temp_C", float(np.nanmean(tb))), _u("room_temp_C", 0.0))
             _, slope_p, _, _ = _linfit(tt, np.log(dT + u_t))
             u_ua = math.hypot(se * cap * 1000.0, (slope - slope_p) * cap * 1000.0)
             ua_off_values.append((ua, u_ua, int(ok.sum())))
@@ -384,5 +436,5 @@ def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibrati
             "dry fuel flow over the start-up at Pstart x LHV",
             len(vals),
         )
-    params = replace(doc, **{key: f.value for key, f in fitted.items()}, dt_hx_fg_K=0.0)
-    return Calibration(params, fitted, {"x": x, "y": y}, {"fuel": fuel[:, 0], "lambda": lam})
+    params, flags = _plausible(doc, fitted)
+    return Calibration(params, fitted, {"x": x, "y": y}, {"fuel": fuel[:, 0], "lambda": lam}, flags)

@@ -3,15 +3,33 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
+
+import numpy as np
 
 from hil_client.analysis.figures import diagnosis_figures
 from hil_client.analysis.report import diagnosis_report
 
 
+def _json_safe(value):
+    """Numbers as JSON numbers; a value that is not finite becomes null (strict JSON)."""
+    if isinstance(value, dict):
+        return {str(k): _json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
+    if isinstance(value, int | np.integer):
+        return int(value)
+    if isinstance(value, float | np.floating):
+        return float(value) if math.isfinite(value) else None
+    return value
+
+
 def public(result: dict) -> dict:
     """What ``diagnosis.json`` holds: everything but the series kept for the figures."""
-    return {key: value for key, value in result.items() if not key.startswith("_")}
+    return _json_safe({key: value for key, value in result.items() if not key.startswith("_")})
 
 
 def write_diagnosis(result: dict, out: Path, calibration: str, validation: str) -> dict:

@@ -1,0 +1,186 @@
+"""Real logs are data, not errors (issue 10, CONTRACT section 4): a generated corpus of the
+ways lab logs differ from the project's own (zero flow, gaps, constant or missing columns,
+1-10 s or irregular sampling, a record that starts mid-test, a balance refill). Every one
+gives a diagnosis (exit 0 and a diagnosis.json) or one line naming what is wrong (exit 2);
+never a traceback, and ``calibrate`` keeps what it can."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+import yaml
+
+from hil_client.cli import main
+from rig_emulator.instruments.profile import PROFILE_DIR
+
+BOILER = "windhager_6kw"
+OPTIONAL = (
+    "phase",
+    "sequence",
+    "flue_gas_CO2_pct",
+    "flue_gas_CO_ppm",
+    "flue_gas_velocity_m_s",
+    "chimney_draught_Pa",
+    "ambient_pressure_hPa",
+    "relative_humidity_pct",
+    "electric_power_W",
+    "water_flow_setpoint_kg_h",
+    "boiler_on",
+)
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory):
+    """A stationary test and a load cycle of the emulated lab with the exit-pipe effect."""
+    out = tmp_path_factory.mktemp("real")
+    profile = yaml.safe_load((PROFILE_DIR / "lab.yaml").read_text())
+    profile["effects"] = {"outlet_sensor_pipe": {"strength": 1.0}}
+    (out / "p.yaml").write_text(yaml.safe_dump(profile))
+    paths = {}
+    for test in ("stationary", "load_cycle"):
+        path = out / f"{test}.csv"
+        argv = ["run", test, "--boiler", BOILER, "--profile", str(out / "p.yaml")]
+        assert main([*argv, "--seed", "4", "--out", str(path), "--quiet"]) == 0
+        path.with_name(path.stem + ".meta.json").unlink()
+        paths[test] = path
+    return paths
+
+
+def _read(path):
+    with path.open(newline="") as fh:
+        rows = list(csv.reader(fh))
+    return rows[0], rows[1:]
+
+
+def _write(path, header, rows):
+    with path.open("w", newline="") as fh:
+        csv.writer(fh).writerows([header, *rows])
+
+
+def _column(header, rows, name):
+    j = header.index(name)
+    return np.array([float(r[j]) if r[j] else np.nan for r in rows])
+
+
+def _set(header, rows, name, values):
+    j = header.index(name)
+    for r, v in zip(rows, values, strict=True):
+        r[j] = "" if np.isnan(v) else f"{v:.6g}"
+
+
+def zero_flow(header, rows, rng):
+    """The pump stops for 10 min in the middle of the test (flow exactly 0)."""
+    t = _column(header, rows, "time_s")
+    flow = _column(header, rows, "water_flow_kg_h")
+    mid = t[0] + 0.45 * (t[-1] - t[0])
+    flow[(t > mid) & (t < mid + 600)] = 0.0
+    _set(header, rows, "water_flow_kg_h", flow)
+    return header, rows
+
+
+def gaps(header, rows, rng):
+    """5 % of the fields empty, and a 15-min outage of every instrument."""
+    t = _column(header, rows, "time_s")
+    mid = t[0] + 0.3 * (t[-1] - t[0])
+    for name in header[1:]:
+        if name in ("phase", "sequence"):
+            continue
+        v = _column(header, rows, name)
+        v[rng.random(len(v)) < 0.05] = np.nan
+        v[(t > mid) & (t < mid + 900)] = np.nan
+        _set(header, rows, name, v)
+    return header, rows
+
+
+def constant_columns(header, rows, rng):
+    """A dead analyser (O2 frozen), a room sensor stuck, electricity meter at 0."""
+    for name, value in (("flue_gas_O2_pct", 20.9), ("room_temp_C", 21.0)):
+        _set(header, rows, name, np.full(len(rows), value))
+    return header, rows
+
+
+def bare(header, rows, rng):
+    """Only the required columns (no phase, sequence, setpoint, boiler_on, ...)."""
+    keep = [i for i, h in enumerate(header) if h not in OPTIONAL]
+    return [header[i] for i in keep], [[r[i] for i in keep] for r in rows]
+
+
+def every_10_s(header, rows, rng):
+    """Sampled every 10 s."""
+    return header, rows[::10]
+
+
+def irregular(header, rows, rng):
+    """Irregular sampling: 1 to 9 s between rows."""
+    idx = np.cumsum(rng.integers(1, 10, len(rows)))
+    return header, [rows[i] for i in idx[idx < len(rows)]]
+
+
+def mid_test_start(header, rows, rng):
+    """The record starts 2 h into the test (no preheat, no start-up)."""
+    t = _column(header, rows, "time_s")
+    keep = [r for r, ti in zip(rows, t, strict=True) if ti >= t[0] + 4 * 3600]
+    t0 = float(keep[0][0])
+    for r in keep:
+        r[0] = f"{float(r[0]) - t0:g}"
+    return header, keep
+
+
+def refill(header, rows, rng):
+    """A pellet refill: the balance jumps by +15 kg during the test."""
+    t = _column(header, rows, "time_s")
+    mass = _column(header, rows, "balance_mass_kg")
+    mass[t > t[0] + 0.5 * (t[-1] - t[0])] += 15.0
+    _set(header, rows, "balance_mass_kg", mass)
+    return header, rows
+
+
+VARIANTS = (
+    zero_flow,
+    gaps,
+    constant_columns,
+    bare,
+    every_10_s,
+    irregular,
+    mid_test_start,
+    refill,
+)
+
+
+@pytest.mark.parametrize("variant", VARIANTS, ids=lambda v: v.__name__)
+def test_diagnose_and_calibrate_take_real_logs(logs, variant, tmp_path, capsys):
+    rng = np.random.default_rng(7)
+    cal = tmp_path / "cal.csv"
+    _write(cal, *variant(*_read(logs["stationary"]), rng))
+    val = tmp_path / "val.csv"
+    _write(val, *variant(*_read(logs["load_cycle"]), rng))
+    capsys.readouterr()
+    argv = ["--calibration", str(cal), "--validation", str(val), "--boiler", BOILER]
+    code = main(["diagnose", *argv, "--out", str(tmp_path / "d")])
+    err = capsys.readouterr().err
+    assert code in (0, 2), err
+    if code == 2:  # one line naming what is wrong, nothing written
+        assert err.count("\n") == 1 and "Traceback" not in err, err
+        assert not (tmp_path / "d").exists()
+    else:
+        result = json.loads((tmp_path / "d" / "diagnosis.json").read_text())
+        assert result["effect"] in (
+            "none",
+            "outlet_sensor_pipe",
+            "body_heat_diffusion",
+            "ignition_delay",
+            "flue_gas_lag",
+            "fuel_energy_bias",
+        )
+        assert 0.0 <= result["confidence"] <= 1.0
+        assert isinstance(result["unexplained_gap"], bool)
+    code = main(["calibrate", str(cal), "--boiler", BOILER, "--out", str(tmp_path / "p.yaml")])
+    err = capsys.readouterr().err
+    assert code in (0, 2), err
+    if code == 2:
+        assert err.count("\n") == 1 and "Traceback" not in err, err
+    else:
+        assert (tmp_path / "p.yaml").exists()
