@@ -426,22 +426,24 @@ class IgnitionCandidate:
 # fuel energy: closure of the measured energy balance
 
 
-def _forward_return_offset(case: Case) -> float:
-    """Forward minus return sensor error [K] from the isothermal end of the preheat (the
-    bench holds supply = return; the idle boiler's own loss cools the water a little)."""
+def _forward_return_offset(case: Case) -> float | None:
+    """Forward minus return sensor error [K] from the last 3 min of the preheat, where the
+    idle boiler only passes the bench's water through (Section 2.3): there the true
+    difference is what the boiler's loss to the room and its warming take from the flow,
+    -(UA_off (T_b - T_room) + C dT_b/dt) / (m_w cp_w). None where that cannot be read (no
+    preheat in the record, no flow, gaps)."""
     t = case.t
-    pre = (t > case.phases.t0 - 600.0) & (t <= case.phases.t0) & (case.flow > 50.0)
-    if pre.sum() < 30:
-        return 0.0
-    measured = case.log["water_out_temp_C"][pre] - case.log["water_in_temp_C"][pre]
-    measured = measured[~np.isnan(measured)]
-    if len(measured) < 30:
-        return 0.0
-    water = case.lab["boiler_water_temp_C"][pre]
-    loss = case.params.ua_amb_off_W_K / 1000.0 * (water - case.room[pre])
-    expected = -loss / (case.flow[pre] * k.CP_WATER / 3600.0)
-    offset = float(np.median(measured) - np.median(expected))
-    return offset if abs(offset) < 1.0 else 0.0
+    pre = (t > case.phases.t0 - 180.0) & (t <= case.phases.t0) & (case.flow > 50.0)
+    measured = (case.log["water_out_temp_C"] - case.log["water_in_temp_C"])[pre]
+    if pre.sum() < 10 or np.isnan(measured).sum() > 0.5 * len(measured):
+        return None
+    water = case.lab["boiler_water_temp_C"]
+    warming = np.gradient(first_order_lag(water, case.dt, 30.0), t)[pre]  # [K/s], smoothed
+    p = case.params
+    taken = p.ua_amb_off_W_K / 1000.0 * (water[pre] - case.room[pre]) + p.capacity_kJ_K * warming
+    expected = -taken / (case.flow[pre] * k.CP_WATER / 3600.0)
+    offset = float(np.nanmedian(measured - expected))
+    return offset if abs(offset) < 1.0 else None
 
 
 def _closure_blocks(case: Case) -> list[tuple[float, float]]:
@@ -449,7 +451,7 @@ def _closure_blocks(case: Case) -> list[tuple[float, float]]:
     test phase without a start or stop."""
     t, p = case.t, case.params
     log = case.log
-    offset = _forward_return_offset(case)
+    offset = _forward_return_offset(case) or 0.0
     t_out = case.lab["water_out_temp_C"] - offset
     q_water = heat_to_water_kW(case.flow, case.t_in, t_out)
     water = case.lab["boiler_water_temp_C"]
