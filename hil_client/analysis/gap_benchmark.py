@@ -62,7 +62,7 @@ def make_cases(n: int, seed: int, reality: str) -> list[dict]:
     forms = _forms(reality)
     seen: dict[str, int] = {}
     cases = []
-    for i, answer in enumerate(answers):
+    for answer in answers:
         k = seen.get(answer, 0)
         seen[answer] = k + 1
         per_effect = answers.count(answer)
@@ -72,8 +72,9 @@ def make_cases(n: int, seed: int, reality: str) -> list[dict]:
                 "effect": answer,
                 "form": forms[answer][k % len(forms[answer])] if answer != "none" else None,
                 "strength": round(strength, 3),
-                "boiler": BOILERS[(k + (i % 2)) % 2],
-                "pair": list(PAIRS[(k // 2 + i) % 2]),
+                # every four cases of an answer cover both boilers and both log pairs
+                "boiler": BOILERS[k % 2],
+                "pair": list(PAIRS[(k // 2) % 2]),
                 "seed": int(rng.integers(1, 1_000_000)),
             }
         )

@@ -176,3 +176,38 @@ def test_missing_values_are_interpolated(run_log, tmp_path):
     for segment, signals in result["metrics"].items():
         assert signals["boiler_water_temp_C"]["rmsd"] < 1e-3, segment
         assert signals["heat_to_water_kW"]["rmsd"] < 1e-3, segment
+
+
+def test_one_implausible_value_does_not_throw_the_rest_away(round_trip, tmp_path, capsys):
+    """A stand-by draught that disagrees with Eq. 14-16 (velocity five times the truth:
+    UA_on < 0) and a boiler without an igniter (electric power at start-up below Pel,MAX:
+    W_el < 0). Calibrate keeps the documentation value of each, flags it in the uncertainty
+    file and its output, writes the parameter file and exits 0."""
+    _, boiler, logs, _ = round_trip
+    log = tmp_path / "stationary.csv"
+    lines = logs[0].read_text().splitlines()
+    header = lines[0].split(",")
+    iv, ip, it = (header.index(c) for c in ("flue_gas_velocity_m_s", "electric_power_W", "time_s"))
+    iph = header.index("phase")
+    rows = [line.split(",") for line in lines[1:]]
+    t0 = next(float(r[it]) for r in rows if r[iph] == "start_up")
+    for r in rows:
+        if r[iv]:
+            r[iv] = f"{float(r[iv]) * 5:.3f}"
+        if r[ip] and t0 < float(r[it]) <= t0 + 1800.0:
+            r[ip] = "20.0"  # no igniter: the fan and the auger only, below Pel,MAX
+    log.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    out = tmp_path / "cal.yaml"
+    capsys.readouterr()
+    assert main(["calibrate", str(log), "--boiler", str(boiler), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    written = yaml.safe_load(out.read_text())
+    doc = yaml.safe_load(Path(boiler).read_text())
+    flags = json.loads(out.with_suffix(".uncertainty.json").read_text())
+    for key in ("ua_amb_on_W_K", "w_el_Wh"):
+        assert flags[key]["implausible"] is True and flags[key]["value"] < 0
+        assert written[key] == flags[key]["kept"] == doc[key]
+        assert f"warning: {key}" in printed
+    # the rest is calibrated as before
+    assert flags["ua_amb_off_W_K"]["implausible"] is False
+    assert written["ua_amb_off_W_K"] == pytest.approx(flags["ua_amb_off_W_K"]["value"])
