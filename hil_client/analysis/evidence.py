@@ -124,25 +124,27 @@ def folds(n_blocks: int, k_max: int = 6) -> list[list[int]]:
 
 
 def cross_validate(
-    blocks: Sequence[tuple[str, np.ndarray]],
-    fit: Callable[[list[np.ndarray]], dict[str, float]],
-    residuals: Callable[[dict[str, float] | None, np.ndarray], np.ndarray],
+    blocks: Sequence[tuple],
+    fit: Callable[[list[tuple]], dict[str, float]],
+    residuals: Callable[[dict[str, float] | None, tuple], np.ndarray],
     noise_floor: float,
 ) -> tuple[Evidence, list[dict[str, float]]]:
-    """Blocked cross-validation: for each fold, ``fit`` on the other blocks (their row
-    arrays) and score the fold's blocks; ``residuals(None, rows)`` are the base model's on
-    one block. With a single block there is nothing to fit on: the evidence is empty."""
+    """Blocked cross-validation: for each fold, ``fit`` on the other blocks and score the
+    fold's blocks; a block is a tuple whose first item is its kind; ``residuals(None,
+    block)`` are the base model's. With a single block there is nothing to fit on: the
+    evidence is empty."""
     gains: list[BlockGain] = []
     thetas: list[dict[str, float]] = []
     if len(blocks) < 2:
         return Evidence(()), thetas
     for fold in folds(len(blocks)):
-        train = [blocks[i][1] for i in range(len(blocks)) if i not in fold]
-        theta = fit(train)
+        theta = fit([blocks[i] for i in range(len(blocks)) if i not in fold])
         thetas.append(theta)
         for i in fold:
-            kind, rows = blocks[i]
+            block = blocks[i]
             gains.append(
-                block_gain(kind, residuals(None, rows), residuals(theta, rows), noise_floor)
+                block_gain(
+                    block[0], residuals(None, block), residuals(theta, block), noise_floor
+                )
             )
     return Evidence(tuple(gains)), thetas
