@@ -24,7 +24,7 @@ for the effect:
 
 The responses after a stop are taken relative to the residual just before it, so a
 mismatch the plant carried into the stop (its own set point, its modulation) is not
-counted; each window is cut into 10-min blocks for the cross-validation.
+counted; each window is cut into 5-min blocks for the cross-validation.
 ``ignition_delay`` (balance; around each start)
     Measured directly: the fuel the balance lost before the flue gas showed combustion
     (the mass before the start less the back-extrapolated mass at the onset). Without the
@@ -70,7 +70,7 @@ ABS_MIN = {"water_out_temp_C": 0.2, "boiler_water_temp_C": 0.2, "flue_gas_temp_C
 #: Resolution of each signal [signal units]: readings 0.01 K, Pt100 noise (Section 2.2).
 NOISE_FLOOR = {"water_out_temp_C": 0.02, "boiler_water_temp_C": 0.02, "flue_gas_temp_C": 0.1}
 WINDOW_S = 1800.0
-SUB_BLOCK_S = 600.0
+SUB_BLOCK_S = 300.0
 SETTLED_BURN_S = 1800.0
 ANCHOR_S = 120.0
 BLOCK_S = 3600.0
@@ -222,7 +222,7 @@ def _low_flow_blocks(case: Case) -> list[tuple[str, np.ndarray, int]]:
 
 def _stop_blocks(case: Case) -> list[tuple[str, np.ndarray, int]]:
     """The 30 min after each stop of the burner that ends at least 30 min of burning (cut at
-    the next start), in 10-min blocks anchored at the stop. Only stops: after a start a
+    the next start), in 5-min blocks anchored at the stop. Only stops: after a start a
     real boiler's own start-up (purge, ignition, fuel ramp) differs from the model's, and
     an effect must not be named for absorbing that; and only after a settled burn, so the
     start-up's mismatch has died out before the stop."""
