@@ -143,8 +143,6 @@ def cross_validate(
         for i in fold:
             block = blocks[i]
             gains.append(
-                block_gain(
-                    block[0], residuals(None, block), residuals(theta, block), noise_floor
-                )
+                block_gain(block[0], residuals(None, block), residuals(theta, block), noise_floor)
             )
     return Evidence(tuple(gains)), thetas

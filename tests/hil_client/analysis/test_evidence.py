@@ -54,11 +54,11 @@ def test_cross_validation_scores_only_held_out_blocks():
     blocks = [("b", np.arange(i, i + 100)) for i in range(0, 600, 100)]
 
     def fit(train):
-        rows = np.concatenate(train)
+        rows = np.concatenate([block[1] for block in train])
         return {"mean": float(np.mean(y[rows]))}
 
-    def residuals(theta, rows):
-        return y[rows] - (theta["mean"] if theta else 0.0)
+    def residuals(theta, block):
+        return y[block[1]] - (theta["mean"] if theta else 0.0)
 
     ev, thetas = cross_validate(blocks, fit, residuals, noise_floor=0.0)
     assert len(ev.blocks) == 6 and len(thetas) == 6
