@@ -106,6 +106,7 @@ from rig_emulator.model.layout import (
     S_FUEL,
     S_MODE,
     S_MODE_TIME,
+    S_RESTART,
     S_SINCE_START,
     S_SINCE_STOP,
     S_STARTS,
@@ -283,15 +284,22 @@ def node_exact(t0_C, q_in_kW, m_cp_kW_K, water_in_C, ua_kW_K, room_C, cap_kJ_K, 
 
 
 @njit(cache=True)
-def controller_mode(c, mode, mode_time_s, t_boiler_C, enabled):
+def controller_mode(c, mode, mode_time_s, t_boiler_C, enabled, restart=False):
     """Next controller mode from the current one and the node temperature.
 
     Off when not enabled; on enabling it starts unless the water is already at the set
-    temperature; the start-up at Pstart lasts ``startup_duration_s`` or until the water
-    reaches the set temperature, whichever comes first (assumption: at part load a boiler
-    fired at Pmax for the whole start-up would overshoot to the cut-out, which the paper
-    reports only below the modulation range); firing stops at or above the shut-off
-    temperature (cut-out) and starts again at or below the restart temperature.
+    temperature; firing stops at or above the shut-off temperature (cut-out) and starts
+    again at or below the restart temperature. The start-up at Pstart lasts
+    ``startup_duration_s``:
+
+    - after a restart from a cut-out (``restart``) the whole time, ended only by the
+      shut-off temperature: the boiler "maintains the maximum power output during the
+      start-up phase" (Carlon et al. 2015, Section 3.2.2), which below the modulation range
+      drives the water to the shut-off again (the second stop of Fig. 7);
+    - after the first start from cold (the bench switching the boiler on) until the water
+      reaches the set temperature if that comes first (assumption: at part load a boiler
+      fired at Pmax for the whole first start-up would overshoot to the cut-out, which the
+      paper does not report for its stationary tests).
     """
     if not enabled:
         return OFF
@@ -301,7 +309,9 @@ def controller_mode(c, mode, mode_time_s, t_boiler_C, enabled):
         return STARTUP if t_boiler_C <= c[K_RESTART] else CUTOUT
     if t_boiler_C >= c[K_SHUTOFF]:
         return CUTOUT
-    if mode == STARTUP and (mode_time_s >= c[K_STARTUP_S] or t_boiler_C >= c[K_SET]):
+    if mode == STARTUP and (
+        mode_time_s >= c[K_STARTUP_S] or (not restart and t_boiler_C >= c[K_SET])
+    ):
         return MODULATING
     return mode
 
@@ -313,11 +323,12 @@ def update_mode(c, s, enabled):
     Returns (mode for this step, True if the burner starts with this step).
     """
     mode = int(s[S_MODE])
-    new_mode = controller_mode(c, mode, s[S_MODE_TIME], s[S_T], enabled)
+    new_mode = controller_mode(c, mode, s[S_MODE_TIME], s[S_T], enabled, s[S_RESTART] > 0.5)
     started = False
     if new_mode != mode:
         s[S_MODE_TIME] = 0.0
         if new_mode == STARTUP:
+            s[S_RESTART] = 1.0 if mode == CUTOUT else 0.0
             s[S_SINCE_START] = 0.0
             s[S_STARTS] += 1.0
             started = True

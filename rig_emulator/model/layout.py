@@ -60,7 +60,8 @@ S_SINCE_STOP = 5  # time since the last stop [s]
 S_FUEL = 6  # dry fuel burnt so far [kg]
 S_ELECTRIC = 7  # electricity drawn so far [Wh]
 S_STARTS = 8  # ignitions so far
-N_STATE = 9
+S_RESTART = 9  # 1 while the start-up is a restart after a cut-out, else 0
+N_STATE = 10
 STATE_FIELDS = (
     "t_boiler_C",
     "mode",
@@ -71,6 +72,7 @@ STATE_FIELDS = (
     "fuel_dry_kg",
     "electric_Wh",
     "starts",
+    "restart",
 )
 
 # --- boiler outputs of one step (temperatures at the end, heat flows as step means)

@@ -149,9 +149,14 @@ def test_phase_rules(run_log, protocol, boiler):
 
 
 def test_load_cycle_cuts_out_at_85_and_restarts_at_55(run_log):
-    """Section 3.2.3: below the modulation range (13 % step) the boiler stops at 85 C and
-    restarts at 55 C. The paper's second stop falls after t2 here: our water takes longer
-    than the paper's 1.5 h to cool back to 55 C (1.84 h), so the restart comes later."""
+    """Section 3.2.2-3.2.3 and Fig. 7: below the modulation range (13 % step) the boiler
+    stops at 85 C, restarts at 55 C, "maintains the maximum power output during the
+    start-up phase" and so reaches 85 C and stops a second time.
+
+    Against the paper (12 kW, clean load cycle, measured here): the water is at 69.8 C at
+    t2 (paper: 57 C) and the first cooling takes 67 min (paper: about 5 min), because our
+    water cools back from the first stop in 1.84 h where the paper's took about 1.5 h, so
+    the second stop comes later in the step."""
     rec = run_log("load_cycle", "windhager_12kw")
     seq = np.array(rec["sequence"])
     on = _arr(rec, "boiler_on")[seq == "stationary_13"]
@@ -168,6 +173,9 @@ def test_load_cycle_cuts_out_at_85_and_restarts_at_55(run_log):
     t = _arr(rec, "time_s")[seq == "stationary_13"]
     restart = starts[starts > stops[0]][0]
     assert 1.5 <= (t[restart] - t[stops[0]]) / 3600 <= 2.0
+    # the restart fires at Pstart through the start-up into the second cut-out
+    assert len(stops) >= 2 and stops[1] > restart
+    assert temp[stops[1] - 1] >= 85.0
 
 
 def test_second_cooling_loses_about_10_K(run_log):
