@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from rig_emulator.cli_support import Parser, UsageError, bad_input, boiler_arg, report
+from rig_emulator.dashboard import Dashboard
 from rig_emulator.emulator import CommandError, Emulator, check_command
 from rig_emulator.instruments import ProfileError, load_profile
 from rig_emulator.modbus import BenchServer
@@ -50,6 +51,19 @@ def _build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--profile", default="clean", help="clean | lab | PROFILE.yaml [clean]")
     serve.add_argument("--seed", type=int, default=0, help="seed of instrument errors [0]")
     serve.add_argument("--tick-hz", type=float, default=10.0, help="tick rate [10]")
+    serve.add_argument(
+        "--http",
+        type=int,
+        default=None,
+        metavar="PORT",
+        help="also serve a live dashboard on this port, same host (0: any free) [off]",
+    )
+    serve.add_argument(
+        "--http-control",
+        action="store_true",
+        help="let the dashboard write setpoints, boiler on/off and speed (through the "
+        "Modbus write checks) [off]",
+    )
     doc = sub.add_parser("map-doc", help="write the Markdown reference of a register map")
     doc.add_argument("--map", default=None, help="register map YAML [the shipped one]")
     doc.add_argument("--out", default=None, help="file to write [stdout]")
@@ -112,6 +126,10 @@ def _cmd_serve(args: argparse.Namespace) -> int:
         raise UsageError(f"--port: {args.port} is not a TCP port")
     if not 0.1 <= args.tick_hz <= 1000:
         raise UsageError(f"--tick-hz: {args.tick_hz} outside 0.1..1000")
+    if args.http is not None and not 0 <= args.http <= 65535:
+        raise UsageError(f"--http: {args.http} is not a TCP port")
+    if args.http_control and args.http is None:
+        raise UsageError("--http-control needs --http PORT")
     logging.basicConfig(
         level=logging.INFO, format="%(asctime)s rig-emulator: %(message)s", stream=sys.stderr
     )
@@ -149,10 +167,26 @@ async def _serve(server: BenchServer, args: argparse.Namespace) -> None:
         args.seed,
         units,
     )
+    dashboard = None
+    if args.http is not None:
+        dashboard = Dashboard(server, server.host, args.http, control=args.http_control)
+        try:
+            await dashboard.start()
+        except OSError:
+            await server.stop()
+            raise
+        logging.getLogger("rig_emulator.serve").info(
+            "dashboard on http://%s:%d/ (controls %s)",
+            server.host,
+            dashboard.port,
+            "on" if args.http_control else "off",
+        )
     await stop.wait()
     logging.getLogger("rig_emulator.serve").info(
         "stopping at simulated time %.1f s", server.emulator.sim_time_s
     )
+    if dashboard is not None:
+        await dashboard.stop()
     await server.stop()
 
 

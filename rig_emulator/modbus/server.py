@@ -22,6 +22,7 @@ import asyncio
 import contextlib
 import logging
 import math
+import struct
 import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -32,7 +33,7 @@ from pymodbus.simulator import DataType, SimData, SimDevice
 from rig_emulator.clock import LOCKSTEP, REALTIME, LatenessStats, Pacer, SimClock
 from rig_emulator.emulator import CommandError, Emulator, check_command
 from rig_emulator.modbus.handler import BenchModbusServer
-from rig_emulator.registers import Device, Point, RegisterMap, decode, run_encoder
+from rig_emulator.registers import Device, Point, RegisterMap, decode, encode, run_encoder
 
 log = logging.getLogger("rig_emulator.serve")
 
@@ -328,6 +329,26 @@ class BenchServer:
         # the client's registers are stored after this returns: publish them again next time
         self._published.pop((device.unit_id, table), None)
         return await self._apply(new)
+
+    async def write_signal(self, signal: str, value: float) -> str | None:
+        """Write one command signal as a Modbus client would: encoded into its registers
+        and through the same checks (:meth:`_write`); None when applied, else why not."""
+        for device in self.map.devices:
+            for point in device.points:
+                if point.signal == signal and point.writable:
+                    if point.table == "coil":
+                        registers: list = [bool(value >= 0.5)]
+                    else:
+                        try:
+                            registers = encode(point, value)
+                        except (ValueError, OverflowError, struct.error):
+                            return f"{value!r} cannot be encoded as {point.datatype}"
+                    refused = await self._write(device, point.table, point.address, registers)
+                    if refused is None:
+                        await self.publish()
+                        return None
+                    return f"refused with Modbus exception {int(refused):02X} ({refused.name})"
+        return f"no writable point carries '{signal}'"
 
     async def _apply(self, new: dict[str, float]) -> ExcCodes | None:
         plant = {k: v for k, v in new.items() if k not in CLOCK_COMMANDS}

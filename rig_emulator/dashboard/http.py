@@ -1,0 +1,270 @@
+"""The dashboard's HTTP side: a small HTTP/1.1 server on the server's event loop.
+
+Routes (GET unless said):
+
+- ``/``: the page (``static/index.html``: plain HTML, CSS and canvas drawing, no library,
+  nothing fetched from the internet);
+- ``/api/state[?window=S]``: the state as JSON (readings by unit, clock, faults, trends of
+  the last S simulated seconds);
+- ``/api/stream``: the same pushed as server-sent events every :data:`PUSH_PERIOD_S` of
+  wall time (each event: readings, clock, faults and the newest trend sample);
+- POST ``/api/control`` with ``{"signal": NAME, "value": X}``: only with
+  ``--http-control``; the write takes the Modbus write path of
+  :meth:`~rig_emulator.modbus.server.BenchServer.write_signal` (the same checks, the same
+  exception codes), so the page can do nothing a Modbus client could not.
+
+Every request is bounded (8 kB of headers, 4 kB of body, 10 s to arrive); a malformed one
+gets 400 and the connection closes. The work per push is one snapshot shared by all
+streams; a stream that cannot keep up skips samples instead of queueing them.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import itertools
+import json
+import logging
+import math
+from importlib import resources
+from urllib.parse import parse_qs, urlsplit
+
+import numpy as np
+
+from rig_emulator.dashboard.state import CLOCK_MODES, Trend, units, with_derived
+from rig_emulator.modbus.server import BenchServer
+
+log = logging.getLogger("rig_emulator.dashboard")
+
+PUSH_PERIOD_S = 0.5
+MAX_HEADER_BYTES = 8192
+MAX_BODY_BYTES = 4096
+REQUEST_TIMEOUT_S = 10.0
+MAX_STREAMS = 64
+CONTROL_SIGNALS = ("water_flow_setpoint_kg_h", "boiler_command", "speed_factor")
+
+
+class BadRequest(Exception):
+    """A request the dashboard refuses with 400."""
+
+
+class Dashboard:
+    """Serve the page and the state of ``server`` on ``host:port`` (port 0: any free)."""
+
+    def __init__(
+        self, server: BenchServer, host: str = "127.0.0.1", port: int = 8080, control=False
+    ) -> None:
+        self.server = server
+        self.host = host
+        self.port = port
+        self.control = control
+        self.trend = Trend()
+        self._page = resources.files("rig_emulator.dashboard").joinpath("static/index.html")
+        self._streams: set[asyncio.Queue] = set()
+        self._srv: asyncio.AbstractServer | None = None
+        self._task: asyncio.Task | None = None
+        self._last: dict = {}
+
+    # ------------------------------------------------------------------ lifecycle
+    async def start(self) -> None:
+        self._srv = await asyncio.start_server(self._handle, self.host, self.port)
+        self.port = self._srv.sockets[0].getsockname()[1]
+        self._sample()
+        self._task = asyncio.create_task(self._push_loop(), name="dashboard push")
+
+    async def stop(self) -> None:
+        if self._task is not None:
+            self._task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._task
+        for queue in list(self._streams):
+            queue.put_nowait(None)
+        if self._srv is not None:
+            self._srv.close()
+            with contextlib.suppress(asyncio.TimeoutError):
+                await asyncio.wait_for(self._srv.wait_closed(), 2.0)
+
+    # ------------------------------------------------------------------ state
+    def _sample(self) -> dict:
+        values = with_derived(self.server.values())
+        time_s = self.server.emulator.sim_time_s
+        self.trend.add(time_s, values)
+        clock = self.server.clock
+        recent = list(itertools.islice(reversed(self.server.lateness.samples), 600))
+        lateness = {
+            "last": self.server.lateness.last_s * 1000.0,
+            "p99_recent": float(np.percentile(recent, 99)) * 1000.0 if recent else math.nan,
+        }
+        self._last = {
+            "boiler": self.server.emulator.params.name,
+            "time_s": time_s,
+            "clock": {
+                "mode": CLOCK_MODES.get(int(clock.mode), str(clock.mode)),
+                "speed": clock.speed,
+                "tick_lateness_ms": {k: _num(v) for k, v in lateness.items()},
+                "lockstep_counter": self.server.lockstep_counter,
+            },
+            "faults": list(getattr(self.server, "active_faults", lambda: [])()),
+            "control": self.control,
+            "units": units(self.server.map, values),
+        }
+        return self._last
+
+    def state(self, window_s: float | None = None) -> dict:
+        return self._last | {"trend": self.trend.as_dict(window_s)}
+
+    async def _push_loop(self) -> None:
+        while True:
+            await asyncio.sleep(PUSH_PERIOD_S)
+            state = self._sample()
+            if not self._streams:
+                continue
+            newest = self.trend.as_dict(0.0)
+            event = json.dumps(state | {"trend_point": newest}, allow_nan=False)
+            for queue in self._streams:
+                if queue.full():
+                    with contextlib.suppress(asyncio.QueueEmpty):
+                        queue.get_nowait()  # a slow reader skips a sample
+                queue.put_nowait(event)
+
+    # ------------------------------------------------------------------ HTTP
+    async def _handle(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        try:
+            method, target, body = await asyncio.wait_for(_read_request(reader), REQUEST_TIMEOUT_S)
+            await self._route(method, target, body, writer)
+        except BadRequest as exc:
+            await _respond(writer, 400, {"error": str(exc)})
+        except (TimeoutError, ConnectionError, asyncio.IncompleteReadError):
+            pass
+        finally:
+            with contextlib.suppress(ConnectionError, RuntimeError):
+                writer.close()
+
+    async def _route(self, method: str, target: str, body: bytes, writer) -> None:
+        url = urlsplit(target)
+        if url.path == "/" and method == "GET":
+            await _respond_raw(writer, 200, "text/html; charset=utf-8", self._page.read_bytes())
+        elif url.path == "/api/state" and method == "GET":
+            window = parse_qs(url.query).get("window", [None])[0]
+            try:
+                window_s = float(window) if window is not None else None
+            except ValueError:
+                raise BadRequest(f"window: '{window}' is not a number") from None
+            if window_s is not None and not (math.isfinite(window_s) and window_s >= 0):
+                raise BadRequest("window must be a non-negative number of seconds")
+            await _respond(writer, 200, self.state(window_s))
+        elif url.path == "/api/stream" and method == "GET":
+            await self._stream(writer)
+        elif url.path == "/api/control" and method == "POST":
+            await self._control(body, writer)
+        elif url.path in ("/", "/api/state", "/api/stream", "/api/control"):
+            await _respond(writer, 405, {"error": f"{method} not allowed on {url.path}"})
+        else:
+            await _respond(writer, 404, {"error": f"no such page: {url.path}"})
+
+    async def _stream(self, writer: asyncio.StreamWriter) -> None:
+        if len(self._streams) >= MAX_STREAMS:
+            await _respond(writer, 503, {"error": "too many live streams"})
+            return
+        queue: asyncio.Queue = asyncio.Queue(maxsize=2)
+        self._streams.add(queue)
+        try:
+            writer.write(
+                b"HTTP/1.1 200 OK\r\nContent-Type: text/event-stream\r\n"
+                b"Cache-Control: no-cache\r\nConnection: close\r\n\r\n"
+            )
+            first = self._last | {"trend_point": self.trend.as_dict(0.0)}
+            writer.write(f"data: {json.dumps(first, allow_nan=False)}\n\n".encode())
+            await writer.drain()
+            while True:
+                event = await queue.get()
+                if event is None:
+                    break
+                writer.write(f"data: {event}\n\n".encode())
+                await writer.drain()
+        except (ConnectionError, asyncio.CancelledError):
+            pass
+        finally:
+            self._streams.discard(queue)
+
+    async def _control(self, body: bytes, writer: asyncio.StreamWriter) -> None:
+        if not self.control:
+            await _respond(writer, 403, {"error": "controls are off (serve --http-control)"})
+            return
+        try:
+            request = json.loads(body or b"{}")
+        except (json.JSONDecodeError, UnicodeDecodeError):
+            raise BadRequest("the body is not JSON") from None
+        if not isinstance(request, dict):
+            raise BadRequest('expected {"signal": NAME, "value": NUMBER}')
+        signal, value = request.get("signal"), request.get("value")
+        if signal not in CONTROL_SIGNALS:
+            raise BadRequest(f"signal: expected one of {', '.join(CONTROL_SIGNALS)}")
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise BadRequest("value: expected a number")
+        refused = await self.server.write_signal(signal, float(value))
+        if refused is not None:
+            log.info("dashboard control refused: %s = %r (%s)", signal, value, refused)
+            await _respond(writer, 400, {"error": refused})
+            return
+        log.info("dashboard control: %s = %r", signal, value)
+        self._sample()
+        await _respond(writer, 200, {"ok": True, "signal": signal, "value": value})
+
+
+def _num(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+async def _read_request(reader: asyncio.StreamReader) -> tuple[str, str, bytes]:
+    try:
+        head = await reader.readuntil(b"\r\n\r\n")
+    except asyncio.LimitOverrunError:
+        raise BadRequest("headers too long") from None
+    if len(head) > MAX_HEADER_BYTES:
+        raise BadRequest("headers too long")
+    try:
+        lines = head.decode("latin-1").split("\r\n")
+        method, target, version = lines[0].split(" ")
+    except ValueError:
+        raise BadRequest("malformed request line") from None
+    if not version.startswith("HTTP/1."):
+        raise BadRequest(f"unsupported protocol {version!r}")
+    headers = {}
+    for line in lines[1:]:
+        if ":" in line:
+            name, value = line.split(":", 1)
+            headers[name.strip().lower()] = value.strip()
+    try:
+        length = int(headers.get("content-length", "0"))
+    except ValueError:
+        raise BadRequest("Content-Length is not a number") from None
+    if not 0 <= length <= MAX_BODY_BYTES:
+        raise BadRequest(f"body of {length} bytes (at most {MAX_BODY_BYTES})")
+    body = await reader.readexactly(length) if length else b""
+    return method, target, body
+
+
+async def _respond(writer: asyncio.StreamWriter, status: int, content: dict) -> None:
+    body = json.dumps(content, allow_nan=False).encode()
+    await _respond_raw(writer, status, "application/json", body)
+
+
+REASONS = {
+    200: "OK",
+    400: "Bad Request",
+    403: "Forbidden",
+    404: "Not Found",
+    405: "Method Not Allowed",
+    503: "Service Unavailable",
+}
+
+
+async def _respond_raw(writer: asyncio.StreamWriter, status: int, kind: str, body: bytes) -> None:
+    head = (
+        f"HTTP/1.1 {status} {REASONS[status]}\r\nContent-Type: {kind}\r\n"
+        f"Content-Length: {len(body)}\r\nCache-Control: no-cache\r\nConnection: close\r\n\r\n"
+    )
+    writer.write(head.encode() + body)
+    with contextlib.suppress(ConnectionError):
+        await writer.drain()

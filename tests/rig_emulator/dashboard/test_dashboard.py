@@ -1,0 +1,209 @@
+"""The live dashboard (CONTRACT section 8) against a real `rig-emulator serve`: the page and
+its JSON over real HTTP, the pushed stream, the controls through the Modbus write checks,
+bad requests, and the page in a real headless browser."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import socket
+import subprocess
+import time
+import urllib.error
+import urllib.request
+from types import SimpleNamespace
+
+import pytest
+
+from hil_client.demo import rig_emulator_serve
+from hil_client.wait_for_port import free_port, wait_for_port
+from rig_emulator.registers import load_map
+from tests.modbus_helpers import client, point, read_point, write
+
+MAP = SimpleNamespace(map=load_map())
+
+
+@pytest.fixture
+def dashboard():
+    """``dashboard(*options)`` -> (modbus port, http port) of a lockstep server."""
+    stack = []
+
+    def start(*options: str) -> tuple[int, int]:
+        http = free_port()
+        ctx = rig_emulator_serve("windhager_12kw", "--lockstep", "--http", str(http), *options)
+        port, _ = ctx.__enter__()
+        stack.append(ctx)
+        assert wait_for_port("127.0.0.1", http, 30.0)
+        return port, http
+
+    yield start
+    for ctx in stack:
+        ctx.__exit__(None, None, None)
+
+
+def _get(http: int, path: str):
+    with urllib.request.urlopen(f"http://127.0.0.1:{http}{path}", timeout=10) as r:
+        return r.status, r.headers.get("Content-Type"), r.read()
+
+
+def _post(http: int, body: bytes) -> tuple[int, dict]:
+    req = urllib.request.Request(f"http://127.0.0.1:{http}/api/control", data=body, method="POST")
+    try:
+        with urllib.request.urlopen(req, timeout=10) as r:
+            return r.status, json.loads(r.read())
+    except urllib.error.HTTPError as exc:
+        return exc.code, json.loads(exc.read())
+
+
+def _reading(state: dict, unit_id: int, signal: str) -> float:
+    unit = next(u for u in state["units"] if u["unit_id"] == unit_id)
+    return next(r["value"] for r in unit["readings"] if r["signal"] == signal)
+
+
+def test_state_shows_what_the_wire_shows_and_the_stream_pushes_it(dashboard):
+    port, http = dashboard()
+    c = client(port)
+    try:
+        for name, value in (("flow_setpoint", 600.0), ("return_setpoint", 55.0)):
+            assert not write(c, MAP, "bench_plc", name, value).isError()
+        assert not write(c, MAP, "boiler_controller", "on_command", 1).isError()
+        assert not write(c, MAP, "sim_control", "lockstep_advance", 1800).isError()
+        time.sleep(1.2)  # one push period and more: the dashboard samples the new state
+        status, kind, body = _get(http, "/api/state")
+        state = json.loads(body)
+        assert status == 200 and kind == "application/json"
+        assert {u["unit_id"] for u in state["units"]} == {d.unit_id for d in MAP.map.devices}
+        assert state["clock"]["mode"] == "lockstep" and state["time_s"] == pytest.approx(1800)
+        dev, p = point(MAP, "bench_plc", "boiler_water_temp")
+        assert _reading(state, 1, "boiler_water_temp_C") == pytest.approx(
+            read_point(c, dev, p),
+            abs=1e-4,  # float32 on the wire
+        )
+        assert len(state["trend"]["time_s"]) >= 2
+        assert state["trend"]["boiler_water_temp_C"][-1] is not None
+        # the stream: an event with the state, then another after the next advance
+        with socket.create_connection(("127.0.0.1", http), timeout=10) as s:
+            s.sendall(b"GET /api/stream HTTP/1.1\r\nHost: x\r\n\r\n")
+            stream = s.makefile("rb")
+            assert b"text/event-stream" in b"".join(iter(stream.readline, b"\r\n"))
+            first = json.loads(stream.readline().removeprefix(b"data: "))
+            assert first["time_s"] == pytest.approx(1800)
+            assert not write(c, MAP, "sim_control", "lockstep_advance", 600).isError()
+            deadline = time.monotonic() + 10.0
+            while time.monotonic() < deadline:
+                line = stream.readline()
+                if line.startswith(b"data: "):
+                    event = json.loads(line.removeprefix(b"data: "))
+                    if event["time_s"] == pytest.approx(2400):
+                        assert event["trend_point"]["time_s"] == [pytest.approx(2400)]
+                        break
+            else:
+                pytest.fail("no pushed event after the advance")
+    finally:
+        c.close()
+
+
+def test_controls_are_off_unless_asked_for(dashboard):
+    port, http = dashboard()
+    status, body = _post(http, b'{"signal": "water_flow_setpoint_kg_h", "value": 500}')
+    assert status == 403 and "--http-control" in body["error"]
+    c = client(port)
+    try:
+        dev, p = point(MAP, "bench_plc", "flow_setpoint")
+        assert read_point(c, dev, p) != 500.0
+    finally:
+        c.close()
+
+
+def test_controls_take_the_modbus_write_path(dashboard):
+    port, http = dashboard("--http-control")
+    c = client(port)
+    try:
+        dev, p = point(MAP, "bench_plc", "flow_setpoint")
+        status, _ = _post(http, b'{"signal": "water_flow_setpoint_kg_h", "value": 500}')
+        assert status == 200 and read_point(c, dev, p) == 500.0
+        # outside the map's 0..2000: the Modbus answer would be exception 03, nothing changes
+        status, body = _post(http, b'{"signal": "water_flow_setpoint_kg_h", "value": 5000}')
+        assert status == 400 and "03" in body["error"]
+        assert read_point(c, dev, p) == 500.0
+        status, _ = _post(http, b'{"signal": "boiler_command", "value": 1}')
+        dev_b, p_b = point(MAP, "boiler_controller", "on_command")
+        assert status == 200 and read_point(c, dev_b, p_b) == 1.0
+        for bad in (
+            b"not json",
+            b'{"signal": "reset", "value": 1}',
+            b'{"signal": "water_flow_setpoint_kg_h", "value": "x"}',
+            b"[1, 2]",
+        ):
+            status, body = _post(http, bad)
+            assert status == 400 and body["error"]
+        assert read_point(c, dev, p) == 500.0
+    finally:
+        c.close()
+
+
+@pytest.mark.parametrize(
+    ("request_bytes", "status"),
+    [
+        (b"GET /nothing HTTP/1.1\r\n\r\n", b"404"),
+        (b"DELETE /api/state HTTP/1.1\r\n\r\n", b"405"),
+        (b"GARBAGE\r\n\r\n", b"400"),
+        (b"GET /api/state?window=abc HTTP/1.1\r\n\r\n", b"400"),
+        (b"POST /api/control HTTP/1.1\r\nContent-Length: 99999999\r\n\r\n", b"400"),
+        (b"GET / HTTP/1.1\r\nX: " + b"a" * 70_000 + b"\r\n\r\n", b"400"),
+    ],
+)
+def test_bad_requests_get_an_answer_and_the_server_lives_on(dashboard, request_bytes, status):
+    _, http = dashboard()
+    with socket.create_connection(("127.0.0.1", http), timeout=10) as s:
+        s.sendall(request_bytes)
+        assert s.recv(64).split(b" ")[1] == status
+    assert _get(http, "/api/state")[0] == 200
+
+
+def test_the_page_ships_everything_it_needs(dashboard):
+    _, http = dashboard()
+    status, kind, page = _get(http, "/")
+    assert status == 200 and kind.startswith("text/html")
+    # no internet: nothing is loaded from another host
+    assert b"http://" not in page and b"https://" not in page and b"<script src" not in page
+
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="chromium not installed (make tools installs it)")
+def test_the_page_shows_live_values_in_a_real_browser(dashboard, tmp_path):
+    port, http = dashboard()
+    c = client(port)
+    try:
+        assert not write(c, MAP, "sim_control", "lockstep_advance", 600).isError()
+    finally:
+        c.close()
+    flags = [
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-quic",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        f"--user-data-dir={tmp_path / 'profile'}",
+        "--virtual-time-budget=4000",
+    ]
+    url = f"http://127.0.0.1:{http}/"
+    dom = subprocess.run(
+        [CHROMIUM, *flags, "--dump-dom", url], capture_output=True, timeout=120, text=True
+    ).stdout
+    assert 'id="v_1_boiler_water_temp"' in dom
+    cell = dom.split('id="v_1_boiler_water_temp"', 1)[1].split(">", 1)[1].split("<", 1)[0]
+    float(cell)  # the script filled the cell with the live reading
+    assert "0:10:00" in dom  # simulated time after the advance
+    shot = tmp_path / "dashboard.png"
+    subprocess.run(
+        [CHROMIUM, *flags, "--window-size=1400,1000", f"--screenshot={shot}", url],
+        capture_output=True,
+        timeout=120,
+    )
+    assert shot.exists() and shot.stat().st_size > 20_000
