@@ -12,8 +12,9 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e ".[test]"
 	@touch $(STAMP)
 
+# make demo DEMO_ARGS=--dashboard: real time with the live dashboard in a browser
 demo: $(STAMP)
-	$(BIN)/python -m hil_client.demo
+	$(BIN)/python -m hil_client.demo $(DEMO_ARGS)
 
 # mbpoll (Debian) is a Modbus client the project did not write; its interop test is skipped
 # where it cannot be installed (no root, no apt-get).
@@ -21,6 +22,9 @@ tools:
 	@command -v mbpoll >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
 	  && (apt-get update -qq && apt-get install -y -qq mbpoll) >/dev/null 2>&1; } \
 	  || echo "note: mbpoll not installed; its interop test will be skipped"
+	@command -v chromium >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
+	  && (apt-get update -qq && apt-get install -y -qq chromium) >/dev/null 2>&1; } \
+	  || echo "note: chromium not installed; the dashboard's browser test will be skipped"
 
 test: $(STAMP) tools
 	$(BIN)/python -m pytest -q
@@ -28,6 +32,7 @@ test: $(STAMP) tools
 bench: $(STAMP)
 	$(BIN)/python bench/run_bench.py
 	$(BIN)/python bench/bench_modbus.py
+	$(BIN)/python bench/bench_dashboard.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

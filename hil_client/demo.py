@@ -8,7 +8,9 @@
    under ``out/demo/`` and prints where everything is.
 
 ``python -m hil_client.demo [OUT_DIR] [--protocol P] [--boiler B]`` (tests use a short
-protocol).
+protocol). With ``--dashboard`` (``make demo DEMO_ARGS=--dashboard``) the server runs in
+real time (``--speed``, default x60) with its live dashboard (``serve --http``), whose
+address is printed and opened in a browser where there is one.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import signal
 import subprocess
 import sys
 import time
+import webbrowser
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
@@ -72,16 +75,32 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("out_dir", nargs="?", default="out/demo", type=Path)
     parser.add_argument("--protocol", default="load_cycle")
     parser.add_argument("--boiler", default="windhager_12kw")
+    parser.add_argument(
+        "--dashboard", action="store_true", help="real time with the live dashboard"
+    )
+    parser.add_argument("--speed", type=float, default=60.0, help="with --dashboard [60]")
     args = parser.parse_args(argv)
+    if not 0 < args.speed <= 10_000:
+        parser.error("--speed must be in (0, 10000]")
     out_dir: Path = args.out_dir
     out_dir.mkdir(parents=True, exist_ok=True)
     log_path = out_dir / f"{Path(args.protocol).stem}.csv"
     started = time.monotonic()
+    pace = ["--lockstep"]
+    if args.dashboard:
+        http = free_port()
+        pace = ["--speed", f"{args.speed:g}", "--http", str(http)]
     with (
         (out_dir / "server.log").open("w") as server_log,
-        rig_emulator_serve(args.boiler, "--lockstep", stderr=server_log) as (port, server),
+        rig_emulator_serve(args.boiler, *pace, stderr=server_log) as (port, server),
     ):
-        print(f"rig-emulator serve --lockstep started on 127.0.0.1:{port} (pid {server.pid})")
+        print(f"rig-emulator serve {' '.join(pace)} started on 127.0.0.1:{port} (pid {server.pid})")
+        if args.dashboard:
+            url = f"http://127.0.0.1:{http}/"
+            wait_for_port("127.0.0.1", http, 30.0)
+            print(f"live dashboard: {url}")
+            with contextlib.suppress(Exception):  # no browser on a server: the URL is printed
+                webbrowser.open(url)
         code = hil_client_main(
             [
                 "run",
@@ -110,7 +129,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     report = out_dir / "report.md"
     report.write_text(
         f"# Demo: {args.protocol} of {params.name} through Modbus TCP\n\n"
-        f"Emulator: `rig-emulator serve --boiler {args.boiler} --lockstep` (separate process);"
+        f"Emulator: `rig-emulator serve --boiler {args.boiler} {' '.join(pace)}` (separate "
+        "process);"
         f" client: `hil-client run {args.protocol} --rig modbus://127.0.0.1:{port}`.\n\n"
         f"Phases (from the {phases.source}): "
         + ", ".join(f"{k[:2]} = {v / 3600:.3f} h" for k, v in phases.as_dict().items())

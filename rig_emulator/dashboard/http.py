@@ -41,6 +41,7 @@ MAX_HEADER_BYTES = 8192
 MAX_BODY_BYTES = 4096
 REQUEST_TIMEOUT_S = 10.0
 MAX_STREAMS = 64
+INITIAL_WINDOW_S = 12 * 3600.0  # the trend sent with the page
 CONTROL_SIGNALS = ("water_flow_setpoint_kg_h", "boiler_command", "speed_factor")
 
 
@@ -143,7 +144,11 @@ class Dashboard:
     async def _route(self, method: str, target: str, body: bytes, writer) -> None:
         url = urlsplit(target)
         if url.path == "/" and method == "GET":
-            await _respond_raw(writer, 200, "text/html; charset=utf-8", self._page.read_bytes())
+            state = json.dumps(self.state(INITIAL_WINDOW_S), allow_nan=False).replace("</", "<\\/")
+            page = self._page.read_text(encoding="utf-8").replace(
+                "/*INITIAL_STATE*/null", state, 1
+            )
+            await _respond_raw(writer, 200, "text/html; charset=utf-8", page.encode())
         elif url.path == "/api/state" and method == "GET":
             window = parse_qs(url.query).get("window", [None])[0]
             try:
