@@ -145,9 +145,7 @@ class Dashboard:
         url = urlsplit(target)
         if url.path == "/" and method == "GET":
             state = json.dumps(self.state(INITIAL_WINDOW_S), allow_nan=False).replace("</", "<\\/")
-            page = self._page.read_text(encoding="utf-8").replace(
-                "/*INITIAL_STATE*/null", state, 1
-            )
+            page = self._page.read_text(encoding="utf-8").replace("/*INITIAL_STATE*/null", state, 1)
             await _respond_raw(writer, 200, "text/html; charset=utf-8", page.encode())
         elif url.path == "/api/state" and method == "GET":
             window = parse_qs(url.query).get("window", [None])[0]

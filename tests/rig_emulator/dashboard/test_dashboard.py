@@ -207,3 +207,18 @@ def test_the_page_shows_live_values_in_a_real_browser(dashboard, tmp_path):
         timeout=120,
     )
     assert shot.exists() and shot.stat().st_size > 20_000
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (["--http-control"], "--http-control needs --http PORT"),
+        (["--http", "70000"], "--http: 70000 is not a TCP port"),
+    ],
+)
+def test_bad_dashboard_options_get_one_line(options, message, capsys):
+    from rig_emulator.cli import main
+
+    assert main(["serve", "--boiler", "windhager_12kw", *options]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1
