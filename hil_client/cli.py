@@ -68,6 +68,15 @@ def _build_parser() -> argparse.ArgumentParser:
         default=60.0,
         help="give up after a Modbus outage this long [60 s]",
     )
+    run.add_argument(
+        "--on-restart",
+        choices=("abort", "restart-phase", "continue"),
+        default="abort",
+        help="a Modbus server restarted in real time, or advanced or reset by another client: "
+        "stop (exit 1), restart the current phase, or go on; the log marks the break "
+        "(rig_epoch, gaps in the meta file). A restarted lockstep server with the same "
+        "boiler, profile and seed is rebuilt by replay whatever this says [abort]",
+    )
     run.add_argument("--out", required=True, type=Path, help="lab log to write (CSV)")
     run.add_argument(
         "--live", action="store_true", help="live view of phase, sequence, time and key values"
@@ -300,7 +309,12 @@ def _make_rig(args: argparse.Namespace, params):
         register_map = load_map(args.map)
     if args.reconnect_timeout < 0:
         raise UsageError("--reconnect-timeout must not be negative")
-    return ModbusRig(args.rig, register_map, reconnect_timeout_s=args.reconnect_timeout)
+    return ModbusRig(
+        args.rig,
+        register_map,
+        reconnect_timeout_s=args.reconnect_timeout,
+        on_restart=args.on_restart,
+    )
 
 
 def _cmd_run(args: argparse.Namespace) -> int:

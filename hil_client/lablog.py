@@ -1,12 +1,15 @@
 """Writing the lab log (CONTRACT section 3) and its meta file.
 
 Each row is written and flushed as soon as it is acquired, so a killed client leaves a valid
-CSV holding every row acquired so far. A missing value (NaN) is an empty field.
+CSV holding every row acquired so far. A missing value (NaN) is an empty field. The column
+``rig_epoch`` (optional, CONTRACT section 7) says which plant a row comes from: 0, then one
+higher after each break (a restarted or reset server the run went on from).
 """
 
 from __future__ import annotations
 
 import json
+import os
 import re
 from pathlib import Path
 from typing import Any
@@ -31,6 +34,7 @@ _DECIMALS = {
     "flue_gas_NOx_ppm": 3,
     "flue_gas_SO2_ppm": 3,
     "flue_gas_OGC_ppm": 3,
+    "rig_epoch": 0,
 }
 _TEXT = {"phase", "sequence"}
 
@@ -82,9 +86,15 @@ def meta_path(log_path: Path) -> Path:
 
 
 def write_meta(log_path: Path, meta: dict[str, Any]) -> Path:
-    """Write the meta file beside the log (atomically: a temporary file renamed)."""
+    """Write the meta file beside the log, atomically: a temporary file, flushed to disk,
+    then renamed over the old one (``os.replace``), so a reader or a run killed at any
+    moment sees either the previous or the new file whole. ``hil-client run`` calls this
+    at the start, at each phase mark and each gap, and at the end."""
     path = meta_path(log_path)
-    tmp = path.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(meta, indent=2, sort_keys=False) + "\n", encoding="utf-8")
-    tmp.replace(path)
+    tmp = path.with_name(path.name + ".tmp")
+    with tmp.open("w", encoding="utf-8") as fh:
+        fh.write(json.dumps(meta, indent=2, sort_keys=False) + "\n")
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)
     return path

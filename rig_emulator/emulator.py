@@ -15,6 +15,9 @@ Emissions the Type 869 model does not carry (assumptions ours, documented):
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
+import json
 import math
 
 import numpy as np
@@ -65,6 +68,30 @@ class CommandError(ValueError):
     """A command value is not acceptable (unknown, NaN, infinite or out of range)."""
 
 
+def _hash32(data: object) -> int:
+    """A 32-bit hash of ``data``'s canonical JSON form."""
+    text = json.dumps(data, sort_keys=True, default=str).encode()
+    return int.from_bytes(hashlib.blake2b(text, digest_size=4).digest(), "big")
+
+
+def plant_identity(
+    params: BoilerParams, profile: Profile, seed: int, config: BenchConfig
+) -> dict[str, float]:
+    """What identifies a plant set-up, as published: 32-bit hashes of the boiler (with the
+    bench configuration) and of the profile, and the seed modulo 2**32. Two servers started
+    with the same files and seed publish the same values."""
+    profile_data = {
+        "name": profile.name,
+        "instruments": {k: dataclasses.asdict(v) for k, v in profile.instruments.items()},
+        "effects": {k: dict(v) for k, v in profile.effects.items()},
+    }
+    return {
+        "boiler_id": float(_hash32([params.to_mapping(), dataclasses.asdict(config)])),
+        "profile_id": float(_hash32(profile_data)),
+        "seed": float(seed % 2**32),
+    }
+
+
 def check_command(name: str, value: float) -> float:
     """Validate a command value against its signal's range; returns it as float."""
     signal = SIGNALS.get(name)
@@ -103,6 +130,8 @@ class Emulator:
         self.seed = seed
         self.max_step_s = max_step_s
         self.bench = Bench(params, config, profile.effects)
+        #: published with the readings: what identifies the set-up (CONTRACT section 7)
+        self.identity = plant_identity(params, profile, seed, self.bench.config)
         fuel_n = params.fuel.n
         self._nox_per_v = 1e6 * NOX_CONVERSION * fuel_n / 14.007 * V_MOLAR_N
         self.reset()
@@ -254,5 +283,6 @@ class Emulator:
         out["boiler_mode"] = float(y[Y_MODE])
         out["firing_power_kW"] = float(y[Y_FIRING])
         out["sim_time_s"] = self.sim_time_s
+        out.update(self.identity)
         out.update(self.commands)
         return out

@@ -61,6 +61,10 @@ _STATUS = (
     ("sim_time_s", "s", "simulated time since the start or the last reset"),
     ("tick_lateness_ms", "ms", "lateness of the last real-time tick against its deadline"),
     ("lockstep_counter", "-", "number of completed lockstep advances (wraps at 65536)"),
+    ("epoch_id", "-", "random 32-bit identifier of this start of the emulator (a new plant)"),
+    ("boiler_id", "-", "32-bit hash of the boiler parameters and the bench configuration"),
+    ("profile_id", "-", "32-bit hash of the profile (instruments and effects)"),
+    ("seed", "-", "seed of the instrument errors and noise (modulo 2^32)"),
 )
 _COMMANDS = (
     ("water_flow_setpoint_kg_h", "kg/h", "flow setpoint of the bench pump/valve", 0.0, 3000.0),

@@ -16,6 +16,13 @@ Phases and the rules that end them:
 
 Every phase also has a maximum duration so that a rig that never meets a rule still ends;
 the meta file then says which rule timed out.
+
+Breaks (CONTRACT section 7): a rig may report ``epoch`` (the ``rig_epoch`` column; one
+higher after each break it went on from, e.g. a restarted real-time server) and ``gaps``.
+When the epoch changes and the rig says ``restart_phase``, the current phase starts again
+from that row (its rules, sequences and its start mark t0..t3); otherwise the run goes on,
+the rows marked by their epoch. Whenever the rig's gaps change, and when the rig fails,
+``on_phase`` is called too, so the meta file keeps every gap as the run goes.
 """
 
 from __future__ import annotations
@@ -26,7 +33,13 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from hil_client.protocol.definition import ProtocolDefinition
-from hil_client.protocol.rig import N_CONTRACT_READINGS, READING_KEYS, Rig, RigCommand
+from hil_client.protocol.rig import (
+    N_CONTRACT_READINGS,
+    READING_KEYS,
+    Rig,
+    RigCommand,
+    RigError,
+)
 from rig_emulator.model.constants import CP_WATER
 
 #: Columns of the lab log (CONTRACT section 3), in file order.
@@ -37,7 +50,11 @@ LOG_COLUMNS: tuple[str, ...] = (
     *READING_KEYS[:N_CONTRACT_READINGS],
     "water_flow_setpoint_kg_h",
     *READING_KEYS[N_CONTRACT_READINGS:],
+    "rig_epoch",
 )
+
+#: The mark set when each phase starts (preheat starts with the record).
+_START_MARK = {"start_up": "t0_s", "test": "t1_s", "cooling_1": "t2_s", "cooling_2": "t3_s"}
 
 PHASES = ("preheat", "start_up", "test", "cooling_1", "cooling_2")
 
@@ -122,7 +139,8 @@ def run_protocol(
         rig: the bench (in-process or over Modbus).
         sink: receives one row per acquisition step, in :data:`LOG_COLUMNS` order.
         progress: optional callback receiving each row too.
-        on_phase: optional callback after each phase boundary (t0..t4) is found.
+        on_phase: optional callback after each phase boundary (t0..t4) is found, each
+            change of the rig's gaps or epoch, and before a rig failure is raised.
     """
     dt = protocol.acquisition_period_s
     spread = protocol.flow_spread_K
@@ -147,6 +165,9 @@ def run_protocol(
     command = RigCommand(flow(pre.load_pct), pre.temperature_C, True, False, True)
     first_load = sequences[0].load_start_pct
     t4_after = protocol.cooling_2_until_after_t2_s
+    gaps: list = getattr(rig, "gaps", [])
+    epoch = getattr(rig, "epoch", 0)
+    restart_phase = bool(getattr(rig, "restart_phase", False))
 
     while True:
         # --- commands for this step
@@ -178,10 +199,17 @@ def run_protocol(
             command.pump_on, command.boiler_on = False, False
 
         rig.apply(command)
-        t += rig.advance(dt)
+        n_gaps = len(gaps)
+        try:
+            t += rig.advance(dt)
+        except RigError:
+            if on_phase is not None and len(gaps) != n_gaps:
+                on_phase(result)  # the break's gap reaches the meta file
+            raise
         reading = rig.read()
         rows += 1
         setpoint = command.flow_setpoint_kg_h if command.pump_on else 0.0
+        rig_epoch = getattr(rig, "epoch", 0)
         row = (
             t,
             phase,
@@ -189,10 +217,28 @@ def run_protocol(
             *reading[:N_CONTRACT_READINGS],
             setpoint,
             *reading[N_CONTRACT_READINGS:],
+            rig_epoch,
         )
         sink(row)
         if progress is not None:
             progress(row)
+        if rig_epoch != epoch:  # a break the rig went on from: a new plant from this row
+            epoch = rig_epoch
+            if restart_phase:
+                phase_start, hold_since = t, None
+                slope.clear()
+                seq_index, seq_start = 0, t
+                if phase in _START_MARK:
+                    times[_START_MARK[phase]] = t
+                result.notes.append(
+                    f"{phase} restarted at time_s = {t:g} s on a new plant (rig_epoch {epoch})"
+                )
+            else:
+                result.notes.append(
+                    f"rig_epoch {epoch} from time_s = {t:g} s: a new plant, the run went on"
+                )
+        if on_phase is not None and len(gaps) != n_gaps:
+            on_phase(result)  # a gap (closed by this row) or a break: into the meta file now
 
         # --- rules that end the phase (evaluated on what was read)
         elapsed_phase = t - phase_start

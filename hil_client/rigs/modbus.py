@@ -11,10 +11,27 @@ reply means the new state is readable), so runs are deterministic; in real time 
 accelerated mode it follows the server's clock, waiting until its simulated time has moved
 on by the acquisition period.
 
-A lost connection is retried with exponential backoff (0.1 s doubling to 5 s, up to
-``reconnect_timeout_s``); commands are written again, a lockstep advance that may not have
-happened is settled by the server's simulated time, and the outage is recorded in
-:attr:`gaps`. Nothing already acquired is touched.
+A log never splices two plants (CONTRACT section 7). Every step also reads the simulation
+control unit (in the same pipelined batch): the server's epoch (random per start), its
+lockstep counter, its simulated time and the identity of its set-up (boiler, profile,
+seed). The rig knows what to expect, so it detects
+
+- a lost connection: retried with exponential backoff (0.1 s doubling to 5 s, up to
+  ``reconnect_timeout_s``); on the same plant a lockstep step that may not have happened is
+  settled by the counter and the time, and the outage is recorded in :attr:`gaps`;
+- a restarted server (a new epoch): in lockstep with the same boiler, profile and seed, the
+  rig replays its journal (every step's requests, as sent) onto the fresh plant and goes
+  on, so the log equals an uninterrupted run; with another set-up it stops (:class:`RigError`);
+- another client's advance or reset (time or counter not what this rig expects), and a
+  restart in real time: a *break*, handled per ``on_restart``: ``abort`` (stop with a
+  :class:`RigError`), ``continue`` or ``restart-phase`` (go on with :attr:`epoch` one higher,
+  the runner restarting the phase for the latter).
+
+Each break or outage is an entry of :attr:`gaps` in the log's own time base
+(``start_time_s``: the last row before, ``end_time_s``: the first row after, None if none).
+The log time is the server's time plus an offset; across a break it jumps by the time the
+plant moved meanwhile (the server's time on the same plant, else the wall-clock outage at
+the server's speed in real time), never joining rows as if continuous.
 """
 
 from __future__ import annotations
@@ -23,6 +40,7 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 from urllib.parse import urlparse
 
 from hil_client.modbus_client import (
@@ -36,9 +54,26 @@ from hil_client.modbus_client import (
     write_registers_pdu,
 )
 from hil_client.protocol.rig import READING_KEYS, RigCommand, RigError
-from rig_emulator.registers import Point, RegisterMap, decode, encode, run_decoder
+from rig_emulator.registers import Point, RegisterMap, encode, run_decoder
 
 _READ_FUNCTION = {"coil": 1, "discrete": 2, "holding": 3, "input": 4}
+
+#: What ``on_restart`` may say (see the module docstring).
+ON_RESTART = ("abort", "restart-phase", "continue")
+#: Signals of the simulation control read with every step.
+STATUS_KEYS = ("sim_time_s", "lockstep_counter", "epoch_id", "boiler_id", "profile_id", "seed")
+_IDENTITY = {"boiler_id": "boiler", "profile_id": "profile", "seed": "seed"}
+_REPLAY_CHUNK = 200  # journal steps sent per pipelined batch when replaying
+_TIME_TOLERANCE_S = 1e-6  # the server's float64 time against the rig's sum of the same steps
+
+
+class _Break(Exception):
+    """The plant is not the one this rig expects (restart, another client's advance or reset)."""
+
+    def __init__(self, reason: str, status: dict[str, float]) -> None:
+        super().__init__(reason)
+        self.reason = reason
+        self.status = status
 
 
 @dataclass(frozen=True, slots=True)
@@ -98,7 +133,17 @@ def _make_read(unit: int, table: str, run: list[Point]) -> _Read:
 
 
 class ModbusRig:
-    """A remote bench reached over Modbus TCP (see the module docstring)."""
+    """A remote bench reached over Modbus TCP (see the module docstring).
+
+    Args:
+        url: ``modbus://HOST:PORT``.
+        register_map: the server's map.
+        timeout_s: timeout of one request [s].
+        reconnect_timeout_s: give up after an outage this long [s].
+        on_restart: what a break does: ``abort``, ``restart-phase`` or ``continue``.
+        checks: read and check the simulation control each step and keep the journal (off
+            only to measure what they cost: ``make bench``).
+    """
 
     def __init__(
         self,
@@ -106,18 +151,29 @@ class ModbusRig:
         register_map: RegisterMap,
         timeout_s: float = 5.0,
         reconnect_timeout_s: float = 60.0,
+        on_restart: str = "abort",
+        checks: bool = True,
     ) -> None:
         try:
             self.host, self.port = parse_url(url)
         except ValueError as exc:
             raise RigError(str(exc)) from None
+        if on_restart not in ON_RESTART:
+            raise RigError(f"on_restart: '{on_restart}' is not one of {', '.join(ON_RESTART)}")
         self.url = url
         self.map = register_map
         self.timeout_s = timeout_s
         self.reconnect_timeout_s = reconnect_timeout_s
-        self.gaps: list[dict[str, float | str]] = []
+        self.on_restart = on_restart
+        #: the runner restarts the current phase when :attr:`epoch` changes
+        self.restart_phase = on_restart == "restart-phase"
+        self.checks = checks
+        self.gaps: list[dict[str, Any]] = []
+        #: the ``rig_epoch`` column: 0, one higher after each break the rig went on from
+        self.epoch = 0
         plan = _read_plan(register_map, READING_KEYS)  # a map without a reading fails here
-        clock_plan = _read_plan(register_map, ("sim_time_s",))
+        self._status_plan = _read_plan(register_map, STATUS_KEYS)
+        self._clock_plan = _read_plan(register_map, ("clock_mode", "speed_factor"))
         self._points = {
             s: register_map.point(s)
             for s in (
@@ -127,9 +183,6 @@ class ModbusRig:
                 "return_heating",
                 "boiler_command",
                 "lockstep_advance_s",
-                "clock_mode",
-                "speed_factor",
-                "sim_time_s",
             )
         }
         self._conn: Connection | None = None
@@ -138,48 +191,63 @@ class ModbusRig:
         self.values: dict[str, float] = {}
         try:
             self._connect()
+            status = self._read_status()
         except ConnectionLost as exc:
             raise RigError(f"cannot reach {url}: {exc}") from None
-        self.lockstep = self._read_point("clock_mode") == 1.0
-        self.speed = self._read_point("speed_factor")
-        self.sim_time_s = self._read_point("sim_time_s")
-        # in lockstep the rig knows the time it advanced to; otherwise it polls the clock too
-        self._reads = plan if self.lockstep else plan + clock_plan
+        except ModbusExceptionResponse as exc:
+            raise RigError(f"{url}: {exc} (not a rig-emulator with this map?)") from None
+        self.lockstep = status["clock_mode"] == 1.0
+        self.speed = status["speed_factor"]
+        self.sim_time_s = status["sim_time_s"]
+        self.identity = {key: int(status[key]) for key in ("epoch_id", *_IDENTITY)}
+        self._epoch_id = status["epoch_id"]
+        # journal (lockstep): every step's requests as sent, and the server time after it;
+        # the server holds the first ``_applied`` of them on top of its state at the start
+        self._journal: list[list[tuple[int, bytes]]] = []
+        self._journal_time: list[float] = []
+        self._applied = 0  # how many the server holds
+        self._logged = 0  # how many were read and returned as rows
+        self._base_counter = int(status["lockstep_counter"])
+        self._base_time = status["sim_time_s"]
+        # a restarted server can be rebuilt only if this run began on a fresh one
+        self._replayable = self._base_counter == 0 and self._base_time == 0.0
+        # log time = server time + offset; the last row's times
+        self.log_time_s = 0.0
+        self._offset = -status["sim_time_s"]
+        self._row_server_time = status["sim_time_s"]
+        self._row_wall = time.monotonic()
+        self._reads = plan + self._status_plan if checks else plan
+        if not checks and not self.lockstep:
+            self._reads = plan + _read_plan(register_map, ("sim_time_s",))
         self._read_requests = [
             (r.unit, read_pdu(r.function, r.start, r.count)) for r in self._reads
         ]
+        self._n_reads = len(self._reads)
 
     # ------------------------------------------------------------------ connections
     def _connect(self) -> None:
         self.close()
         self._conn = Connection(self.host, self.port, self.timeout_s)
 
-    def _reconnect(self, reason: str) -> None:
+    def _reconnect(self, reason: str) -> dict[str, float]:
+        """Connect again (with backoff); the server's status once back."""
         started = time.monotonic()
-        sim_before = self.sim_time_s
         delay = 0.1
         while True:
             try:
                 self._connect()
-                self._written_switches = None
-                self.sim_time_s = self._read_point("sim_time_s")
-                break
+                return self._read_status()
             except ConnectionLost:
                 if time.monotonic() - started > self.reconnect_timeout_s:
+                    self._gap(f"connection lost ({reason})", "abort", {})
                     raise RigError(
                         f"{self.url}: connection lost ({reason}) and not back within "
                         f"{self.reconnect_timeout_s:g} s"
                     ) from None
                 time.sleep(delay)
                 delay = min(delay * 2, 5.0)
-        self.gaps.append(
-            {
-                "reason": reason,
-                "sim_time_lost_s": sim_before,
-                "sim_time_back_s": self.sim_time_s,
-                "outage_wall_s": round(time.monotonic() - started, 3),
-            }
-        )
+            except ModbusExceptionResponse as exc:
+                raise RigError(f"{self.url}: {exc}") from None
 
     def close(self) -> None:
         if self._conn is not None:
@@ -195,14 +263,19 @@ class ModbusRig:
         self._conn.send(requests)
         return [self._conn.receive() for _ in requests]
 
-    def _read_point(self, signal: str) -> float:
-        device, point = self._points[signal]
-        (reply,) = self._exchange(
-            [(device.unit_id, read_pdu(_READ_FUNCTION[point.table], point.address, point.width))]
-        )
-        if point.table in ("coil", "discrete"):
-            return 1.0 if bits_of(reply, 1)[0] else 0.0
-        return decode(point, registers_of(reply))
+    def _decode(self, reads: list[_Read], replies: list[bytes], into: dict[str, float]) -> None:
+        for read, reply in zip(reads, replies, strict=True):
+            words = bits_of(reply, read.count) if read.function in (1, 2) else registers_of(reply)
+            for p, value in zip(read.points, read.decode(words), strict=True):
+                into[p.signal] = value
+
+    def _read_status(self) -> dict[str, float]:
+        """The simulation control: time, counter, epoch, identity, clock mode and speed."""
+        reads = self._status_plan + self._clock_plan
+        replies = self._exchange([(r.unit, read_pdu(r.function, r.start, r.count)) for r in reads])
+        status: dict[str, float] = {}
+        self._decode(reads, replies, status)
+        return status
 
     def _write_request(self, signal: str, value: float) -> tuple[int, bytes]:
         device, point = self._points[signal]
@@ -226,7 +299,7 @@ class ModbusRig:
                 self._write_request("return_setpoint_C", cmd.return_setpoint_C),
             ]
         switches = (cmd.pump_on, cmd.return_heating, cmd.boiler_on)
-        if switches != self._written_switches:  # a lost connection resets this to None
+        if switches != self._written_switches:  # a new plant resets this to None
             requests += [
                 self._write_request("pump_on", float(cmd.pump_on)),
                 self._write_request("return_heating", float(cmd.return_heating)),
@@ -235,13 +308,125 @@ class ModbusRig:
             self._written_switches = switches
         return requests
 
-    def _store(self, replies: list[bytes]) -> None:
-        """Decode the replies to :attr:`_read_requests` into :attr:`values`."""
-        values = self.values
-        for read, reply in zip(self._reads, replies, strict=True):
-            words = bits_of(reply, read.count) if read.function in (1, 2) else registers_of(reply)
-            for p, value in zip(read.points, read.decode(words), strict=True):
-                values[p.signal] = value
+    # ------------------------------------------------------------------ expectations
+    def _expected(self, applied: int) -> tuple[int, float]:
+        """Lockstep counter and server time once ``applied`` journal steps are applied."""
+        counter = (self._base_counter + applied) % 65536
+        return counter, self._journal_time[applied - 1] if applied else self._base_time
+
+    def _same_plant(self, status: dict[str, float]) -> str | None:
+        """Why ``status`` is not from the plant this rig expects (None if it is)."""
+        if status["epoch_id"] != self._epoch_id:
+            return "the server restarted (a new plant)"
+        if self.lockstep:
+            counter, sim_time = self._expected(self._applied)
+            if status["lockstep_counter"] == counter and (
+                abs(status["sim_time_s"] - sim_time) <= _TIME_TOLERANCE_S
+            ):
+                return None
+            return _foreign(status["sim_time_s"] - sim_time)
+        if status["sim_time_s"] < self._row_server_time - _TIME_TOLERANCE_S:
+            return "the server was reset (its time went back)"
+        return None
+
+    def _check_identity(self, status: dict[str, float]) -> None:
+        """Stop (:class:`RigError`) if a restarted server has another set-up."""
+        changed = [
+            f"{label} {int(status[key])}, was {self.identity[key]}"
+            if key == "seed"
+            else f"{label} id {int(status[key]):08x}, was {self.identity[key]:08x}"
+            for key, label in _IDENTITY.items()
+            if int(status[key]) != self.identity[key]
+        ]
+        mode = "lockstep" if status["clock_mode"] == 1.0 else "real time"
+        if (status["clock_mode"] == 1.0) != self.lockstep:
+            changed.append(f"clock {mode}")
+        if changed:
+            reason = f"the server came back as another plant ({'; '.join(changed)})"
+            self._gap(reason, "abort", status)
+            raise RigError(f"{self.url}: {reason}; stopped after time_s = {self.log_time_s:g} s")
+
+    # ------------------------------------------------------------------ breaks and gaps
+    def _gap(self, reason: str, action: str, status: dict[str, float]) -> dict[str, Any]:
+        gap: dict[str, Any] = {
+            "start_time_s": round(self.log_time_s, 6),
+            "end_time_s": None,
+            "reason": reason,
+            "action": action,
+            "rig_epoch": self.epoch,
+            "server_time_before_s": self._row_server_time,
+            "server_time_after_s": status.get("sim_time_s"),
+            "outage_wall_s": round(time.monotonic() - self._row_wall, 3),
+        }
+        self.gaps.append(gap)
+        return gap
+
+    def _recover(self, reason: str) -> None:
+        """After a lost connection: connect again and settle what the server holds."""
+        status = self._reconnect(reason)
+        self.speed = status["speed_factor"]
+        if status["epoch_id"] != self._epoch_id:
+            self._check_identity(status)
+            if self.lockstep and self._replayable and self._fresh(status):
+                self._epoch_id = status["epoch_id"]
+                self._applied = 0  # the journal is replayed with the next step
+                self._gap(f"the server restarted ({reason})", "replayed", status)
+                return
+            why = "the server restarted (a new plant)"
+            if self.lockstep:
+                why += (
+                    "; no replay: this run did not start on a fresh server"
+                    if not self._replayable
+                    else "; no replay: the new server is not fresh"
+                )
+            raise _Break(why, status)
+        if self.lockstep:
+            # how many of the unacknowledged steps did the server apply?
+            for applied in range(self._applied, len(self._journal) + 1):
+                counter, sim_time = self._expected(applied)
+                if status["lockstep_counter"] == counter and (
+                    abs(status["sim_time_s"] - sim_time) <= _TIME_TOLERANCE_S
+                ):
+                    self._applied = applied
+                    self._gap(f"connection lost ({reason})", "resumed", status)
+                    return
+            raise _Break(_foreign(status["sim_time_s"] - self._expected(self._applied)[1]), status)
+        if status["sim_time_s"] < self._row_server_time - _TIME_TOLERANCE_S:
+            raise _Break("the server was reset (its time went back)", status)
+        self._gap(f"connection lost ({reason})", "reconnected", status)
+
+    def _fresh(self, status: dict[str, float]) -> bool:
+        return status["lockstep_counter"] == 0 and status["sim_time_s"] == 0.0
+
+    def _on_break(self, brk: _Break) -> None:
+        """A break: stop (abort) or go on from the plant as it is, one epoch higher."""
+        status = brk.status
+        if self.on_restart == "abort":
+            self._gap(brk.reason, "abort", status)
+            raise RigError(
+                f"{self.url}: {brk.reason} after time_s = {self.log_time_s:g} s; stopped "
+                "(--on-restart abort; restart-phase or continue would go on, the break marked)"
+            )
+        self.epoch += 1
+        self._gap(brk.reason, self.on_restart, status)
+        same = status["epoch_id"] == self._epoch_id
+        now = status["sim_time_s"]
+        if same and now >= self._row_server_time:
+            moved = now - self._row_server_time  # the plant lived on without this rig
+        elif self.lockstep:
+            moved = 0.0
+        else:
+            moved = (time.monotonic() - self._row_wall) * self.speed
+        self._offset = self.log_time_s + moved - now
+        self._epoch_id = status["epoch_id"]
+        self._base_counter = int(status["lockstep_counter"])
+        self._base_time = now
+        self._row_server_time = now
+        self._journal.clear()
+        self._journal_time.clear()
+        self._applied = self._logged = 0
+        self._replayable = False  # another history: no fresh server can rebuild it
+        self._written_switches = None
 
     # ------------------------------------------------------------------ rig interface
     def apply(self, command: RigCommand) -> None:
@@ -256,38 +441,97 @@ class ModbusRig:
     def advance(self, dt_s: float) -> float:
         """Write the commands, let ``dt_s`` of simulated time pass, poll every instrument.
 
-        Returns the simulated time that actually passed [s] (more than ``dt_s`` in real-time
-        mode when the client fell behind or the connection was down).
+        Returns the log time that passed [s]: ``dt_s`` in lockstep, more in real time when
+        the client fell behind, and more across a break (see the module docstring).
         """
-        before = self.sim_time_s
-        target = before + dt_s
         for _ in range(1000):
             try:
-                commands = self._command_requests()
-                if self.lockstep:
-                    if self.sim_time_s < target - 1e-6:  # not yet advanced before a reconnect
-                        step = target - self.sim_time_s
-                        commands.append(self._write_request("lockstep_advance_s", step))
-                    replies = self._exchange(commands + self._read_requests)
-                    self.sim_time_s = target
-                else:
-                    self._exchange(commands)
-                    self._wait_until(target)
-                    replies = self._exchange(self._read_requests)
-                self._store(replies[len(replies) - len(self._reads) :])
-                if not self.lockstep:
-                    self.sim_time_s = self.values["sim_time_s"]
-                return self.sim_time_s - before
+                step = self._step_lockstep if self.lockstep else self._step_realtime
+                passed = step(dt_s)
             except (ConnectionLost, OSError) as exc:
-                self._reconnect(str(exc))
+                try:
+                    self._recover(str(exc))
+                except _Break as brk:
+                    self._on_break(brk)
+                except (ConnectionLost, OSError):
+                    pass  # lost again while settling: the next attempt reconnects
+                continue
+            except _Break as brk:
+                self._on_break(brk)
+                continue
             except ModbusExceptionResponse as exc:
                 raise RigError(f"{self.url}: {exc}") from None
+            self._row_wall = time.monotonic()
+            if self.gaps and self.gaps[-1]["end_time_s"] is None:
+                for gap in self.gaps:
+                    if gap["end_time_s"] is None:
+                        gap["end_time_s"] = round(self.log_time_s, 6)
+            return passed
         raise RigError(f"{self.url}: no progress after 1000 reconnections")
 
+    def _step_lockstep(self, dt_s: float) -> float:
+        journal = self._journal
+        if self._logged == len(journal):  # a new step (else: one not read yet)
+            _, before = self._expected(self._applied)
+            if journal and not self.checks:  # no journal: keep the step in flight only
+                self._base_counter = (self._base_counter + len(journal)) % 65536
+                self._base_time = before
+                journal.clear()
+                self._journal_time.clear()
+                self._applied = self._logged = 0
+            step = self._command_requests()
+            step.append(self._write_request("lockstep_advance_s", dt_s))
+            journal.append(step)
+            self._journal_time.append(before + dt_s)
+        # replay (a restarted server) in chunks, then the last step with the reads
+        while len(journal) - self._applied > _REPLAY_CHUNK:
+            chunk = journal[self._applied : self._applied + _REPLAY_CHUNK]
+            self._exchange([request for step in chunk for request in step])
+            self._applied += _REPLAY_CHUNK
+        pending = journal[self._applied :]
+        requests = pending[0] if len(pending) == 1 else [r for step in pending for r in step]
+        # (none pending: the server applied the step before the connection was lost)
+        replies = self._exchange(requests + self._read_requests)
+        self._applied = len(journal)
+        values = self.values
+        self._decode(self._reads, replies[len(replies) - self._n_reads :], values)
+        if self.checks:
+            reason = self._same_plant(values)
+            if reason is not None:
+                raise _Break(reason, dict(values))
+        self._logged = len(journal)
+        server_time = self._journal_time[-1]
+        self.sim_time_s = server_time
+        self._row_server_time = server_time
+        passed = server_time + self._offset - self.log_time_s
+        self.log_time_s = server_time + self._offset
+        return passed
+
+    def _step_realtime(self, dt_s: float) -> float:
+        self._exchange(self._command_requests())
+        self._wait_until(self.log_time_s + dt_s - self._offset)
+        replies = self._exchange(self._read_requests)
+        values = self.values
+        self._decode(self._reads, replies, values)
+        if self.checks:
+            reason = self._same_plant(values)
+            if reason is not None:
+                raise _Break(reason, dict(values))
+        server_time = values["sim_time_s"]
+        self.sim_time_s = server_time
+        self._row_server_time = server_time
+        passed = server_time + self._offset - self.log_time_s
+        self.log_time_s = server_time + self._offset
+        return passed
+
     def _wait_until(self, target: float) -> None:
+        """Poll the server's time until it reaches ``target``, or it went back (a reset)."""
+        requests = [(r.unit, read_pdu(r.function, r.start, r.count)) for r in self._status_plan]
+        status: dict[str, float] = {}
         while True:
-            now = self._read_point("sim_time_s")
-            if now >= target - 1e-9:
+            self._decode(self._status_plan, self._exchange(requests), status)
+            now = status["sim_time_s"]
+            if now >= target - 1e-9 or now < self._row_server_time - _TIME_TOLERANCE_S:
                 return
             wait = (target - now) / max(self.speed, 1e-9)
             time.sleep(min(max(wait * 0.5, 0.001), 0.25))
@@ -295,3 +539,13 @@ class ModbusRig:
     def read(self) -> tuple[float, ...]:
         values = self.values
         return tuple(values.get(key, math.nan) for key in READING_KEYS)
+
+
+def _foreign(time_moved_s: float) -> str:
+    """The reason of a break by another client, from how far the server's time moved."""
+    if time_moved_s < 0:
+        return "another client reset the server (time or counter not this run's)"
+    return (
+        f"another client advanced the server (by {time_moved_s:g} s more than this run; "
+        "time or counter not this run's)"
+    )

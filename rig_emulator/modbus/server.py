@@ -22,6 +22,7 @@ import asyncio
 import contextlib
 import logging
 import math
+import secrets
 import struct
 import threading
 from collections.abc import Callable, Mapping
@@ -144,6 +145,8 @@ class BenchServer:
         self.clock = SimClock(speed=speed, mode=LOCKSTEP if lockstep else REALTIME)
         self.lateness = LatenessStats()
         self.lockstep_counter = 0
+        #: random per start: a client that sees it change knows the plant is a new one
+        self.epoch_id = secrets.randbits(32)
         self.last_advance_s = 0.0
         self._internal = False
         self._server: BenchModbusServer | None = None
@@ -234,6 +237,7 @@ class BenchServer:
         realtime = self.clock.mode == REALTIME
         out["tick_lateness_ms"] = self.lateness.last_s * 1000.0 if realtime else 0.0
         out["lockstep_counter"] = float(self.lockstep_counter % 65536)
+        out["epoch_id"] = float(self.epoch_id)
         out["speed_factor"] = self.clock.speed
         out["clock_mode"] = float(self.clock.mode)
         out["lockstep_advance_s"] = self.last_advance_s

@@ -81,6 +81,7 @@ def test_log_columns_are_the_contract_columns_then_optional_ones():
         "flue_gas_NOx_ppm",
         "flue_gas_SO2_ppm",
         "flue_gas_OGC_ppm",
+        "rig_epoch",
     )
 
 

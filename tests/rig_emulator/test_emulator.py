@@ -28,6 +28,7 @@ def test_clean_readings_are_the_plant(params_12kw):
     assert set(values) == set(SIGNALS) - {
         "tick_lateness_ms",
         "lockstep_counter",
+        "epoch_id",
         "speed_factor",
         "clock_mode",
         "lockstep_advance_s",
