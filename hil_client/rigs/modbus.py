@@ -63,7 +63,9 @@ ON_RESTART = ("abort", "restart-phase", "continue")
 #: Signals of the simulation control read with every step.
 STATUS_KEYS = ("sim_time_s", "lockstep_counter", "epoch_id", "boiler_id", "profile_id", "seed")
 _IDENTITY = {"boiler_id": "boiler", "profile_id": "profile", "seed": "seed"}
-_REPLAY_CHUNK = 200  # journal steps sent per pipelined batch when replaying
+# a replay batch stays in one small segment: the server drops a receive buffer above 264
+# bytes (pymodbus's max_buffer_size for Modbus TCP: the largest frame, 260, and slack)
+_REPLAY_SEGMENT_BYTES = 240
 _TIME_TOLERANCE_S = 1e-6  # the server's float64 time against the rig's sum of the same steps
 
 
@@ -349,7 +351,7 @@ class ModbusRig:
     # ------------------------------------------------------------------ breaks and gaps
     def _gap(self, reason: str, action: str, status: dict[str, float]) -> dict[str, Any]:
         gap: dict[str, Any] = {
-            "start_time_s": round(self.log_time_s, 6),
+            "start_time_s": round(self.log_time_s, 3),  # as the log writes time_s
             "end_time_s": None,
             "reason": reason,
             "action": action,
@@ -465,7 +467,7 @@ class ModbusRig:
             if self.gaps and self.gaps[-1]["end_time_s"] is None:
                 for gap in self.gaps:
                     if gap["end_time_s"] is None:
-                        gap["end_time_s"] = round(self.log_time_s, 6)
+                        gap["end_time_s"] = round(self.log_time_s, 3)
             return passed
         raise RigError(f"{self.url}: no progress after 1000 reconnections")
 
@@ -483,13 +485,22 @@ class ModbusRig:
             step.append(self._write_request("lockstep_advance_s", dt_s))
             journal.append(step)
             self._journal_time.append(before + dt_s)
-        # replay (a restarted server) in chunks, then the last step with the reads
-        while len(journal) - self._applied > _REPLAY_CHUNK:
-            chunk = journal[self._applied : self._applied + _REPLAY_CHUNK]
-            self._exchange([request for step in chunk for request in step])
-            self._applied += _REPLAY_CHUNK
+        # replay (a restarted server) in batches, then the last step with the reads
+        last = len(journal) - 1
+        while self._applied < last:
+            batch: list[tuple[int, bytes]] = []
+            size, k = 0, self._applied
+            while k < last:
+                step_bytes = sum(7 + len(pdu) for _, pdu in journal[k])  # MBAP + PDU
+                if batch and size + step_bytes > _REPLAY_SEGMENT_BYTES:
+                    break
+                batch += journal[k]
+                size += step_bytes
+                k += 1
+            self._exchange(batch)
+            self._applied = k
         pending = journal[self._applied :]
-        requests = pending[0] if len(pending) == 1 else [r for step in pending for r in step]
+        requests = pending[0] if pending else []
         # (none pending: the server applied the step before the connection was lost)
         replies = self._exchange(requests + self._read_requests)
         self._applied = len(journal)

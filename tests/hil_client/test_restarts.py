@@ -1,0 +1,307 @@
+"""A lab log never splices two plants (CONTRACT section 7): real servers killed with SIGKILL
+and restarted on the same port, a second client on a shared lockstep server, a server that
+comes back with another seed. Each run ends in a log equal to the uninterrupted one, a
+marked break (``rig_epoch``, a gap in the log's time) or a clean abort (exit 1, one line)."""
+
+from __future__ import annotations
+
+import json
+import os
+import random
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hil_client.analysis.logio import read_log
+from hil_client.cli import main
+from hil_client.modbus_client import Connection, write_registers_pdu
+from hil_client.wait_for_port import free_port, wait_for_port
+from rig_emulator.registers import encode, load_map
+from tests.hil_client.test_modbus_rig import SHORT, _start_client, assert_logs_equal
+
+BOILER = "windhager_12kw"
+_SERVE = (sys.executable, "-m", "rig_emulator.cli", "serve", "--boiler", BOILER)
+
+
+class ServerProcess:
+    """``rig-emulator serve`` in its own process on a fixed port; :meth:`kill` is SIGKILL."""
+
+    def __init__(self, port: int, *args: str) -> None:
+        self.port = port
+        self.proc = subprocess.Popen(
+            [*_SERVE, "--port", str(port), *args],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+        if not wait_for_port("127.0.0.1", port, 60.0):
+            self.kill()
+            raise AssertionError(f"no server on port {port}")
+
+    def kill(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGKILL)
+        self.proc.wait(timeout=30)
+
+
+@pytest.fixture
+def servers():
+    """``servers(port, *args)`` starts a server process; all are killed after the test."""
+    started: list[ServerProcess] = []
+
+    def start(port: int, *args: str) -> ServerProcess:
+        server = ServerProcess(port, *args)
+        started.append(server)
+        return server
+
+    yield start
+    for server in started:
+        server.kill()
+
+
+def _rows(out: Path) -> int:
+    return out.read_text().count("\n") - 1 if out.exists() else 0
+
+
+def _wait(predicate, what: str, timeout: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return
+        time.sleep(0.02)
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+def _run(port: int, out: Path, *extra: str) -> int:
+    rig = f"modbus://127.0.0.1:{port}"
+    args = ["run", SHORT, "--boiler", BOILER, "--quiet", "--rig", rig, "--out", str(out)]
+    return main([*args, "--reconnect-timeout", "30", *extra])
+
+
+def _meta(out: Path) -> dict:
+    return json.loads(out.with_name(out.stem + ".meta.json").read_text())
+
+
+def _prefix(log, n: int):
+    """The first ``n`` rows of a read log (columns and text)."""
+    log.columns = {k: v[:n] for k, v in log.columns.items()}
+    log.text = {k: v[:n] for k, v in log.text.items()}
+    return log
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory):
+    """The short protocol through Modbus in lockstep, never interrupted: (log, CSV text)."""
+    from tests.conftest import RunningServer
+
+    srv = RunningServer(lockstep=True)
+    out = tmp_path_factory.mktemp("whole") / "whole.csv"
+    try:
+        assert _run(srv.port, out) == 0
+    finally:
+        srv.stop()
+    return read_log(out), out.read_text()
+
+
+@pytest.fixture(scope="module")
+def local(tmp_path_factory):
+    out = tmp_path_factory.mktemp("local") / "local.csv"
+    assert (
+        main(["run", SHORT, "--boiler", BOILER, "--quiet", "--rig", "local", "--out", str(out)])
+        == 0
+    )
+    return out
+
+
+def test_lockstep_server_killed_twice_is_replayed_into_an_equal_log(
+    servers, tmp_path, uninterrupted, local
+):
+    port = free_port()
+    current = [servers(port, "--lockstep")]
+    total = len(uninterrupted[0])
+    kill_rows = sorted(random.Random(12).sample(range(200, total - 500), 2))  # seeded points
+    out = tmp_path / "replayed.csv"
+    killed: list[int] = []
+
+    def killer() -> None:
+        for row in kill_rows:
+            _wait(lambda row=row: _rows(out) >= row, f"row {row}")
+            current[-1].kill()
+            killed.append(_rows(out))
+            current.append(servers(port, "--lockstep"))
+
+    thread = threading.Thread(target=killer, daemon=True)
+    thread.start()
+    assert _run(port, out) == 0
+    thread.join(timeout=60)
+    assert len(killed) == 2 and max(killed) < total  # both kills came mid-run
+    meta = _meta(out)
+    replays = [g for g in meta["gaps"] if g["action"] == "replayed"]
+    assert len(replays) == 2, meta["gaps"]
+    assert meta["complete"] is True
+    # the log equals the uninterrupted Modbus run byte for byte, and the in-process run to
+    # encoding precision (the tolerance of test_modbus_rig)
+    assert out.read_text() == uninterrupted[1]
+    assert_logs_equal(read_log(local), read_log(out))
+
+
+def test_server_back_with_another_seed_stops_cleanly(servers, tmp_path, capsys, local):
+    port = free_port()
+    first = servers(port, "--lockstep", "--seed", "0")
+    out = tmp_path / "seed.csv"
+
+    def killer() -> None:
+        _wait(lambda: _rows(out) >= 1000, "row 1000")
+        first.kill()
+        servers(port, "--lockstep", "--seed", "7")
+
+    threading.Thread(target=killer, daemon=True).start()
+    code = _run(port, out)
+    err = capsys.readouterr().err
+    assert code == 1
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert "came back as another plant (seed 7, was 0)" in err
+    log = read_log(out)  # valid up to the break
+    assert len(log) >= 1000 and set(log.columns["rig_epoch"]) == {0.0}
+    assert_logs_equal(_prefix(read_log(local), len(log)), log)
+    meta = _meta(out)
+    assert meta["complete"] is False
+    assert meta["gaps"][-1]["action"] == "abort" and "seed 7" in meta["gaps"][-1]["reason"]
+    assert meta["gaps"][-1]["start_time_s"] == log.t[-1]
+
+
+def _advance_from_another_client(port: int, seconds: float) -> None:
+    dev, point = load_map().point("lockstep_advance_s")
+    conn = Connection("127.0.0.1", port, 5.0)
+    conn.send([(dev.unit_id, write_registers_pdu(point.address, encode(point, seconds)))])
+    conn.receive()
+    conn.close()
+
+
+def test_another_client_advancing_a_lockstep_server_aborts_by_default(
+    serve, tmp_path, capsys, local
+):
+    srv = serve(lockstep=True)
+    out = tmp_path / "shared.csv"
+
+    def other() -> None:
+        _wait(lambda: _rows(out) >= 500, "row 500")
+        _advance_from_another_client(srv.port, 3600)
+
+    threading.Thread(target=other, daemon=True).start()
+    code = _run(srv.port, out)
+    err = capsys.readouterr().err
+    assert code == 1 and err.count("\n") == 1
+    assert "another client advanced the server" in err and "--on-restart abort" in err
+    log = read_log(out)
+    # no row of the advanced plant: every row equals the undisturbed run's
+    assert_logs_equal(_prefix(read_log(local), len(log)), log)
+    assert _meta(out)["gaps"][-1]["action"] == "abort"
+
+
+@pytest.mark.parametrize("on_restart", ["continue", "restart-phase"])
+def test_another_client_advancing_is_a_marked_break(serve, tmp_path, local, on_restart):
+    srv = serve(lockstep=True)
+    out = tmp_path / "shared.csv"
+
+    def other() -> None:
+        _wait(lambda: _rows(out) >= 1500, "row 1500")
+        _advance_from_another_client(srv.port, 3600)
+
+    threading.Thread(target=other, daemon=True).start()
+    assert _run(srv.port, out, "--on-restart", on_restart) == 0
+    log = read_log(out)  # time_s strictly increasing (checked by read_log)
+    epoch = log.columns["rig_epoch"]
+    n0 = int(np.sum(epoch == 0))
+    assert set(epoch) == {0.0, 1.0} and np.all(epoch[:n0] == 0)
+    # before the break: the undisturbed run; across it the log time jumps by what the
+    # plant lived through without this client (3600 s of the other client, 1 s of this
+    # client's step whose reads were discarded)
+    assert_logs_equal(_prefix(read_log(local), n0), _prefix(read_log(out), n0))
+    (gap,) = log.meta["gaps"]
+    assert gap["action"] == on_restart and gap["rig_epoch"] == 1
+    assert gap["start_time_s"] == log.t[n0 - 1] and gap["end_time_s"] == log.t[n0]
+    assert log.t[n0] - log.t[n0 - 1] == 3602.0
+    notes = " ".join(log.meta["notes"])
+    if on_restart == "restart-phase":
+        assert "restarted at time_s" in notes
+        phase = log.text["phase"][n0]
+        mark = {"start_up": "t0_s", "test": "t1_s", "cooling_1": "t2_s", "cooling_2": "t3_s"}
+        if phase in mark:
+            assert log.meta[mark[phase]] == log.t[n0]
+    else:
+        assert "rig_epoch 1" in notes
+
+
+def _realtime_client(port: int, out: Path, *extra: str) -> subprocess.Popen:
+    return _start_client(port, out, "--reconnect-timeout", "30", *extra)
+
+
+def test_realtime_restart_aborts_cleanly_by_default(servers, tmp_path):
+    port = free_port()
+    first = servers(port, "--speed", "200")
+    out = tmp_path / "rt.csv"
+    client = _realtime_client(port, out)
+    try:
+        _wait(lambda: _rows(out) >= 20, "20 rows")
+        first.kill()
+        servers(port, "--speed", "200")
+        _, err = client.communicate(timeout=60)
+    finally:
+        if client.poll() is None:
+            client.kill()
+    assert client.returncode == 1
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert "the server restarted (a new plant)" in err and "--on-restart abort" in err
+    log = read_log(out)
+    assert set(log.columns["rig_epoch"]) == {0.0}
+    gap = log.meta["gaps"][-1]
+    assert gap["action"] == "abort" and gap["start_time_s"] == log.t[-1]
+    assert gap["end_time_s"] is None
+
+
+def test_realtime_restart_with_continue_is_a_marked_break(servers, tmp_path):
+    port = free_port()
+    first = servers(port, "--speed", "200")
+    out = tmp_path / "rt.csv"
+    client = _realtime_client(port, out, "--on-restart", "continue")
+    try:
+        _wait(lambda: _rows(out) >= 20, "20 rows")
+        first.kill()
+        servers(port, "--speed", "200")
+        _wait(lambda: out.read_text().count(",1\n") >= 10, "10 rows of rig_epoch 1")
+        # the meta file is written as the run goes: the gap is there before the run ends
+        client.send_signal(signal.SIGKILL)
+        client.wait(timeout=30)
+    finally:
+        if client.poll() is None:
+            client.kill()
+    text = out.read_text()
+    out.write_text(text[: text.rfind("\n") + 1])  # a row cut by SIGKILL is not the test's
+    log = read_log(out)  # time_s strictly increasing across the break
+    epoch = log.columns["rig_epoch"]
+    n0 = int(np.sum(epoch == 0))
+    assert set(epoch) == {0.0, 1.0} and np.all(epoch[:n0] == 0)
+    (gap,) = log.meta["gaps"]
+    assert gap["action"] == "continue" and gap["rig_epoch"] == 1
+    assert gap["reason"] == "the server restarted (a new plant)"
+    assert gap["start_time_s"] == log.t[n0 - 1] and gap["end_time_s"] == log.t[n0]
+    # the jump is at least the wall-clock outage at x200 (rounded in the meta to 1 ms)
+    assert log.t[n0] - log.t[n0 - 1] >= (gap["outage_wall_s"] - 0.001) * 200
+    assert log.meta["complete"] is False
+
+
+def test_meta_file_is_replaced_atomically(tmp_path):
+    from hil_client.lablog import meta_path, write_meta
+
+    out = tmp_path / "x.csv"
+    write_meta(out, {"gaps": [1]})
+    write_meta(out, {"gaps": [1, 2]})
+    assert json.loads(meta_path(out).read_text()) == {"gaps": [1, 2]}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.meta.json"]  # no temporary left
+    assert os.path.exists(meta_path(out))
