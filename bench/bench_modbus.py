@@ -11,6 +11,8 @@
    ``hil-client`` step sends (setpoint write, advance, seven reads), and the publishing of
    the new state alone.
 5. The whole load-cycle test through Modbus in lockstep with ``hil-client run`` (issue 4).
+6. What the restart guard costs on that whole test (issue 12): the rig with its journal and
+   its per-step check of epoch, counter and time, against the rig without them.
 
 Servers and load generators run in separate processes (the machine has 2 cores).
 """
@@ -299,12 +301,46 @@ def bench_load_cycle() -> None:
         )
 
 
+def _load_cycle_steps_per_s(checks: bool) -> tuple[int, float]:
+    """Rows and wall seconds of the load cycle through a fresh lockstep server."""
+    from hil_client.demo import rig_emulator_serve
+    from hil_client.protocol.definition import load_protocol
+    from hil_client.protocol.runner import run_protocol
+    from hil_client.rigs.modbus import ModbusRig
+    from rig_emulator.boilers import load_boiler
+    from rig_emulator.registers import load_map
+
+    params = load_boiler("windhager_12kw")
+    with rig_emulator_serve("windhager_12kw", "--lockstep") as (port, _):
+        rig = ModbusRig(f"modbus://127.0.0.1:{port}", load_map(), checks=checks)
+        start = time.perf_counter()
+        result = run_protocol(load_protocol("load_cycle"), params.p_nom_kW, rig, lambda row: None)
+        wall = time.perf_counter() - start
+        rig.close()
+    return result.rows, wall
+
+
+def bench_restart_guard() -> None:
+    """Issue 12: the journal and the per-step checks on the whole lockstep load cycle."""
+    figures = {}
+    for checks in (False, True):
+        rows, wall = _load_cycle_steps_per_s(checks)
+        figures[checks] = rows / wall
+    print(
+        f"load cycle through Modbus, lockstep, no log file: with the restart guard (journal, "
+        f"epoch/counter/time read and checked every step) {figures[True]:.0f} x real time, "
+        f"without {figures[False]:.0f} x real time ({rows} steps; cost "
+        f"{(1 / figures[True] - 1 / figures[False]) * 1e6:.0f} us per step; target >= 1000)"
+    )
+
+
 def main() -> int:
     bench_throughput()
     asyncio.run(_lateness())
     bench_lockstep()
     bench_server_step()
     bench_load_cycle()
+    bench_restart_guard()
     return 0
 
 
