@@ -305,3 +305,15 @@ def test_meta_file_is_replaced_atomically(tmp_path):
     assert json.loads(meta_path(out).read_text()) == {"gaps": [1, 2]}
     assert sorted(p.name for p in tmp_path.iterdir()) == ["x.meta.json"]  # no temporary left
     assert os.path.exists(meta_path(out))
+
+
+def test_servers_publish_a_new_epoch_per_start_and_their_set_up(serve):
+    a, b = serve(seed=3), serve(seed=3)
+    c = serve(seed=3, profile="lab")
+    d = serve(seed=4, boiler="windhager_6kw")
+    va, vb, vc, vd = (s.values() for s in (a, b, c, d))
+    assert va["epoch_id"] != vb["epoch_id"]  # random 32-bit: equal once in 4e9 starts
+    for key in ("boiler_id", "profile_id", "seed"):
+        assert va[key] == vb[key]
+    assert vc["profile_id"] != va["profile_id"] and vc["boiler_id"] == va["boiler_id"]
+    assert vd["boiler_id"] != va["boiler_id"] and vd["seed"] == 4.0
