@@ -247,8 +247,9 @@ def test_realtime_restart_aborts_cleanly_by_default(servers, tmp_path):
     first = servers(port, "--speed", "200")
     out = tmp_path / "rt.csv"
     client = _realtime_client(port, out)
+    kill_row = random.Random(21).randint(10, 60)  # a seeded random point
     try:
-        _wait(lambda: _rows(out) >= 20, "20 rows")
+        _wait(lambda: _rows(out) >= kill_row, f"{kill_row} rows")
         first.kill()
         servers(port, "--speed", "200")
         _, err = client.communicate(timeout=60)
@@ -270,8 +271,9 @@ def test_realtime_restart_with_continue_is_a_marked_break(servers, tmp_path):
     first = servers(port, "--speed", "200")
     out = tmp_path / "rt.csv"
     client = _realtime_client(port, out, "--on-restart", "continue")
+    kill_row = random.Random(22).randint(10, 60)  # a seeded random point
     try:
-        _wait(lambda: _rows(out) >= 20, "20 rows")
+        _wait(lambda: _rows(out) >= kill_row, f"{kill_row} rows")
         first.kill()
         servers(port, "--speed", "200")
         _wait(lambda: out.read_text().count(",1\n") >= 10, "10 rows of rig_epoch 1")
