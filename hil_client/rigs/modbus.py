@@ -60,8 +60,9 @@ _READ_FUNCTION = {"coil": 1, "discrete": 2, "holding": 3, "input": 4}
 
 #: What ``on_restart`` may say (see the module docstring).
 ON_RESTART = ("abort", "restart-phase", "continue")
-#: Signals of the simulation control read with every step.
-STATUS_KEYS = ("sim_time_s", "lockstep_counter", "epoch_id", "boiler_id", "profile_id", "seed")
+#: Signals of the simulation control read with every step, and also on (re)connecting.
+CHECK_KEYS = ("sim_time_s", "lockstep_counter", "epoch_id")
+STATUS_KEYS = (*CHECK_KEYS, "boiler_id", "profile_id", "seed")
 _IDENTITY = {"boiler_id": "boiler", "profile_id": "profile", "seed": "seed"}
 # a replay batch stays in one small segment: the server drops a receive buffer above 264
 # bytes (pymodbus's max_buffer_size for Modbus TCP: the largest frame, 260, and slack)
@@ -102,8 +103,11 @@ def parse_url(url: str) -> tuple[str, int]:
     return parsed.hostname, port
 
 
-def _read_plan(register_map: RegisterMap, signals: tuple[str, ...]) -> list[_Read]:
-    """The fewest requests that read every signal (contiguous runs only: gaps answer 02)."""
+def _read_plan(
+    register_map: RegisterMap, signals: tuple[str, ...], trim: bool = False
+) -> list[_Read]:
+    """The fewest requests that read every signal (contiguous runs only: gaps answer 02);
+    ``trim``: each request spans only from its first to its last wanted point."""
     wanted: dict[tuple[int, str], list[Point]] = {}
     for signal in signals:
         try:
@@ -116,15 +120,15 @@ def _read_plan(register_map: RegisterMap, signals: tuple[str, ...]) -> list[_Rea
         device = next(d for d in register_map.devices if d.unit_id == unit)
         table_points = device.table(table)
         points.sort(key=lambda p: p.address)
-        run: list[Point] = []
+        runs: list[list[Point]] = []
         for p in table_points:
-            if run and p.address != run[-1].address + run[-1].width:
-                if any(q in points for q in run):
-                    plan.append(_make_read(unit, table, run))
-                run = []
-            run.append(p)
-        if run and any(q in points for q in run):
-            plan.append(_make_read(unit, table, run))
+            if not runs or p.address != runs[-1][-1].address + runs[-1][-1].width:
+                runs.append([])
+            runs[-1].append(p)
+        for run in runs:
+            hits = [i for i, q in enumerate(run) if q in points]
+            if hits:
+                plan.append(_make_read(unit, table, run[hits[0] : hits[-1] + 1] if trim else run))
     return plan
 
 
@@ -175,6 +179,7 @@ class ModbusRig:
         self.epoch = 0
         plan = _read_plan(register_map, READING_KEYS)  # a map without a reading fails here
         self._status_plan = _read_plan(register_map, STATUS_KEYS)
+        self._check_plan = _read_plan(register_map, CHECK_KEYS, trim=True)
         self._clock_plan = _read_plan(register_map, ("clock_mode", "speed_factor"))
         self._points = {
             s: register_map.point(s)
@@ -218,7 +223,7 @@ class ModbusRig:
         self._offset = -status["sim_time_s"]
         self._row_server_time = status["sim_time_s"]
         self._row_wall = time.monotonic()
-        self._reads = plan + self._status_plan if checks else plan
+        self._reads = plan + self._check_plan if checks else plan
         if not checks and not self.lockstep:
             self._reads = plan + _read_plan(register_map, ("sim_time_s",))
         self._read_requests = [
@@ -537,10 +542,10 @@ class ModbusRig:
 
     def _wait_until(self, target: float) -> None:
         """Poll the server's time until it reaches ``target``, or it went back (a reset)."""
-        requests = [(r.unit, read_pdu(r.function, r.start, r.count)) for r in self._status_plan]
+        requests = [(r.unit, read_pdu(r.function, r.start, r.count)) for r in self._check_plan]
         status: dict[str, float] = {}
         while True:
-            self._decode(self._status_plan, self._exchange(requests), status)
+            self._decode(self._check_plan, self._exchange(requests), status)
             now = status["sim_time_s"]
             if now >= target - 1e-9 or now < self._row_server_time - _TIME_TOLERANCE_S:
                 return
