@@ -39,6 +39,7 @@ import yaml
 from hil_client.analysis.augment import EFFECTS
 from hil_client.analysis.diagnose import diagnose
 from hil_client.analysis.diagnosis_files import write_diagnosis
+from hil_client.analysis.figures import benchmark_figure
 from hil_client.analysis.logio import read_log
 from hil_client.analysis.phases import find_phases
 from rig_emulator.boilers import BOILER_DIR
@@ -319,8 +320,63 @@ def run_benchmark(n: int, seed: int, out: Path, workers: int, reality: str) -> d
         "results": results,
     }
     (out / "scores.json").write_text(json.dumps(scores, indent=2) + "\n")
+    figure = benchmark_figure(scores, out / "benchmark.png")
+    (out / "report.md").write_text(_report(scores, cases, figure.name))
     _print_scores(scores, n, wall)
     return scores
+
+
+def _report(scores: dict, cases: list[dict], figure: str) -> str:
+    """The benchmark as a readable page: figures, reliability table, every case."""
+    med = scores["median_validation_shrink_pct"]
+    lines = [
+        f"# Gap benchmark ({scores['reality']} reality, {scores['cases']} blind cases)",
+        "",
+        f"- accuracy **{scores['accuracy']:.0%}** (an effect counts only with a positive "
+        "held-out shrinkage)",
+        f"- false alarms on `none`: {scores['false_alarms_on_none']} of {scores['none_cases']}",
+        f"- named right but not confirmed on held-out data: {scores['not_confirmed']}",
+        f"- median held-out shrinkage of right answers: {'-' if med is None else f'{med:.0f} %'}",
+        f"- answers with confidence >= 0.8: {scores['confident_answers']}, right: "
+        + (
+            "-"
+            if scores["confident_share_right"] is None
+            else f"{scores['confident_share_right']:.0%}"
+        ),
+        f"- diagnosis time: median {scores['median_diagnosis_s']:.1f} s, max "
+        f"{scores['max_diagnosis_s']:.1f} s; the whole benchmark {scores['wall_s']:.0f} s on "
+        f"{scores['workers']} processes",
+        "",
+        f"![confusion and reliability]({figure})",
+        "",
+        "## Reliability of the confidence",
+        "",
+        "| confidence | answers | right | share right |",
+        "|---|---:|---:|---:|",
+    ]
+    for r in scores["reliability"]:
+        share = "-" if r["share_right"] is None else f"{r['share_right']:.0%}"
+        lines.append(
+            f"| {r['confidence_from']:.2f}-{r['confidence_to']:.2f} | {r['answers']} | "
+            f"{r['right']} | {share} |"
+        )
+    lines += [
+        "",
+        "## Cases",
+        "",
+        "| case | truth | form | strength | boiler | calibration | found | confidence | shrink |",
+        "|---:|---|---|---:|---|---|---|---:|---:|",
+    ]
+    truth = {c["case"]: c for c in cases}
+    for r in scores["results"]:
+        c = truth[r["case"]]
+        shrink = "-" if r["shrink_pct"] is None else f"{r['shrink_pct']:.0f} %"
+        conf = "-" if r["confidence"] is None else f"{r['confidence']:.2f}"
+        lines.append(
+            f"| {r['case']} | {c['effect']} | {c['form'] or '-'} | {c['strength']:.2f} | "
+            f"{c['boiler']} | {c['pair'][0]} | {r['found']} | {conf} | {shrink} |"
+        )
+    return "\n".join(lines) + "\n"
 
 
 def _print_scores(scores: dict, n: int, wall: float) -> None:
