@@ -2,8 +2,8 @@
 
 Two "realities" write the lab logs the diagnosis sees:
 
-- ``independent`` (default): :mod:`hil_client.reality`, a pellet-boiler plant written from
-  the paper without the emulator's model or bench, with its own controller, start-up,
+- ``independent`` (default): pellet-boiler plants written from the paper without the
+  emulator's model or bench (:data:`INDEPENDENT_PLANTS`, the cases alternate between them), with its own controller, start-up,
   exchanger, return conditioning and sensor drifts drawn at random per case, and every
   listed effect in functional forms the diagnosis's candidates do not share;
 - ``emulator``: the emulator's own plant with the ``lab`` profile (the effect at a strength
@@ -55,12 +55,31 @@ CONFIDENCE_BINS = (0.0, 0.5, 0.8, 0.95, 1.0000001)
 DROPPED_COLUMNS = ("phase", "sequence")
 
 
+#: The independently written plants (each a package with the API of
+#: :mod:`hil_client.reality`); the cases alternate between those present.
+INDEPENDENT_PLANTS = ("hil_client.reality", "hil_client.reality2")
+
+
+def independent_plants() -> list[str]:
+    """The independent plants that are installed."""
+    found = []
+    for name in INDEPENDENT_PLANTS:
+        try:
+            importlib.import_module(name)
+        except ImportError:
+            continue
+        found.append(name)
+    return found
+
+
 def make_cases(n: int, seed: int, reality: str) -> list[dict]:
     """The cases' truth (see the module docstring)."""
     rng = np.random.default_rng(seed)
     n_none = max(1, round(n / 6)) if n >= 6 else (1 if n > 1 else 0)
     answers = ["none"] * n_none + [EFFECTS[i % len(EFFECTS)] for i in range(n - n_none)]
-    forms = _forms(reality)
+    plants = independent_plants() if reality == "independent" else ["emulator"]
+    if not plants:
+        raise RuntimeError("no independent plant is installed (hil_client.reality)")
     seen: dict[str, int] = {}
     cases = []
     for answer in answers:
@@ -68,10 +87,15 @@ def make_cases(n: int, seed: int, reality: str) -> list[dict]:
         seen[answer] = k + 1
         per_effect = answers.count(answer)
         strength = (k + 0.5) / per_effect if answer != "none" else 0.0  # evenly, weak to strong
+        plant = plants[k % len(plants)]
+        forms = _forms(plant)
         cases.append(
             {
                 "effect": answer,
-                "form": forms[answer][k % len(forms[answer])] if answer != "none" else None,
+                "plant": plant,
+                "form": forms[answer][(k // len(plants)) % len(forms[answer])]
+                if answer != "none"
+                else None,
                 "strength": round(strength, 3),
                 # every four cases of an answer cover both boilers and both log pairs
                 "boiler": BOILERS[k % 2],
@@ -86,12 +110,11 @@ def make_cases(n: int, seed: int, reality: str) -> list[dict]:
     return cases
 
 
-def _forms(reality: str) -> dict[str, tuple]:
-    if reality == "independent":
-        from hil_client.reality import EFFECT_FORMS
-
-        return {effect: tuple(EFFECT_FORMS[effect]) for effect in EFFECTS}
-    return {effect: ("lab",) for effect in EFFECTS}
+def _forms(plant: str) -> dict[str, tuple]:
+    if plant == "emulator":
+        return {effect: ("lab",) for effect in EFFECTS}
+    forms = importlib.import_module(plant).EFFECT_FORMS
+    return {effect: tuple(forms[effect]) for effect in EFFECTS}
 
 
 def _write_csv_without(columns: dict[str, np.ndarray], path: Path, writer) -> None:
@@ -100,8 +123,9 @@ def _write_csv_without(columns: dict[str, np.ndarray], path: Path, writer) -> No
 
 
 def _independent_logs(truth: dict, case_dir: Path) -> dict[str, Path]:
-    from hil_client.reality import draw_background, simulate_log, write_log_csv
-
+    plant = importlib.import_module(truth["plant"])
+    draw_background, simulate_log = plant.draw_background, plant.simulate_log
+    write_log_csv = plant.write_log_csv
     boiler = yaml.safe_load((BOILER_DIR / f"{truth['boiler']}.yaml").read_text())
     rng = np.random.default_rng(truth["seed"])
     background = draw_background(rng, boiler)
@@ -176,13 +200,13 @@ def _strip_columns(src: Path, dst: Path) -> None:
             writer.writerow([row[i] for i in keep])
 
 
-def _run_case(job: tuple[dict, str, str]) -> dict:
+def _run_case(job: tuple[dict, str]) -> dict:
     """Worker: write both logs of one plant, then diagnose blind."""
-    truth, out, reality = job
+    truth, out = job
     case_dir = Path(out) / "cases" / f"case_{truth['case']:02d}"
     case_dir.mkdir(parents=True, exist_ok=True)
     started = time.monotonic()
-    make = _independent_logs if reality == "independent" else _emulator_logs
+    make = _emulator_logs if truth["plant"] == "emulator" else _independent_logs
     logs = make(truth, case_dir)
     emulated = time.monotonic() - started
     started = time.monotonic()
@@ -293,7 +317,7 @@ def run_benchmark(n: int, seed: int, out: Path, workers: int, reality: str) -> d
     (out / "sealed" / "truth.json").write_text(json.dumps(cases, indent=2) + "\n")
     started = time.monotonic()
     results = []
-    jobs = [(c, str(out), reality) for c in cases]
+    jobs = [(c, str(out)) for c in cases]
     ctx = mp.get_context("spawn")
     with ctx.Pool(min(workers, n)) as pool:
         for r in pool.imap_unordered(_run_case, jobs):
