@@ -3,9 +3,10 @@
 Two "realities" write the lab logs the diagnosis sees:
 
 - ``independent`` (default): pellet-boiler plants written from the paper without the
-  emulator's model or bench (:data:`INDEPENDENT_PLANTS`, the cases alternate between them), with its own controller, start-up,
-  exchanger, return conditioning and sensor drifts drawn at random per case, and every
-  listed effect in functional forms the diagnosis's candidates do not share;
+  emulator's model or bench (:data:`INDEPENDENT_PLANTS`; the cases alternate between
+  them), each with its own controller, start-up, exchanger, return conditioning and sensor
+  drifts drawn at random per case, and every listed effect in functional forms the
+  diagnosis's candidates do not share;
 - ``emulator``: the emulator's own plant with the ``lab`` profile (the effect at a strength
   from its documented range).
 
@@ -25,6 +26,7 @@ answers, and the reliability table of the confidence.
 from __future__ import annotations
 
 import csv
+import importlib
 import itertools
 import json
 import multiprocessing as mp
