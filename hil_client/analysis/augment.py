@@ -16,6 +16,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from rig_emulator.model.constants import CP_WATER
+
 EFFECTS = (
     "body_heat_diffusion",
     "outlet_sensor_pipe",
@@ -68,7 +70,7 @@ def two_lump_water(q_hx_kW, flow_kg_h, t_in, room, ua_kW_K, dt, t0, c_metal, c_w
         C_w dT_w/dt = G (T_m - T_w) - m_w cp_w (T_w - T_in) - UA (T_w - T_room)
 
     Backward Euler per step (stable for any step). Both start at ``t0`` [C]."""
-    cp = 4.19
+    cp = CP_WATER
     out = np.empty_like(q_hx_kW)
     tm = t0
     tw = t0

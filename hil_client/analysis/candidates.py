@@ -339,7 +339,7 @@ def _pre_feed(case: Case) -> list[tuple[float, float, float]]:
     has the standard error of its fit, at least that of the balance's 0.02-kg steps
     (uniform rounding: 0.02 / sqrt(12) per reading)."""
     t = case.t
-    mass = case.log["balance_mass_kg"]
+    mass = case.balance
     rounding = BALANCE_STEP_KG / math.sqrt(12.0)
     out = []
     stops = case.firing.stops
@@ -466,7 +466,7 @@ def _closure_blocks(case: Case) -> list[tuple[float, float]]:
     _, sens, lat, chem = flue_gas_loss_per_kg(p, o2, case.lab["flue_gas_temp_C"], case.room, co)
     usable = p.fuel.hhv_dry_kJ_kg * (1.0 - k.ASH_LOSS_FRACTION) - sens - lat - chem
     per_kg = p.fuel.as_received_per_kg_dry - p.fuel.ash
-    mass = log["balance_mass_kg"]
+    mass = case.balance
     start = case.phases.t1 + 1200.0
     rows = np.flatnonzero((t > start) & (t <= case.phases.t2) & case.firing.burning)
     out = []

@@ -250,3 +250,42 @@ def diagnosis_figures(result: dict, out_dir: Path) -> list[Path]:
 
 def _num(x: float | None) -> str:
     return "-" if x is None else f"{x:.3g}"
+
+
+def benchmark_figure(scores: dict, path: Path) -> Path:
+    """The gap benchmark at a glance: the confusion matrix and the confidence's
+    reliability (share right per confidence bin, against the diagonal)."""
+    answers = list(scores["confusion"])
+    found = [*answers, "error"]
+    matrix = np.array([[scores["confusion"][t][f] for f in found] for t in answers])
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.8), gridspec_kw={"width_ratios": [3, 2]})
+    ax1.imshow(matrix, cmap="Blues")
+    for i in range(len(answers)):
+        for j in range(len(found)):
+            if matrix[i, j]:
+                ax1.text(j, i, str(matrix[i, j]), ha="center", va="center", fontsize=9)
+    ax1.set_xticks(range(len(found)), [f.replace("_", "\n") for f in found], fontsize=7)
+    ax1.set_yticks(range(len(answers)), answers, fontsize=8)
+    ax1.set_xlabel("found")
+    ax1.set_ylabel("truth")
+    ax1.set_title(f"{scores['reality']}: accuracy {scores['accuracy']:.0%} on {scores['cases']}")
+    bins = [r for r in scores["reliability"] if r["answers"]]
+    mids = [(r["confidence_from"] + r["confidence_to"]) / 2 for r in bins]
+    ax2.plot([0, 1], [0, 1], color="0.6", lw=0.8, ls="--", label="perfectly calibrated")
+    ax2.bar(
+        mids,
+        [r["share_right"] for r in bins],
+        width=[r["confidence_to"] - r["confidence_from"] for r in bins],
+        alpha=0.6,
+        edgecolor="k",
+        label="share right",
+    )
+    for m, r in zip(mids, bins, strict=True):
+        ax2.text(m, 0.03, f"n={r['answers']}", ha="center", fontsize=8)
+    ax2.set_xlim(0, 1)
+    ax2.set_ylim(0, 1.05)
+    ax2.set_xlabel("confidence")
+    ax2.set_ylabel("share of answers right")
+    ax2.set_title("reliability of the confidence")
+    ax2.legend(fontsize=8, loc="upper left")
+    return _save(fig, path, dpi=100)

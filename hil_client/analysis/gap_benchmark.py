@@ -2,10 +2,11 @@
 
 Two "realities" write the lab logs the diagnosis sees:
 
-- ``independent`` (default): :mod:`hil_client.reality`, a pellet-boiler plant written from
-  the paper without the emulator's model or bench, with its own controller, start-up,
-  exchanger, return conditioning and sensor drifts drawn at random per case, and every
-  listed effect in functional forms the diagnosis's candidates do not share;
+- ``independent`` (default): pellet-boiler plants written from the paper without the
+  emulator's model or bench (:data:`INDEPENDENT_PLANTS`; the cases alternate between
+  them), each with its own controller, start-up, exchanger, return conditioning and sensor
+  drifts drawn at random per case, and every listed effect in functional forms the
+  diagnosis's candidates do not share;
 - ``emulator``: the emulator's own plant with the ``lab`` profile (the effect at a strength
   from its documented range).
 
@@ -25,6 +26,7 @@ answers, and the reliability table of the confidence.
 from __future__ import annotations
 
 import csv
+import importlib
 import itertools
 import json
 import multiprocessing as mp
@@ -39,6 +41,7 @@ import yaml
 from hil_client.analysis.augment import EFFECTS
 from hil_client.analysis.diagnose import diagnose
 from hil_client.analysis.diagnosis_files import write_diagnosis
+from hil_client.analysis.figures import benchmark_figure
 from hil_client.analysis.logio import read_log
 from hil_client.analysis.phases import find_phases
 from rig_emulator.boilers import BOILER_DIR
@@ -54,12 +57,31 @@ CONFIDENCE_BINS = (0.0, 0.5, 0.8, 0.95, 1.0000001)
 DROPPED_COLUMNS = ("phase", "sequence")
 
 
+#: The independently written plants (each a package with the API of
+#: :mod:`hil_client.reality`); the cases alternate between those present.
+INDEPENDENT_PLANTS = ("hil_client.reality", "hil_client.reality2")
+
+
+def independent_plants() -> list[str]:
+    """The independent plants that are installed."""
+    found = []
+    for name in INDEPENDENT_PLANTS:
+        try:
+            importlib.import_module(name)
+        except ImportError:
+            continue
+        found.append(name)
+    return found
+
+
 def make_cases(n: int, seed: int, reality: str) -> list[dict]:
     """The cases' truth (see the module docstring)."""
     rng = np.random.default_rng(seed)
     n_none = max(1, round(n / 6)) if n >= 6 else (1 if n > 1 else 0)
     answers = ["none"] * n_none + [EFFECTS[i % len(EFFECTS)] for i in range(n - n_none)]
-    forms = _forms(reality)
+    plants = independent_plants() if reality == "independent" else ["emulator"]
+    if not plants:
+        raise RuntimeError("no independent plant is installed (hil_client.reality)")
     seen: dict[str, int] = {}
     cases = []
     for answer in answers:
@@ -67,10 +89,15 @@ def make_cases(n: int, seed: int, reality: str) -> list[dict]:
         seen[answer] = k + 1
         per_effect = answers.count(answer)
         strength = (k + 0.5) / per_effect if answer != "none" else 0.0  # evenly, weak to strong
+        plant = plants[k % len(plants)]
+        forms = _forms(plant)
         cases.append(
             {
                 "effect": answer,
-                "form": forms[answer][k % len(forms[answer])] if answer != "none" else None,
+                "plant": plant,
+                "form": forms[answer][(k // len(plants)) % len(forms[answer])]
+                if answer != "none"
+                else None,
                 "strength": round(strength, 3),
                 # every four cases of an answer cover both boilers and both log pairs
                 "boiler": BOILERS[k % 2],
@@ -85,12 +112,11 @@ def make_cases(n: int, seed: int, reality: str) -> list[dict]:
     return cases
 
 
-def _forms(reality: str) -> dict[str, tuple]:
-    if reality == "independent":
-        from hil_client.reality import EFFECT_FORMS
-
-        return {effect: tuple(EFFECT_FORMS[effect]) for effect in EFFECTS}
-    return {effect: ("lab",) for effect in EFFECTS}
+def _forms(plant: str) -> dict[str, tuple]:
+    if plant == "emulator":
+        return {effect: ("lab",) for effect in EFFECTS}
+    forms = importlib.import_module(plant).EFFECT_FORMS
+    return {effect: tuple(forms[effect]) for effect in EFFECTS}
 
 
 def _write_csv_without(columns: dict[str, np.ndarray], path: Path, writer) -> None:
@@ -99,8 +125,9 @@ def _write_csv_without(columns: dict[str, np.ndarray], path: Path, writer) -> No
 
 
 def _independent_logs(truth: dict, case_dir: Path) -> dict[str, Path]:
-    from hil_client.reality import draw_background, simulate_log, write_log_csv
-
+    plant = importlib.import_module(truth["plant"])
+    draw_background, simulate_log = plant.draw_background, plant.simulate_log
+    write_log_csv = plant.write_log_csv
     boiler = yaml.safe_load((BOILER_DIR / f"{truth['boiler']}.yaml").read_text())
     rng = np.random.default_rng(truth["seed"])
     background = draw_background(rng, boiler)
@@ -175,13 +202,13 @@ def _strip_columns(src: Path, dst: Path) -> None:
             writer.writerow([row[i] for i in keep])
 
 
-def _run_case(job: tuple[dict, str, str]) -> dict:
+def _run_case(job: tuple[dict, str]) -> dict:
     """Worker: write both logs of one plant, then diagnose blind."""
-    truth, out, reality = job
+    truth, out = job
     case_dir = Path(out) / "cases" / f"case_{truth['case']:02d}"
     case_dir.mkdir(parents=True, exist_ok=True)
     started = time.monotonic()
-    make = _independent_logs if reality == "independent" else _emulator_logs
+    make = _emulator_logs if truth["plant"] == "emulator" else _independent_logs
     logs = make(truth, case_dir)
     emulated = time.monotonic() - started
     started = time.monotonic()
@@ -292,7 +319,7 @@ def run_benchmark(n: int, seed: int, out: Path, workers: int, reality: str) -> d
     (out / "sealed" / "truth.json").write_text(json.dumps(cases, indent=2) + "\n")
     started = time.monotonic()
     results = []
-    jobs = [(c, str(out), reality) for c in cases]
+    jobs = [(c, str(out)) for c in cases]
     ctx = mp.get_context("spawn")
     with ctx.Pool(min(workers, n)) as pool:
         for r in pool.imap_unordered(_run_case, jobs):
@@ -319,8 +346,63 @@ def run_benchmark(n: int, seed: int, out: Path, workers: int, reality: str) -> d
         "results": results,
     }
     (out / "scores.json").write_text(json.dumps(scores, indent=2) + "\n")
+    figure = benchmark_figure(scores, out / "benchmark.png")
+    (out / "report.md").write_text(_report(scores, cases, figure.name))
     _print_scores(scores, n, wall)
     return scores
+
+
+def _report(scores: dict, cases: list[dict], figure: str) -> str:
+    """The benchmark as a readable page: figures, reliability table, every case."""
+    med = scores["median_validation_shrink_pct"]
+    lines = [
+        f"# Gap benchmark ({scores['reality']} reality, {scores['cases']} blind cases)",
+        "",
+        f"- accuracy **{scores['accuracy']:.0%}** (an effect counts only with a positive "
+        "held-out shrinkage)",
+        f"- false alarms on `none`: {scores['false_alarms_on_none']} of {scores['none_cases']}",
+        f"- named right but not confirmed on held-out data: {scores['not_confirmed']}",
+        f"- median held-out shrinkage of right answers: {'-' if med is None else f'{med:.0f} %'}",
+        f"- answers with confidence >= 0.8: {scores['confident_answers']}, right: "
+        + (
+            "-"
+            if scores["confident_share_right"] is None
+            else f"{scores['confident_share_right']:.0%}"
+        ),
+        f"- diagnosis time: median {scores['median_diagnosis_s']:.1f} s, max "
+        f"{scores['max_diagnosis_s']:.1f} s; the whole benchmark {scores['wall_s']:.0f} s on "
+        f"{scores['workers']} processes",
+        "",
+        f"![confusion and reliability]({figure})",
+        "",
+        "## Reliability of the confidence",
+        "",
+        "| confidence | answers | right | share right |",
+        "|---|---:|---:|---:|",
+    ]
+    for r in scores["reliability"]:
+        share = "-" if r["share_right"] is None else f"{r['share_right']:.0%}"
+        lines.append(
+            f"| {r['confidence_from']:.2f}-{r['confidence_to']:.2f} | {r['answers']} | "
+            f"{r['right']} | {share} |"
+        )
+    lines += [
+        "",
+        "## Cases",
+        "",
+        "| case | truth | form | strength | boiler | calibration | found | confidence | shrink |",
+        "|---:|---|---|---:|---|---|---|---:|---:|",
+    ]
+    truth = {c["case"]: c for c in cases}
+    for r in scores["results"]:
+        c = truth[r["case"]]
+        shrink = "-" if r["shrink_pct"] is None else f"{r['shrink_pct']:.0f} %"
+        conf = "-" if r["confidence"] is None else f"{r['confidence']:.2f}"
+        lines.append(
+            f"| {r['case']} | {c['effect']} | {c['form'] or '-'} | {c['strength']:.2f} | "
+            f"{c['boiler']} | {c['pair'][0]} | {r['found']} | {conf} | {shrink} |"
+        )
+    return "\n".join(lines) + "\n"
 
 
 def _print_scores(scores: dict, n: int, wall: float) -> None:

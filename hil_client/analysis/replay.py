@@ -62,6 +62,7 @@ class Case:
     firing: Firing
     lab: dict[str, np.ndarray]
     model: np.ndarray  # replay outputs, rows x layout Y_*
+    balance: np.ndarray  # the balance's reading without refills, gaps kept [kg]
     settled: np.ndarray  # test-phase rows far from any start or stop, with flow
     _lag_cache: dict = field(default_factory=dict)
 
@@ -105,6 +106,24 @@ def _filled(log: LabLog, name: str) -> np.ndarray:
     return fill_gaps(values, log.t)
 
 
+#: A rise of the balance bigger than this between two readings is a refill [kg]: fuel only
+#: leaves the boiler, and the balance resolves 0.02 kg (Section 2.2).
+REFILL_STEP_KG = 0.5
+
+
+def without_refills(mass_kg: np.ndarray) -> np.ndarray:
+    """The balance reading with every refill (a rise over :data:`REFILL_STEP_KG` between
+    two valid readings) taken out, so that it only ever shows fuel leaving; gaps stay."""
+    out = mass_kg.copy()
+    ok = np.flatnonzero(~np.isnan(mass_kg))
+    if len(ok) < 2:
+        return out
+    jumps = np.diff(mass_kg[ok])
+    refills = np.where(jumps > REFILL_STEP_KG, jumps, 0.0)
+    out[ok[1:]] -= np.cumsum(refills)
+    return out
+
+
 def _step_lengths(t: np.ndarray) -> np.ndarray:
     """Each row's step [s]: the time since the row before (the first: the median step)."""
     if len(t) < 2:
@@ -122,7 +141,10 @@ def prepare(log: LabLog, phases: Phases, params: BoilerParams) -> Case:
     room = _filled(log, "room_temp_C")
     water = _filled(log, "boiler_water_temp_C")
     out_t = _filled(log, "water_out_temp_C")
-    mass = _filled(log, "balance_mass_kg")
+    balance = without_refills(log["balance_mass_kg"])
+    if np.isnan(balance).all():
+        raise LogError(f"{log.path}: column 'balance_mass_kg' has no values")
+    mass = fill_gaps(balance, t)
     lab = {
         "boiler_water_temp_C": water,
         "water_out_temp_C": out_t,
@@ -141,4 +163,4 @@ def prepare(log: LabLog, phases: Phases, params: BoilerParams) -> Case:
         settled &= flow > 0.3 * float(np.median(flow[test]))
     if settled.sum() < 60:
         settled = test if test.sum() >= 60 else np.ones(len(t), bool)
-    return Case(log, phases, params, t, dt, flow, t_in, room, firing, lab, model, settled)
+    return Case(log, phases, params, t, dt, flow, t_in, room, firing, lab, model, balance, settled)

@@ -13,6 +13,7 @@ import math
 from collections import deque
 from collections.abc import Mapping
 
+from rig_emulator.model import constants as k
 from rig_emulator.registers import RegisterMap
 
 #: Signals drawn as trends: temperatures, heat to water, O2, balance (CONTRACT section 8).
@@ -27,7 +28,6 @@ TREND_SIGNALS = (
 )
 TREND_WINDOW_S = 12 * 3600.0
 TREND_MAX_POINTS = 4000
-CP_WATER = 4.19  # [kJ/(kg K)]
 CLOCK_MODES = {0: "real time", 1: "lockstep"}
 
 
@@ -66,7 +66,7 @@ def with_derived(values: Mapping[str, float]) -> dict[str, float]:
     with contextlib.suppress(KeyError):
         out["heat_to_water_kW"] = (
             values["water_flow_kg_h"]
-            * CP_WATER
+            * k.CP_WATER
             * (values["water_out_temp_C"] - values["water_in_temp_C"])
             / 3600.0
         )

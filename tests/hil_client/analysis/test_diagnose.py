@@ -54,6 +54,8 @@ def test_small_benchmark_is_blind_and_scored(small_benchmark):
     on_disk = json.loads((out / "scores.json").read_text())
     assert on_disk["accuracy"] == scores["accuracy"]
     assert sum(row["answers"] for row in on_disk["reliability"]) == 6
+    report = (out / "report.md").read_text()
+    assert "Reliability of the confidence" in report and (out / "benchmark.png").exists()
     # the target is >= 90 % on 48 cases (`hil-client gap-benchmark --reality emulator`); one
     # miss in six is allowed here, and a right effect always shrinks the held-out gap
     assert round((1.0 - scores["accuracy"]) * 6) <= 1

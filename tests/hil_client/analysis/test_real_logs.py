@@ -167,14 +167,9 @@ def test_diagnose_and_calibrate_take_real_logs(logs, variant, tmp_path, capsys):
         assert not (tmp_path / "d").exists()
     else:
         result = json.loads((tmp_path / "d" / "diagnosis.json").read_text())
-        assert result["effect"] in (
-            "none",
-            "outlet_sensor_pipe",
-            "body_heat_diffusion",
-            "ignition_delay",
-            "flue_gas_lag",
-            "fuel_energy_bias",
-        )
+        # never silently wrong: the plant's effect, or no verdict (all eight give the
+        # effect here)
+        assert result["effect"] in ("outlet_sensor_pipe", "none")
         assert 0.0 <= result["confidence"] <= 1.0
         assert isinstance(result["unexplained_gap"], bool)
     code = main(["calibrate", str(cal), "--boiler", BOILER, "--out", str(tmp_path / "p.yaml")])
