@@ -64,6 +64,11 @@ def _build_parser() -> argparse.ArgumentParser:
         help="let the dashboard write setpoints, boiler on/off and speed (through the "
         "Modbus write checks) [off]",
     )
+    serve.add_argument(
+        "--allow-control",
+        action="store_true",
+        help="let clients change speed/clock mode, reset or advance a real-time server",
+    )
     doc = sub.add_parser("map-doc", help="write the Markdown reference of a register map")
     doc.add_argument("--map", default=None, help="register map YAML [the shipped one]")
     doc.add_argument("--out", default=None, help="file to write [stdout]")
@@ -136,7 +141,14 @@ def _cmd_serve(args: argparse.Namespace) -> int:
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
     emulator = Emulator(params, profile, seed=args.seed)
     server = BenchServer(
-        emulator, register_map, args.host, args.port, args.speed, args.lockstep, args.tick_hz
+        emulator,
+        register_map,
+        args.host,
+        args.port,
+        args.speed,
+        args.lockstep,
+        args.tick_hz,
+        allow_control=args.allow_control,
     )
     try:
         asyncio.run(_serve(server, args))

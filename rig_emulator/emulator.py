@@ -198,8 +198,21 @@ class Emulator:
         """Advance by ``seconds`` of simulated time in sub-steps of at most ``max_step_s``."""
         if seconds <= 0:
             return
+        n, dt = self.substeps(seconds)
+        self.advance_steps(n, dt)
+
+    def substeps(self, seconds: float) -> tuple[int, float]:
+        """How :meth:`advance` splits ``seconds`` (> 0): ``n`` steps of ``dt`` [s] each,
+        ``dt <= max_step_s``. A caller may run the ``n`` steps in chunks with
+        :meth:`advance_steps` and get the same result as one :meth:`advance`."""
         n = 1 if seconds <= self.max_step_s else math.ceil(seconds / self.max_step_s - 1e-9)
-        dt = seconds / n
+        return n, seconds / n
+
+    def advance_steps(self, n: int, dt: float) -> None:
+        """Advance by ``n`` physics steps of ``dt`` seconds each (``dt <= max_step_s``)."""
+        if n <= 0:
+            return
+        seconds = n * dt
         bench = self.bench
         instruments = self.instruments
         if instruments.ideal:  # readings are the plant values: computed when read

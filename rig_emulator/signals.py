@@ -65,6 +65,8 @@ _STATUS = (
     ("boiler_id", "-", "32-bit hash of the boiler parameters and the bench configuration"),
     ("profile_id", "-", "32-bit hash of the profile (instruments and effects)"),
     ("seed", "-", "seed of the instrument errors and noise (modulo 2^32)"),
+    ("achieved_speed", "-", "simulated s per wall s of the last real-time tick (0 in lockstep)"),
+    ("tick_overrun_ms", "ms", "simulation the last tick could not do in its budget, dropped"),
 )
 _COMMANDS = (
     ("water_flow_setpoint_kg_h", "kg/h", "flow setpoint of the bench pump/valve", 0.0, 3000.0),

@@ -43,6 +43,9 @@ _READ_FC = {1: "coil", 2: "discrete", 3: "holding", 4: "input"}
 _PUBLISH_FC = {"input": 4, "holding": 16, "discrete": 2, "coil": 15}
 _TABLE_INDEX = {"coil": 0, "discrete": 1, "holding": 2, "input": 3}
 CLOCK_COMMANDS = ("speed_factor", "clock_mode", "lockstep_advance_s", "reset")
+TICK_BUDGET_FRACTION = 0.8  # share of a tick period the physics of one tick may take
+CHUNK_STEPS = 64  # physics steps between two looks at the clock (~1-2 ms with the lab profile)
+ADVANCE_SLICE_S = 0.01  # wall time a lockstep advance runs before it lets others in [s]
 
 
 @dataclass(frozen=True, slots=True)
@@ -124,6 +127,9 @@ class BenchServer:
         speed: simulated seconds per wall second in real-time mode.
         lockstep: start in lockstep mode (time moves only on ``lockstep_advance``).
         tick_hz: rate of the real-time tick and of the register updates.
+        allow_control: let clients write the clock commands (speed, mode, reset, advance) of
+            a real-time server; without it they get exception 01 (a lockstep server always
+            accepts them).
     """
 
     def __init__(
@@ -135,6 +141,7 @@ class BenchServer:
         speed: float = 1.0,
         lockstep: bool = False,
         tick_hz: float = 10.0,
+        allow_control: bool = False,
     ) -> None:
         check_command("speed_factor", speed)
         self.emulator = emulator
@@ -148,6 +155,12 @@ class BenchServer:
         #: random per start: a client that sees it change knows the plant is a new one
         self.epoch_id = secrets.randbits(32)
         self.last_advance_s = 0.0
+        self.allow_control = allow_control
+        self.achieved_speed = speed
+        self.tick_overrun_ms = 0.0
+        self._clock_lock = asyncio.Lock()  # one clock command (advance, reset, ...) at a time
+        self._refusals_logged: set[tuple[str, str]] = set()
+        self._operator_write = False  # a write of the dashboard (--http-control), not a client
         self._internal = False
         self._server: BenchModbusServer | None = None
         self._tick_task: asyncio.Task | None = None
@@ -206,27 +219,77 @@ class BenchServer:
 
     # ------------------------------------------------------------------ time
     async def _tick_loop(self, start: float) -> None:
+        """The real-time tick. Every tick awaits (so replies and signals are served however
+        far behind it is) and spends at most ``TICK_BUDGET_FRACTION`` of a period on physics;
+        what it could not simulate in that budget is dropped by re-anchoring the clock, never
+        chased. :attr:`achieved_speed` and :attr:`tick_overrun_ms` say how far it fell short."""
         loop = asyncio.get_running_loop()
         pacer = Pacer(self.tick_period_s, start)
+        budget_s = TICK_BUDGET_FRACTION * self.tick_period_s
+        last_wall_s, last_sim_s = start, self.emulator.sim_time_s
         while True:
             deadline = pacer.next_deadline(loop.time())
-            delay = deadline - loop.time()
-            if delay > 0:
-                await asyncio.sleep(delay)
-            if self.clock.mode != REALTIME:
+            await asyncio.sleep(max(deadline - loop.time(), 0.0))  # yields even when late
+            if self.clock.mode != REALTIME or self._clock_lock.locked():
+                last_wall_s, last_sim_s = loop.time(), self.emulator.sim_time_s
                 continue  # lockstep: time and registers move only on client writes
-            self.lateness.add(max(loop.time() - deadline, 0.0))
-            self.emulator.advance(self.clock.target(deadline) - self.emulator.sim_time_s)
+            began_s = loop.time()
+            self.lateness.add(max(began_s - deadline, 0.0))
+            due_s = self.clock.target(deadline) - self.emulator.sim_time_s
+            missing_s = await self._advance_for(due_s, began_s + budget_s)
+            now_s = loop.time()
+            if missing_s > 0.0:
+                self.clock.anchor(now_s, self.emulator.sim_time_s)  # drop, do not chase
+            self.tick_overrun_ms = missing_s / self.clock.speed * 1000.0
+            if now_s > last_wall_s:
+                self.achieved_speed = (self.emulator.sim_time_s - last_sim_s) / (
+                    now_s - last_wall_s
+                )
+            last_wall_s, last_sim_s = now_s, self.emulator.sim_time_s
             await self.publish()
             if self.on_tick is not None:
                 self.on_tick()
+
+    async def _advance_for(self, seconds: float, until_s: float) -> float:
+        """Advance by up to ``seconds``, in chunks, until the loop clock passes ``until_s``,
+        letting clients in every ``ADVANCE_SLICE_S``; returns the simulated seconds undone."""
+        if seconds <= 0.0:
+            return 0.0
+        loop = asyncio.get_running_loop()
+        n, dt = self.emulator.substeps(seconds)
+        slice_end_s = loop.time() + ADVANCE_SLICE_S
+        while n > 0:
+            chunk = min(n, CHUNK_STEPS)
+            self.emulator.advance_steps(chunk, dt)
+            n -= chunk
+            now_s = loop.time()
+            if n and now_s >= until_s:
+                break
+            if n and now_s >= slice_end_s:
+                await asyncio.sleep(0)
+                slice_end_s = loop.time() + ADVANCE_SLICE_S
+        return n * dt
 
     def _reanchor(self) -> None:
         self.clock.anchor(asyncio.get_running_loop().time(), self.emulator.sim_time_s)
 
     async def advance(self, seconds: float) -> None:
-        """Lockstep: advance the simulation and publish the new state before returning."""
-        self.emulator.advance(seconds)
+        """Lockstep: advance the simulation and publish the new state before returning.
+
+        A long advance runs in chunks of about ``ADVANCE_SLICE_S`` of wall time with an
+        ``await`` between them, so other clients are answered meanwhile; the registers keep
+        the state before the advance until it is done."""
+        if seconds > 0:
+            loop = asyncio.get_running_loop()
+            n, dt = self.emulator.substeps(seconds)
+            while n > 0:
+                until_s = loop.time() + ADVANCE_SLICE_S
+                while n > 0 and loop.time() < until_s:
+                    chunk = min(n, CHUNK_STEPS)
+                    self.emulator.advance_steps(chunk, dt)
+                    n -= chunk
+                if n > 0:  # a short advance never awaits: its reply keeps its place in line
+                    await asyncio.sleep(0)
         self.last_advance_s = seconds
         self.lockstep_counter += 1
         await self.publish()
@@ -236,6 +299,8 @@ class BenchServer:
         out = self.emulator.values()
         realtime = self.clock.mode == REALTIME
         out["tick_lateness_ms"] = self.lateness.last_s * 1000.0 if realtime else 0.0
+        out["achieved_speed"] = self.achieved_speed if realtime else 0.0
+        out["tick_overrun_ms"] = self.tick_overrun_ms if realtime else 0.0
         out["lockstep_counter"] = float(self.lockstep_counter % 65536)
         out["epoch_id"] = float(self.epoch_id)
         out["speed_factor"] = self.clock.speed
@@ -347,14 +412,44 @@ class BenchServer:
                             registers = encode(point, value)
                         except (ValueError, OverflowError, struct.error):
                             return f"{value!r} cannot be encoded as {point.datatype}"
-                    refused = await self._write(device, point.table, point.address, registers)
+                    self._operator_write = True  # the operator's own controls: not guarded
+                    try:
+                        refused = await self._write(device, point.table, point.address, registers)
+                    finally:
+                        self._operator_write = False
                     if refused is None:
                         await self.publish()
                         return None
                     return f"refused with Modbus exception {int(refused):02X} ({refused.name})"
         return f"no writable point carries '{signal}'"
 
+    def _control_refused(self, new: dict[str, float]) -> bool:
+        """Whether a write of clock commands must be refused (real time, no --allow-control);
+        logged once per command name and server mode, not once per request."""
+        commands = sorted(k for k in new if k in CLOCK_COMMANDS)
+        if not commands or self.allow_control or self._operator_write:
+            return False
+        if self.clock.mode == LOCKSTEP:
+            return False
+        for name in commands:
+            if (name, "realtime") not in self._refusals_logged:
+                self._refusals_logged.add((name, "realtime"))
+                log.warning(
+                    "refused a write of %s (exception 01): the server runs in real time "
+                    "without --allow-control (further refusals not logged)",
+                    name,
+                )
+        return True
+
     async def _apply(self, new: dict[str, float]) -> ExcCodes | None:
+        if self._control_refused(new):
+            return ExcCodes.ILLEGAL_FUNCTION
+        if any(k in CLOCK_COMMANDS for k in new):
+            async with self._clock_lock:
+                return await self._apply_now(new)
+        return await self._apply_now(new)
+
+    async def _apply_now(self, new: dict[str, float]) -> ExcCodes | None:
         plant = {k: v for k, v in new.items() if k not in CLOCK_COMMANDS}
         if (
             "lockstep_advance_s" in new

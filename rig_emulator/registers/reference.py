@@ -41,6 +41,11 @@ def markdown(register_map: RegisterMap) -> str:
         "- `lockstep_advance` (simulation control): in lockstep mode, writing N advances the",
         "  simulation by N seconds; the write's reply is sent once the new state is readable,",
         "  and `lockstep_counter` counts completed advances.",
+        "- The clock commands (`speed_factor`, `clock_mode`, `reset`, `lockstep_advance`) of a",
+        "  real-time server are refused with exception 01 unless it runs with",
+        "  `serve --allow-control`; a lockstep server accepts them. A long advance runs in",
+        "  slices, so other clients are answered meanwhile. A real-time tick that cannot keep",
+        "  up drops the rest (see `achieved_speed` and `tick_overrun`) instead of chasing it.",
         "",
     ]
     for device in register_map.devices:

@@ -29,7 +29,7 @@ def test_sim_clock_maps_wall_to_sim_time():
 
 
 def test_real_time_mode_advances_with_the_wall_clock(serve):
-    srv = serve(lockstep=False, speed=200.0)
+    srv = serve(lockstep=False, speed=200.0, allow_control=True)
     t0, s0 = time.monotonic(), srv.values()["sim_time_s"]
     time.sleep(1.0)
     t1, s1 = time.monotonic(), srv.values()["sim_time_s"]
@@ -42,7 +42,7 @@ def test_real_time_mode_advances_with_the_wall_clock(serve):
 
 
 def test_switch_to_lockstep_and_reset_over_modbus(serve):
-    srv = serve(lockstep=False, speed=100.0)
+    srv = serve(lockstep=False, speed=100.0, allow_control=True)
     c = client(srv.port)
     assert not write(c, srv, "sim_control", "clock_mode", 1).isError()
     frozen = srv.values()["sim_time_s"]

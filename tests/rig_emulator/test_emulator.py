@@ -27,6 +27,8 @@ def test_clean_readings_are_the_plant(params_12kw):
     assert values == {**values, **emu.plant()}
     assert set(values) == set(SIGNALS) - {
         "tick_lateness_ms",
+        "achieved_speed",
+        "tick_overrun_ms",
         "lockstep_counter",
         "epoch_id",
         "speed_factor",

@@ -1,0 +1,115 @@
+"""The clock cannot be wedged and the simulation control is guarded (issue 11), over real
+sockets on 127.0.0.1."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import threading
+import time
+
+from hil_client.demo import rig_emulator_serve
+from tests.modbus_helpers import ADVANCE, client, point, read_point, write
+
+
+def test_speed_100000_with_lab_profile_answers_reads_and_stops_on_sigterm():
+    """The wedge of issue 11: before the fix this server answered nothing and ignored SIGTERM."""
+    with rig_emulator_serve(
+        "windhager_12kw", "--profile", "lab", "--speed", "100000", stderr=subprocess.PIPE
+    ) as (port, proc):
+        from rig_emulator.registers import load_map
+
+        register_map = load_map()
+        dev = register_map.device("sim_control")
+        sim_time = next(p for p in dev.points if p.name == "sim_time")
+        achieved = next(p for p in dev.points if p.name == "achieved_speed")
+        c = client(port)
+        first = read_point(c, dev, sim_time)
+        speed = 0.0
+        deadline = time.monotonic() + 60  # generous: the first ticks wait for numba's compiler
+        while speed == 0.0 and time.monotonic() < deadline:
+            time.sleep(0.2)
+            speed = read_point(c, dev, achieved)
+        second = read_point(c, dev, sim_time)
+        c.close()
+        assert second > first  # time moves and reads are answered
+        assert 0 < speed < 100_000  # published: the lab profile cannot reach x100000 here
+        proc.send_signal(signal.SIGTERM)
+        # generous: the tick yields every period, so SIGTERM is served at once
+        code = proc.wait(timeout=20)
+        stderr = proc.stderr.read().decode()
+    assert code == 0, stderr
+    assert "Traceback" not in stderr
+
+
+def test_one_day_advance_lets_other_clients_in(serve):
+    """Another client's reads are answered while a 86,400 s advance runs (ordering only)."""
+    srv = serve(profile="lab")
+    dev, sim_time = point(srv, "sim_control", "sim_time")
+    advancer = client(srv.port)
+    reader = client(srv.port)
+    done = threading.Event()
+    result = {}
+
+    def advance_one_day() -> None:
+        result["reply"] = write(advancer, srv, *ADVANCE, 86_400)
+        done.set()
+
+    thread = threading.Thread(target=advance_one_day)
+    thread.start()
+    # wait until the advance is under way (its simulation is no longer at 0)
+    deadline = time.monotonic() + 30
+    while srv.server.emulator.sim_time_s == 0 and time.monotonic() < deadline:
+        time.sleep(0.001)
+    answered_during = 0
+    while not done.is_set() and answered_during < 5:
+        before = read_point(reader, dev, sim_time)
+        if not done.is_set():
+            assert before == 0.0  # registers keep the old state until the advance is done
+            answered_during += 1
+    thread.join(timeout=60)
+    assert not result["reply"].isError()
+    assert answered_during > 0, "no read was answered while the one-day advance ran"
+    assert read_point(reader, dev, sim_time) == 86_400.0
+    advancer.close()
+    reader.close()
+
+
+def _registers(c, srv, name: str) -> list[int]:
+    dev, p = point(srv, "sim_control", name)
+    r = c.read_holding_registers(p.address, count=p.width, device_id=dev.unit_id)
+    assert not r.isError()
+    return r.registers
+
+
+def test_control_guard(serve):
+    realtime = serve(lockstep=False)
+    c = client(realtime.port)
+    for name, value in (
+        ("speed_factor", 10.0),
+        ("clock_mode", 1),
+        ("reset", 1),
+        ("lockstep_advance", 60),
+    ):
+        before = _registers(c, realtime, name)
+        reply = write(c, realtime, "sim_control", name, value)
+        assert reply.isError() and reply.exception_code == 1, (name, reply)
+        assert _registers(c, realtime, name) == before, name
+    assert realtime.server.clock.speed == 1.0 and realtime.server.clock.mode == 0
+    c.close()
+
+    allowed = serve(lockstep=False, allow_control=True)
+    c = client(allowed.port)
+    assert not write(c, allowed, "sim_control", "speed_factor", 10.0).isError()
+    assert allowed.server.clock.speed == 10.0
+    assert not write(c, allowed, "sim_control", "clock_mode", 1).isError()
+    assert not write(c, allowed, *ADVANCE, 60).isError()
+    c.close()
+
+    lockstep = serve()
+    c = client(lockstep.port)
+    assert not write(c, lockstep, *ADVANCE, 60).isError()
+    assert not write(c, lockstep, "sim_control", "speed_factor", 5.0).isError()
+    assert not write(c, lockstep, "sim_control", "reset", 1).isError()
+    assert lockstep.server.emulator.sim_time_s == 0.0
+    c.close()
