@@ -9,12 +9,24 @@ from __future__ import annotations
 import argparse
 import asyncio
 import logging
+import math
 import signal
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from rig_emulator.cli_support import Parser, UsageError, bad_input, boiler_arg, report
+from rig_emulator.cli_support import (
+    Parser,
+    UsageError,
+    bad_input,
+    boiler_arg,
+    finite_float,
+    input_errors,
+    int_in,
+    output_file,
+    report,
+    text_input,
+)
 from rig_emulator.dashboard import Dashboard
 from rig_emulator.emulator import CommandError, Emulator, check_command
 from rig_emulator.instruments import ProfileError, load_profile
@@ -33,24 +45,40 @@ def _build_parser() -> argparse.ArgumentParser:
         description="Run the emulated bench as a Modbus TCP server (one unit ID per "
         "instrument, see the register map reference). Stops cleanly on SIGINT/SIGTERM.",
     )
-    serve.add_argument("--boiler", required=True, help="boiler NAME or parameter file PATH")
     serve.add_argument(
-        "--map", default=None, help="register map YAML [register_maps/wieselburg_bench.yaml]"
+        "--boiler", required=True, type=text_input, help="boiler NAME or parameter file PATH"
+    )
+    serve.add_argument(
+        "--map",
+        default=None,
+        type=text_input,
+        help="register map YAML [register_maps/wieselburg_bench.yaml]",
     )
     serve.add_argument("--host", default="127.0.0.1", help="address to listen on [127.0.0.1]")
-    serve.add_argument("--port", type=int, default=5020, help="TCP port (0: any free) [5020]")
+    serve.add_argument(
+        "--port", type=int_in(0, 65535), default=5020, help="TCP port (0: any free) [5020]"
+    )
     pace = serve.add_mutually_exclusive_group()
     pace.add_argument(
-        "--speed", type=float, default=1.0, help="simulated seconds per wall second [1 = real time]"
+        "--speed",
+        type=finite_float(-1e308, 1e308),
+        default=1.0,
+        help="simulated seconds per wall second [1 = real time]",
     )
     pace.add_argument(
         "--lockstep",
         action="store_true",
         help="time moves only when a client writes lockstep_advance",
     )
-    serve.add_argument("--profile", default="clean", help="clean | lab | PROFILE.yaml [clean]")
-    serve.add_argument("--seed", type=int, default=0, help="seed of instrument errors [0]")
-    serve.add_argument("--tick-hz", type=float, default=10.0, help="tick rate [10]")
+    serve.add_argument(
+        "--profile", default="clean", type=text_input, help="clean | lab | PROFILE.yaml [clean]"
+    )
+    serve.add_argument(
+        "--seed", type=int_in(0, 2**32 - 1), default=0, help="seed of instrument errors [0]"
+    )
+    serve.add_argument(
+        "--tick-hz", type=finite_float(0.1, 1000.0, "Hz"), default=10.0, help="tick rate [10]"
+    )
     serve.add_argument(
         "--http",
         type=int,
@@ -70,19 +98,35 @@ def _build_parser() -> argparse.ArgumentParser:
         help="let clients change speed/clock mode, reset or advance a real-time server",
     )
     doc = sub.add_parser("map-doc", help="write the Markdown reference of a register map")
-    doc.add_argument("--map", default=None, help="register map YAML [the shipped one]")
+    doc.add_argument(
+        "--map", default=None, type=text_input, help="register map YAML [the shipped one]"
+    )
     doc.add_argument("--out", default=None, help="file to write [stdout]")
     check = sub.add_parser("check", help="validate a boiler parameter file and print it")
-    check.add_argument("--boiler", required=True, help="boiler NAME or parameter file PATH")
+    check.add_argument(
+        "--boiler", required=True, type=text_input, help="boiler NAME or parameter file PATH"
+    )
     steady = sub.add_parser(
         "steady",
         help="closed-form steady state at a load (energy split of Eq. 1-10)",
         description="Print the steady operating point of the one-node model at a load.",
     )
-    steady.add_argument("--boiler", required=True, help="boiler NAME or parameter file PATH")
-    steady.add_argument("--load", type=float, default=100.0, help="load [%% of nominal] [100]")
-    steady.add_argument("--return-temp", type=float, default=55.0, help="return [C] [55]")
-    steady.add_argument("--room-temp", type=float, default=22.0, help="room [C] [22]")
+    steady.add_argument(
+        "--boiler", required=True, type=text_input, help="boiler NAME or parameter file PATH"
+    )
+    steady.add_argument(
+        "--load",
+        type=finite_float(0.0, 150.0, "%"),
+        default=100.0,
+        help="load [%% of nominal] [100]",
+    )
+    # the ranges of the bench: its return conditioning (10-90 C) and a boiler room
+    steady.add_argument(
+        "--return-temp", type=finite_float(10.0, 90.0, "C"), default=55.0, help="return [C] [55]"
+    )
+    steady.add_argument(
+        "--room-temp", type=finite_float(-30.0, 50.0, "C"), default=22.0, help="room [C] [22]"
+    )
     return parser
 
 
@@ -98,7 +142,13 @@ def _cmd_steady(args: argparse.Namespace) -> int:
     if not 0.0 < args.load <= 150.0:
         raise UsageError(f"--load: {args.load} is outside 0..150 %")
     flow = args.load / 100.0 * params.nominal_flow_kg_h
-    ss = steady_state(pack_constants(params), flow, args.return_temp, args.room_temp)
+    try:
+        ss = steady_state(pack_constants(params), flow, args.return_temp, args.room_temp)
+    except ValueError as exc:  # the root finder found no operating point
+        raise UsageError(f"no steady state at these inputs ({exc})") from None
+    figures = (ss.t_boiler_C, ss.t_flue_gas_C, ss.q_fuel_kW, ss.q_water_kW, ss.q_amb_kW)
+    if not all(math.isfinite(x) for x in figures) or ss.q_fuel_kW <= 0:
+        raise UsageError("no finite steady state at these inputs")
     share = 100.0 / ss.q_fuel_kW
     print(f"{params.name} at {args.load:g} % load ({flow:.1f} kg/h, return {args.return_temp} C)")
     print(f"  T_boiler   {ss.t_boiler_C:8.2f} C     T_flue_gas {ss.t_flue_gas_C:8.2f} C")
@@ -114,7 +164,7 @@ def _cmd_map_doc(args: argparse.Namespace) -> int:
     with bad_input(MapError):
         text = markdown(load_map(args.map))
     if args.out:
-        Path(args.out).write_text(text, encoding="utf-8")
+        output_file(Path(args.out)).write_text(text, encoding="utf-8")
     else:
         sys.stdout.write(text)
     return 0
@@ -127,10 +177,6 @@ def _cmd_serve(args: argparse.Namespace) -> int:
         profile = load_profile(args.profile)
     with bad_input(CommandError, prefix="--speed: "):
         check_command("speed_factor", args.speed)
-    if not 0 <= args.port <= 65535:
-        raise UsageError(f"--port: {args.port} is not a TCP port")
-    if not 0.1 <= args.tick_hz <= 1000:
-        raise UsageError(f"--tick-hz: {args.tick_hz} outside 0.1..1000")
     if args.http is not None and not 0 <= args.http <= 65535:
         raise UsageError(f"--http: {args.http} is not a TCP port")
     if args.http_control and args.http is None:
@@ -152,12 +198,12 @@ def _cmd_serve(args: argparse.Namespace) -> int:
     )
     try:
         asyncio.run(_serve(server, args))
-    except OSError as exc:
-        print(
-            f"rig-emulator: error: cannot serve on {args.host}:{args.port}: {exc.strerror or exc}",
-            file=sys.stderr,
-        )
-        return 1
+    except OSError as exc:  # busy port, address not local, no permission: bad input
+        raise UsageError(
+            str(exc)
+            if exc.strerror is None
+            else f"cannot serve on {args.host}:{args.port}: {exc.strerror}"
+        ) from None
     return 0
 
 
@@ -212,7 +258,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             "serve": _cmd_serve,
             "map-doc": _cmd_map_doc,
         }
-        return commands[args.command](args)
+        with input_errors():
+            return commands[args.command](args)
     except UsageError as exc:
         return report(exc, "rig-emulator")
 

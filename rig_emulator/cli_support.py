@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from pathlib import Path
 
 from rig_emulator.boilers import load_boiler
 from rig_emulator.model.params import BoilerParams, ParameterError
@@ -45,3 +47,88 @@ def report(exc: UsageError, default_prog: str) -> int:
     """Print ``PROG: error: MESSAGE`` on stderr and return exit code 2."""
     print(f"{exc.prog or default_prog}: error: {exc}", file=sys.stderr)
     return 2
+
+
+def finite_float(low: float, high: float, unit: str = "") -> Callable[[str], float]:
+    """An argparse ``type`` for a finite number in ``low..high`` (its error names the range)."""
+    where = f"{low:g}..{high:g}{' ' + unit if unit else ''}"
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"'{text}' is not a number ({where})") from None
+        if not math.isfinite(value) or not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"{text} is outside {where}")
+        return value
+
+    return parse
+
+
+def int_in(low: int, high: int) -> Callable[[str], int]:
+    """An argparse ``type`` for a whole number in ``low..high``."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"'{text}' is not a whole number ({low}..{high})"
+            ) from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"{text} is outside {low}..{high}")
+        return value
+
+    return parse
+
+
+def text_input(text: str) -> str:
+    """An argparse ``type`` for NAME-or-PATH options: a PATH that exists must be a readable
+    UTF-8 text file (a NAME that is no path passes unchanged)."""
+    path = Path(text)
+    if not path.exists():
+        return text
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text} is a directory, not a file")
+    try:
+        path.read_bytes().decode("utf-8")
+    except OSError as exc:
+        raise argparse.ArgumentTypeError(f"{text}: cannot read ({exc.strerror})") from None
+    except UnicodeDecodeError as exc:
+        raise argparse.ArgumentTypeError(
+            f"{text} is not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at {exc.start})"
+        ) from None
+    return text
+
+
+def text_file(text: str) -> Path:
+    """An argparse ``type`` for an input file that must exist and be UTF-8 text."""
+    if not Path(text).exists():
+        raise argparse.ArgumentTypeError(f"{text}: no such file")
+    return Path(text_input(text))
+
+
+def output_file(path: Path) -> Path:
+    """``path``, its missing parent directories created (as ``--out`` users expect);
+    a parent that is a file, or a ``path`` that is a directory, is a :class:`UsageError`."""
+    if path.is_dir():
+        raise UsageError(f"--out: '{path}' is a directory")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UsageError(f"--out: cannot create '{path.parent}' ({exc.strerror})") from None
+    return path
+
+
+@contextmanager
+def input_errors() -> Iterator[None]:
+    """The last line of defence of both CLIs: unreadable or undecodable input files in the
+    block become one-line :class:`UsageError` s instead of tracebacks."""
+    try:
+        yield
+    except UnicodeDecodeError as exc:
+        raise UsageError(
+            f"an input file is not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at {exc.start})"
+        ) from None
+    except (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError) as exc:
+        raise UsageError(f"{exc.filename}: {exc.strerror}") from None

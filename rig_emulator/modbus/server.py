@@ -23,6 +23,7 @@ import contextlib
 import logging
 import math
 import secrets
+import socket
 import struct
 import threading
 from collections.abc import Callable, Mapping
@@ -117,6 +118,17 @@ def _catch_all_device() -> SimDevice:
     return SimDevice(0, simdata=([bit], [bit], [regs], [regs]), action=refuse)
 
 
+def _listen_error(host: str, port: int) -> str:
+    """Why listening on ``host:port`` fails, as the OS says it."""
+    try:
+        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
+        with socket.socket(infos[0][0], socket.SOCK_STREAM) as probe:
+            probe.bind(infos[0][4])
+    except OSError as exc:
+        return exc.strerror or str(exc)
+    return "the address was refused"
+
+
 class BenchServer:
     """The emulator published over Modbus TCP, paced in real time or in lockstep.
 
@@ -197,7 +209,12 @@ class BenchServer:
         """Listen, publish the initial state and start the tick."""
         loop = asyncio.get_running_loop()
         self._server = BenchModbusServer(self._devices(), address=(self.host, self.port))
-        await self._server.serve_forever(background=True)
+        try:
+            await self._server.serve_forever(background=True)
+        except RuntimeError:  # pymodbus hides the reason: ask the OS for it
+            raise OSError(
+                f"cannot listen on {self.host}:{self.port}: {_listen_error(self.host, self.port)}"
+            ) from None
         sock = self._server.transport.sockets[0] if self._server.transport else None
         if sock is not None:
             self.port = sock.getsockname()[1]
