@@ -13,6 +13,9 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
+
+import numpy as np
 
 from hil_client.analysis.balance import as_json as balance_json
 from hil_client.analysis.balance import energy_balance
@@ -37,7 +40,19 @@ from hil_client.rigs.local import LocalRig
 from hil_client.rigs.modbus import ModbusRig, parse_url
 from hil_client.summary import RunSummary
 from rig_emulator.boilers import dump_boiler
-from rig_emulator.cli_support import Parser, UsageError, bad_input, boiler_arg, report
+from rig_emulator.cli_support import (
+    Parser,
+    UsageError,
+    bad_input,
+    boiler_arg,
+    finite_float,
+    input_errors,
+    int_in,
+    output_file,
+    report,
+    text_file,
+    text_input,
+)
 from rig_emulator.instruments import ProfileError, load_profile
 from rig_emulator.model.params import ParameterError, params_from_mapping
 from rig_emulator.registers import load_map
@@ -52,19 +67,28 @@ def _build_parser() -> argparse.ArgumentParser:
         description="Play a test method (stationary, load_cycle or a PROTOCOL.yaml) on a rig "
         "and write the lab log (CSV) and its meta file.",
     )
-    run.add_argument("protocol", help="stationary | load_cycle | PROTOCOL.yaml")
-    run.add_argument("--boiler", required=True, help="boiler NAME or parameter file PATH")
+    run.add_argument("protocol", type=text_input, help="stationary | load_cycle | PROTOCOL.yaml")
+    run.add_argument(
+        "--boiler", required=True, type=text_input, help="boiler NAME or parameter file PATH"
+    )
     run.add_argument(
         "--rig", default="local", help="local (in-process) or modbus://HOST:PORT [local]"
     )
     run.add_argument(
-        "--profile", default="clean", help="clean | lab | PROFILE.yaml, for --rig local [clean]"
+        "--profile",
+        default="clean",
+        type=text_input,
+        help="clean | lab | PROFILE.yaml, for --rig local [clean]",
     )
-    run.add_argument("--seed", type=int, default=0, help="random seed of the profile [0]")
-    run.add_argument("--map", default=None, help="register map of a Modbus rig [shipped map]")
+    run.add_argument(
+        "--seed", type=int_in(0, 2**32 - 1), default=0, help="random seed of the profile [0]"
+    )
+    run.add_argument(
+        "--map", default=None, type=text_input, help="register map of a Modbus rig [shipped map]"
+    )
     run.add_argument(
         "--reconnect-timeout",
-        type=float,
+        type=finite_float(0.0, 1e6, "s"),
         default=60.0,
         help="give up after a Modbus outage this long [60 s]",
     )
@@ -89,9 +113,12 @@ def _build_parser() -> argparse.ArgumentParser:
         "(cumulative), lambda from O2, flue-gas losses, heat to water; direct and indirect "
         "efficiency. Printed as a table and written as JSON.",
     )
-    bal.add_argument("log", type=Path, help="lab log (CSV)")
+    bal.add_argument("log", type=text_file, help="lab log (CSV)")
     bal.add_argument(
-        "--boiler", default=None, help="boiler NAME or PATH (its fuel) [the meta file's boiler]"
+        "--boiler",
+        default=None,
+        type=text_input,
+        help="boiler NAME or PATH (its fuel) [the meta file's boiler]",
     )
     bal.add_argument("--out", type=Path, default=None, help="JSON to write [LOG.balance.json]")
     cal = sub.add_parser(
@@ -101,8 +128,10 @@ def _build_parser() -> argparse.ArgumentParser:
         "stationary-test and/or a load-cycle log, starting from the boiler's documentation "
         "values. Writes a parameter file, its uncertainties and the Fig. 4/5 regressions.",
     )
-    cal.add_argument("logs", nargs="+", type=Path, help="lab logs (CSV)")
-    cal.add_argument("--boiler", required=True, help="documentation values: NAME or PATH")
+    cal.add_argument("logs", nargs="+", type=text_file, help="lab logs (CSV)")
+    cal.add_argument(
+        "--boiler", required=True, type=text_input, help="documentation values: NAME or PATH"
+    )
     cal.add_argument("--out", required=True, type=Path, help="parameter file to write (YAML)")
     val = sub.add_parser(
         "validate",
@@ -112,8 +141,10 @@ def _build_parser() -> argparse.ArgumentParser:
         "deviation, correlation, RMSD; flue-gas loss; cumulative fuel). Writes "
         "validation.json, report.md and figures to DIR.",
     )
-    val.add_argument("log", type=Path, help="lab log (CSV)")
-    val.add_argument("--boiler", required=True, help="parameters: NAME or PATH (calibrated)")
+    val.add_argument("log", type=text_file, help="lab log (CSV)")
+    val.add_argument(
+        "--boiler", required=True, type=text_input, help="parameters: NAME or PATH (calibrated)"
+    )
     val.add_argument("--out", required=True, type=Path, help="output directory")
     dia = sub.add_parser(
         "diagnose",
@@ -238,7 +269,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     for key, f in result.fitted.items():
         kept = "  IMPLAUSIBLE, documentation value kept" if key in result.flags else ""
         lines.append(f"#   {key} = {f.value:.4g} +- {f.expanded:.2g}  ({f.method}){kept}")
-    dump_boiler(params, args.out, header="\n".join(lines))
+    dump_boiler(params, output_file(args.out), header="\n".join(lines))
     side = args.out.with_suffix(".uncertainty.json")
     side.write_text(
         json.dumps(
@@ -282,14 +313,31 @@ def _boiler_for(log: LabLog, name: str | None):
     return boiler_arg(name)
 
 
+def _json_nulls(value: Any) -> Any:
+    """``value`` with every non-finite float replaced by None (JSON null)."""
+    if isinstance(value, dict):
+        return {k: _json_nulls(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_nulls(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
 def _cmd_balance(args: argparse.Namespace) -> int:
     with bad_input(LogError):
         log = read_log(args.log)
         params = _boiler_for(log, args.boiler)
         phases = find_phases(log)
+    for name, column in log.columns.items():
+        if np.isinf(column).any():  # NaN means missing; an infinite reading is a bad log
+            row = int(np.flatnonzero(np.isinf(column))[0]) + 1
+            raise UsageError(f"{args.log}: column {name} holds an infinite value (data row {row})")
     rows = energy_balance(log, params, phases)
-    out = args.out or args.log.with_name(args.log.stem + ".balance.json")
-    out.write_text(json.dumps(balance_json(rows, phases), indent=2) + "\n", encoding="utf-8")
+    out = output_file(args.out or args.log.with_name(args.log.stem + ".balance.json"))
+    # strict JSON: a figure a phase does not define (NaN, e.g. no fuel burnt) is null
+    text = json.dumps(_json_nulls(balance_json(rows, phases)), indent=2, allow_nan=False)
+    out.write_text(text + "\n", encoding="utf-8")
     print(f"energy balance of {args.log} ({params.name}; phases from the {phases.source})")
     print(balance_table(rows))
     print(f"written: {out}")
@@ -421,7 +469,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     }
     try:
         args = _build_parser().parse_args(argv)
-        return commands[args.command](args)
+        with input_errors():
+            return commands[args.command](args)
     except UsageError as exc:
         return report(exc, "hil-client")
     except KeyboardInterrupt:
