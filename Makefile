@@ -33,6 +33,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/run_bench.py
 	$(BIN)/python bench/bench_modbus.py
 	$(BIN)/python bench/bench_dashboard.py
+	$(BIN)/python bench/bench_clock.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

@@ -44,9 +44,9 @@ _READ_FC = {1: "coil", 2: "discrete", 3: "holding", 4: "input"}
 _PUBLISH_FC = {"input": 4, "holding": 16, "discrete": 2, "coil": 15}
 _TABLE_INDEX = {"coil": 0, "discrete": 1, "holding": 2, "input": 3}
 CLOCK_COMMANDS = ("speed_factor", "clock_mode", "lockstep_advance_s", "reset")
-TICK_BUDGET_FRACTION = 0.8  # share of a tick period the physics of one tick may take
+TICK_BUDGET_FRACTION = 0.5  # share of a tick period the physics of one tick may take
 CHUNK_STEPS = 64  # physics steps between two looks at the clock (~1-2 ms with the lab profile)
-ADVANCE_SLICE_S = 0.01  # wall time a lockstep advance runs before it lets others in [s]
+ADVANCE_SLICE_S = 0.005  # wall time a lockstep advance runs before it lets others in [s]
 
 
 @dataclass(frozen=True, slots=True)
