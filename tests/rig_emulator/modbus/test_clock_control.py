@@ -9,6 +9,7 @@ import threading
 import time
 
 from hil_client.demo import rig_emulator_serve
+from rig_emulator.registers import encode
 from tests.modbus_helpers import ADVANCE, client, point, read_point, write
 
 
@@ -82,9 +83,13 @@ def _registers(c, srv, name: str) -> list[int]:
     return r.registers
 
 
-def test_control_guard(serve):
+def test_control_guard(serve, caplog):
     realtime = serve(lockstep=False)
     c = client(realtime.port)
+    for _ in range(20):  # a flood of refusals is logged once
+        assert write(c, realtime, "sim_control", "speed_factor", 3.0).exception_code == 1
+    logged = [r for r in caplog.records if "refused a write of speed_factor" in r.getMessage()]
+    assert len(logged) == 1
     for name, value in (
         ("speed_factor", 10.0),
         ("clock_mode", 1),
@@ -113,3 +118,22 @@ def test_control_guard(serve):
     assert not write(c, lockstep, "sim_control", "reset", 1).isError()
     assert lockstep.server.emulator.sim_time_s == 0.0
     c.close()
+
+
+def test_allow_control_option_of_serve():
+    """``serve --allow-control`` lets a client change the speed of a real-time server."""
+    from rig_emulator.registers import load_map
+
+    dev = load_map().device("sim_control")
+    speed = next(p for p in dev.points if p.name == "speed_factor")
+    with rig_emulator_serve("windhager_12kw", "--allow-control") as (port, _):
+        c = client(port)
+        assert not c.write_registers(speed.address, encode(speed, 7.0), device_id=100).isError()
+        assert read_point(c, dev, speed) == 7.0
+        c.close()
+    with rig_emulator_serve("windhager_12kw") as (port, _):
+        c = client(port)
+        reply = c.write_registers(speed.address, encode(speed, 7.0), device_id=100)
+        assert reply.isError() and reply.exception_code == 1
+        assert read_point(c, dev, speed) == 1.0
+        c.close()
