@@ -172,7 +172,6 @@ class BenchServer:
         self.tick_overrun_ms = 0.0
         self._clock_lock = asyncio.Lock()  # one clock command (advance, reset, ...) at a time
         self._refusals_logged: set[tuple[str, str]] = set()
-        self._operator_write = False  # a write of the dashboard (--http-control), not a client
         self._internal = False
         self._server: BenchModbusServer | None = None
         self._tick_task: asyncio.Task | None = None
@@ -395,8 +394,12 @@ class BenchServer:
                 self._write_plans[key] = plan  # valid writes only: few, whatever clients send
         return plan
 
-    async def _write(self, device: Device, table: str, address: int, values) -> ExcCodes | None:
-        """Check a client write of ``values`` at ``address``; apply it or refuse it whole."""
+    async def _write(
+        self, device: Device, table: str, address: int, values, operator: bool = False
+    ) -> ExcCodes | None:
+        """Check a client write of ``values`` at ``address``; apply it or refuse it whole.
+        ``operator``: the write comes from the dashboard's own controls (``--http-control``),
+        which the guard of the clock commands does not apply to."""
         plan = self._write_plan(device.unit_id, table, address, len(values))
         if isinstance(plan, ExcCodes):
             return plan
@@ -414,7 +417,7 @@ class BenchServer:
                 return ExcCodes.ILLEGAL_VALUE
         # the client's registers are stored after this returns: publish them again next time
         self._published.pop((device.unit_id, table), None)
-        return await self._apply(new)
+        return await self._apply(new, operator)
 
     async def write_signal(self, signal: str, value: float) -> str | None:
         """Write one command signal as a Modbus client would: encoded into its registers
@@ -429,11 +432,9 @@ class BenchServer:
                             registers = encode(point, value)
                         except (ValueError, OverflowError, struct.error):
                             return f"{value!r} cannot be encoded as {point.datatype}"
-                    self._operator_write = True  # the operator's own controls: not guarded
-                    try:
-                        refused = await self._write(device, point.table, point.address, registers)
-                    finally:
-                        self._operator_write = False
+                    refused = await self._write(
+                        device, point.table, point.address, registers, operator=True
+                    )
                     if refused is None:
                         await self.publish()
                         return None
@@ -444,7 +445,7 @@ class BenchServer:
         """Whether a write of clock commands must be refused (real time, no --allow-control);
         logged once per command name and server mode, not once per request."""
         commands = sorted(k for k in new if k in CLOCK_COMMANDS)
-        if not commands or self.allow_control or self._operator_write:
+        if not commands or self.allow_control:
             return False
         if self.clock.mode == LOCKSTEP:
             return False
@@ -458,8 +459,8 @@ class BenchServer:
                 )
         return True
 
-    async def _apply(self, new: dict[str, float]) -> ExcCodes | None:
-        if self._control_refused(new):
+    async def _apply(self, new: dict[str, float], operator: bool = False) -> ExcCodes | None:
+        if not operator and self._control_refused(new):
             return ExcCodes.ILLEGAL_FUNCTION
         if any(k in CLOCK_COMMANDS for k in new):
             async with self._clock_lock:
