@@ -9,10 +9,9 @@ the length field at most 254.
 
 The parser takes a byte stream cut anywhere (one byte at a time, many frames in one TCP
 segment, segments of any size) and returns every complete frame in order. A header it cannot
-trust (protocol identifier other than 0, a length below 2 or above 254) is a
-:class:`FramingError`: without a trustworthy length there is no way to find where the next
-frame starts, so the caller closes the connection (the guide's server "closes the
-connection" on a header error is not spelt out; see the README).
+trust (protocol identifier other than 0, a length below 2 or above 254) ends the stream:
+without a trustworthy length there is no way to find where the next frame starts, so the
+caller answers the frames before it and closes the connection with one log line.
 """
 
 from __future__ import annotations
@@ -29,10 +28,6 @@ MAX_LENGTH_FIELD = 1 + MAX_PDU_BYTES  # 254
 MODBUS_PROTOCOL_ID = 0
 
 
-class FramingError(ValueError):
-    """An MBAP header that cannot be trusted: the stream cannot be resynchronised."""
-
-
 class MbapFrame(NamedTuple):
     """One request as it arrived: its transaction id, unit id and PDU (function code first)."""
 
@@ -41,37 +36,37 @@ class MbapFrame(NamedTuple):
     pdu: bytes
 
 
-def split_frames(buffer: bytearray) -> list[MbapFrame]:
-    """Remove every complete frame from the front of ``buffer`` and return them in order.
+def split_frames(buffer: bytearray) -> tuple[list[MbapFrame], str | None]:
+    """Remove every complete frame from the front of ``buffer``; return them in order, and
+    why the stream cannot go on (a header that cannot be trusted), or None.
 
     What is left in ``buffer`` is the start of a frame not yet complete (less than 260
-    bytes). Raises :class:`FramingError` on a header that cannot be trusted; the frames
-    before it are lost then (the caller closes the connection)."""
+    bytes), or, after a bad header, the bytes from that header on (the caller answers the
+    frames before it, then closes the connection)."""
     frames: list[MbapFrame] = []
     start = 0
     end = len(buffer)
-    view = memoryview(buffer)
-    try:
-        while end - start >= MBAP_HEADER_BYTES:
-            tid, protocol, length, unit = MBAP_HEADER.unpack_from(buffer, start)
-            if protocol != MODBUS_PROTOCOL_ID:
-                raise FramingError(f"protocol identifier {protocol} (MODBUS is 0)")
-            if length < MIN_LENGTH_FIELD:
-                raise FramingError(f"length field {length} leaves no function code")
-            if length > MAX_LENGTH_FIELD:
-                raise FramingError(
-                    f"length field {length} exceeds {MAX_LENGTH_FIELD} "
-                    f"(a Modbus TCP ADU is at most {MAX_ADU_BYTES} bytes)"
-                )
-            frame_end = start + 6 + length
-            if frame_end > end:
-                break
-            frames.append(MbapFrame(tid, unit, bytes(view[start + MBAP_HEADER_BYTES : frame_end])))
-            start = frame_end
-    finally:
-        view.release()
-        del buffer[:start]
-    return frames
+    error: str | None = None
+    while end - start >= MBAP_HEADER_BYTES:
+        tid, protocol, length, unit = MBAP_HEADER.unpack_from(buffer, start)
+        if protocol != MODBUS_PROTOCOL_ID:
+            error = f"protocol identifier {protocol} (MODBUS is 0)"
+        elif length < MIN_LENGTH_FIELD:
+            error = f"length field {length} leaves no function code"
+        elif length > MAX_LENGTH_FIELD:
+            error = (
+                f"length field {length} exceeds {MAX_LENGTH_FIELD} "
+                f"(a Modbus TCP ADU is at most {MAX_ADU_BYTES} bytes)"
+            )
+        if error is not None:
+            break
+        frame_end = start + 6 + length
+        if frame_end > end:
+            break
+        frames.append(MbapFrame(tid, unit, bytes(buffer[start + MBAP_HEADER_BYTES : frame_end])))
+        start = frame_end
+    del buffer[:start]
+    return frames, error
 
 
 def frame_bytes(transaction_id: int, unit_id: int, pdu: bytes) -> bytes:

@@ -39,7 +39,7 @@ from rig_emulator.modbus.conformance import (
     exception_pdu,
     process,
 )
-from rig_emulator.modbus.framing import FramingError, MbapFrame, frame_bytes, split_frames
+from rig_emulator.modbus.framing import MbapFrame, frame_bytes, split_frames
 
 log = logging.getLogger("rig_emulator.serve")
 _PENDING: set[asyncio.Task] = set()  # strong references to requests that had to wait
@@ -116,6 +116,7 @@ class RequestHandler(asyncio.Protocol):
         self._queued_bytes = 0
         self._busy = False  # a request of this connection is waiting
         self._closed = False
+        self._close_after: str | None = None  # close once the queued requests are answered
         self._registered = False
         self._write_paused = False
         self._read_paused = False
@@ -193,16 +194,14 @@ class RequestHandler(asyncio.Protocol):
 
     # ------------------------------------------------------------------ requests
     def data_received(self, data: bytes) -> None:
-        if self._closed:
+        if self._closed or self._close_after is not None:
             return
         self._last_activity = time.monotonic()
         self._buffer += data
-        try:
-            frames = split_frames(self._buffer)
-        except FramingError as exc:
+        frames, error = split_frames(self._buffer)
+        if error is not None:  # answer the frames before the bad header, then close
             self._buffer.clear()
-            self.close(f"bad MBAP header ({exc}); the stream cannot be resynchronised")
-            return
+            self._close_after = f"bad MBAP header ({error}); the stream cannot be resynchronised"
         for frame in frames:
             self._queue.append(frame)
             self._queued_bytes += len(frame.pdu) + 7
@@ -231,6 +230,9 @@ class RequestHandler(asyncio.Protocol):
             _PENDING.add(task)
             task.add_done_callback(_PENDING.discard)
         self._send(out)
+        if self._close_after is not None and not self._queue and not self._busy:
+            self.close(self._close_after)
+            return
         self._update_reading()
 
     async def _finish(self, coro: Coroutine[Any, Any, bytes | None], future: Any) -> None:
