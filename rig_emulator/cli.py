@@ -97,6 +97,20 @@ def _build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="let clients change speed/clock mode, reset or advance a real-time server",
     )
+    serve.add_argument(
+        "--idle-timeout",
+        type=finite_float(0.0, 1e7, "s"),
+        default=300.0,
+        metavar="SECONDS",
+        help="close client connections silent this long (0: never) [300]",
+    )
+    serve.add_argument(
+        "--max-connections",
+        type=int_in(1, 100_000),
+        default=100,
+        metavar="N",
+        help="client connections open at once; more are closed at once, logged [100]",
+    )
     doc = sub.add_parser("map-doc", help="write the Markdown reference of a register map")
     doc.add_argument(
         "--map", default=None, type=text_input, help="register map YAML [the shipped one]"
@@ -195,6 +209,8 @@ def _cmd_serve(args: argparse.Namespace) -> int:
         args.lockstep,
         args.tick_hz,
         allow_control=args.allow_control,
+        idle_timeout_s=args.idle_timeout,
+        max_connections=args.max_connections,
     )
     try:
         asyncio.run(_serve(server, args))

@@ -1,6 +1,6 @@
 """The thin, declarative Modbus TCP adapter: a register map over the emulator.
 
-Built on pymodbus 3.16's ``ModbusTcpServer`` with one ``SimDevice`` per map device (its own
+Built on pymodbus 3.16's datastore, one ``SimDevice`` per map device (its own
 unit ID, separate coil, discrete, holding and input address spaces) and a catch-all device
 for unknown unit IDs. Values are published with ``server.async_setValues`` (the runs that
 changed); client writes are checked in the devices' action callback before pymodbus stores them:
@@ -11,9 +11,10 @@ changed); client writes are checked in the devices' action callback before pymod
 - unmapped addresses get exception 02 (pymodbus marks gaps invalid);
 - an unknown unit ID gets exception 0B (gateway target device failed to respond) at once.
 
-Requests are answered in arrival order and at once, several in one TCP segment too
-(:mod:`rig_emulator.modbus.handler`). Everything runs in one asyncio loop: the tick never
-waits for a client, and a client that stops reading only fills its own socket buffer.
+Framing, the spec's checks and exception codes, in-order answers per connection, the idle
+timeout and the connection limit are :mod:`rig_emulator.modbus.handler`'s. Everything runs
+in one asyncio loop: the tick never waits for a client, and a client that stops reading
+only fills its own socket buffer.
 """
 
 from __future__ import annotations
@@ -31,9 +32,15 @@ from dataclasses import dataclass
 from pymodbus.constants import ExcCodes
 from pymodbus.simulator import DataType, SimData, SimDevice
 
+from rig_emulator import __version__
 from rig_emulator.clock import LOCKSTEP, REALTIME, LatenessStats, Pacer, SimClock
 from rig_emulator.emulator import CommandError, Emulator, check_command
-from rig_emulator.modbus.handler import BenchModbusServer
+from rig_emulator.modbus.conformance import DeviceIdentity
+from rig_emulator.modbus.handler import (
+    DEFAULT_IDLE_TIMEOUT_S,
+    DEFAULT_MAX_CONNECTIONS,
+    BenchModbusServer,
+)
 from rig_emulator.registers import Device, Point, RegisterMap, decode, encode, run_encoder
 
 log = logging.getLogger("rig_emulator.serve")
@@ -141,6 +148,8 @@ class BenchServer:
         allow_control: let clients write the clock commands (speed, mode, reset, advance) of
             a real-time server; without it they get exception 01 (a lockstep server always
             accepts them).
+        idle_timeout_s: close client connections silent this long (0: never).
+        max_connections: client connections open at once (the next ones are closed).
     """
 
     def __init__(
@@ -153,8 +162,12 @@ class BenchServer:
         lockstep: bool = False,
         tick_hz: float = 10.0,
         allow_control: bool = False,
+        idle_timeout_s: float = DEFAULT_IDLE_TIMEOUT_S,
+        max_connections: int = DEFAULT_MAX_CONNECTIONS,
     ) -> None:
         check_command("speed_factor", speed)
+        self.idle_timeout_s = idle_timeout_s
+        self.max_connections = max_connections
         self.emulator = emulator
         self.map = register_map
         self.host = host
@@ -206,7 +219,18 @@ class BenchServer:
     async def start(self) -> None:
         """Listen, publish the initial state and start the tick."""
         loop = asyncio.get_running_loop()
-        self._server = BenchModbusServer(self._devices(), address=(self.host, self.port))
+        identity = DeviceIdentity(
+            vendor_name="boiler-rig-emulator",
+            product_code={d.unit_id: d.name for d in self.map.devices},
+            revision=__version__,
+        )
+        self._server = BenchModbusServer(
+            self._devices(),
+            address=(self.host, self.port),
+            identity=identity,
+            idle_timeout_s=self.idle_timeout_s,
+            max_connections=self.max_connections,
+        )
         try:
             await self._server.serve_forever(background=True)
         except RuntimeError:  # pymodbus hides the reason: ask the OS for it
