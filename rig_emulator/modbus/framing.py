@@ -2,10 +2,10 @@
 
 An MBAP header is 7 bytes: transaction identifier (2), protocol identifier (2, 0 = MODBUS),
 length (2: the number of following bytes, unit identifier and PDU) and unit identifier (1).
-A PDU is at most 253 bytes (Application Protocol Specification V1.1b3, 4.1: "the size of the
-MODBUS PDU is limited by the size constraint inherited from the first MODBUS implementation
-on Serial Line network (max. RS485 ADU = 256 bytes)"), so a TCP ADU is at most 260 bytes and
-the length field at most 254.
+A PDU is at most 253 bytes (Application Protocol Specification V1.1b3, 4.1: the size limit
+inherited from the serial line's 256-byte ADU; quoted from memory, the text was not found
+with the search tool, but the 260-byte TCP ADU is what every implementation found uses), so
+a TCP ADU is at most 260 bytes and the length field at most 254.
 
 The parser takes a byte stream cut anywhere (one byte at a time, many frames in one TCP
 segment, segments of any size) and returns every complete frame in order. A header it cannot

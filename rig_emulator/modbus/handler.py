@@ -115,6 +115,7 @@ class RequestHandler(asyncio.Protocol):
         self._queue: deque[MbapFrame] = deque()
         self._queued_bytes = 0
         self._busy = False  # a request of this connection is waiting
+        self._task: asyncio.Task | None = None  # the task finishing it
         self._closed = False
         self._close_after: str | None = None  # close once the queued requests are answered
         self._registered = False
@@ -207,6 +208,18 @@ class RequestHandler(asyncio.Protocol):
             self._queued_bytes += len(frame.pdu) + 7
         self._drain()
 
+    @property
+    def waiting(self) -> bool:
+        """Whether requests of this connection are still to be answered."""
+        return self._busy or bool(self._queue)
+
+    def cancel(self) -> None:
+        """Abandon the request in progress and the queued ones (the server stops)."""
+        self._closed = True
+        self._queue.clear()
+        if self._task is not None:
+            self._task.cancel()
+
     def datagram_received(self, data: bytes, _addr: tuple | None = None) -> None:
         """The same as :meth:`data_received` (kept for the benchmarks' in-process driver)."""
         self.data_received(data)
@@ -226,9 +239,9 @@ class RequestHandler(asyncio.Protocol):
                     out.append(stop.value)
                 continue
             self._busy = True
-            task = asyncio.get_running_loop().create_task(self._finish(coro, future))
-            _PENDING.add(task)
-            task.add_done_callback(_PENDING.discard)
+            self._task = asyncio.get_running_loop().create_task(self._finish(coro, future))
+            _PENDING.add(self._task)
+            self._task.add_done_callback(_PENDING.discard)
         self._send(out)
         if self._close_after is not None and not self._queue and not self._busy:
             self.close(self._close_after)
@@ -240,6 +253,7 @@ class RequestHandler(asyncio.Protocol):
             reply = await _resume(coro, future)
         finally:
             self._busy = False
+            self._task = None
         if reply is not None:
             self._send([reply])
         self._drain()
@@ -326,7 +340,7 @@ class BenchModbusServer:
         if self.transport is not None:
             self.transport.close()
         for handler in list(self.handlers):
-            handler._closed = True
+            handler.cancel()
             if handler.transport is not None:
                 handler.transport.close()
         self.handlers.clear()

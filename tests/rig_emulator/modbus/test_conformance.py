@@ -4,9 +4,11 @@ checked over raw sockets, one rule per test (each case of a parametrised table i
 Every illegal request is followed by a check that nothing changed: neither the emulator's
 signals nor any writable register or coil of the bench (read back over the wire).
 
-Quotes are from the spec's text as found with the `search` tool (section 7's exception codes
-also appear verbatim in e.g. Kepware's "Modbus Exception Codes" page; the state diagrams of
-6.11/6.12 on pages 30-31 of V1.1b3). Where the exact text was not found, the comment says so.
+Quotes are from the spec's text as found with the `search` tool: section 7's exception
+codes (verbatim in Kepware's "Modbus Exception Codes" page), the 6.11 state diagram and the
+6.12 table (pages 30-31 of V1.1b3, attached to uModbus issue files), 6.5's coil values and
+6.17's write-before-read (quoted in pymodbus's old docs and a CSDN post). Where the spec's
+own text was not found, the comment says "(not found: from memory)".
 """
 
 from __future__ import annotations
@@ -68,8 +70,9 @@ def _refused(srv, before, unit: int, pdu: bytes, code: int) -> None:
 # --- quantity out of range: 03 -------------------------------------------------------------
 # 6.1 Read Coils: "Quantity of coils 2 Bytes 1 to 2000 (0x7D0)"; 6.2 Read Discrete Inputs
 # the same; 6.3/6.4 Read Holding/Input Registers: "Quantity of Registers 2 Bytes 1 to 125
-# (0x7D)". Their state diagrams: "0x0001 <= Quantity <= 0x07D0 (0x007D)" NO -> "ExceptionCode
-# = 03".
+# (0x7D)"; state diagrams: quantity out of range -> "ExceptionCode = 03" (not found: from
+# memory, in the form of the 6.11 diagram that was found; the limits 1-2000 and 1-125 are
+# confirmed by CODESYS's ModbusFB documentation).
 @pytest.mark.parametrize(
     ("fc", "quantity"),
     [(1, 0), (1, 2001), (2, 0), (2, 2001), (3, 0), (3, 126), (4, 0), (4, 126), (4, 0xFFFF)],
@@ -162,10 +165,11 @@ def test_write_multiple_registers_bad_quantity_or_byte_count_is_illegal_data_val
 
 
 def test_write_of_124_registers_is_answered_or_closed_never_silent(bench):
-    """6.12 allows 123 registers; 124 make a 255-byte PDU, over the 253 bytes of 4.1 ("max.
-    RS485 ADU = 256 bytes" less address and CRC). The MBAP length (255) is beyond the 260-byte
-    ADU of the TCP guide, so the server cannot trust the frame and closes the connection
-    with a log line (see the README); it never leaves the client waiting."""
+    """6.12 allows 123 registers; 124 make a 255-byte PDU, over the 253 bytes of 4.1 (the
+    serial line ADU of 256 bytes less address and CRC; not found: from memory). The MBAP
+    length (255) is beyond the 260-byte ADU of the TCP guide, so the server cannot trust the
+    frame and closes the connection with a log line (see the README); it never leaves the
+    client waiting."""
     srv, before = bench
     with connect(srv.port) as s:
         s.sendall(frame(1, PLC, write_registers_pdu(0, [0x4000] * 124)))
@@ -221,9 +225,9 @@ def test_unsupported_function_is_illegal_function_without_data(bench, fc):
 
 @pytest.mark.parametrize("fc", [0x80, 0x83, 0x90, 0xFF])
 def test_function_code_with_the_exception_bit_is_illegal_function(bench, fc):
-    """4.1: "Valid codes are in the range of 1 ... 255 decimal (the range 128 - 255 is
-    reserved and used for exception responses)". A request with such a code is no function
-    the server has: 01 (the reply's function byte keeps the top bit set)."""
+    """4.1: function codes 128-255 are reserved for exception responses (not found: from
+    memory). A request with such a code is no function the server has: 01 (the reply's
+    function byte keeps the top bit set)."""
     srv, before = bench
     _refused(srv, before, PLC, bytes([fc, 0, 0, 0, 1]), ILLEGAL_FUNCTION)
 
@@ -257,8 +261,9 @@ def _device_objects(reply: bytes) -> dict[int, str]:
 
 def test_read_device_identification_names_the_emulated_instrument(serve):
     """6.21 (43/14): basic device identification objects 0x00 VendorName, 0x01 ProductCode,
-    0x02 MajorMinorRevision, "Read Device ID code 01: request to get the basic device
-    identification (stream access)". Ours: the package, the instrument, its version."""
+    0x02 MajorMinorRevision; Read Device ID code 01 is the basic identification, stream
+    access, 04 one object (not found: from memory). Ours: the package, the instrument, its
+    version."""
     srv = serve()
     reply = ask(srv.port, 2, bytes([43, 14, 1, 0]))
     assert reply[2] == 1 and reply[4:6] == b"\x00\x00"  # code echoed, no more follows
