@@ -45,11 +45,16 @@ def draw_background(rng: np.random.Generator, boiler: dict) -> dict:
     u = rng.uniform
     p_max = float(boiler["p_max_kW"])
     p_min = float(boiler["p_min_kW"])
-    beta = u(0.05, 0.15) * (1.0 if rng.random() < 0.5 else -1.0)
+
+    def sign() -> float:
+        return 1.0 if rng.random() < 0.5 else -1.0
+
+    s_bw = sign()  # the boiler-water sensor sits high (+) or low (-) in the stratified body
+    beta = u(0.02, 0.06) * s_bw
     return {
         # boiler around its documentation
         "p_max_factor": float(1.0 + 0.02 * rng.standard_normal()),
-        "p_min_factor": u(0.95, 1.10),
+        "p_min_factor": u(0.97, 1.03),
         "p_start_factor": u(0.90, 1.00),
         "c_metal_factor": u(0.85, 1.15),
         "c_water_factor": u(0.90, 1.10),
@@ -73,12 +78,12 @@ def draw_background(rng: np.random.Generator, boiler: dict) -> dict:
         "co_stop_ppm": u(200.0, 1000.0),
         "co_tau_s": u(120.0, 400.0),
         # controller
-        "t_set": 70.0 + u(-0.6, 0.6),
+        "t_set": 70.0 + u(0.2, 0.8) * sign(),
         "kp_kW_K": (p_max - p_min) / u(4.0, 10.0),
         "ti_s": u(300.0, 900.0),
-        "p_step_kW": u(0.03, 0.10) * p_max,
-        "t_shut": u(84.0, 86.5),
-        "t_restart": u(53.5, 56.5),
+        "p_step_kW": u(0.06, 0.15) * p_max,
+        "t_shut": u(84.5, 85.5),
+        "t_restart": u(54.5, 55.5),
         "t_safety": 92.0,
         "min_burn_s": u(600.0, 1500.0),
         "min_off_s": u(300.0, 900.0),
@@ -93,7 +98,7 @@ def draw_background(rng: np.random.Generator, boiler: dict) -> dict:
         "aug_period_s": u(8.0, 20.0),
         "aug_max_share": u(1.3, 2.0),
         "ctrl_tau_s": u(10.0, 40.0),
-        "ctrl_offset_K": float(np.clip(0.4 * rng.standard_normal(), -0.8, 0.8)),
+        "ctrl_offset_K": float(np.clip(0.2 * rng.standard_normal(), -0.4, 0.4)),
         "light_delay_s": u(5.0, 15.0),
         "bed_tau_s": u(15.0, 35.0),
         # bench
@@ -123,7 +128,7 @@ def draw_background(rng: np.random.Generator, boiler: dict) -> dict:
         "tau_flue_s": u(10.0, 30.0),
         "off_in": float(np.clip(0.08 * rng.standard_normal(), -0.15, 0.15)),
         "off_out": float(np.clip(0.08 * rng.standard_normal(), -0.15, 0.15)),
-        "off_bw": u(-0.4, 0.4),
+        "off_bw": u(0.8, 1.8) * s_bw,
         "strat_beta": beta,
         "drift_in": float(0.03 * rng.standard_normal()),
         "drift_out": float(0.03 * rng.standard_normal()),

@@ -197,7 +197,7 @@ def run_test(p, seq_load0, seq_load1, seq_dur, max_rows):
             if np.random.random() < 0.005:
                 interval += p.sample_s
         t_next = round((t + interval) * 1000.0) / 1000.0
-        n_sub = int(math.ceil((t_next - t) / 1.0 - 1e-9))
+        n_sub = max(math.ceil((t_next - t) / 1.0 - 1e-9), 1)
         h = (t_next - t) / n_sub
         enable = phase == PH_SU or phase == PH_TEST
         pump = phase != PH_C2
@@ -268,10 +268,10 @@ def run_test(p, seq_load0, seq_load1, seq_dur, max_rows):
                 off_time = 0.0
             elif stage == S_WAIT and s_ctrl < p.t_restart and off_time >= p.min_off_s:
                 stage, t_stage, burn_time = S_PURGE, 0.0, 0.0
-            if stage >= S_IGN and stage <= S_MOD:
-                if s_ctrl > p.t_safety or (s_ctrl > p.t_shut and burn_time >= p.min_burn_s):
-                    stage, t_stage = S_POST, 0.0
-                    since_stop = 0.0
+            hot = s_ctrl > p.t_safety or (s_ctrl > p.t_shut and burn_time >= p.min_burn_s)
+            if stage >= S_IGN and stage <= S_MOD and hot:
+                stage, t_stage = S_POST, 0.0
+                since_stop = 0.0
             # firing power command [kW]
             p_cmd = 0.0
             if stage == S_IGN:
@@ -290,7 +290,8 @@ def run_test(p, seq_load0, seq_load1, seq_dur, max_rows):
                     integ += p.kp_kW_K * h / p.ti_s * err
                 integ = min(max(integ, p.p_min - 2.0), p.p_max + 2.0)
                 p_raw = min(max(p.kp_kW_K * err + integ, p.p_min), p.p_max)
-                if abs(p_raw - p_level) > 0.6 * p.p_step_kW:
+                at_bound = p_raw <= p.p_min or p_raw >= p.p_max
+                if at_bound or abs(p_raw - p_level) > 0.6 * p.p_step_kW:
                     p_level = p_raw
                 p_cmd = p_level
             firing = stage >= S_IGN and stage <= S_MOD

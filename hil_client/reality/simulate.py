@@ -22,7 +22,7 @@ from hil_client.reality.combustion import (
     humidity_ratio,
 )
 from hil_client.reality.effects import effect_fields
-from hil_client.reality.params import pack
+from hil_client.reality.params import NAMES, pack
 from hil_client.reality.protocol import load_test
 
 PHASE_NAMES = ("preheat", "start_up", "test", "cooling_1", "cooling_2")
@@ -141,18 +141,9 @@ def plant_values(
         "q_cool_max_kW": bg["q_cool_factor"] * p_max,
         "q_heat_max_kW": bg["q_heat_factor"] * float(boiler["p_nom_kW"]),
     }
-    for name in (
-        "co_at_max co_at_min co_start_ppm co_stop_ppm co_tau_s t_set kp_kW_K ti_s p_step_kW "
-        "t_shut t_restart t_safety min_burn_s min_off_s t_purge_s t_ign_stage_s t_igniter_s "
-        "ign_share t_ramp_s t_hold_s hold_exit_K t_post_s aug_period_s aug_max_share "
-        "ctrl_tau_s ctrl_offset_K flow_tau_s ret_tau_s ret_tau2_s ret_offset_K ret_ripple_K "
-        "ret_ripple_period_s ret_stag_tau_s room0 room_amp room_period_s room_phase "
-        "room_trend_K_h p0_hPa p_amp rh0 rh_amp t_init hopper_kg tare_kg tau_water_s "
-        "tau_flue_s off_in off_out off_bw drift_in drift_out drift_bw noise_water_K "
-        "noise_flue_K off_fg o2_delay_s o2_off o2_noise co2_gain flow_gain flow_noise "
-        "strat_beta room_off draught_off dropout_p"
-    ).split():
-        v[name] = float(bg[name])
+    for name in NAMES:  # the background's values that the kernel takes as they are
+        if name in bg and name not in v:
+            v[name] = float(bg[name])
     # exchanger: NTU placing the nominal flue-gas temperature near the documented dTnom
     firing_nom = float(boiler["p_nom_kW"]) / 0.9
     w_nom, t_ch, _ = _nominal_gas(v, firing_nom)
