@@ -17,13 +17,14 @@ outlet_sensor_pipe (forward sensor down the exit pipe)
     DN25 steel); ``mixed_volume``: a mixed volume with a pipe-wall node losing heat by natural
     convection (h ~ dT^(1/4)) and the sensor in a thermowell (20-40 s), same ranges.
 ignition_delay (fuel fed before the bed releases heat; burn-out after a stop)
-    ``dead_time``: the bed lights 60 s (weak) to 360 s (strong) after the first feed, and
+    ``dead_time``: the bed lights 90 s (weak) to 480 s (strong) after the first feed, and
     burns with a time constant of a third of that (the accumulated bed burns out);
     ``bed_ramp``: the bed's burning rate ramps from 0 to full over 120-600 s after the first
-    feed, burning time constant the background's plus a quarter of the ramp.
+    feed, burning time constant the background's plus a quarter of the ramp
+    (both weakest forms hold back at least 60 s more of feed than the background's start).
 flue_gas_lag (exchanger and refractory store heat)
     a storage node (``first_order``) or two in series (``second_order``) after the
-    exchanger, time constant at nominal gas flow 60 s (weak) to 600 s (strong), growing as
+    exchanger, time constant at nominal gas flow 120 s (weak) to 900 s (strong), growing as
     the gas flow falls (C / (W (1 - e^-NTU)), NTU = 2), losing 3 % of W to the room.
 fuel_energy_bias (energy per kg differs from the nominal HHV)
     ``hhv_bias``: HHV (dry) off by 4 % (weak, above a lab analysis' 2-3 % uncertainty) to
@@ -50,8 +51,8 @@ EFFECT_FORMS: dict[str, tuple[str, ...]] = {
 STRENGTH_RANGES: dict[str, tuple[float, float, str]] = {
     "body_heat_diffusion": (60.0, 400.0, "wall time constant [s]"),
     "outlet_sensor_pipe": (12000.0, 1200.0, "pipe loss time constant [s]"),
-    "ignition_delay": (60.0, 360.0, "dead time [s] (ramp: twice that)"),
-    "flue_gas_lag": (60.0, 600.0, "storage time constant at nominal gas flow [s]"),
+    "ignition_delay": (90.0, 480.0, "dead time [s] (ramp: 120-600 s)"),
+    "flue_gas_lag": (120.0, 900.0, "storage time constant at nominal gas flow [s]"),
     "fuel_energy_bias": (0.04, 0.15, "relative HHV bias (moisture: 0.10-0.20 as received)"),
 }
 
@@ -122,7 +123,7 @@ def effect_fields(
         info |= {"pipe_loss_time_constant_s": tau, "pipe_water_kg": fields["pipe_kg"]}
     elif effect == "ignition_delay":
         if form == "dead_time":
-            d = _logmap(60.0, 360.0, s)
+            d = _logmap(90.0, 480.0, s)
             fields["light_delay_s"] = d
             fields["bed_tau_s"] = max(background["bed_tau_s"], d / 3.0)
             info["dead_time_s"] = d
@@ -134,7 +135,7 @@ def effect_fields(
             info["ramp_s"] = ramp
         info["bed_time_constant_s"] = fields["bed_tau_s"]
     elif effect == "flue_gas_lag":
-        tau = _logmap(60.0, 600.0, s)
+        tau = _logmap(120.0, 900.0, s)
         ntu = 2.0
         fields["flue_form"] = 1.0 if form == "first_order" else 2.0
         fields["flue_ntu"] = ntu
