@@ -18,8 +18,9 @@ Plant (per substep h), with the names of :mod:`hil_client.reality.params`:
 3. Combustion chamber (Eq. 1): Q_rel (HHV) + igniter = Q_ash + Q_fg,lat + Q_fg,chem +
    Q_bc,room + W (T_ch - T_room), W = (m_fg cp_fg + m_vap cp_vap) the gas's heat capacity
    flow; the gas then passes the exchanger, leaving at
-   T_x = T_sink + (T_ch - T_sink) exp(-NTU), NTU = NTU_nom (W / W_nom)^(-n) (the exchanger's
-   efficiency varying with load); Q_hx = W (T_ch - T_x) enters the body.
+   T_x = T_sink + (T_ch - T_sink) exp(-NTU), NTU = NTU_nom (W / W_nom)^(-n) (Q_rel /
+   Q_rel,nom)^m (the exchanger's efficiency varying with load: convective in the gas flow,
+   radiative in the fire); Q_hx = W (T_ch - T_x) enters the body.
 4. Body: chain of lumps (:func:`thermal.chain_step`), heat to water m cp (T_w - T_in).
 5. Exit pipe to the forward sensor, flue-gas storage (effects), return conditioning of the
    bench (capacity-limited heater/cooler, two lags), room.
@@ -371,7 +372,14 @@ def run_test(p, seq_load0, seq_load1, seq_dur, max_rows):
             # exchanger: the gas meets the water side near the return inlet
             ff = flow / (flow + 0.05 * m_nom)
             t_sink = temps[iw] - p.sink_kappa * (temps[iw] - t_in_act) * ff
-            ntu = min(p.ntu_nom * (w_gas / p.w_nom_kW_K) ** (-p.ntu_exp), 30.0)
+            # radiative share of the exchange rises with the fire (see simulate.py):
+            # NTU x (fire share)^m over the modulation range, blended linearly back to the
+            # bare convective law between Pmin and half of it (ignition, burn-out, draught)
+            fire_share = q_rel / p.q_rel_nom_kW
+            g_fire = max(fire_share, p.fire_share_min) ** p.ntu_fire_exp
+            blend = min(max(2.0 * fire_share / p.fire_share_min - 1.0, 0.0), 1.0)
+            g_fire = 1.0 + (g_fire - 1.0) * blend
+            ntu = min(p.ntu_nom * (w_gas / p.w_nom_kW_K) ** (-p.ntu_exp) * g_fire, 30.0)
             t_x = t_sink + (t_ch - t_sink) * math.exp(-ntu)
             q_hx = w_gas * (t_ch - t_x)
             # flue-gas storage after the exchanger (effect)

@@ -16,7 +16,8 @@ NAMES: tuple[str, ...] = (
     # boiler: power, body, losses, exchanger, air, electricity, CO
     "p_nom", "p_min", "p_max", "p_start",
     "c_metal", "c_water", "tau_mw", "ua_shell_kW_K", "draught_kW_K", "bc_share",
-    "ntu_nom", "ntu_exp", "w_nom_kW_K", "sink_kappa",
+    "ntu_nom", "ntu_exp", "w_nom_kW_K", "sink_kappa", "ntu_fire_exp", "q_rel_nom_kW",
+    "fire_share_min",
     "lam_a", "lam_b", "lam_floor", "fan_min_nm3_h", "duct_area_m2",
     "pel_min", "pel_max", "pel_off", "p_ign_W",
     "co_at_max", "co_at_min", "co_start_ppm", "co_stop_ppm", "co_tau_s",
