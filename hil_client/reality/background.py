@@ -3,11 +3,19 @@
 What Type 869 does not have, and every real boiler and lab has in its own way, drawn from
 ranges a lab would consider plausible (uniform unless stated):
 
-- the boiler's own controller: PI on its own boiler-water sensor (set point 70 +- 0.6 C,
-  proportional band 4-10 K, integral time 300-900 s, anti-windup), power levels
-  quantised in steps of 3-10 % of Pmax with hysteresis (the limit cycle real modulating
-  burners show), cut-out at 84.5-85.5 C after a minimum burn time of 10-25 min (92 C
-  safety), restart below 54.5-55.5 C after a minimum off time of 5-15 min;
+- the boiler's own controller: PI on its own boiler-water sensor, proportional band 4-10
+  K, integral time 300-900 s, anti-windup; power levels quantised in steps of 6-15 % of
+  Pmax with hysteresis (the limit cycle real modulating burners show); set point 70 C
+  with a set-point error of 0.3-1.2 K either way (the boiler's own NTC/KTY sensor in its
+  well against the lab's Pt100 at the outlet, and the display's 1 K steps; the paper's
+  stationary Q fluctuated around the mean with r = 0.01-0.29 against the model, a
+  0.3-0.37 kW RMSD); its own sensor reads the water within 0.1 K (1 sigma, clipped at
+  0.2 K); cut-out at 84.7-85.3 C after a minimum burn time of 10-25 min (92 C safety),
+  restart below 54.8-55.2 C after a minimum off time of 5-15 min (the documented 85 / 55
+  C; the paper reports that the Type 869 model with exactly these values "predicts
+  correctly the boiler's starts and stops" in the load cycle, so the real thresholds sat
+  close to them; at 13 % load both are reached on slow exponential approaches, where
+  every 0.1 K of threshold shifts a stop or restart by minutes);
 - its own start-up: pre-purge 60-180 s, ignition stage 60-150 s feeding 30-50 % of Pstart,
   igniter on for 600-1200 s (drawing the documented Wel), fuel ramp 120-400 s to Pstart,
   Pstart held for 5-15 min or until 1-4 K below the set point; post-run of the fan
@@ -83,12 +91,12 @@ def draw_background(rng: np.random.Generator, boiler: dict) -> dict:
         "co_stop_ppm": u(200.0, 1000.0),
         "co_tau_s": u(120.0, 400.0),
         # controller
-        "t_set": 70.0 + u(0.2, 0.8) * sign(),
+        "t_set": 70.0 + u(0.3, 1.2) * sign(),
         "kp_kW_K": (p_max - p_min) / u(4.0, 10.0),
         "ti_s": u(300.0, 900.0),
         "p_step_kW": u(0.06, 0.15) * p_max,
-        "t_shut": u(84.5, 85.5),
-        "t_restart": u(54.5, 55.5),
+        "t_shut": u(84.7, 85.3),
+        "t_restart": u(54.8, 55.2),
         "t_safety": 92.0,
         "min_burn_s": u(600.0, 1500.0),
         "min_off_s": u(300.0, 900.0),
@@ -103,7 +111,7 @@ def draw_background(rng: np.random.Generator, boiler: dict) -> dict:
         "aug_period_s": u(8.0, 20.0),
         "aug_max_share": u(1.3, 2.0),
         "ctrl_tau_s": u(10.0, 40.0),
-        "ctrl_offset_K": float(np.clip(0.2 * rng.standard_normal(), -0.4, 0.4)),
+        "ctrl_offset_K": float(np.clip(0.1 * rng.standard_normal(), -0.2, 0.2)),
         "light_delay_s": u(5.0, 15.0),
         "bed_tau_s": u(15.0, 35.0),
         # bench
