@@ -118,6 +118,7 @@ class RequestHandler(asyncio.Protocol):
         self._task: asyncio.Task | None = None  # the task finishing it
         self._closed = False
         self._close_after: str | None = None  # close once the queued requests are answered
+        self._eof = False  # the client half-closed: close once its requests are answered
         self._registered = False
         self._write_paused = False
         self._read_paused = False
@@ -152,6 +153,13 @@ class RequestHandler(asyncio.Protocol):
         self.server.handlers.discard(self)
         reason = f" ({exc})" if exc else ""
         log.info("client %s disconnected%s (%d open)", self.peer, reason, len(self.server.handlers))
+
+    def eof_received(self) -> bool:
+        """The client sent all it will send: answer what it asked, then close."""
+        self._eof = True
+        if not self.waiting:
+            self.transport.close()
+        return True  # keep the transport open for the answers still to come
 
     def close(self, reason: str) -> None:
         """Close the connection with one log line naming ``reason``."""
@@ -243,9 +251,14 @@ class RequestHandler(asyncio.Protocol):
             _PENDING.add(self._task)
             self._task.add_done_callback(_PENDING.discard)
         self._send(out)
-        if self._close_after is not None and not self._queue and not self._busy:
-            self.close(self._close_after)
-            return
+        if not self._queue and not self._busy:
+            if self._close_after is not None:
+                self.close(self._close_after)
+                return
+            if self._eof and not self._closed:
+                self._closed = True
+                self.transport.close()
+                return
         self._update_reading()
 
     async def _finish(self, coro: Coroutine[Any, Any, bytes | None], future: Any) -> None:

@@ -206,6 +206,24 @@ def test_answers_wait_in_order_behind_a_one_day_advance_while_others_are_served(
     assert sim_dev.unit_id == SIM
 
 
+def test_a_client_that_half_closes_gets_every_answer_then_the_close(serve):
+    """Requests sent, then the client's side shut (FIN): the answers still come, all of
+    them, behind a one-day advance, and then the server closes too."""
+    import socket
+
+    srv = serve(profile="lab")
+    _, advance = point(srv, *ADVANCE)
+    reads, counts = _reads(30, first_tid=2)
+    with connect(srv.port, timeout=60) as s:
+        s.sendall(frame(1, SIM, write_registers_pdu(advance.address, encode(advance, 86_400))))
+        s.sendall(reads)
+        s.shutdown(socket.SHUT_WR)
+        replies = Replies(s).take(31)
+        assert closed_by_server(s)
+    assert replies[0][0] == 1
+    _check_read_replies(replies[1:], counts, first_tid=2)
+
+
 def test_100_kib_pipelined_behind_an_advance_are_all_answered_in_order(serve):
     """More than the 64 KiB a connection may queue: reading it stops (TCP flow control)
     until the queue drains, nothing is dropped."""
