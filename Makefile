@@ -38,6 +38,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/bench_dashboard.py
 	$(BIN)/python bench/bench_clock.py
 	$(BIN)/python bench/fuzz_modbus.py
+	$(BIN)/python bench/reality_gap.py 20
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
