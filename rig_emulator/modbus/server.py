@@ -180,6 +180,7 @@ class BenchServer:
         self.epoch_id = secrets.randbits(32)
         self.last_advance_s = 0.0
         self.allow_control = allow_control
+        self._kernels_ready = threading.Event()
         self.achieved_speed = speed
         self.tick_overrun_ms = 0.0
         self._clock_lock = asyncio.Lock()  # one clock command (advance, reset, ...) at a time
@@ -241,8 +242,8 @@ class BenchServer:
         if sock is not None:
             self.port = sock.getsockname()[1]
         threading.Thread(
-            target=self.emulator.compile_kernels, name="compile kernels", daemon=True
-        ).start()  # listening already; the kernels load meanwhile
+            target=self._compile_kernels, name="compile kernels", daemon=True
+        ).start()  # listening already; the kernels load meanwhile, replies go on
         now = loop.time()
         self.clock.anchor(now, self.emulator.sim_time_s)
         await self.publish()
@@ -255,6 +256,19 @@ class BenchServer:
                 await self._tick_task
         if self._server is not None:
             await self._server.shutdown()
+
+    def _compile_kernels(self) -> None:
+        """Compile (or load) numba's kernels off the event loop: a cold cache takes tens of
+        seconds, during which the loop must go on answering. Until they are ready the
+        clock stands (published as overrun) and lockstep advances wait, without blocking."""
+        try:
+            self.emulator.compile_kernels()
+        finally:  # a failure shows on the first step, which then compiles by itself
+            self._kernels_ready.set()
+
+    async def _kernels(self) -> None:
+        while not self._kernels_ready.is_set():
+            await asyncio.sleep(0.02)
 
     # ------------------------------------------------------------------ time
     async def _tick_loop(self, start: float) -> None:
@@ -294,6 +308,8 @@ class BenchServer:
         letting clients in every ``ADVANCE_SLICE_S``; returns the simulated seconds undone."""
         if seconds <= 0.0:
             return 0.0
+        if not self._kernels_ready.is_set():
+            return seconds  # the kernels still load: nothing simulated, nothing blocked
         loop = asyncio.get_running_loop()
         n, dt = self.emulator.substeps(seconds)
         slice_end_s = loop.time() + ADVANCE_SLICE_S
@@ -319,6 +335,7 @@ class BenchServer:
         ``await`` between them, so other clients are answered meanwhile; the registers keep
         the state before the advance until it is done."""
         if seconds > 0:
+            await self._kernels()
             loop = asyncio.get_running_loop()
             n, dt = self.emulator.substeps(seconds)
             while n > 0:
