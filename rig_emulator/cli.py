@@ -15,6 +15,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from rig_emulator.certs import make_lab_certificates
 from rig_emulator.cli_support import (
     Parser,
     UsageError,
@@ -97,6 +98,14 @@ def _build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="let clients change speed/clock mode, reset or advance a real-time server",
     )
+    certs = sub.add_parser(
+        "certs",
+        help="make a CA, a server certificate and client certificates per role (TLS)",
+        description="Write ca, server (127.0.0.1, localhost), observer, operator, engineer "
+        "and norole (no role extension) certificates (.pem) and keys (.key) into DIR, for "
+        "Modbus/TCP Security tests and demos.",
+    )
+    certs.add_argument("--out", required=True, type=Path, help="directory to write")
     doc = sub.add_parser("map-doc", help="write the Markdown reference of a register map")
     doc.add_argument(
         "--map", default=None, type=text_input, help="register map YAML [the shipped one]"
@@ -157,6 +166,18 @@ def _cmd_steady(args: argparse.Namespace) -> int:
     print(f"  Q_water    {ss.q_water_kW:8.3f} kW    {ss.q_water_kW * share:5.1f} %")
     print(f"  Q_fluegas  {ss.q_flue_gas_kW:8.3f} kW    {ss.q_flue_gas_kW * share:5.1f} %")
     print(f"  Q_amb      {ss.q_amb_kW:8.3f} kW    {ss.q_amb_kW * share:5.1f} %")
+    return 0
+
+
+def _cmd_certs(args: argparse.Namespace) -> int:
+    if args.out.exists() and not args.out.is_dir():
+        raise UsageError(f"--out: '{args.out}' is a file, not a directory")
+    try:
+        written = make_lab_certificates(args.out)
+    except OSError as exc:
+        raise UsageError(f"--out: cannot write into '{args.out}' ({exc.strerror})") from None
+    for path in written:
+        print(f"written: {path} (key {path.with_suffix('.key')})")
     return 0
 
 
@@ -257,6 +278,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             "steady": _cmd_steady,
             "serve": _cmd_serve,
             "map-doc": _cmd_map_doc,
+            "certs": _cmd_certs,
         }
         with input_errors():
             return commands[args.command](args)
