@@ -27,6 +27,7 @@ from hil_client.analysis.phases import NAMES, Phases
 from rig_emulator.model import constants as k
 from rig_emulator.model.fuel import stoichiometry
 from rig_emulator.model.params import BoilerParams
+from rig_emulator.model.water_heat import heat_to_water_kW
 
 FIRING_O2_PCT = 19.0
 
@@ -68,11 +69,6 @@ def flue_gas_loss_per_kg(
     return lam, sens, latent, chem
 
 
-def heat_to_water_kW(flow_kg_h: np.ndarray, t_in_C: np.ndarray, t_out_C: np.ndarray) -> np.ndarray:
-    """Heat to water per row [kW] from flow and temperatures (Eq. 7)."""
-    return flow_kg_h * k.CP_WATER * (t_out_C - t_in_C) / 3600.0
-
-
 def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[PhaseBalance]:
     """Per-phase energy balance of a lab log (see the module docstring)."""
     t = log.t
@@ -101,7 +97,7 @@ def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[Ph
         params, get["flue_gas_O2_pct"], get["flue_gas_temp_C"], get["room_temp_C"], co
     )
     firing = get["flue_gas_O2_pct"] < FIRING_O2_PCT
-    per_kg_dry = params.fuel.as_received_per_kg_dry - params.fuel.ash
+    per_kg_dry = params.fuel.balance_loss_per_kg_dry
     hhv = params.fuel.hhv_dry_kJ_kg
     out = []
     for name in NAMES:
