@@ -25,6 +25,7 @@ ROLE_OID = "1.3.6.1.4.1.50316.802.1"
 DEFAULT_ROLES = ("observer", "operator", "engineer")
 NO_ROLE = "norole"  # file stem of the client certificate without the role extension
 VALID_DAYS = 3650
+SERVER_NAMES = ("localhost", "127.0.0.1")
 
 
 @dataclass(frozen=True)
@@ -125,7 +126,9 @@ def make_ca(common_name: str = "rig-emulator lab CA") -> Issued:
     return Issued(key, cert)
 
 
-def _leaf(ca: Issued, common_name: str, server: bool, role: str | None) -> Issued:
+def _leaf(
+    ca: Issued, common_name: str, server: bool, role: str | None, names: tuple[str, ...] = ()
+) -> Issued:
     key = ec.generate_private_key(ec.SECP256R1())
     builder = (
         _builder(_name(common_name), ca.cert.subject, key)
@@ -142,9 +145,7 @@ def _leaf(ca: Issued, common_name: str, server: bool, role: str | None) -> Issue
     )
     if server:
         builder = builder.add_extension(
-            x509.SubjectAlternativeName(
-                [x509.DNSName("localhost"), x509.IPAddress(ipaddress.ip_address("127.0.0.1"))]
-            ),
+            x509.SubjectAlternativeName([_general_name(n) for n in SERVER_NAMES + names]),
             critical=False,
         )
     if role is not None:
@@ -155,9 +156,18 @@ def _leaf(ca: Issued, common_name: str, server: bool, role: str | None) -> Issue
     return Issued(key, builder.sign(ca.key, hashes.SHA256()))
 
 
-def make_server(ca: Issued, common_name: str = "rig-emulator") -> Issued:
-    """A server certificate for 127.0.0.1 and localhost."""
-    return _leaf(ca, common_name, server=True, role=None)
+def _general_name(name: str) -> x509.GeneralName:
+    try:
+        return x509.IPAddress(ipaddress.ip_address(name))
+    except ValueError:
+        return x509.DNSName(name)
+
+
+def make_server(
+    ca: Issued, common_name: str = "rig-emulator", names: tuple[str, ...] = ()
+) -> Issued:
+    """A server certificate for 127.0.0.1, localhost and ``names`` (host names or IPs)."""
+    return _leaf(ca, common_name, server=True, role=None, names=names)
 
 
 def make_client(ca: Issued, common_name: str, role: str | None) -> Issued:
@@ -181,13 +191,16 @@ def write_pair(issued: Issued, out: Path, stem: str) -> tuple[Path, Path]:
     return cert_path, key_path
 
 
-def make_lab_certificates(out: Path, roles: tuple[str, ...] = DEFAULT_ROLES) -> list[Path]:
-    """Write ``ca``, ``server``, one client pair per role (``observer.pem``/``.key`` ...)
-    and ``norole`` (a client certificate without the role extension) into ``out``; the
-    certificate files written."""
+def make_lab_certificates(
+    out: Path, roles: tuple[str, ...] = DEFAULT_ROLES, server_names: tuple[str, ...] = ()
+) -> list[Path]:
+    """Write ``ca``, ``server`` (also valid for ``server_names``), one client pair per role
+    (``observer.pem``/``.key`` ...) and ``norole`` (a client certificate without the role
+    extension) into ``out``; the certificate files written."""
     out.mkdir(parents=True, exist_ok=True)
     ca = make_ca()
-    written = [write_pair(ca, out, "ca")[0], write_pair(make_server(ca), out, "server")[0]]
+    server = make_server(ca, names=server_names)
+    written = [write_pair(ca, out, "ca")[0], write_pair(server, out, "server")[0]]
     for role in roles:
         written.append(write_pair(make_client(ca, f"{role} client", role), out, role)[0])
     written.append(write_pair(make_client(ca, "client without role", None), out, NO_ROLE)[0])

@@ -154,19 +154,22 @@ class RtuConnection:
             raise ConnectionLost(f"cannot open {path}: {exc.strerror}") from None
         try:
             tty.setraw(self._fd)
-            attrs = termios.tcgetattr(self._fd)
-            attrs[2] &= ~(termios.PARENB | termios.PARODD | termios.CSTOPB)
-            if parity != "N":
-                attrs[2] |= termios.PARENB | (termios.PARODD if parity == "O" else 0)
-            else:
-                attrs[2] |= termios.CSTOPB
-            speed = getattr(termios, f"B{baud}", None)
-            if speed is not None:
-                attrs[4] = attrs[5] = speed
-            termios.tcsetattr(self._fd, termios.TCSANOW, attrs)
         except termios.error:
             os.close(self._fd)
             raise ConnectionLost(f"{path} is not a serial line") from None
+        attrs = termios.tcgetattr(self._fd)
+        attrs[2] &= ~(termios.PARENB | termios.PARODD | termios.CSTOPB)
+        if parity != "N":
+            attrs[2] |= termios.PARENB | (termios.PARODD if parity == "O" else 0)
+        else:
+            attrs[2] |= termios.CSTOPB
+        speed = getattr(termios, f"B{baud}", None)
+        if speed is not None:
+            attrs[4] = attrs[5] = speed
+        # a pseudo-terminal has no line: some kernels refuse parity settings on one; raw
+        # mode is what matters there
+        with contextlib.suppress(termios.error):
+            termios.tcsetattr(self._fd, termios.TCSANOW, attrs)
 
     def send(self, requests: Sequence[tuple[int, bytes]]) -> None:
         """Queue ``(unit, pdu)`` requests; each :meth:`receive` carries out the oldest."""

@@ -23,6 +23,7 @@ import contextlib
 import logging
 import secrets
 import socket
+import ssl
 import struct
 import threading
 from collections.abc import Callable, Mapping
@@ -141,6 +142,8 @@ class BenchServer:
         allow_control: let clients write the clock commands (speed, mode, reset, advance) of
             a real-time server; without it they get exception 01 (a lockstep server always
             accepts them).
+        ssl_context: serve Modbus/TCP Security (TLS) on ``host:port`` instead of plain TCP
+            (:mod:`rig_emulator.modbus.transports` adds more listeners and lines).
     """
 
     def __init__(
@@ -153,8 +156,10 @@ class BenchServer:
         lockstep: bool = False,
         tick_hz: float = 10.0,
         allow_control: bool = False,
+        ssl_context: ssl.SSLContext | None = None,
     ) -> None:
         check_command("speed_factor", speed)
+        self.ssl_context = ssl_context
         self.emulator = emulator
         self.map = register_map
         self.host = host
@@ -206,7 +211,9 @@ class BenchServer:
     async def start(self) -> None:
         """Listen, publish the initial state and start the tick."""
         loop = asyncio.get_running_loop()
-        self._server = BenchModbusServer(self._devices(), address=(self.host, self.port))
+        self._server = BenchModbusServer(
+            self._devices(), address=(self.host, self.port), ssl=self.ssl_context
+        )
         try:
             await self._server.serve_forever(background=True)
         except RuntimeError:  # pymodbus hides the reason: ask the OS for it
@@ -223,6 +230,11 @@ class BenchServer:
         self.clock.anchor(now, self.emulator.sim_time_s)
         await self.publish()
         self._tick_task = asyncio.create_task(self._tick_loop(now), name="rig tick")
+
+    @property
+    def modbus_server(self) -> BenchModbusServer | None:
+        """The Modbus server once started (other transports share its datastore and gates)."""
+        return self._server
 
     async def stop(self) -> None:
         if self._tick_task is not None:

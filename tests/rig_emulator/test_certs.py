@@ -87,6 +87,15 @@ def test_utf8string_round_trip_long_and_bad():
         parse_utf8_string_der(b"\x0c\x05ab")  # length beyond the value
 
 
+def test_more_server_names(tmp_path, capsys):
+    assert main(["certs", "--out", str(tmp_path), "--server-name", "emulator"]) == 0
+    cert = _cert(tmp_path, "server")
+    san = cert.extensions.get_extension_for_class(x509.SubjectAlternativeName).value
+    assert set(san.get_values_for_type(x509.DNSName)) == {"localhost", "emulator"}
+    assert main(["certs", "--out", str(tmp_path), "--server-name", "bad name"]) == 2
+    assert "--server-name: 'bad name'" in capsys.readouterr().err
+
+
 def test_out_is_a_file_is_one_line(tmp_path, capsys):
     target = tmp_path / "file"
     target.write_text("x")
