@@ -156,13 +156,14 @@ class RtuLine:
 
     # ------------------------------------------------------------------ the line
     def _serve(self) -> None:
-        buffer = bytearray()
+        buffer = bytearray()  # the frame so far (at most MAX_FRAME_BYTES + 1 kept)
+        received = 0  # its characters on the line, kept or not
         frame_start = 0.0  # when the frame's first character went on the line
         line_free = 0.0  # the end of the silence after the last frame on the line
         deadline = 0.0  # when the silence after the bytes received so far is complete
         early: tuple[int, Future] | None = None  # a read answered ahead: (length, answer)
         while True:
-            timeout = max(deadline - time.monotonic(), 0.0) if buffer else None
+            timeout = max(deadline - time.monotonic(), 0.0) if received else None
             ready, _, _ = select.select([self._fd, self._stop_r], [], [], timeout)
             if self._stop_r in ready:
                 return
@@ -173,15 +174,17 @@ class RtuLine:
                 except OSError:  # the line went away (EIO): wait a moment and go on
                     time.sleep(0.01)
                     continue
-                if not buffer:
+                if not received:
                     frame_start = max(now, line_free)
-                buffer += data
-                wire_end = frame_start + len(buffer) * self.character_s
+                received += len(data)
+                if len(buffer) <= MAX_FRAME_BYTES:  # beyond: noise until the next silence
+                    buffer += data[: MAX_FRAME_BYTES + 1 - len(buffer)]
+                wire_end = frame_start + received * self.character_s
                 deadline = max(wire_end, now) + self.silence_s
-                early = self._read_ahead(bytes(buffer))
+                early = self._read_ahead(bytes(buffer)) if received <= MAX_FRAME_BYTES else None
                 continue
-            if buffer and now >= deadline:
-                request, buffer = bytes(buffer), bytearray()
+            if received and now >= deadline:
+                request, buffer, received = bytes(buffer), bytearray(), 0
                 answer = early[1] if early is not None and early[0] == len(request) else None
                 early = None
                 line_free = self._transaction(request, deadline, answer)

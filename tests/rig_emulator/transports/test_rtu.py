@@ -303,3 +303,39 @@ def test_bad_serial_options_are_one_line(tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert fault in err[-1], (extra, err)
         assert not any("Traceback" in e for e in err)
+
+
+def test_plain_role_holds_rtu_clients_to_a_role(serve):
+    from rig_emulator.modbus.roles import DEFAULT_POLICY
+
+    srv = serve()
+
+    async def setup():
+        transports = Transports(srv.server.modbus_server)
+        transports.authorise(DEFAULT_POLICY, plain_role="operator")
+        return transports, await transports.add_rtu("pty", BAUD, "E")
+
+    transports, rtu = srv.call(setup())
+    c = Line(rtu.path)
+    try:
+        before = srv.values()["sim_time_s"]
+        advance = struct.pack(">BHHB2H", 16, 4, 2, 4, 0, 10)  # lockstep_advance = 10 s
+        c.send(rtu_frame(100, advance))
+        assert c.read(5) == rtu_frame(100, bytes([0x90, 0x01]))  # exception 01
+        assert srv.values()["sim_time_s"] == before
+        c.send(rtu_frame(1, struct.pack(">BHH", 5, 0, 0xFF00)))  # pump on: an operator may
+        assert c.read(8) == rtu_frame(1, struct.pack(">BHH", 5, 0, 0xFF00))
+    finally:
+        c.close()
+        srv.call(transports.stop())
+    assert transports.authorisation.refusals == 1
+
+
+def test_noise_without_silence_is_dropped_whole(rtu_server, line):
+    # 2 KiB of noise in one burst: one over-long frame (its 1.2 s on the wire at 19,200
+    # baud), no reply, then the line works
+    line.send(bytes(range(256)) * 8)
+    assert line.read(64, timeout_s=2.0) == b""
+    assert rtu_server.line.crc_errors == 1
+    line.send(rtu_frame(1, _fc4(0, 2)))
+    assert len(line.read(9)) == 9
