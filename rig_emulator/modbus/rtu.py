@@ -8,7 +8,8 @@ The same units and map as TCP: every request goes through
 - a frame ends with 3.5 characters of silence; bytes that come before that belong to it;
 - a frame with a bad CRC, a unit no instrument on the line has, and a broadcast (unit 0)
   get no reply; a broadcast write is carried out by every unit of the map;
-- a pty has no line speed, so the emulator keeps the time the wire would take: a frame
+- a pty has no line speed, so the emulator keeps the time the wire would take (on a
+  device the UART takes the reply's time itself and the emulator only keeps the rest): a frame
   occupies the line for its characters at the baud rate from its first byte, it is taken
   as ended only after the silence that follows, the reply is handed over when its last
   character would have arrived, and the next request starts on the line no earlier than a
@@ -79,7 +80,7 @@ def open_line(path: str, baud: int, parity: str) -> tuple[int, int | None, str]:
         server_fd, client_fd = os.openpty()
         # the server keeps the client side open too, so reads never fail with EIO while
         # no client has it open; clients configure it as they like
-        _configure(client_fd, baud, parity, strict=False)
+        _configure(client_fd, baud, parity)
         tty.setraw(server_fd)
         return server_fd, client_fd, os.ttyname(client_fd)
     try:
@@ -87,16 +88,18 @@ def open_line(path: str, baud: int, parity: str) -> tuple[int, int | None, str]:
     except OSError as exc:
         raise SerialConfigError(f"--serial {path}: {exc.strerror}") from None
     try:
-        _configure(fd, baud, parity)
+        configured = _configure(fd, baud, parity)
     except termios.error:
         os.close(fd)
         raise SerialConfigError(f"--serial {path}: not a serial line (a terminal)") from None
+    if not configured:
+        log.warning("RTU %s: the line refused %d baud, parity %s; served raw", path, baud, parity)
     return fd, None, path
 
 
-def _configure(fd: int, baud: int, parity: str, strict: bool = True) -> None:
-    """Raw mode, 8 data bits, ``baud`` and ``parity``; ``strict`` False (a pty, which has
-    no line and on some kernels refuses parity settings): raw mode suffices."""
+def _configure(fd: int, baud: int, parity: str) -> bool:
+    """Raw mode, 8 data bits, ``baud`` and ``parity``; False if the line refused the speed
+    and parity (a pty has no line, and some kernels refuse parity on one): raw mode only."""
     tty.setraw(fd)
     attrs = termios.tcgetattr(fd)
     cflag = attrs[2] & ~(termios.PARENB | termios.PARODD | termios.CSTOPB | termios.CSIZE)
@@ -110,8 +113,8 @@ def _configure(fd: int, baud: int, parity: str, strict: bool = True) -> None:
     try:
         termios.tcsetattr(fd, termios.TCSANOW, attrs)
     except termios.error:
-        if strict:
-            raise
+        return False
+    return True
 
 
 class RtuLine:
@@ -133,6 +136,8 @@ class RtuLine:
         self.character_s = character_s(baud)
         self.silence_s = silence_s(baud)
         self._fd, self._keep_fd, self.path = open_line(path, baud, parity)
+        #: keep the reply's on-wire time (a pty); a device's UART takes it itself
+        self.paced = path == "pty"
         self.crc_errors = 0
         self.transactions = 0
         self._stop_r, self._stop_w = os.pipe()
@@ -232,10 +237,15 @@ class RtuLine:
         if reply is None:
             return ended
         out = frame(unit_id, reply)
-        # the reply goes on the line after the request's silence; the emulator's own work
-        # overlaps its on-wire time (a reply that took longer is handed over when ready)
-        reply_end = max(ended + len(out) * self.character_s, time.monotonic())
-        _sleep_until(reply_end)
+        wire_s = len(out) * self.character_s
+        if self.paced:
+            # the reply goes on the line after the request's silence; the emulator's own work
+            # overlaps its on-wire time (a reply that took longer is handed over when ready)
+            reply_end = max(ended + wire_s, time.monotonic())
+            _sleep_until(reply_end)
+        else:  # a real line: its UART takes the reply's time itself
+            _sleep_until(ended)
+            reply_end = time.monotonic() + wire_s
         try:
             os.write(self._fd, out)
         except OSError as exc:

@@ -339,3 +339,44 @@ def test_noise_without_silence_is_dropped_whole(rtu_server, line):
     assert rtu_server.line.crc_errors == 1
     line.send(rtu_frame(1, _fc4(0, 2)))
     assert len(line.read(9)) == 9
+
+
+SOCAT = shutil.which("socat")
+
+
+@pytest.mark.skipif(SOCAT is None or MBPOLL is None, reason="socat or mbpoll not installed")
+def test_device_path_served_through_a_socat_line(serve, tmp_path):
+    """``--serial PATH``: a line the emulator did not create (socat's pty pair standing in
+    for a serial adapter; a device's UART keeps the reply's time itself)."""
+    ours, theirs = tmp_path / "emulator", tmp_path / "client"
+    socat = subprocess.Popen(
+        [SOCAT, f"pty,raw,echo=0,link={ours}", f"pty,raw,echo=0,link={theirs}"],
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        deadline = time.monotonic() + 10
+        while not (ours.exists() and theirs.exists()) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        srv = serve()
+
+        async def setup():
+            transports = Transports(srv.server.modbus_server)
+            return transports, await transports.add_rtu(str(ours), BAUD, "E")
+
+        transports, rtu = srv.call(setup())
+        try:
+            assert rtu.path == str(ours) and not rtu.paced
+            _mbpoll("-a", "1", "-t", "4:float", "-B", "-r", "0", str(theirs), "321.5")
+            out = _mbpoll("-a", "1", "-t", "4:float", "-B", "-r", "0", "-c", "2", str(theirs))
+            assert float(_mbpoll_values(out.stdout)[0]) == 321.5
+            tcp = client(srv.port)
+            try:
+                r = tcp.read_holding_registers(0, count=2, device_id=1)
+            finally:
+                tcp.close()
+            assert struct.unpack(">f", struct.pack(">2H", *r.registers))[0] == 321.5
+        finally:
+            srv.call(transports.stop())
+    finally:
+        socat.terminate()
+        socat.wait(timeout=10)
