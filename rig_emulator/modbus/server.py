@@ -24,6 +24,7 @@ import contextlib
 import logging
 import secrets
 import socket
+import ssl
 import struct
 import threading
 from collections.abc import Callable, Mapping
@@ -150,6 +151,8 @@ class BenchServer:
             accepts them).
         idle_timeout_s: close client connections silent this long (0: never).
         max_connections: client connections open at once (the next ones are closed).
+        ssl_context: serve Modbus/TCP Security (TLS) on ``host:port`` instead of plain TCP
+            (:mod:`rig_emulator.modbus.transports` adds more listeners and lines).
     """
 
     def __init__(
@@ -164,10 +167,12 @@ class BenchServer:
         allow_control: bool = False,
         idle_timeout_s: float = DEFAULT_IDLE_TIMEOUT_S,
         max_connections: int = DEFAULT_MAX_CONNECTIONS,
+        ssl_context: ssl.SSLContext | None = None,
     ) -> None:
         check_command("speed_factor", speed)
         self.idle_timeout_s = idle_timeout_s
         self.max_connections = max_connections
+        self.ssl_context = ssl_context
         self.emulator = emulator
         self.map = register_map
         self.host = host
@@ -231,6 +236,7 @@ class BenchServer:
             identity=identity,
             idle_timeout_s=self.idle_timeout_s,
             max_connections=self.max_connections,
+            ssl=self.ssl_context,
         )
         try:
             await self._server.serve_forever(background=True)
@@ -248,6 +254,11 @@ class BenchServer:
         self.clock.anchor(now, self.emulator.sim_time_s)
         await self.publish()
         self._tick_task = asyncio.create_task(self._tick_loop(now), name="rig tick")
+
+    @property
+    def modbus_server(self) -> BenchModbusServer | None:
+        """The Modbus server once started (other transports share its datastore and gates)."""
+        return self._server
 
     async def stop(self) -> None:
         if self._tick_task is not None:
