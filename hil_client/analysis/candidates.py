@@ -51,7 +51,7 @@ from typing import Protocol
 
 import numpy as np
 
-from hil_client.analysis.augment import first_order_lag, pipe_sensor, two_lump_water
+from hil_client.analysis.augment import first_order_lag, pipe_sensor, two_lump
 from hil_client.analysis.balance import flue_gas_loss_per_kg
 from hil_client.analysis.evidence import BlockGain, Evidence, cross_validate
 from hil_client.analysis.firing import windows_after
@@ -73,12 +73,26 @@ NOISE_FLOOR = {"water_out_temp_C": 0.02, "boiler_water_temp_C": 0.02, "flue_gas_
 WINDOW_S = 1800.0
 SUB_BLOCK_S = 300.0
 SETTLED_BURN_S = 1800.0
-ANCHOR_S = 120.0
+#: Air's dry O2 [vol-%] and how close to it the analyser reads once combustion has ended.
+O2_AIR_PCT = 20.95
+AIR_O2_MARGIN_PCT = 0.5
+#: Longest burn-out waited for after a stop [s].
+BURNOUT_MAX_S = 600.0
+#: The residual after a stop is taken relative to its mean over this long from the end of
+#: combustion [s].
+STOP_REFERENCE_S = 60.0
 BLOCK_S = 3600.0
+#: How long after the flow falls a pipe's evidence starts (see :func:`_low_flow_blocks`).
+PIPE_SETTLE_S = 300.0
 BALANCE_STEP_KG = 0.02  # the balance's resolution (Section 2.2)
 #: The pre-feed an effect must exceed [s of feed]: the onset of combustion is seen in the
 #: flue gas (+3 K) some 10-20 s after the bed lights; twice that is the floor.
 PRE_FEED_MIN_S = 40.0
+#: The balance before a start is read until this long before the onset [s] ...
+PRE_WINDOW_END_S = 720.0
+#: ... over at least this long and at most this long [s].
+PRE_WINDOW_MIN_S = 180.0
+PRE_WINDOW_MAX_S = 480.0
 #: Systematic relative uncertainty of the energy closure: flow meter 0.5 %/sqrt(3), forward
 #: minus return after the isothermal check 0.1 K of about 15 K, loss to the room and the
 #: flue-gas stoichiometry about 0.5 % each.
@@ -117,8 +131,9 @@ class CurveCandidate:
     #: (kind, rows, anchor row or -1): where the effect acts, in blocks
     blocks: Callable[[Case], list[tuple[str, np.ndarray, int]]]
     nuisance_drift: bool
-    #: a block's residual is taken relative to its mean over this long before the block [s]
-    #: (the response to a start or stop, not the mismatch the plant carried into it)
+    #: a block's residual is taken relative to its mean over this long before its anchor
+    #: [s] (the response to a start or stop, not the mismatch the plant carried into it);
+    #: negative: over this long from the anchor on
     anchor_s: float | None = None
 
     def residual(self, case: Case, theta: dict[str, float] | None) -> np.ndarray:
@@ -137,6 +152,9 @@ class CurveCandidate:
         _, rows, anchor = block
         if self.anchor_s is None or anchor < 0:
             return r[rows]
+        if self.anchor_s < 0:  # the reference follows the anchor
+            j = int(np.searchsorted(case.t, case.t[anchor] - self.anchor_s))
+            return r[rows] - (float(np.mean(r[anchor:j])) if j > anchor else float(r[anchor]))
         j = int(np.searchsorted(case.t, case.t[anchor] - self.anchor_s))
         return r[rows] - (float(np.mean(r[j:anchor])) if anchor > j else float(r[anchor]))
 
@@ -215,22 +233,50 @@ def _split(rows: np.ndarray, t: np.ndarray, length_s: float) -> list[np.ndarray]
 
 
 def _low_flow_blocks(case: Case) -> list[tuple[str, np.ndarray, int]]:
-    test = case.phases.mask("test", case.t)
+    """Runs of low flow or none, in 1-h blocks anchored :data:`PIPE_SETTLE_S` into their run.
+
+    The anchor takes out what the sensors' own lags and a flow-dependent offset of the
+    boiler-water reading (stratification at its well) do within minutes of the flow
+    changing; a pipe's mark is what follows: the forward reading falling away toward the
+    room as the stagnant water cools, or trailing the boiler water by its transport delay."""
+    t = case.t
+    test = case.phases.mask("test", t)
     nominal = float(np.median(case.flow[test])) if test.any() else float(np.max(case.flow))
-    after_start = case.t > case.phases.t0
+    after_start = t > case.phases.t0
     low = np.flatnonzero(after_start & (case.flow < 0.3 * nominal))
-    return [
-        ("stagnant" if np.median(case.flow[p]) < 0.01 * nominal else "low_flow", p, -1)
-        for p in _split(low, case.t, BLOCK_S)
-    ]
+    out = []
+    for run in _split(low, t, math.inf):
+        anchor = int(run[0]) + int(np.searchsorted(t[run], t[run[0]] + PIPE_SETTLE_S))
+        rest = run[run > anchor]
+        kind = "stagnant" if np.median(case.flow[run]) < 0.01 * nominal else "low_flow"
+        out += [(kind, p, anchor) for p in _split(rest, t, BLOCK_S)]
+    return out
+
+
+def _combustion_end(case: Case, stop: int, end: int) -> int:
+    """The first row after ``stop`` where the dry O2 is back at the air's (within
+    :data:`AIR_O2_MARGIN_PCT`): the bed has burnt out. At most :data:`BURNOUT_MAX_S` later;
+    ``stop`` itself without a usable O2 column."""
+    o2 = case.log["flue_gas_O2_pct"]
+    ok = np.isfinite(o2)
+    if ok.sum() < 10 or float(np.ptp(o2[ok])) < 1.0:
+        return stop
+    t = case.t
+    last = min(int(np.searchsorted(t, t[stop] + BURNOUT_MAX_S)), end)
+    air = np.flatnonzero(o2[stop:last] >= O2_AIR_PCT - AIR_O2_MARGIN_PCT)
+    return stop + int(air[0]) if len(air) else last
 
 
 def _stop_blocks(case: Case) -> list[tuple[str, np.ndarray, int]]:
     """The 30 min after each stop of the burner that ends at least 30 min of burning (cut at
-    the next start), in 5-min blocks anchored at the stop. Only stops: after a start a
-    real boiler's own start-up (purge, ignition, fuel ramp) differs from the model's, and
-    an effect must not be named for absorbing that; and only after a settled burn, so the
-    start-up's mismatch has died out before the stop."""
+    the next start), from the end of combustion on, in 5-min blocks anchored at that end.
+
+    Only stops: after a start a real boiler's own start-up (purge, ignition, fuel ramp)
+    differs from the model's, and an effect must not be named for absorbing that; only
+    after a settled burn, so the start-up's mismatch has died out before the stop; and only
+    once the analyser reads air again: heat that reaches the water, or keeps the flue gas
+    hot, while the bed still burns out is combustion (the bed of ``ignition_delay``, a
+    controller's post-run), not storage in metal or refractory."""
     t = case.t
     edges = case.transitions
     out = []
@@ -240,8 +286,9 @@ def _stop_blocks(case: Case) -> list[tuple[str, np.ndarray, int]]:
             continue
         later = edges[edges > i]
         end = int(later[0]) if len(later) else len(t)
-        for w in windows_after(t, np.array([i]), WINDOW_S, end):
-            out += [("stop", piece, int(i)) for piece in _split(w, t, SUB_BLOCK_S)]
+        anchor = _combustion_end(case, int(i), end)
+        for w in windows_after(t, np.array([anchor]), WINDOW_S, end):
+            out += [("stop", piece, anchor) for piece in _split(w, t, SUB_BLOCK_S)]
     return out
 
 
@@ -261,21 +308,27 @@ def _pipe_predict(case: Case, theta: dict[str, float] | None) -> np.ndarray:
     return water
 
 
-def body_water(case: Case, tau_body_s: float) -> np.ndarray:
-    """The water of a two-lump body (metal: the documented Ctherm) driven by the replayed
-    model's heat to the exchanger; ``tau_body_s`` = C_metal / G."""
+def body_lumps(
+    case: Case, tau_body_s: float, rows: slice = slice(None), start: tuple | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """(water, metal) of a two-lump body (metal: the documented Ctherm) driven by the
+    replayed model's heat to the exchanger over ``rows``, from ``start`` = (metal, water)
+    [C] (default: both at the model's first temperature); ``tau_body_s`` = C_metal / G."""
     p = case.params
     c_metal = p.c_therm_kJ_K
     c_water = p.capacity_kJ_K - c_metal
     ua = np.where(case.firing.burning, p.ua_amb_on_W_K, p.ua_amb_off_W_K) / 1000.0
-    return two_lump_water(
-        case.model["q_hx_kW"] + case.model["q_el_ign_kW"],
-        case.flow,
-        case.t_in,
-        case.room,
-        ua,
-        case.dt,
-        float(case.model["t_boiler_C"][0]),
+    t0 = float(case.model["t_boiler_C"][0])
+    tm0, tw0 = start if start is not None else (t0, t0)
+    return two_lump(
+        (case.model["q_hx_kW"] + case.model["q_el_ign_kW"])[rows],
+        case.flow[rows],
+        case.t_in[rows],
+        case.room[rows],
+        ua[rows],
+        case.dt[rows],
+        tm0,
+        tw0,
         c_metal,
         c_water,
         c_metal / tau_body_s,
@@ -284,7 +337,7 @@ def body_water(case: Case, tau_body_s: float) -> np.ndarray:
 
 def _body_predict(case: Case, theta: dict[str, float] | None) -> np.ndarray:
     # the base: the same two lumps tied by a 1-s conductance, i.e. the one node
-    water = body_water(case, theta["tau_body_s"] if theta else 1.0)
+    water, _ = body_lumps(case, theta["tau_body_s"] if theta else 1.0)
     return first_order_lag(water, case.dt, SENSOR_TAU_S["boiler_water_temp_C"])
 
 
@@ -295,8 +348,27 @@ def _flue_predict(case: Case, theta: dict[str, float] | None) -> np.ndarray:
 
 
 class PipeCandidate(CurveCandidate):
-    """The exit pipe also moves the heat to water the lab computes from the forward
-    reading (Eq. 7)."""
+    """The exit pipe. Its residual is taken relative to a straight line per run of low
+    flow (offset and drift of the two sensors over the run, which a lab's Pt100s have and
+    which extrapolating the settled rows' drift over an 8-h stagnation gets wrong by tenths
+    of a kelvin): only the curvature of a pipe's cooling toward the room, or its transport
+    delay, counts as evidence. A real pipe's cooling (time constant 20 min to a few hours,
+    Section 2.2's 30 cm of pipe) is far from straight over a stagnation of hours.
+    The pipe also moves the heat to water the lab computes from the forward reading
+    (Eq. 7)."""
+
+    def residual(self, case: Case, theta: dict[str, float] | None) -> np.ndarray:
+        r = super().residual(case, theta)
+        runs: dict[int, list[np.ndarray]] = {}
+        for _, rows, anchor in self.blocks(case):
+            runs.setdefault(anchor, []).append(rows)
+        for pieces in runs.values():
+            rows = np.concatenate(pieces)
+            ok = rows[np.isfinite(r[rows])]
+            if len(ok) >= 3 and np.ptp(case.t[ok]) > 0:
+                slope, intercept = np.polyfit(case.t[ok] - case.t[ok[0]], r[ok], 1)
+                r[rows] = r[rows] - (intercept + slope * (case.t[rows] - case.t[ok[0]]))
+        return r
 
     def prediction(self, case: Case, theta: dict[str, float]) -> dict[str, np.ndarray]:
         pipe = pipe_sensor(
@@ -337,7 +409,7 @@ BODY = CurveCandidate(
     _body_predict,
     _stop_blocks,
     nuisance_drift=False,
-    anchor_s=ANCHOR_S,
+    anchor_s=-STOP_REFERENCE_S,
 )
 FLUE = CurveCandidate(
     "flue_gas_lag",
@@ -347,7 +419,7 @@ FLUE = CurveCandidate(
     _flue_predict,
     _stop_blocks,
     nuisance_drift=False,
-    anchor_s=ANCHOR_S,
+    anchor_s=-STOP_REFERENCE_S,
 )
 
 
@@ -357,9 +429,11 @@ FLUE = CurveCandidate(
 
 def _pre_feed(case: Case) -> list[tuple[float, float, float]]:
     """(fuel lost before the onset of combustion [kg], its standard error [kg], feed rate
-    after the onset [kg/h]) per start that follows at least 20 min without burning.
+    after the onset [kg/h]) per start that follows at least 15 min without burning.
 
-    The mass before is the mean reading 20 to 12 min before the onset; the mass at the onset
+    The mass before is the mean reading from 20 min (or the last stop, or the record's
+    start, whichever is later; at least 3 min of readings) to 12 min before the onset (a
+    pre-feed of up to 12 min fits in between); the mass at the onset
     is the line through the readings of the 5 min after it, taken back to the onset. Each
     has the standard error of its fit, at least that of the balance's 0.02-kg steps
     (uniform rounding: 0.02 / sqrt(12) per reading)."""
@@ -372,9 +446,10 @@ def _pre_feed(case: Case) -> list[tuple[float, float, float]]:
         ts = t[i]
         before = stops[stops < i]
         quiet_since = t[before[-1]] if len(before) else t[0]
-        if ts - quiet_since < 1200.0 or ts - t[0] < 1200.0:
+        quiet_s = min(ts - quiet_since, ts - t[0], PRE_WINDOW_END_S + PRE_WINDOW_MAX_S)
+        if quiet_s < PRE_WINDOW_END_S + PRE_WINDOW_MIN_S:
             continue
-        pre = (t >= ts - 1200.0) & (t <= ts - 720.0) & ~np.isnan(mass)
+        pre = (t >= ts - quiet_s) & (t <= ts - PRE_WINDOW_END_S) & ~np.isnan(mass)
         post = (t >= ts) & (t <= ts + 300.0) & ~np.isnan(mass)
         if pre.sum() < 5 or post.sum() < 10:
             continue

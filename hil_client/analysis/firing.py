@@ -12,10 +12,14 @@ shorter than :data:`MIN_RUN_S` are flicker of the threshold and are merged into 
 neighbours. Without a usable O2 column (missing or constant), the ``boiler_on`` column, or
 else the flue gas running 20 K hotter than the boiler water, marks the firing.
 
-The start of each burn is refined with the flue-gas temperature, whose probe answers in
-seconds while the analyser's sample line delays O2 by tens of seconds: a start is the
-first row, at most :data:`ONSET_LOOKBACK_S` before the O2 crossing, where the flue gas has
-risen :data:`ONSET_RISE_K` above its value before the burn.
+The start and the stop of each burn are refined with the flue-gas temperature, whose probe
+answers in seconds while the analyser's sample line delays O2 by tens of seconds: a start
+is the first row, at most :data:`ONSET_LOOKBACK_S` before the O2 crossing, where the flue
+gas has risen :data:`ONSET_RISE_K` above its value before the burn; a stop is the first
+row, at most as long before the O2 crossing, where the flue gas has fallen
+:data:`STOP_FALL_K` below its value in the flame (a pellet flame's flue gas modulates by a
+few kelvin; a dying flame's falls by tens within a minute). Without that refinement the
+model keeps its flame for the sample line's delay after the real one went out.
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ O2_BURNING_PCT = 19.0
 MIN_RUN_S = 90.0
 ONSET_RISE_K = 3.0
 ONSET_LOOKBACK_S = 180.0
+STOP_FALL_K = 10.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -94,6 +99,17 @@ def observe_firing(log: LabLog) -> Firing:
         starts = np.array(refined, dtype=int)
         for i, j in zip(change[burning[change]], starts, strict=True):
             burning[j:i] = True
+        refined = []
+        for i in stops:
+            lo = int(np.searchsorted(t, t[i] - ONSET_LOOKBACK_S))
+            lo = max(lo, int(starts[starts < i][-1]) + 1 if np.any(starts < i) else lo)
+            flame = fg[lo]
+            cold = np.flatnonzero(fg[lo : i + 1] < flame - STOP_FALL_K)
+            refined.append(lo + int(cold[0]) if len(cold) else i)
+        new_stops = np.array(refined, dtype=int)
+        for i, j in zip(stops, new_stops, strict=True):
+            burning[j:i] = False
+        stops = new_stops
     return Firing(burning, starts.astype(int), stops.astype(int), source)
 
 
