@@ -81,6 +81,11 @@ BURNOUT_MAX_S = 600.0
 #: The residual after a stop is taken relative to its mean over this long from the end of
 #: combustion [s].
 STOP_REFERENCE_S = 60.0
+#: What stored heat must show after stops [K]: the flue gas falling toward the model's by
+#: five times the probe's resolution (1 K, Section 2.2); the water rising above the
+#: model's by five times the Pt100 readings' noise (0.02 K).
+FLUE_STORED_MIN_K = 5.0
+BODY_STORED_MIN_K = 0.1
 BLOCK_S = 3600.0
 #: How long after the flow falls a pipe's evidence starts (see :func:`_low_flow_blocks`).
 PIPE_SETTLE_S = 300.0
@@ -135,6 +140,9 @@ class CurveCandidate:
     #: [s] (the response to a start or stop, not the mismatch the plant carried into it);
     #: negative: over this long from the anchor on
     anchor_s: float | None = None
+    #: the physical mark the data must show for the effect to be named, read from the
+    #: unaugmented model's residual: (case, blocks, residual) -> (holds?, why not)
+    fingerprint: Callable[[Case, list, np.ndarray], tuple[bool, str]] | None = None
 
     def residual(self, case: Case, theta: dict[str, float] | None) -> np.ndarray:
         """Lab minus prediction, less the sensor's offset (and drift) fitted on the settled
@@ -194,13 +202,22 @@ class CurveCandidate:
         )
         theta = self.fit(case, blocks) if blocks else {}
         before, after = ev.rmsd() if ev.blocks else (math.nan, math.nan)
+        decide = self.decide
+        if self.fingerprint is not None and blocks:
+            holds, why = self.fingerprint(case, blocks, self.residual(case, None))
+            if not holds:
+
+                def decide(units, why=why):
+                    _, z, _ = self.decide(units)
+                    return False, z, why
+
         return Assessment(
             self.effect,
             self.signal,
             self.locus,
             theta,
             list(ev.blocks),
-            self.decide,
+            decide,
             before,
             after,
         )
@@ -341,6 +358,58 @@ def _body_predict(case: Case, theta: dict[str, float] | None) -> np.ndarray:
     return first_order_lag(water, case.dt, SENSOR_TAU_S["boiler_water_temp_C"])
 
 
+def _after_stop_change(
+    case: Case, blocks: list, r: np.ndarray, early_s: float, late_s: float
+) -> list[float]:
+    """Per stop: the residual's mean over ``late_s`` at the end of its window less its mean
+    over ``early_s`` from the end of combustion (its anchor)."""
+    t = case.t
+    ends: dict[int, int] = {}
+    for _, rows, anchor in blocks:
+        ends[anchor] = max(ends.get(anchor, 0), int(rows[-1]) + 1)
+    out = []
+    for a, e in ends.items():
+        early = r[a : int(np.searchsorted(t, t[a] + early_s))]
+        late = r[int(np.searchsorted(t, t[e - 1] - late_s)) : e]
+        if np.isfinite(early).any() and np.isfinite(late).any():
+            out.append(float(np.nanmean(late) - np.nanmean(early)))
+    return out
+
+
+def _flue_fingerprint(case: Case, blocks: list, r: np.ndarray) -> tuple[bool, str]:
+    """Stored heat: the flue gas is hotter than the model's when combustion ends and falls
+    toward it afterwards (by :data:`FLUE_STORED_MIN_K` at least, in the median stop). A
+    flue gas that ends up *further above* the model's, or starts below it, is the probe's
+    own idle level (draught air, radiation to the duct), not storage."""
+    fall = [-x for x in _after_stop_change(case, blocks, r, STOP_REFERENCE_S, SUB_BLOCK_S)]
+    if not fall or float(np.median(fall)) < FLUE_STORED_MIN_K:
+        got = f"{float(np.median(fall)):.1f} K" if fall else "no stop"
+        return False, f"flue gas does not fall toward the model's after stops ({got})"
+    return True, ""
+
+
+def _body_fingerprint(case: Case, blocks: list, r: np.ndarray) -> tuple[bool, str]:
+    """Stored heat: after combustion ends the metal still heats the water, so the water
+    runs warmer than the model's within the first 15 min (by :data:`BODY_STORED_MIN_K` at
+    least, in the median stop); water that cools faster than the model's is a mismatch of
+    level or of losses, not a body."""
+    # the rise is read at the peak of the first 15 min, where a body of 1-7 min shows
+    t = case.t
+    peaks = []
+    ends: dict[int, int] = {}
+    for _, rows, anchor in blocks:
+        ends[anchor] = max(ends.get(anchor, 0), int(rows[-1]) + 1)
+    for a, e in ends.items():
+        early = r[a : int(np.searchsorted(t, t[a] + STOP_REFERENCE_S))]
+        first = r[a : min(int(np.searchsorted(t, t[a] + 3 * SUB_BLOCK_S)), e)]
+        if np.isfinite(early).any() and np.isfinite(first).any():
+            peaks.append(float(np.nanmax(first) - np.nanmean(early)))
+    if not peaks or float(np.median(peaks)) < BODY_STORED_MIN_K:
+        got = f"{float(np.median(peaks)):+.2f} K" if peaks else "no stop"
+        return False, f"water not warmer than the model's after stops ({got})"
+    return True, ""
+
+
 def _flue_predict(case: Case, theta: dict[str, float] | None) -> np.ndarray:
     t_fg = case.model["t_flue_gas_C"]
     gas = case.lagged("t_fg", t_fg, theta["tau_fg_s"]) if theta else t_fg
@@ -410,6 +479,7 @@ BODY = CurveCandidate(
     _stop_blocks,
     nuisance_drift=False,
     anchor_s=-STOP_REFERENCE_S,
+    fingerprint=_body_fingerprint,
 )
 FLUE = CurveCandidate(
     "flue_gas_lag",
@@ -420,6 +490,7 @@ FLUE = CurveCandidate(
     _stop_blocks,
     nuisance_drift=False,
     anchor_s=-STOP_REFERENCE_S,
+    fingerprint=_flue_fingerprint,
 )
 
 
