@@ -45,7 +45,7 @@ def draw_background(rng: np.random.Generator, boiler: Mapping) -> dict:
         "set_offset_K": _pm(rng, 0.5),
         "ctrl_sensor_offset_K": _pm(rng, 0.4),
         "shutoff_offset_K": _u(rng, -1.0, 1.0),
-        "restart_offset_K": _u(rng, -2.0, -0.5),
+        "restart_offset_K": _u(rng, -1.0, 0.5),
         "stop_hyst_K": _u(rng, 14.0, 17.0),
         "min_burn_s": _u(rng, 900.0, 1800.0),
         "min_off_s": _u(rng, 180.0, 600.0),
@@ -72,7 +72,7 @@ def draw_background(rng: np.random.Generator, boiler: Mapping) -> dict:
         "p_min_factor": _u(rng, 0.98, 1.02),
         "p_start_factor": _u(rng, 0.9, 1.0),
         "tau_bed_s": _u(rng, 25.0, 70.0),
-        "feed_sig": _u(rng, 0.05, 0.2),  # pellet mass per auger period varies
+        "feed_sig": _u(rng, 0.1, 0.3),  # pellet mass per auger period varies
         "smoulder_stop": _u(rng, 1.5, 3.0),
         # --- fan and combustion
         "lam_a_factor": 1.0 + _pm(rng, 0.06),
@@ -107,7 +107,7 @@ def draw_background(rng: np.random.Generator, boiler: Mapping) -> dict:
         "t_cold_C": _u(rng, 10.0, 16.0),
         "valve_max": _u(rng, 0.3, 0.45),
         "valve_stroke_s": _u(rng, 60.0, 180.0),
-        "valve_deadband": _u(rng, 0.003, 0.015),  # stiction of the mixing valve
+        "valve_deadband": _u(rng, 0.005, 0.02),  # stiction of the mixing valve
         "tau_return_s": _u(rng, 5.0, 20.0),
         "bench_kp_per_K": _u(rng, 0.08, 0.25),
         "bench_ti_s": _u(rng, 60.0, 200.0),
@@ -120,7 +120,7 @@ def draw_background(rng: np.random.Generator, boiler: Mapping) -> dict:
         "drift_tin_K_h": _pm(rng, 0.01),
         "drift_tout_K_h": _pm(rng, 0.01),
         "noise_tw_K": _u(rng, 0.01, 0.03),
-        "off_tbw_K": _pm(rng, 1.5),  # sensor in a well of the body, poor contact
+        "off_tbw_K": _pm(rng, 2.0),  # sensor in a well of the body, poor contact
         "drift_tbw_K_h": _pm(rng, 0.02),
         "noise_tbw_K": _u(rng, 0.02, 0.06),
         "q_tbw_K": float(rng.choice([0.01, 0.1])),

@@ -82,8 +82,9 @@ def test_fuel_bias_moves_only_fuel_against_heat(plant_run, form):
     lb, lf = _late_test(base, mb), _late_test(fx, mf)
     fuel_b, fuel_f = _fuel_per_heat(base, lb), _fuel_per_heat(fx, lf)
     assert fuel_f > 1.06 * fuel_b  # strongest: 7 % fines or 15 % moisture
-    # the water side is as before: same delivered heat, same boiler temperature
-    assert np.nanmean(_heat(fx)[lf]) == pytest.approx(np.nanmean(_heat(base)[lb]), rel=0.01)
+    # the water side is as before: same delivered heat (within the 0.2 K the controller's
+    # hunting moves the mean outlet, 1.5 % of a 15 K spread), same boiler temperature
+    assert np.nanmean(_heat(fx)[lf]) == pytest.approx(np.nanmean(_heat(base)[lb]), rel=0.02)
     assert (
         abs(np.nanmean(fx["boiler_water_temp_C"][lf]) - np.nanmean(base["boiler_water_temp_C"][lb]))
         < 0.3
