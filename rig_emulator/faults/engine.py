@@ -346,7 +346,10 @@ class FaultEngine:
         truth = math.nan
         if self.plant is not None:
             truth = float(self.plant().get(signal, math.nan))
-        reading = math.nan if readings is None else readings.get(signal, math.nan)
+        if readings is None:  # ended between evaluations: the instrument's own reading
+            reading = self._last_instrument.get(signal, math.nan) if event == "end" else math.nan
+        else:
+            reading = readings.get(signal, math.nan)
         return {
             "reading": reading,
             "instrument": self._last_instrument.get(signal, math.nan),
