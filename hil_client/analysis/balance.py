@@ -101,7 +101,7 @@ def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[Ph
         params, get["flue_gas_O2_pct"], get["flue_gas_temp_C"], get["room_temp_C"], co
     )
     firing = get["flue_gas_O2_pct"] < FIRING_O2_PCT
-    per_kg_dry = params.fuel.as_received_per_kg_dry - params.fuel.ash
+    per_kg_dry = params.fuel.balance_loss_per_kg_dry
     hhv = params.fuel.hhv_dry_kJ_kg
     out = []
     for name in NAMES:

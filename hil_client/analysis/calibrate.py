@@ -157,7 +157,7 @@ def _fuel_rate_dry(iv: Interval, params: BoilerParams) -> tuple[float, float]:
     m = iv.log["balance_mass_kg"][iv.i0 : iv.i1]
     ok = ~np.isnan(m)
     _, slope, _, se = _linfit(t[ok], m[ok])
-    per_kg_dry = params.fuel.as_received_per_kg_dry - params.fuel.ash
+    per_kg_dry = params.fuel.balance_loss_per_kg_dry
     duration = t[-1] - t[0]
     # the resolution of the two end readings bounds the mass difference: 0.02 kg each
     u_res = math.sqrt(2) * _u("balance_mass_kg", 0.0) / duration
@@ -405,7 +405,7 @@ def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibrati
         i_stop = i0 + int(reach[0]) if len(reach) else i_end
         if i_stop - i0 >= 120:
             mass = fill_gaps(log["balance_mass_kg"], t)
-            per_kg_dry = doc.fuel.as_received_per_kg_dry - doc.fuel.ash
+            per_kg_dry = doc.fuel.balance_loss_per_kg_dry
             duration = t[i_stop - 1] - t[i0 - 1]
             dm = (mass[i0 - 1] - mass[i_stop - 1]) / per_kg_dry
             p_start.append(

@@ -465,7 +465,7 @@ def _closure_blocks(case: Case) -> list[tuple[float, float]]:
     o2 = fill_gaps(log["flue_gas_O2_pct"], t)
     _, sens, lat, chem = flue_gas_loss_per_kg(p, o2, case.lab["flue_gas_temp_C"], case.room, co)
     usable = p.fuel.hhv_dry_kJ_kg * (1.0 - k.ASH_LOSS_FRACTION) - sens - lat - chem
-    per_kg = p.fuel.as_received_per_kg_dry - p.fuel.ash
+    per_kg = p.fuel.balance_loss_per_kg_dry
     mass = case.balance
     start = case.phases.t1 + 1200.0
     rows = np.flatnonzero((t > start) & (t <= case.phases.t2) & case.firing.burning)
@@ -581,7 +581,7 @@ def full_prediction(case: Case, effect: str, theta: dict[str, float]) -> dict[st
     elif effect == "ignition_delay" and theta:
         fuel = pred["fuel_cum_kg"].copy()
         per_start = theta["delay_s"] * case.params.p_start_kW / case.params.fuel.lhv_dry_kJ_kg
-        per_start *= case.params.fuel.as_received_per_kg_dry - case.params.fuel.ash
+        per_start *= case.params.fuel.balance_loss_per_kg_dry
         for i in case.firing.starts:
             fuel[i:] += per_start
         pred["fuel_cum_kg"] = fuel

@@ -81,7 +81,7 @@ class Case:
 
     def fuel_cum(self, scale: float = 1.0) -> np.ndarray:
         """The model's cumulative fuel as the balance sees it [kg as received, ash stays]."""
-        per_kg = self.params.fuel.as_received_per_kg_dry - self.params.fuel.ash
+        per_kg = self.params.fuel.balance_loss_per_kg_dry
         fuel = np.cumsum(self.model[:, Y_FUEL] * self.dt) / 3600.0 * per_kg * scale
         return fuel - fuel[0]
 

@@ -53,36 +53,66 @@ from rig_emulator.model.layout import (
     Y_T_BOILER,
     Y_T_FG,
     Y_T_OUT,
+    index_of,
 )
 from rig_emulator.model.params import BoilerParams
 
 EffectsArg = EffectSettings | Mapping[str, Mapping[str, float]] | None
 
-# bench constants
-BC_TAU_FLOW, BC_LOOP_CAP, BC_LOOP_UA, BC_TAU_COND, BC_COOL_MAX, BC_HEAT_MAX = range(6)
-BC_VELOCITY_FACTOR, BC_IDLE_VELOCITY, BC_DRAUGHT, BC_BALANCE0, BC_BALANCE_PER_KG = range(6, 11)
-N_BENCH_CONSTANTS = 11
-# bench state
-BS_FLOW, BS_T_RETURN, BS_TIME = range(3)
-# inputs
-U_FLOW_SP, U_RETURN_SP, U_PUMP, U_BOILER_ON, U_HEATING, U_ROOM, U_PRESSURE, U_HUMIDITY = range(8)
-N_INPUTS = 8
-# bench outputs
-(
-    YB_TIME,
-    YB_FLOW,
-    YB_T_IN,
-    YB_T_OUT,
-    YB_ROOM,
-    YB_PRESSURE,
-    YB_HUMIDITY,
-    YB_BALANCE,
-    YB_VELOCITY,
-    YB_DRAUGHT,
-    YB_CONDITIONING,
-    YB_FIRING_FLAG,
-) = range(12)
-N_BENCH_OUTPUTS = 12
+# bench constants, state, inputs and outputs: one declaration each (see model.layout)
+BENCH_CONSTANT_FIELDS = (
+    "flow_time_constant_s",
+    "loop_capacity_kJ_K",
+    "loop_ua_kW_K",
+    "conditioning_time_constant_s",
+    "cooling_capacity_kW",
+    "heating_capacity_kW",
+    "velocity_factor",  # actual m/s per (m3(N)/h K / hPa)
+    "idle_velocity_m_s",
+    "draught_Pa",
+    "initial_balance_kg",
+    "balance_loss_per_kg_dry",  # balance loss per kg of dry fuel the model burns [kg]
+)
+BC = index_of(BENCH_CONSTANT_FIELDS)
+BC_TAU_FLOW = BC["flow_time_constant_s"]
+BC_LOOP_CAP = BC["loop_capacity_kJ_K"]
+BC_LOOP_UA = BC["loop_ua_kW_K"]
+BC_TAU_COND = BC["conditioning_time_constant_s"]
+BC_COOL_MAX = BC["cooling_capacity_kW"]
+BC_HEAT_MAX = BC["heating_capacity_kW"]
+BC_VELOCITY_FACTOR = BC["velocity_factor"]
+BC_IDLE_VELOCITY = BC["idle_velocity_m_s"]
+BC_DRAUGHT = BC["draught_Pa"]
+BC_BALANCE0 = BC["initial_balance_kg"]
+BC_BALANCE_PER_KG = BC["balance_loss_per_kg_dry"]
+N_BENCH_CONSTANTS = len(BENCH_CONSTANT_FIELDS)
+
+BENCH_STATE_FIELDS = ("water_flow_kg_h", "return_temp_C", "time_s")
+BS = index_of(BENCH_STATE_FIELDS)
+BS_FLOW, BS_T_RETURN, BS_TIME = BS["water_flow_kg_h"], BS["return_temp_C"], BS["time_s"]
+
+#: What the test controller and the room give the bench each step.
+INPUT_FIELDS = (
+    "water_flow_setpoint_kg_h",
+    "return_setpoint_C",
+    "pump_on",
+    "boiler_command",
+    "return_heating",
+    "room_temp_C",
+    "ambient_pressure_hPa",
+    "relative_humidity_pct",
+)
+U = index_of(INPUT_FIELDS)
+U_FLOW_SP = U["water_flow_setpoint_kg_h"]
+U_RETURN_SP = U["return_setpoint_C"]
+U_PUMP = U["pump_on"]
+U_BOILER_ON = U["boiler_command"]
+U_HEATING = U["return_heating"]
+U_ROOM = U["room_temp_C"]
+U_PRESSURE = U["ambient_pressure_hPa"]
+U_HUMIDITY = U["relative_humidity_pct"]
+N_INPUTS = len(INPUT_FIELDS)
+
 BENCH_OUTPUT_FIELDS = (
     "time_s",
     "water_flow_kg_h",
@@ -97,6 +127,20 @@ BENCH_OUTPUT_FIELDS = (
     "conditioning_kW",
     "boiler_on",
 )
+YB = index_of(BENCH_OUTPUT_FIELDS)
+YB_TIME = YB["time_s"]
+YB_FLOW = YB["water_flow_kg_h"]
+YB_T_IN = YB["water_in_temp_C"]
+YB_T_OUT = YB["water_out_temp_C"]
+YB_ROOM = YB["room_temp_C"]
+YB_PRESSURE = YB["ambient_pressure_hPa"]
+YB_HUMIDITY = YB["relative_humidity_pct"]
+YB_BALANCE = YB["balance_mass_kg"]
+YB_VELOCITY = YB["flue_gas_velocity_m_s"]
+YB_DRAUGHT = YB["chimney_draught_Pa"]
+YB_CONDITIONING = YB["conditioning_kW"]
+YB_FIRING_FLAG = YB["boiler_on"]
+N_BENCH_OUTPUTS = len(BENCH_OUTPUT_FIELDS)
 
 
 @dataclass(frozen=True, slots=True)
@@ -128,7 +172,7 @@ def pack_bench_constants(params: BoilerParams, cfg: BenchConfig, c: np.ndarray) 
     bc[BC_DRAUGHT] = cfg.draught_Pa
     bc[BC_BALANCE0] = cfg.initial_balance_kg
     # the balance loses the fuel as received less its ash, which stays in the ash box
-    bc[BC_BALANCE_PER_KG] = params.fuel.as_received_per_kg_dry - params.fuel.ash
+    bc[BC_BALANCE_PER_KG] = params.fuel.balance_loss_per_kg_dry
     return bc
 
 
@@ -248,7 +292,8 @@ class Bench:
         """Return to the initial state: water at the initial temperature, boiler off."""
         t = self.config.initial_water_temp_C
         self.s = bm.new_state(t)
-        self.bs = np.array([0.0, t, 0.0])
+        self.bs = np.zeros(len(BENCH_STATE_FIELDS))
+        self.bs[BS_T_RETURN] = t
         self.fs, self.ph = new_effect_state(t)
         self.set_inputs(0.0, t, True, False, False)
         self.u[U_ROOM], self.u[U_PRESSURE], self.u[U_HUMIDITY] = self.config.room.at(0.0)

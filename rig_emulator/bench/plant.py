@@ -16,8 +16,9 @@ Numerics (inputs held over a step, as in the model):
 - exit pipe: a history of the water that entered it (cumulated mass, temperature, time),
   searched forward for the parcel now at the sensor (amortised O(1) per step).
 
-Layouts: constants ``FC_*`` (:func:`pack_effect_constants`), state ``FS_*``
-(:func:`new_effect_state`), pipe history ``PH_*`` rows of :data:`N_HISTORY` entries.
+Layouts: constants :data:`FX_CONSTANT_FIELDS` (:func:`pack_effect_constants`), state
+:data:`FX_STATE_FIELDS` (:func:`new_effect_state`), pipe history ``PH_*`` rows of
+:data:`N_HISTORY` entries.
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ from rig_emulator.model.layout import (
     S_SINCE_START,
     S_T,
     STARTUP,
+    index_of,
 )
 from rig_emulator.model.params import BoilerParams
 
@@ -51,42 +53,74 @@ BED_EMPTY_KG = 1e-4
 #: Share of the body's conduction time constant the controller waits out (assumption).
 HORIZON_PER_BODY_TAU = 0.8
 
-# --- effect constants
-(
-    FC_BODY_ON,  # 0/1
-    FC_BODY_N,  # metal nodes [-]
-    FC_BODY_CM,  # capacity of one metal node [kJ/K]
-    FC_BODY_CW,  # capacity of the water node [kJ/K]
-    FC_BODY_G,  # conductance of one link [kW/K]
-    FC_HORIZON,  # controller horizon beyond one step [s]
-    FC_IGN_ON,  # 0/1
-    FC_IGN_DELAY,  # [s]
-    FC_IGN_TAU,  # bed burn-out time constant [s]
-    FC_FG_ON,  # 0/1
-    FC_FG_TAU1,  # exchanger node [s]
-    FC_FG_TAU2,  # refractory node [s]
-    FC_PIPE_ON,  # 0/1
-    FC_PIPE_MASS,  # water in the pipe [kg]
-    FC_PIPE_K_ROOM,  # relaxation rate toward the room [1/s]
-    FC_PIPE_K_BOILER,  # relaxation rate toward the boiler water [1/s] (inf: instant)
-) = range(16)
-N_FX_CONSTANTS = 16
+# --- effect constants and state: one declaration each (see model.layout)
+FX_CONSTANT_FIELDS = (
+    "body_on",  # 0/1
+    "body_metal_nodes",  # [-]
+    "body_metal_node_capacity_kJ_K",
+    "body_water_capacity_kJ_K",
+    "body_link_conductance_kW_K",
+    "controller_horizon_s",  # beyond one step
+    "ignition_on",  # 0/1
+    "ignition_delay_s",
+    "burnout_time_constant_s",
+    "flue_on",  # 0/1
+    "flue_exchanger_time_constant_s",
+    "flue_refractory_time_constant_s",
+    "pipe_on",  # 0/1
+    "pipe_water_kg",
+    "pipe_room_rate_1_s",  # relaxation rate toward the room
+    "pipe_boiler_rate_1_s",  # relaxation rate toward the boiler water (inf: instant)
+)
+FC = index_of(FX_CONSTANT_FIELDS)
+FC_BODY_ON = FC["body_on"]
+FC_BODY_N = FC["body_metal_nodes"]
+FC_BODY_CM = FC["body_metal_node_capacity_kJ_K"]
+FC_BODY_CW = FC["body_water_capacity_kJ_K"]
+FC_BODY_G = FC["body_link_conductance_kW_K"]
+FC_HORIZON = FC["controller_horizon_s"]
+FC_IGN_ON = FC["ignition_on"]
+FC_IGN_DELAY = FC["ignition_delay_s"]
+FC_IGN_TAU = FC["burnout_time_constant_s"]
+FC_FG_ON = FC["flue_on"]
+FC_FG_TAU1 = FC["flue_exchanger_time_constant_s"]
+FC_FG_TAU2 = FC["flue_refractory_time_constant_s"]
+FC_PIPE_ON = FC["pipe_on"]
+FC_PIPE_MASS = FC["pipe_water_kg"]
+FC_PIPE_K_ROOM = FC["pipe_room_rate_1_s"]
+FC_PIPE_K_BOILER = FC["pipe_boiler_rate_1_s"]
+N_FX_CONSTANTS = len(FX_CONSTANT_FIELDS)
 
-# --- effect state
-FS_METAL = 0  # metal node temperatures [C], MAX_BODY_NODES slots
-FS_BED = MAX_BODY_NODES  # fuel in the bed [kg dry, nominal-energy equivalent]
-FS_LIT = FS_BED + 1  # 0/1: the bed burns
-FS_IGN_TIMER = FS_BED + 2  # time fed since the start while unlit [s]
-FS_SINCE_IGNITION = FS_BED + 3  # [s]
-FS_LAMBDA_FEED = FS_BED + 4  # feed rate that sets the fan (held in the burn-out) [kg/h]
-FS_FG1 = FS_BED + 5  # exchanger node of the flue-gas lag [C]
-FS_FG2 = FS_BED + 6  # refractory node = flue-gas temperature [C]
-FS_PIPE_T = FS_BED + 7  # temperature of the parcel at the sensor [C]
-FS_PIPE_MASS = FS_BED + 8  # cumulated mass that entered the pipe [kg]
-FS_PIPE_PARCEL = FS_BED + 9  # history index of the parcel at the sensor (-1: initial water)
-FS_PIPE_HEAD = FS_BED + 10  # entries written to the history so far
-FS_TIME = FS_BED + 11  # time [s]
-N_FX_STATE = FS_BED + 12
+FX_STATE_FIELDS = (
+    *(f"metal_{i}_C" for i in range(MAX_BODY_NODES)),  # metal node temperatures
+    "bed_kg",  # fuel in the bed [kg dry, nominal-energy equivalent]
+    "bed_lit",  # 0/1: the bed burns
+    "ignition_timer_s",  # time fed since the start while unlit
+    "since_ignition_s",
+    "lambda_feed_kg_h",  # feed rate that sets the fan (held in the burn-out)
+    "flue_exchanger_C",  # exchanger node of the flue-gas lag
+    "flue_gas_C",  # refractory node = flue-gas temperature
+    "pipe_sensor_C",  # temperature of the parcel at the sensor
+    "pipe_cumulated_kg",  # cumulated mass that entered the pipe
+    "pipe_parcel",  # history index of the parcel at the sensor (-1: initial water)
+    "pipe_head",  # entries written to the history so far
+    "time_s",
+)
+FS = index_of(FX_STATE_FIELDS)
+FS_METAL = FS["metal_0_C"]  # the metal nodes follow in order
+FS_BED = FS["bed_kg"]
+FS_LIT = FS["bed_lit"]
+FS_IGN_TIMER = FS["ignition_timer_s"]
+FS_SINCE_IGNITION = FS["since_ignition_s"]
+FS_LAMBDA_FEED = FS["lambda_feed_kg_h"]
+FS_FG1 = FS["flue_exchanger_C"]
+FS_FG2 = FS["flue_gas_C"]
+FS_PIPE_T = FS["pipe_sensor_C"]
+FS_PIPE_MASS = FS["pipe_cumulated_kg"]
+FS_PIPE_PARCEL = FS["pipe_parcel"]
+FS_PIPE_HEAD = FS["pipe_head"]
+FS_TIME = FS["time_s"]
+N_FX_STATE = len(FX_STATE_FIELDS)
 
 # --- pipe history: rows of cumulated mass at the end of the entry [kg], temperature [C],
 # time at its end [s]

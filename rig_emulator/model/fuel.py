@@ -51,6 +51,13 @@ class Fuel:
         return 1.0 / (1.0 - self.moisture)
 
     @property
+    def balance_loss_per_kg_dry(self) -> float:
+        """What a balance under boiler and ash box loses per kg of dry fuel burnt [kg/kg]:
+        the fuel as received less its ash, which stays in the ash box (assumption of the
+        bench, :mod:`rig_emulator.bench.bench`)."""
+        return self.as_received_per_kg_dry - self.ash
+
+    @property
     def lhv_dry_kJ_kg(self) -> float:
         """Net calorific value, dry basis [kJ/kg]: HHV less the latent heat of the water
         formed from hydrogen (8.937 kg H2O per kg H, at 25 C)."""

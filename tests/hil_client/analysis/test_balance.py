@@ -22,7 +22,7 @@ def _steady_log(params, hours: float = 2.0) -> tuple[LabLog, object]:
     st = stoichiometry(params.fuel)
     lam = params.fac_a_lambda + params.fac_b_lambda_h_kg * ss.fuel_dry_kg_h
     o2 = st.composition_dry_pct(lam)[0]
-    per_kg_dry = params.fuel.as_received_per_kg_dry - params.fuel.ash
+    per_kg_dry = params.fuel.balance_loss_per_kg_dry
     mass = 250.0 - ss.fuel_dry_kg_h * per_kg_dry * t / 3600.0
     cols = {
         "time_s": t,

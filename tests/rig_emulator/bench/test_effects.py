@@ -490,3 +490,14 @@ def test_hil_client_run_with_the_lab_profile_shows_the_outlet_pipe(tmp_path):
     t3 = json.loads(out.with_name("st.meta.json").read_text())["t3_s"]
     gap = np.array(log["boiler_water_temp_C"]) - np.array(log["water_out_temp_C"])
     assert np.min(gap[t > t3 + 3600]) > 5.0
+
+
+def test_plant_step_with_neutral_effects_is_the_model_bit_for_bit(params_12kw, clean_run):
+    """One step skeleton: the plant's kernel (every effect constant zero) takes the same
+    stages as the model's step, so the two agree to the last bit, not only within noise."""
+    bench = _bench(params_12kw)
+    assert not np.any(bench.fc)
+    bench._dynamic = True  # force the effects kernel with neutral constants
+    run = drive(bench)
+    assert np.array_equal(run["y"], clean_run["y"], equal_nan=True)
+    assert np.array_equal(run["yb"], clean_run["yb"], equal_nan=True)
