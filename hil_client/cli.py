@@ -196,11 +196,11 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     with bad_input(LogError):
         result = diagnose(*cal, *val, doc)
     write_diagnosis(result, args.out, str(args.calibration), str(args.validation))
-    print(f"effect: {result['effect']} (confidence {result['confidence']:.2f})")
-    if result["unexplained_gap"]:
-        top = result["where"][0]
+    print(f"effect: {result.effect} (confidence {result.confidence:.2f})")
+    if result.unexplained_gap:
+        top = result.where[0]
         print(f"unexplained gap: largest in {top['signal']} during {top['phase']}")
-    s = result["shrinkage"]
+    s = result.shrinkage
     if s and s["shrink_pct"] is not None:
         verdict = "" if s["confirmed"] else "; not confirmed on held-out data"
         print(

@@ -10,6 +10,7 @@ import time
 from typing import TextIO
 
 from hil_client.protocol.runner import LOG_COLUMNS, Row
+from rig_emulator.model.water_heat import heat_to_water_kW
 
 _I = {name: i for i, name in enumerate(LOG_COLUMNS)}
 
@@ -70,7 +71,9 @@ class LiveView(ProgressLine):
 
         t = float(row[0])  # type: ignore[arg-type]
         wall = time.monotonic() - self._start
-        q_water = v("water_flow_kg_h") * 4.19 * (v("water_out_temp_C") - v("water_in_temp_C"))
+        q_water = heat_to_water_kW(
+            v("water_flow_kg_h"), v("water_in_temp_C"), v("water_out_temp_C")
+        )
         lines = [
             f"phase {row[1]:<10} sequence {row[2] or '-':<18} simulated {_hms(t)} "
             f"({min(t / self.expected_s, 1) * 100:4.1f} %), wall {_hms(wall)}",
@@ -78,7 +81,7 @@ class LiveView(ProgressLine):
             f"{v('boiler_water_temp_C'):6.2f} C   forward {v('water_out_temp_C'):6.2f} C   "
             f"return {v('water_in_temp_C'):6.2f} C",
             f"  flow {v('water_flow_kg_h'):7.1f} kg/h (setpoint "
-            f"{v('water_flow_setpoint_kg_h'):7.1f})   heat to water {q_water / 3600:6.2f} kW",
+            f"{v('water_flow_setpoint_kg_h'):7.1f})   heat to water {q_water:6.2f} kW",
             f"  flue gas {v('flue_gas_temp_C'):6.1f} C   O2 {v('flue_gas_O2_pct'):5.2f} %   "
             f"CO {v('flue_gas_CO_ppm'):7.1f} ppm",
             f"  balance {v('balance_mass_kg'):8.2f} kg   electric {v('electric_power_W'):6.1f} W",

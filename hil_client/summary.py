@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from hil_client.protocol.runner import LOG_COLUMNS, Row
-from rig_emulator.model.constants import CP_WATER
+from rig_emulator.model.water_heat import heat_to_water_kW
 
 _I = {name: i for i, name in enumerate(LOG_COLUMNS)}
 _T, _PHASE, _MASS, _FLOW = _I["time_s"], _I["phase"], _I["balance_mass_kg"], _I["water_flow_kg_h"]
@@ -46,9 +46,9 @@ class RunSummary:
         if total is None:
             total = self.phases[phase] = PhaseTotal()
             total.mass_start_kg = self._mass_prev if self._mass_prev is not None else mass
-        spread = row[_T_OUT] - row[_T_IN]  # type: ignore[operator]
         total.duration_s += dt
-        total.heat_to_water_kWh += row[_FLOW] * CP_WATER * spread * dt / 3600**2  # type: ignore[operator]
+        q_water = heat_to_water_kW(row[_FLOW], row[_T_IN], row[_T_OUT])  # type: ignore[arg-type]
+        total.heat_to_water_kWh += q_water * dt / 3600.0
         total.mass_end_kg = mass
         total.t_boiler_end_C = row[_T_BOILER]  # type: ignore[assignment]
         self._mass_prev = mass

@@ -102,16 +102,20 @@ def plant_identity(
     }
 
 
-def check_command(name: str, value: float) -> float:
-    """Validate a command value against its signal's range; returns it as float."""
+def check_command(name: str, value: float, within: tuple[float, float] | None = None) -> float:
+    """The one check of a command value, on every path (local rig, Modbus, dashboard):
+    a command signal, finite, within its declared range (:mod:`rig_emulator.signals`) or
+    ``within``, a register-map point's range, which the map may only narrow. Returns the
+    value as float; :class:`CommandError` if not valid."""
     signal = SIGNALS.get(name)
     if signal is None or signal.kind != "command":
         raise CommandError(f"'{name}' is not a command")
     value = float(value)
     if not math.isfinite(value):
         raise CommandError(f"{name}: {value} is not a finite number")
-    if not signal.minimum <= value <= signal.maximum:
-        raise CommandError(f"{name}: {value} outside {signal.minimum:g}..{signal.maximum:g}")
+    lo, hi = within if within is not None else (signal.minimum, signal.maximum)
+    if not lo <= value <= hi:
+        raise CommandError(f"{name}: {value} outside {lo:g}..{hi:g}")
     return value
 
 
@@ -187,12 +191,15 @@ class Emulator:
 
     def set_commands(self, values: dict[str, float]) -> None:
         """Set several commands at once; all are validated before any is applied."""
-        checked = {}
-        for name, value in values.items():
-            checked[name] = check_command(name, value)
+        self.set_checked_commands({name: check_command(name, v) for name, v in values.items()})
+
+    def set_checked_commands(self, values: dict[str, float]) -> None:
+        """Set plant commands that :func:`check_command` has passed (the Modbus adapter
+        checks a whole write against the map's points first, then applies it)."""
+        for name in values:
             if name not in self.commands:
                 raise CommandError(f"'{name}' is a clock command, not a plant command")
-        self.commands.update(checked)
+        self.commands.update(values)
         self._apply_commands()
 
     def _apply_commands(self) -> None:
@@ -251,31 +258,40 @@ class Emulator:
     # ------------------------------------------------------------------ values
     def _plant_values(self) -> list[float]:
         """True values of the measured signals, in :data:`MEASURED` order."""
+        values = self._plant_by_name()
+        return [values[name] for name in MEASURED]
+
+    def _plant_by_name(self) -> dict[str, float]:
+        """True values of the measured signals by name, from the plant's named outputs."""
         y = self.bench.y.tolist()
         yb = self.bench.yb.tolist()
         c = self.bench.c
         lam = y[Y_LAMBDA]
         nox = self._nox_per_v / (c[K_VDRY0] + c[K_VDRY1] * lam) if math.isfinite(lam) else 0.0
-        return [
-            yb[YB_FLOW],
-            yb[YB_T_IN],
-            yb[YB_T_OUT],
-            y[Y_T_BOILER],
-            yb[YB_ROOM],
-            yb[YB_PRESSURE],
-            yb[YB_HUMIDITY],
-            y[Y_O2],
-            y[Y_CO2],
-            y[Y_CO],
-            nox,
-            y[Y_SO2],
-            OGC_PER_CO * y[Y_CO],
-            y[Y_T_FG],
-            yb[YB_VELOCITY],
-            yb[YB_DRAUGHT],
-            yb[YB_BALANCE],
-            y[Y_P_EL],
-        ]
+        return {
+            "water_flow_kg_h": yb[YB_FLOW],
+            "water_in_temp_C": yb[YB_T_IN],
+            "water_out_temp_C": yb[YB_T_OUT],
+            "boiler_water_temp_C": y[Y_T_BOILER],
+            "room_temp_C": yb[YB_ROOM],
+            "ambient_pressure_hPa": yb[YB_PRESSURE],
+            "relative_humidity_pct": yb[YB_HUMIDITY],
+            "flue_gas_O2_pct": y[Y_O2],
+            "flue_gas_CO2_pct": y[Y_CO2],
+            "flue_gas_CO_ppm": y[Y_CO],
+            "flue_gas_NOx_ppm": nox,
+            "flue_gas_SO2_ppm": y[Y_SO2],
+            "flue_gas_OGC_ppm": OGC_PER_CO * y[Y_CO],
+            "flue_gas_temp_C": y[Y_T_FG],
+            "flue_gas_velocity_m_s": yb[YB_VELOCITY],
+            "chimney_draught_Pa": yb[YB_DRAUGHT],
+            "balance_mass_kg": yb[YB_BALANCE],
+            "electric_power_W": y[Y_P_EL],
+        }
+
+    def reading_by_name(self) -> dict[str, float]:
+        """Instrument readings of the measured signals by name."""
+        return dict(zip(MEASURED, self.readings, strict=True))
 
     @property
     def boiler_on(self) -> float:
@@ -297,7 +313,7 @@ class Emulator:
         what it did: an invalid (NaN) analyser reading clears the analyser's "measuring"
         bit and sets bit 2; an invalid or jumping balance is not "stable".
         """
-        out = dict(zip(MEASURED, self.readings, strict=True))
+        out = self.reading_by_name()
         true = dict(zip(_TRUE_KEYS, self._true, strict=True))
         if self.reading_hook is not None:
             self.reading_hook(out, self.sim_time_s)

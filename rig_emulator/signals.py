@@ -74,7 +74,7 @@ _STATUS = (
     ("active_fault_count", "-", "number of active faults (fault injection)"),
 )
 _COMMANDS = (
-    ("water_flow_setpoint_kg_h", "kg/h", "flow setpoint of the bench pump/valve", 0.0, 3000.0),
+    ("water_flow_setpoint_kg_h", "kg/h", "flow setpoint of the bench pump/valve", 0.0, 2000.0),
     ("return_setpoint_C", "C", "return temperature setpoint of the conditioning", 10.0, 90.0),
     ("pump_on", "0/1", "circulation pump on", 0.0, 1.0),
     ("return_heating", "0/1", "external heating of the return allowed (preheat)", 0.0, 1.0),

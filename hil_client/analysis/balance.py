@@ -27,6 +27,7 @@ from hil_client.analysis.phases import NAMES, Phases
 from rig_emulator.model import constants as k
 from rig_emulator.model.fuel import stoichiometry
 from rig_emulator.model.params import BoilerParams
+from rig_emulator.model.water_heat import heat_to_water_kW
 
 FIRING_O2_PCT = 19.0
 
@@ -66,11 +67,6 @@ def flue_gas_loss_per_kg(
     latent = np.full_like(lam, st.m_h2o_kg * k.DH_VAP_WATER)
     chem = co_ppm * 1e-6 * st.dry_volume_m3(lam) * k.RHO_N_CO * k.DH_COMB_CO
     return lam, sens, latent, chem
-
-
-def heat_to_water_kW(flow_kg_h: np.ndarray, t_in_C: np.ndarray, t_out_C: np.ndarray) -> np.ndarray:
-    """Heat to water per row [kW] from flow and temperatures (Eq. 7)."""
-    return flow_kg_h * k.CP_WATER * (t_out_C - t_in_C) / 3600.0
 
 
 def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[PhaseBalance]:

@@ -51,13 +51,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from hil_client.analysis.augment import first_order_lag, pipe_sensor, two_lump_water
-from hil_client.analysis.balance import flue_gas_loss_per_kg, heat_to_water_kW
+from hil_client.analysis.balance import flue_gas_loss_per_kg
 from hil_client.analysis.evidence import BlockGain, Evidence, cross_validate
 from hil_client.analysis.firing import windows_after
 from hil_client.analysis.logio import fill_gaps
 from hil_client.analysis.replay import SENSOR_TAU_S, Case
 from rig_emulator.model import constants as k
-from rig_emulator.model.layout import Y_Q_HX, Y_Q_IGN, Y_T_BOILER, Y_T_FG
+from rig_emulator.model.water_heat import heat_to_water_kW
 
 #: Out-of-sample evidence needed to name an effect [standard errors]: one-sided p ~ 0.001,
 #: about 0.007 over the five candidates.
@@ -264,13 +264,13 @@ def body_water(case: Case, tau_body_s: float) -> np.ndarray:
     c_water = p.capacity_kJ_K - c_metal
     ua = np.where(case.firing.burning, p.ua_amb_on_W_K, p.ua_amb_off_W_K) / 1000.0
     return two_lump_water(
-        case.model[:, Y_Q_HX] + case.model[:, Y_Q_IGN],
+        case.model["q_hx_kW"] + case.model["q_el_ign_kW"],
         case.flow,
         case.t_in,
         case.room,
         ua,
         case.dt,
-        float(case.model[0, Y_T_BOILER]),
+        float(case.model["t_boiler_C"][0]),
         c_metal,
         c_water,
         c_metal / tau_body_s,
@@ -284,7 +284,7 @@ def _body_predict(case: Case, theta: dict[str, float] | None) -> np.ndarray:
 
 
 def _flue_predict(case: Case, theta: dict[str, float] | None) -> np.ndarray:
-    t_fg = case.model[:, Y_T_FG]
+    t_fg = case.model["t_flue_gas_C"]
     gas = case.lagged("t_fg", t_fg, theta["tau_fg_s"]) if theta else t_fg
     return first_order_lag(gas, case.dt, SENSOR_TAU_S["flue_gas_temp_C"])
 
@@ -560,7 +560,7 @@ def full_prediction(case: Case, effect: str, theta: dict[str, float]) -> dict[st
     """The model's prediction of every lab signal with one effect added (for the figures)."""
     pred = case.base_prediction()
     if effect == "outlet_sensor_pipe" and theta:
-        node = case.model[:, Y_T_BOILER]
+        node = case.model["t_boiler_C"]
         pipe = pipe_sensor(
             node,
             case.flow,

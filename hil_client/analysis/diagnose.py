@@ -31,12 +31,12 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from hil_client.analysis.calibrate import calibrate
-from hil_client.analysis.candidates import CANDIDATES, Assessment, full_prediction
+from hil_client.analysis.candidates import CANDIDATES, Assessment
 from hil_client.analysis.logio import LabLog
 from hil_client.analysis.metrics import autocorrelation, lag_at_peak, table4_metrics, theil_shares
 from hil_client.analysis.phases import Phases
@@ -130,11 +130,44 @@ def _finite(x: float) -> float | None:
     return float(x) if x is not None and math.isfinite(x) else None
 
 
+@dataclass(frozen=True)
+class Diagnosis:
+    """The result of :func:`diagnose`: what ``diagnosis.json`` holds (:attr:`content`,
+    CONTRACT section 4) and the replayed logs the figures draw."""
+
+    content: dict
+    calibration: Case
+    validation: Case
+
+    @property
+    def effect(self) -> str:
+        return self.content["effect"]
+
+    @property
+    def confidence(self) -> float:
+        return self.content["confidence"]
+
+    @property
+    def unexplained_gap(self) -> bool:
+        return self.content["unexplained_gap"]
+
+    @property
+    def where(self) -> list[dict]:
+        return self.content["where"]
+
+    @property
+    def candidates(self) -> list[dict]:
+        return self.content["candidates"]
+
+    @property
+    def shrinkage(self) -> dict | None:
+        return self.content["shrinkage"]
+
+
 def diagnose(
     cal_log: LabLog, cal_phases: Phases, val_log: LabLog, val_phases: Phases, doc: BoilerParams
-) -> dict:
-    """The whole diagnosis (see the module docstring); returns the diagnosis.json content
-    (and, under ``_series``, what the figures draw)."""
+) -> Diagnosis:
+    """The whole diagnosis (see the module docstring)."""
     calibration = calibrate([(cal_log, cal_phases)], doc)
     # Pstart from the start-up fuel rate presumes the nominal calorific value, the very thing
     # a fuel-energy bias changes: the diagnosis keeps the documented start-up power
@@ -181,7 +214,7 @@ def diagnose(
     base_val, base_cal = val.base_prediction(), cal.base_prediction()
     where_val = where(val, base_val)
     gap_left = any((w["beyond_floor"] or 0.0) > 1.0 for w in where_val + where(cal, base_cal))
-    return {
+    content = {
         "effect": effect,
         "confidence": _confidence(assessments, effect),
         "unexplained_gap": effect == "none" and gap_left,
@@ -198,10 +231,5 @@ def diagnose(
         "firing": {"calibration": cal.firing.source, "validation": val.firing.source},
         "calibrated": {key: f.value for key, f in calibration.fitted.items()},
         "calibration_flags": dict(getattr(calibration, "flags", {})),
-        "_series": {"cal": cal, "val": val},
     }
-
-
-def predict(case: Case, effect: str, theta: dict[str, float]) -> dict[str, np.ndarray]:
-    """Every lab signal as the model predicts it with ``effect`` added (figures)."""
-    return full_prediction(case, effect, theta)
+    return Diagnosis(content, cal, val)

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hil_client.analysis.diagnose import Diagnosis
 from hil_client.analysis.figures import diagnosis_figures
 from hil_client.analysis.report import diagnosis_report
 
@@ -27,12 +28,12 @@ def _json_safe(value):
     return value
 
 
-def public(result: dict) -> dict:
-    """What ``diagnosis.json`` holds: everything but the series kept for the figures."""
-    return _json_safe({key: value for key, value in result.items() if not key.startswith("_")})
+def public(result: Diagnosis) -> dict:
+    """What ``diagnosis.json`` holds, as strict JSON."""
+    return _json_safe(result.content)
 
 
-def write_diagnosis(result: dict, out: Path, calibration: str, validation: str) -> dict:
+def write_diagnosis(result: Diagnosis, out: Path, calibration: str, validation: str) -> dict:
     """Write the three outputs into ``out`` (created); returns the public result."""
     out.mkdir(parents=True, exist_ok=True)
     figures = diagnosis_figures(result, out)

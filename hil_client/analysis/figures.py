@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -10,9 +11,13 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from hil_client.analysis.balance import heat_to_water_kW
+from hil_client.analysis.candidates import full_prediction
 from hil_client.analysis.logio import LabLog, fill_gaps
 from hil_client.analysis.phases import Phases
+from rig_emulator.model.water_heat import heat_to_water_kW
+
+if TYPE_CHECKING:
+    from hil_client.analysis.diagnose import Diagnosis
 
 PHASE_LABELS = ("t0", "t1", "t2", "t3")
 
@@ -205,13 +210,12 @@ def validation_figures(comp, phases: Phases, stem: Path, title: str) -> list[Pat
     return paths
 
 
-def diagnosis_figures(result: dict, out_dir: Path) -> list[Path]:
+def diagnosis_figures(result: Diagnosis, out_dir: Path) -> list[Path]:
     """Residuals by phase (validation log, unaugmented model) and before/after overlays of
     the signal where the gap lies."""
-    from hil_client.analysis.diagnose import predict
     from hil_client.analysis.replay import SIGNALS
 
-    val = result["_series"]["val"]
+    val = result.validation
     base = val.base_prediction()
     fig, axes = plt.subplots(len(SIGNALS), 1, figsize=(11, 10), sharex=True)
     h = val.t / 3600.0
@@ -223,12 +227,12 @@ def diagnosis_figures(result: dict, out_dir: Path) -> list[Path]:
     axes[-1].set_xlabel("time [h]")
     fig.suptitle("Residuals of the calibrated one-node model on the validation log")
     paths = [_save(fig, out_dir / "residuals_by_phase.png", dpi=100)]
-    shrink = result.get("shrinkage")
-    effect = result["effect"]
+    shrink = result.shrinkage
+    effect = result.effect
     if shrink is not None:
         s = shrink["signal"]
-        params = next(c["params"] for c in result["candidates"] if c["effect"] == effect)
-        after = predict(val, effect, params)
+        params = next(c["params"] for c in result.candidates if c["effect"] == effect)
+        after = full_prediction(val, effect, params)
         fig, ax = plt.subplots(figsize=(11, 4.5))
         ax.plot(h, val.lab[s], color="tab:red", lw=0.8, label="lab")
         ax.plot(h, base[s], color="k", lw=0.9, ls="--", label="model")

@@ -19,14 +19,13 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from hil_client.analysis.augment import first_order_lag
-from hil_client.analysis.balance import heat_to_water_kW
 from hil_client.analysis.firing import Firing, observe_firing
 from hil_client.analysis.logio import LabLog, LogError, fill_gaps
 from hil_client.analysis.phases import Phases
 from rig_emulator.model import pack_constants
-from rig_emulator.model.layout import Y_FUEL, Y_T_BOILER, Y_T_FG
 from rig_emulator.model.params import BoilerParams
 from rig_emulator.model.simulate import simulate
+from rig_emulator.model.water_heat import heat_to_water_kW
 
 SIGNALS = (
     "boiler_water_temp_C",
@@ -61,7 +60,7 @@ class Case:
     room: np.ndarray
     firing: Firing
     lab: dict[str, np.ndarray]
-    model: np.ndarray  # replay outputs, rows x layout Y_*
+    model: dict[str, np.ndarray]  # replay outputs by name (model.layout.OUTPUT_FIELDS)
     balance: np.ndarray  # the balance's reading without refills, gaps kept [kg]
     settled: np.ndarray  # test-phase rows far from any start or stop, with flow
     _lag_cache: dict = field(default_factory=dict)
@@ -82,18 +81,18 @@ class Case:
     def fuel_cum(self, scale: float = 1.0) -> np.ndarray:
         """The model's cumulative fuel as the balance sees it [kg as received, ash stays]."""
         per_kg = self.params.fuel.balance_loss_per_kg_dry
-        fuel = np.cumsum(self.model[:, Y_FUEL] * self.dt) / 3600.0 * per_kg * scale
+        fuel = np.cumsum(self.model["fuel_dry_kg_h"] * self.dt) / 3600.0 * per_kg * scale
         return fuel - fuel[0]
 
     def base_prediction(self) -> dict[str, np.ndarray]:
         """The calibrated model's prediction of every lab signal (sensor lags included)."""
-        node = self.model[:, Y_T_BOILER]
+        node = self.model["t_boiler_C"]
         return {
             "boiler_water_temp_C": self.lagged("node", node, SENSOR_TAU_S["boiler_water_temp_C"]),
             "water_out_temp_C": self.lagged("node", node, SENSOR_TAU_S["water_out_temp_C"]),
             "heat_to_water_kW": heat_to_water_kW(self.flow, self.t_in, node),
             "flue_gas_temp_C": self.lagged(
-                "t_fg", self.model[:, Y_T_FG], SENSOR_TAU_S["flue_gas_temp_C"]
+                "t_fg", self.model["t_flue_gas_C"], SENSOR_TAU_S["flue_gas_temp_C"]
             ),
             "fuel_cum_kg": self.fuel_cum(),
         }

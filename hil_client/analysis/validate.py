@@ -21,14 +21,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hil_client.analysis.balance import flue_gas_loss_per_kg, heat_to_water_kW
+from hil_client.analysis.balance import flue_gas_loss_per_kg
 from hil_client.analysis.logio import LabLog, fill_gaps
 from hil_client.analysis.metrics import table4_metrics
 from hil_client.analysis.phases import Phases
 from rig_emulator.model import pack_constants
-from rig_emulator.model.layout import Y_FUEL, Y_Q_CHEM, Y_Q_LAT, Y_Q_SENS, Y_T_BOILER
 from rig_emulator.model.params import BoilerParams
 from rig_emulator.model.simulate import simulate
+from rig_emulator.model.water_heat import heat_to_water_kW
 
 FUEL_WINDOW_S = 900.0
 SIGNALS = ("boiler_water_temp_C", "heat_to_water_kW", "flue_gas_loss_kW")
@@ -44,8 +44,9 @@ class Comparison:
     segments: dict[str, np.ndarray]  # name -> row mask
 
 
-def model_run(log: LabLog, phases: Phases, params: BoilerParams) -> np.ndarray:
-    """The model's outputs (rows x ``Y_*``) for the log's measured inputs."""
+def model_run(log: LabLog, phases: Phases, params: BoilerParams) -> dict[str, np.ndarray]:
+    """The model's outputs by name, one row per log row, for the log's measured inputs (the
+    first row repeats the first step's outputs at the measured initial temperature)."""
     t = log.t
     flow = np.nan_to_num(fill_gaps(log["water_flow_kg_h"], t))
     t_in = fill_gaps(log["water_in_temp_C"], t)
@@ -53,12 +54,9 @@ def model_run(log: LabLog, phases: Phases, params: BoilerParams) -> np.ndarray:
     enabled = (t > phases.t0) & (t <= phases.t2)
     dt = np.diff(t, prepend=t[0] - (t[1] - t[0] if len(t) > 1 else 1.0))
     t0 = float(fill_gaps(log["boiler_water_temp_C"], t)[0])
-    out = np.empty((len(t), 24))
-    out[1:] = simulate(
-        pack_constants(params), t0, dt[1:], flow[1:], t_in[1:], room[1:], enabled[1:]
-    )
-    out[0] = out[1]
-    out[0, Y_T_BOILER] = t0
+    steps = simulate(pack_constants(params), t0, dt[1:], flow[1:], t_in[1:], room[1:], enabled[1:])
+    out = {name: np.concatenate((col[:1], col)) for name, col in steps.items()}
+    out["t_boiler_C"][0] = t0
     return out
 
 
@@ -124,11 +122,11 @@ def compare(log: LabLog, phases: Phases, params: BoilerParams) -> Comparison:
         "flue_gas_loss_kW": np.where(firing, lab_fuel / 3600.0 * (sens + lat + chem), 0.0),
     }
     model = {
-        "boiler_water_temp_C": y[:, Y_T_BOILER],
+        "boiler_water_temp_C": y["t_boiler_C"],
         # as the lab computes it (Eq. 7), the model's outlet being its node temperature
-        "heat_to_water_kW": heat_to_water_kW(flow, t_in, y[:, Y_T_BOILER]),
-        "flue_gas_loss_kW": y[:, Y_Q_SENS] + y[:, Y_Q_LAT] + y[:, Y_Q_CHEM],
-        "fuel_dry_kg_h": y[:, Y_FUEL],
+        "heat_to_water_kW": heat_to_water_kW(flow, t_in, y["t_boiler_C"]),
+        "flue_gas_loss_kW": y["q_fg_sens_kW"] + y["q_fg_lat_kW"] + y["q_fg_chem_kW"],
+        "fuel_dry_kg_h": y["fuel_dry_kg_h"],
     }
     return Comparison(t, model, lab, segments_of(log, phases))
 

@@ -6,11 +6,11 @@ The same runner drives the in-process rig and the Modbus rig.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Protocol
 
-#: Instrument readings every rig returns, in this order (lab-log columns, CONTRACT section 3).
+#: Instrument readings every rig returns, by name (lab-log columns, CONTRACT section 3).
 READING_KEYS: tuple[str, ...] = (
     "water_flow_kg_h",
     "water_in_temp_C",
@@ -33,8 +33,6 @@ READING_KEYS: tuple[str, ...] = (
     "flue_gas_SO2_ppm",
     "flue_gas_OGC_ppm",
 )
-#: Readings before this index are the CONTRACT columns before the flow setpoint.
-N_CONTRACT_READINGS = READING_KEYS.index("boiler_on")
 
 
 @dataclass(slots=True)
@@ -61,8 +59,8 @@ class Rig(Protocol):
     def advance(self, dt_s: float) -> float:
         """Let ``dt_s`` seconds of simulated time pass; returns the time that passed [s]."""
 
-    def read(self) -> Sequence[float]:
-        """Read every instrument: values in :data:`READING_KEYS` order (NaN if missing)."""
+    def read(self) -> Mapping[str, float]:
+        """Read every instrument: a value for each of :data:`READING_KEYS` (NaN if missing)."""
 
     def close(self) -> None:
         """Release the rig."""

@@ -33,35 +33,25 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from hil_client.protocol.definition import ProtocolDefinition
-from hil_client.protocol.rig import (
-    N_CONTRACT_READINGS,
-    READING_KEYS,
-    Rig,
-    RigCommand,
-    RigError,
-)
-from rig_emulator.model.constants import CP_WATER
+from hil_client.protocol.rig import READING_KEYS, Rig, RigCommand, RigError
+from rig_emulator.model.water_heat import flow_for_heat_kg_h
 
 #: Columns of the lab log (CONTRACT section 3), in file order.
 LOG_COLUMNS: tuple[str, ...] = (
     "time_s",
     "phase",
     "sequence",
-    *READING_KEYS[:N_CONTRACT_READINGS],
+    *READING_KEYS[: READING_KEYS.index("boiler_on")],
     "water_flow_setpoint_kg_h",
-    *READING_KEYS[N_CONTRACT_READINGS:],
+    *READING_KEYS[READING_KEYS.index("boiler_on") :],
     "rig_epoch",
 )
+
 
 #: The mark set when each phase starts (preheat starts with the record).
 _START_MARK = {"start_up": "t0_s", "test": "t1_s", "cooling_1": "t2_s", "cooling_2": "t3_s"}
 
 PHASES = ("preheat", "start_up", "test", "cooling_1", "cooling_2")
-
-_T_IN = READING_KEYS.index("water_in_temp_C")
-_T_OUT = READING_KEYS.index("water_out_temp_C")
-_T_FG = READING_KEYS.index("flue_gas_temp_C")
-_ON = READING_KEYS.index("boiler_on")
 
 Row = tuple[object, ...]
 
@@ -120,7 +110,7 @@ class _SlopeWindow:
 
 def flow_for_load(load_pct: float, p_nom_kW: float, spread_K: float) -> float:
     """Water flow [kg/h] that imposes ``load_pct`` of nominal load with a ``spread_K`` spread."""
-    return load_pct / 100.0 * p_nom_kW * 3600.0 / (CP_WATER * spread_K)
+    return flow_for_heat_kg_h(load_pct / 100.0 * p_nom_kW, spread_K)
 
 
 def run_protocol(
@@ -210,15 +200,14 @@ def run_protocol(
         rows += 1
         setpoint = command.flow_setpoint_kg_h if command.pump_on else 0.0
         rig_epoch = getattr(rig, "epoch", 0)
-        row = (
-            t,
-            phase,
-            sequence,
-            *reading[:N_CONTRACT_READINGS],
-            setpoint,
-            *reading[N_CONTRACT_READINGS:],
-            rig_epoch,
-        )
+        step = {
+            "time_s": t,
+            "phase": phase,
+            "sequence": sequence,
+            "water_flow_setpoint_kg_h": setpoint,
+            "rig_epoch": rig_epoch,
+        }
+        row = tuple(step[c] if c in step else reading[c] for c in LOG_COLUMNS)
         sink(row)
         if progress is not None:
             progress(row)
@@ -244,8 +233,8 @@ def run_protocol(
         elapsed_phase = t - phase_start
         if phase == "preheat":
             ok = (
-                abs(reading[_T_OUT] - pre.temperature_C) <= pre.tolerance_K
-                and abs(reading[_T_IN] - pre.temperature_C) <= pre.tolerance_K
+                abs(reading["water_out_temp_C"] - pre.temperature_C) <= pre.tolerance_K
+                and abs(reading["water_in_temp_C"] - pre.temperature_C) <= pre.tolerance_K
             )
             hold_since = (hold_since if hold_since is not None else t) if ok else None
             timed_out = elapsed_phase >= pre.max_duration_s
@@ -257,8 +246,8 @@ def run_protocol(
                 if on_phase is not None:
                     on_phase(result)
         elif phase == "start_up":
-            if reading[_ON] >= 0.5:
-                slope.add(t, reading[_T_FG])
+            if reading["boiler_on"] >= 0.5:
+                slope.add(t, reading["flue_gas_temp_C"])
             else:
                 slope.clear()
             rise_K_min = slope.slope() * 60.0 if slope.full() else math.inf
@@ -281,7 +270,7 @@ def run_protocol(
                     on_phase(result)
         elif phase == "cooling_1":
             timed_out = elapsed_phase >= c1.max_duration_s
-            if reading[_T_OUT] <= c1.until_forward_C or timed_out:
+            if reading["water_out_temp_C"] <= c1.until_forward_C or timed_out:
                 if timed_out:
                     result.notes.append("t3: forward temperature rule not met, timed out")
                 phase, phase_start = "cooling_2", t

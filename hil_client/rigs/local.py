@@ -2,16 +2,13 @@
 
 from __future__ import annotations
 
-from operator import itemgetter
-
-from hil_client.protocol.rig import N_CONTRACT_READINGS, READING_KEYS, RigCommand
+from hil_client.protocol.rig import READING_KEYS, RigCommand
 from rig_emulator.bench import BenchConfig
 from rig_emulator.emulator import Emulator
 from rig_emulator.instruments import Profile
 from rig_emulator.signals import MEASURED
 
-_HEAD = itemgetter(*(MEASURED.index(key) for key in READING_KEYS[:N_CONTRACT_READINGS]))
-_TAIL = itemgetter(*(MEASURED.index(key) for key in READING_KEYS[N_CONTRACT_READINGS + 1 :]))
+_MEASURED_READINGS = tuple(key for key in READING_KEYS if key in MEASURED)
 
 
 class LocalRig:
@@ -54,11 +51,13 @@ class LocalRig:
         self._stepped = True
         return dt_s
 
-    def read(self) -> tuple[float, ...]:
+    def read(self) -> dict[str, float]:
         if not self._stepped:
             raise RuntimeError("read() before the first advance()")
-        readings = self.emulator.readings
-        return (*_HEAD(readings), self.emulator.boiler_on, *_TAIL(readings))
+        readings = self.emulator.reading_by_name()
+        out = {key: readings[key] for key in _MEASURED_READINGS}
+        out["boiler_on"] = self.emulator.boiler_on
+        return out
 
     def close(self) -> None:
         pass

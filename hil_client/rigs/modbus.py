@@ -666,9 +666,9 @@ class ModbusRig:
             wait = (target - now) / max(self.speed, 1e-9)
             time.sleep(min(max(wait * 0.5, 0.001), 0.25))
 
-    def read(self) -> tuple[float, ...]:
+    def read(self) -> dict[str, float]:
         values = self.values
-        return tuple(values.get(key, math.nan) for key in READING_KEYS)
+        return {key: values.get(key, math.nan) for key in READING_KEYS}
 
 
 def _foreign(time_moved_s: float) -> str:

@@ -21,7 +21,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-import math
 import secrets
 import socket
 import struct
@@ -462,10 +461,10 @@ class BenchServer:
                 value = 1.0 if values[first] else 0.0
             else:
                 value = decode(point, values[first : first + point.width])
-            if not (math.isfinite(value) and point.minimum <= value <= point.maximum):
-                return ExcCodes.ILLEGAL_VALUE
             try:
-                new[point.signal] = check_command(point.signal, value)
+                new[point.signal] = check_command(
+                    point.signal, value, within=(point.minimum, point.maximum)
+                )
             except CommandError:
                 return ExcCodes.ILLEGAL_VALUE
         # the client's registers are stored after this returns: publish them again next time
@@ -541,7 +540,7 @@ class BenchServer:
         if "reset" in new and new["reset"] not in (0.0, 1.0):
             return ExcCodes.ILLEGAL_VALUE
         if plant:
-            self.emulator.set_commands(plant)
+            self.emulator.set_checked_commands(plant)
         if "speed_factor" in new:
             self.clock.speed = new["speed_factor"]
             self._reanchor()

@@ -4,7 +4,7 @@ Carlon et al. (2015, Section 3.2) simulated the tests with the measured water fl
 temperature, room conditions and on/off commands as inputs and the calibrated parameters
 held constant. :func:`simulate` does the same: it steps the one-node model of
 :mod:`rig_emulator.model.boiler` row by row (inputs held over each row's interval) and
-returns every output of every step.
+returns every output of every step, by name (:data:`~rig_emulator.model.layout.OUTPUT_FIELDS`).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit
 
 from rig_emulator.model.boiler import new_state, step
-from rig_emulator.model.layout import N_OUTPUTS
+from rig_emulator.model.layout import N_OUTPUTS, OUTPUT_FIELDS, named
 
 
 @njit(cache=True)
@@ -32,8 +32,9 @@ def simulate(
     water_in_C: np.ndarray,
     room_C: np.ndarray,
     enabled: np.ndarray,
-) -> np.ndarray:
-    """Outputs (rows x layout ``Y_*``) of the model driven by measured inputs.
+) -> dict[str, np.ndarray]:
+    """Outputs of the model driven by measured inputs: one column per output name
+    (:data:`~rig_emulator.model.layout.OUTPUT_FIELDS`), one row per step.
 
     Args:
         c: constants (``pack_constants``); t_boiler0_C: initial node temperature [C].
@@ -52,4 +53,4 @@ def simulate(
         np.ascontiguousarray(enabled, dtype=np.bool_),
         out,
     )
-    return out
+    return named(OUTPUT_FIELDS, out)

@@ -16,15 +16,8 @@ import struct
 from collections.abc import Callable, Mapping, Sequence
 from functools import cache
 
+from rig_emulator.registers.datatypes import DATATYPES
 from rig_emulator.registers.schema import Point
-
-_INT = {  # (min, max, struct code)
-    "int16": (-(2**15), 2**15 - 1, "h"),
-    "uint16": (0, 2**16 - 1, "H"),
-    "int32": (-(2**31), 2**31 - 1, "i"),
-    "uint32": (0, 2**32 - 1, "I"),
-}
-_FLOAT = {"float32": "f", "float64": "d"}
 
 
 def _structs(point: Point) -> tuple[struct.Struct, struct.Struct]:
@@ -34,14 +27,14 @@ def _structs(point: Point) -> tuple[struct.Struct, struct.Struct]:
 
 @cache  # keyed by two short strings: hashing a whole Point costs more than the packing
 def _structs_of(datatype: str, word_order: str) -> tuple[struct.Struct, struct.Struct]:
-    code = _FLOAT.get(datatype) or _INT[datatype][2]
+    code = DATATYPES[datatype].code
     width = struct.calcsize(code) // 2
     order = "<" if word_order == "CDAB" and width > 1 else ">"
     return struct.Struct(order + code), struct.Struct(order + "H" * width)
 
 
 def _raw(point: Point, value: float) -> int:
-    lo, hi, _ = _INT[point.datatype]
+    lo, hi = DATATYPES[point.datatype].int_range
     if math.isnan(value):
         return 0
     scaled = (value - point.offset) / point.scale
@@ -53,7 +46,7 @@ def encode(point: Point, value: float) -> list[int]:
     if point.datatype == "bool":
         return [1 if value >= 0.5 else 0]
     values, words = _structs(point)
-    raw = value if point.datatype in _FLOAT else _raw(point, value)
+    raw = value if DATATYPES[point.datatype].is_float else _raw(point, value)
     return list(words.unpack(values.pack(raw)))
 
 
@@ -87,9 +80,9 @@ def _segments(points: Sequence[Point]) -> list[_Segment]:
         if p_order != order:
             close()
             order, codes, words, scaled = p_order, "", 0, []
-        codes += _FLOAT.get(p.datatype) or _INT[p.datatype][2]
+        codes += DATATYPES[p.datatype].code
         words += p.width
-        scaled.append(None if p.datatype in _FLOAT else p)
+        scaled.append(None if DATATYPES[p.datatype].is_float else p)
     close()
     return segments
 
@@ -152,7 +145,7 @@ def decode(point: Point, registers: list[int]) -> float:
         return 1.0 if registers[0] else 0.0
     values, words = _structs(point)
     raw = values.unpack(words.pack(*registers[: point.width]))[0]
-    if point.datatype in _FLOAT:
+    if DATATYPES[point.datatype].is_float:
         return raw
     return raw * point.scale + point.offset
 
@@ -161,8 +154,7 @@ def precision(point: Point, value: float) -> float:
     """Largest difference between ``value`` and its decoded encoding (encoding precision)."""
     if point.datatype == "bool":
         return 0.5
-    if point.datatype == "float32":
-        return abs(value) * 2.0**-24 + 1e-45
-    if point.datatype == "float64":
-        return abs(value) * 2.0**-53
+    datatype = DATATYPES[point.datatype]
+    if datatype.is_float:
+        return abs(value) * datatype.relative_precision + 1e-45
     return abs(point.scale) / 2.0

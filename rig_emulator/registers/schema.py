@@ -15,7 +15,7 @@ A map lists devices (Modbus unit IDs), each with points that publish one signal 
             signal: water_flow_kg_h   # a signal of the catalog
             table: input              # input | holding | coil | discrete
             address: 0                # 0-based protocol address (register, or bit for coils)
-            datatype: float32         # int16 uint16 int32 uint32 float32 float64 (bool for bits)
+            datatype: float32         # rig_emulator.registers.datatypes (bool for bits)
             word_order: CDAB          # ABCD (big-endian words) or CDAB (low word first)
             scale: 0.01               # value = raw * scale + offset (integer types)
             offset: 0
@@ -36,21 +36,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from rig_emulator.registers.datatypes import DATATYPES
 from rig_emulator.signals import SIGNALS
 from rig_emulator.yamlio import read_yaml
 
 MAP_DIR = Path(__file__).resolve().parents[2] / "register_maps"
 
 TABLES = ("input", "holding", "coil", "discrete")
-DATATYPES = {  # registers per value
-    "int16": 1,
-    "uint16": 1,
-    "int32": 2,
-    "uint32": 2,
-    "float32": 2,
-    "float64": 4,
-    "bool": 1,
-}
 WORD_ORDERS = ("ABCD", "CDAB")
 BIT_TABLES = ("coil", "discrete")
 
@@ -80,7 +72,7 @@ class Point:
     @property
     def width(self) -> int:
         """Registers (or bits) the point occupies."""
-        return DATATYPES[self.datatype]
+        return DATATYPES[self.datatype].width
 
     @property
     def writable(self) -> bool:
@@ -170,7 +162,7 @@ def _point(raw: Any, where: str, default_order: str) -> Point:
     address = raw["address"]
     if isinstance(address, bool) or not isinstance(address, int) or address < 0:
         raise MapError(f"{where}: 'address' must be an integer >= 0")
-    if address + DATATYPES[datatype] > 65536:
+    if address + DATATYPES[datatype].width > 65536:
         raise MapError(f"{where}: 'address' {address} runs past 65535")
     order = raw.get("word_order", default_order)
     if order not in WORD_ORDERS:

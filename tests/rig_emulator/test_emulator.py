@@ -9,6 +9,7 @@ from rig_emulator.faults.wire import BLOCK_SIGNALS
 from rig_emulator.instruments import load_profile
 from rig_emulator.model.layout import Y_P_EL, Y_T_BOILER, Y_T_FG
 from rig_emulator.signals import MEASURED, SIGNALS
+from tests.modbus_helpers import client, point, write
 
 #: published by the server's fault injection, not by the emulator
 FAULT_SERVER_SIGNALS = (*BLOCK_SIGNALS, "active_fault_count")
@@ -106,3 +107,32 @@ def test_compiling_the_kernels_leaves_the_emulator_alone(params_12kw):
     emulator.advance(60.0)
     twin.advance(60.0)
     assert emulator.values() == twin.values()  # same noise draws: nothing was consumed
+
+
+def test_local_and_modbus_rig_accept_the_same_setpoints(serve, params_12kw):
+    """One declaration of each command's range (rig_emulator.signals), one check: the
+    in-process emulator and a Modbus write agree at both edges of every writable range."""
+    srv = serve()
+    c = client(srv.port)
+    try:
+        for dev in srv.map.devices:
+            for p in dev.points:
+                if not p.writable or p.table == "coil" or dev.name == "sim_control":
+                    continue
+                sig = SIGNALS[p.signal]
+                for value, ok in ((sig.maximum, True), (sig.maximum + 1.0, False)):
+                    emu = Emulator(params_12kw, load_profile("clean"), 0)
+                    try:
+                        emu.set_command(p.signal, value)
+                        local_ok = True
+                    except CommandError:
+                        local_ok = False
+                    r = write(c, srv, dev.name, p.name, value)
+                    assert local_ok is ok, (p.signal, value)
+                    assert (not r.isError()) is ok, (p.signal, value, r)
+                    if not ok:
+                        assert r.exception_code == 3
+        _, flow = point(srv, "bench_plc", "flow_setpoint")
+        assert (flow.minimum, flow.maximum) == (0.0, 2000.0)
+    finally:
+        c.close()
