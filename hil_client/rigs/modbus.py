@@ -290,6 +290,11 @@ class ModbusRig:
             except ModbusExceptionResponse as exc:
                 raise RigError(f"{self.url}: {exc}") from None
 
+    @property
+    def server_time_offset_s(self) -> float:
+        """Log time minus server time (constant between breaks)."""
+        return self._offset
+
     def close(self) -> None:
         if self._conn is not None:
             self._conn.close()
