@@ -3,7 +3,8 @@
 Installed with the package (entry point ``pytest11``), it gives every test suite a fixture
 ``rig_emulator`` (function scope) that starts ``rig-emulator serve --lockstep`` on a free
 port of 127.0.0.1 in a subprocess and yields a :class:`RigEmulator` with ``host``, ``port``,
-``advance(seconds)``, ``inject(fault)``, ``clear_faults()`` and ``truth(signal)``. The server
+``advance(seconds)``, ``inject(fault)``, ``clear_faults()`` and ``truth(signal)`` (and
+``read(signal)``, ``write(signal, value)`` by name for set-up and checks). The server
 stops when the test ends, passed or failed. Options per test::
 
     @pytest.mark.rig_emulator(boiler="windhager_12kw", profile="lab", seed=1, faults="F.yaml")
@@ -216,6 +217,21 @@ class RigEmulator:
             raise RigEmulatorError(f"read of {signal_name} refused: {reply}")
         words = reply.bits[:1] if point.table in ("coil", "discrete") else reply.registers
         return decode(point, list(words))
+
+    def write(self, signal_name: str, value: float) -> None:
+        """Write a command (a setpoint, a switch) by signal name, e.g.
+        ``write("boiler_command", 1)``, as the map encodes it."""
+        from rig_emulator.registers import encode
+
+        device, point = self.map.point(signal_name)
+        if point.table == "coil":
+            reply = self.client.write_coil(point.address, value >= 0.5, device_id=device.unit_id)
+        else:
+            reply = self.client.write_registers(
+                point.address, encode(point, float(value)), device_id=device.unit_id
+            )
+        if reply.isError():
+            raise RigEmulatorError(f"write of {signal_name} = {value} refused: {reply}")
 
     def truth(self, signal_name: str) -> float:
         """The plant's true value of a measured signal (not the reading), from the truth
