@@ -29,7 +29,7 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -162,21 +162,51 @@ class RigEmulator:
             raise RigEmulatorError(f"cannot connect to {self.host}:{self.port}")
         return self._client
 
+    def _call(self, request: Callable[[Any], Any]) -> Any:
+        """``request(client)``; once more on a new connection if the server closed this
+        one (a ``disconnect`` fault closes the fixture's connection too)."""
+        from pymodbus.exceptions import ConnectionException, ModbusIOException
+
+        try:
+            return request(self.client)
+        except (ConnectionException, ModbusIOException, OSError):
+            self._reconnect()
+            return request(self.client)
+
+    def _reconnect(self) -> None:
+        if self._client is not None:
+            with contextlib.suppress(Exception):
+                self._client.close()
+            self._client = None
+
     def _write(self, signal_name: str | None, registers: list[int], address: int | None = None):
         device, point = self.map.point(signal_name) if signal_name else (None, None)
         unit = device.unit_id if device else self.map.point("fault_kind")[0].unit_id
         start = point.address if point else int(address or 0)
-        reply = self.client.write_registers(start, registers, device_id=unit)
+        reply = self._call(lambda c: c.write_registers(start, registers, device_id=unit))
         if reply.isError():
             raise RigEmulatorError(f"write at {unit}:{start} refused: {reply}")
 
     def advance(self, seconds: float) -> None:
         """Advance the simulation by ``seconds`` (1..86400, whole seconds on the wire: the
-        register is a uint32) and return once the new state is readable."""
+        register is a uint32) and return once the new state is readable. A connection lost
+        meanwhile is settled by the lockstep counter: the advance happens exactly once."""
+        from pymodbus.exceptions import ConnectionException, ModbusIOException
+
         from rig_emulator.registers import encode
 
-        _, point = self.map.point("lockstep_advance_s")
-        self._write("lockstep_advance_s", encode(point, float(seconds)))
+        device, point = self.map.point("lockstep_advance_s")
+        registers = encode(point, float(seconds))
+        before = self.read("lockstep_counter")
+        try:
+            reply = self.client.write_registers(point.address, registers, device_id=device.unit_id)
+        except (ConnectionException, ModbusIOException, OSError):
+            self._reconnect()
+            if self.read("lockstep_counter") != before:
+                return  # it was applied; only its reply was lost
+            reply = self.client.write_registers(point.address, registers, device_id=device.unit_id)
+        if reply.isError():
+            raise RigEmulatorError(f"advance by {seconds} s refused: {reply}")
 
     def inject(self, fault: Mapping[str, Any]) -> None:
         """Set a fault, a dict as in ``FAULTS.yaml`` (e.g. ``{"kind": "dropout", "signal":
@@ -206,13 +236,15 @@ class RigEmulator:
         from rig_emulator.registers import decode
 
         device, point = self.map.point(signal_name)
-        read = {
-            "input": self.client.read_input_registers,
-            "holding": self.client.read_holding_registers,
-            "discrete": self.client.read_discrete_inputs,
-            "coil": self.client.read_coils,
+        method = {
+            "input": "read_input_registers",
+            "holding": "read_holding_registers",
+            "discrete": "read_discrete_inputs",
+            "coil": "read_coils",
         }[point.table]
-        reply = read(point.address, count=point.width, device_id=device.unit_id)
+        reply = self._call(
+            lambda c: getattr(c, method)(point.address, count=point.width, device_id=device.unit_id)
+        )
         if reply.isError():
             raise RigEmulatorError(f"read of {signal_name} refused: {reply}")
         words = reply.bits[:1] if point.table in ("coil", "discrete") else reply.registers
@@ -225,10 +257,13 @@ class RigEmulator:
 
         device, point = self.map.point(signal_name)
         if point.table == "coil":
-            reply = self.client.write_coil(point.address, value >= 0.5, device_id=device.unit_id)
+            reply = self._call(
+                lambda c: c.write_coil(point.address, value >= 0.5, device_id=device.unit_id)
+            )
         else:
-            reply = self.client.write_registers(
-                point.address, encode(point, float(value)), device_id=device.unit_id
+            words = encode(point, float(value))
+            reply = self._call(
+                lambda c: c.write_registers(point.address, words, device_id=device.unit_id)
             )
         if reply.isError():
             raise RigEmulatorError(f"write of {signal_name} = {value} refused: {reply}")

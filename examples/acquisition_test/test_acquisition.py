@@ -49,7 +49,8 @@ def test_no_reply_leaves_the_units_columns_empty(rig_emulator, tmp_path):
 @pytest.mark.parametrize(("delay_ms", "lost"), [(200, False), (1500, True)])
 def test_delay_is_late_or_a_timeout(rig_emulator, tmp_path, delay_ms, lost):
     _start_boiler(rig_emulator)
-    rig_emulator.inject({"kind": "delay", "unit": 5, "delay_ms": delay_ms, "for_s": 2})
+    # set at t = 600 for 3 s: the rows at 601 and 602 are acquired while it acts
+    rig_emulator.inject({"kind": "delay", "unit": 5, "delay_ms": delay_ms, "for_s": 3})
     rows = _acquire(rig_emulator, 4, tmp_path)
     balance = [row["balance_mass_kg"] is None for row in rows]
     assert balance == ([True, True, False, False] if lost else [False] * 4)
@@ -58,7 +59,7 @@ def test_delay_is_late_or_a_timeout(rig_emulator, tmp_path, delay_ms, lost):
 @pytest.mark.parametrize(("unit", "code"), [(5, 6), (0, 11), (4, 4)])
 def test_exception_is_logged_with_its_code(rig_emulator, tmp_path, unit, code):
     _start_boiler(rig_emulator)
-    rig_emulator.inject({"kind": "exception", "unit": unit, "code": code, "for_s": 2})
+    rig_emulator.inject({"kind": "exception", "unit": unit, "code": code, "for_s": 3})
     first, second, third = _acquire(rig_emulator, 3, tmp_path)
     units = [1, 2, 4, 5, 6] if unit == 0 else [unit]
     expected = ";".join(
@@ -113,7 +114,7 @@ def test_spike_is_one_row(rig_emulator, tmp_path):
 def test_dropout_is_an_empty_field_and_the_instrument_says_so(rig_emulator, tmp_path, signal, flag):
     _start_boiler(rig_emulator)
     rig_emulator.advance(10)  # the balance has been stable a while
-    rig_emulator.inject({"kind": "dropout", "signal": signal, "for_s": 3})
+    rig_emulator.inject({"kind": "dropout", "signal": signal, "for_s": 4})
     rows = _acquire(rig_emulator, 5, tmp_path)
     assert [row[signal] is None for row in rows] == [True, True, True, False, False]
     assert all(row["errors"] == "" for row in rows)  # the unit answered: the reading is bad

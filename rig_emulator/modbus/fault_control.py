@@ -17,6 +17,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import math
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -88,7 +89,19 @@ class ServerFaults:
         gates = getattr(modbus_server, "gates", None)
         close = getattr(modbus_server, "close_all_connections", None)
         if close is not None:
-            self.engine.on_disconnect = close
+
+            def disconnect(reason: str) -> int:
+                """Close every connection once the request being answered is answered
+                (a disconnect starts while a lockstep advance is published: its reply
+                still goes out); returns how many connections are open now."""
+                open_now = len(getattr(modbus_server, "handlers", ()))
+                try:
+                    asyncio.get_running_loop().call_soon(close, reason)
+                except RuntimeError:  # no loop running: close at once
+                    return close(reason)
+                return open_now
+
+            self.engine.on_disconnect = disconnect
         if gates is None or GateDecision is None:
             return False
         gates.append(self.gate)
