@@ -10,7 +10,7 @@ emulator with every fault kind. What it does about faults, as acquisition softwa
   late reply is never taken for the next request's;
 - an invalid reading is empty: NaN (floats) or the integer invalid code (0x8000 for int16,
   0x80000000 for int32), or an analyser reading while its status word says "not measuring";
-- a dropped connection is reopened on the next request (``auto_open``).
+- a connection the server closed is reopened and the request sent again, once.
 
 Usage: ``python acquire.py HOST PORT OUT.csv ROWS [PERIOD_S]`` (real time), or
 :class:`Acquisition` from Python (the test steps a lockstep emulator between rows).
@@ -27,6 +27,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from pyModbusTCP.client import ModbusClient
+from pyModbusTCP.constants import MB_RECV_ERR, MB_SEND_ERR, MB_SOCK_CLOSE_ERR
 
 
 @dataclass(frozen=True)
@@ -56,6 +57,7 @@ UNITS: dict[int, tuple[Channel, ...]] = {
     5: (Channel("balance_mass_kg", 0, "i32", 0.001), Channel("balance_stable", 0, "bit")),
     6: (Channel("electric_power_W", 0, "f32"),),
 }
+_CLOSED = (MB_SEND_ERR, MB_RECV_ERR, MB_SOCK_CLOSE_ERR)  # the server closed the connection
 SIM_CONTROL_UNIT = 100  # the emulator's own clock (a real bench has a PC clock instead)
 ANALYSER_COLUMNS = ("flue_gas_O2_pct", "flue_gas_CO2_pct", "flue_gas_CO_ppm")
 COLUMNS = ("sim_time_s", *(c.column for chans in UNITS.values() for c in chans), "errors")
@@ -88,12 +90,18 @@ class Acquisition:
         self.client = ModbusClient(host=host, port=port, timeout=timeout_s, auto_open=True)
 
     def _read(self, unit: int, table: str, address: int, count: int) -> tuple[list | None, str]:
-        """Registers (or bits) and '' on success, else None and what went wrong."""
+        """Registers (or bits) and '' on success, else None and what went wrong. A
+        connection the server closed is reopened and the request sent once more."""
         self.client.unit_id = unit
-        if table == "bits":
-            words = self.client.read_discrete_inputs(address, count)
-        else:
-            words = self.client.read_input_registers(address, count)
+        read = (
+            self.client.read_discrete_inputs
+            if table == "bits"
+            else self.client.read_input_registers
+        )
+        words = read(address, count)
+        if words is None and self.client.last_error in _CLOSED:
+            self.client.close()
+            words = read(address, count)
         if words is not None:
             return list(words), ""
         if self.client.last_except:
