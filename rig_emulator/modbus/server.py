@@ -528,9 +528,10 @@ class BenchServer:
             refused = self.faults.write(fault_block)
             if refused is not None:
                 return refused
-            await self.publish()  # readings the new fault changes; the block, once stored:
-            for key in [k for k in self._published if k[1] == "holding"]:
-                del self._published[key]
+            await self.publish()  # the readings the new fault changes now; the block (a
+            for key in [k for k in self._published if k[1] == "holding"]:  # trigger: 0)
+                del self._published[key]  # again once the client's registers are stored
+            self._republish()
         if (
             "lockstep_advance_s" in new
             and self.clock.mode != LOCKSTEP
