@@ -34,6 +34,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/bench_modbus.py
 	$(BIN)/python bench/bench_dashboard.py
 	$(BIN)/python bench/bench_clock.py
+	$(BIN)/python bench/bench_faults.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

@@ -1,0 +1,161 @@
+"""Benchmarks of fault injection (issue 13), printed, never asserted.
+
+1. FC4 throughput of the bench PLC block with 10 active faults (communication faults on
+   other units, instrument faults on five of the PLC's own readings) against the same
+   server with none, 1 and 16 connections, alternating rounds; target ratio >= 0.95.
+2. Fault timing in lockstep: faults at awkward ``at_s`` (not multiples of the step), a
+   client advancing 1 s and 7 s steps; a fault must start at the first step with
+   ``t_sim >= at_s`` (error in steps: 0 = exact).
+3. Fault timing in real time (10 Hz tick, x1 and x20): journalled start minus ``at_s``,
+   in ticks of simulated time, for faults after the first 3 s of wall time (while numba
+   loads the kernels at start-up a tick may cover several periods); target <= 1 tick.
+
+Servers are ``rig-emulator serve`` subprocesses; load generators run in other processes.
+"""
+
+from __future__ import annotations
+
+import json
+import statistics
+import struct
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from bench_modbus import ROUND_S, ROUNDS, _rps
+from rawclient import RawClient
+
+from hil_client.demo import rig_emulator_serve
+
+TEN_FAULTS = """\
+faults:
+  - {kind: delay, unit: 3, delay_ms: 50, at_s: 0}
+  - {kind: no_reply, unit: 7, at_s: 0}
+  - {kind: exception, unit: 4, code: 6, at_s: 0}
+  - {kind: exception, unit: 6, code: 11, at_s: 0}
+  - {kind: delay, unit: 5, delay_ms: 20, at_s: 0}
+  - {kind: stuck, signal: water_flow_kg_h, at_s: 0}
+  - {kind: drift, signal: water_in_temp_C, rate_per_h: 1.0, at_s: 0}
+  - {kind: offset, signal: water_out_temp_C, value: 0.5, at_s: 0}
+  - {kind: dropout, signal: room_temp_C, at_s: 0}
+  - {kind: spike, signal: relative_humidity_pct, value: 99.0, at_s: 0, for_s: 1000000}
+"""
+
+
+def bench_throughput(folder: Path) -> None:
+    faults = folder / "ten.yaml"
+    faults.write_text(TEN_FAULTS)
+    with (
+        rig_emulator_serve("windhager_12kw", "--speed", "1") as (plain, _),
+        rig_emulator_serve("windhager_12kw", "--speed", "1", "--faults", str(faults)) as (
+            faulty,
+            _,
+        ),
+    ):
+        time.sleep(1.0)  # the faults at at_s 0 start at the first tick
+        for connections in (1, 16):
+            a, b = [], []
+            for _ in range(ROUNDS):
+                a.append(_rps(faulty, connections))
+                b.append(_rps(plain, connections))
+            ma, mb = statistics.median(a), statistics.median(b)
+            print(
+                f"FC4 read of the bench PLC block, {connections:2d} connection(s): 10 active "
+                f"faults {ma:7.0f} req/s, none {mb:7.0f} req/s, ratio {ma / mb:.3f} "
+                f"(target >= 0.95; median of {ROUNDS} alternating {ROUND_S:.0f}-s rounds)"
+            )
+
+
+def _starts(journal: Path) -> dict[int, float]:
+    out = {}
+    for line in journal.read_text().splitlines():
+        event = json.loads(line)
+        if event["event"] == "start":
+            out[event["id"]] = event["t_sim_s"]
+    return out
+
+
+AT_S = (0.5, 3.25, 9.999, 14.0, 20.001, 33.3, 47.7, 61.0)
+
+
+def _fault_file(folder: Path, name: str, at_s: tuple[float, ...] = AT_S) -> Path:
+    path = folder / name
+    path.write_text(
+        "faults:\n"
+        + "".join(
+            f"  - {{kind: dropout, signal: room_temp_C, at_s: {at}, for_s: 0.001}}\n" for at in at_s
+        )
+    )
+    return path
+
+
+def bench_lockstep_timing(folder: Path) -> None:
+    for step_s in (1, 7):
+        journal = folder / f"lockstep_{step_s}.jsonl"
+        faults = _fault_file(folder, f"lockstep_{step_s}.yaml")
+        with rig_emulator_serve(
+            "windhager_12kw", "--lockstep", "--faults", str(faults), "--fault-log", str(journal)
+        ) as (port, _):
+            client = RawClient("127.0.0.1", port)
+            t = 0
+            times = []
+            while t < 70:
+                client.write_registers(
+                    100, 4, list(struct.unpack(">2H", struct.pack(">I", step_s)))
+                )
+                t += step_s
+                times.append(float(t))
+            client.close()
+            time.sleep(0.2)
+        starts = sorted(_starts(journal).values())
+        errors = []
+        for at, started in zip(AT_S, starts, strict=True):
+            expected = next(x for x in times if x >= at - 1e-9)
+            errors.append(round((started - expected) / step_s))
+        print(
+            f"fault timing, lockstep {step_s} s steps: {len(starts)} faults, start error in "
+            f"steps {errors} (0 = at the first step with t_sim >= at_s: exact)"
+        )
+
+
+def bench_realtime_timing(folder: Path) -> None:
+    for speed in (1, 20):
+        # after 3 s of wall time: at start-up numba loads the kernels in the background, and
+        # the first ticks may each cover several periods (printed separately below)
+        warm_s = 3.0 * speed
+        at_s = tuple(warm_s + a for a in (AT_S[:5] if speed == 1 else AT_S))
+        journal = folder / f"realtime_{speed}.jsonl"
+        faults = _fault_file(folder, f"realtime_{speed}.yaml", at_s)
+        tick_sim_s = 0.1 * speed  # 10 Hz tick
+        with rig_emulator_serve(
+            "windhager_12kw",
+            "--speed",
+            str(speed),
+            "--faults",
+            str(faults),
+            "--fault-log",
+            str(journal),
+        ):
+            time.sleep(max(at_s) / speed + 2.0)
+        starts = sorted(_starts(journal).values())
+        late = [(s - at) / tick_sim_s for at, s in zip(at_s, starts, strict=True)]
+        print(
+            f"fault timing, real time x{speed} (10 Hz tick = {tick_sim_s:g} simulated s): "
+            f"{len(starts)}/{len(at_s)} faults started, lateness in ticks max "
+            f"{max(late):.2f}, mean {statistics.mean(late):.2f}, min {min(late):.2f} "
+            f"(target: within one tick); each: {[round(x, 2) for x in late]}"
+        )
+
+
+def main() -> int:
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        bench_lockstep_timing(folder)
+        bench_realtime_timing(folder)
+        bench_throughput(folder)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
