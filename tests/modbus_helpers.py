@@ -9,8 +9,8 @@ from rig_emulator.registers import decode, encode
 ADVANCE = ("sim_control", "lockstep_advance")
 
 
-def client(port: int) -> ModbusTcpClient:
-    c = ModbusTcpClient("127.0.0.1", port=port, timeout=5, retries=0)
+def client(port: int, timeout_s: float = 5.0) -> ModbusTcpClient:
+    c = ModbusTcpClient("127.0.0.1", port=port, timeout=timeout_s, retries=0)
     assert c.connect()
     return c
 

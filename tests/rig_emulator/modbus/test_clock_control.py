@@ -36,8 +36,9 @@ def test_speed_100000_with_lab_profile_answers_reads_and_stops_on_sigterm():
         assert second > first  # time moves and reads are answered
         assert 0 < speed < 100_000  # published: the lab profile cannot reach x100000 here
         proc.send_signal(signal.SIGTERM)
-        # generous: the tick yields every period, so SIGTERM is served at once
-        code = proc.wait(timeout=20)
+        # a bound, not a target: the tick yields every period, so SIGTERM is served at once
+        # on a quiet machine; a wedged server (issue 11) never exits at all
+        code = proc.wait(timeout=90)
         stderr = proc.stderr.read().decode()
     assert code == 0, stderr
     assert "Traceback" not in stderr
@@ -47,7 +48,9 @@ def test_one_day_advance_lets_other_clients_in(serve):
     """Another client's reads are answered while a 86,400 s advance runs (ordering only)."""
     srv = serve(profile="lab")
     dev, sim_time = point(srv, "sim_control", "sim_time")
-    advancer = client(srv.port)
+    # a generous bound, not a timing target: on a loaded shared machine the lab profile's
+    # one-day advance takes several seconds (1.6 s on a quiet one, issue 11)
+    advancer = client(srv.port, timeout_s=120)
     reader = client(srv.port)
     done = threading.Event()
     result = {}
