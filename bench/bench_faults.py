@@ -54,6 +54,11 @@ def bench_throughput(folder: Path) -> None:
         ),
     ):
         time.sleep(1.0)  # the faults at at_s 0 start at the first tick
+        probe = RawClient("127.0.0.1", faulty)
+        reply = probe.read_input(4, 0, 3)  # the flue-gas probe: exception 06 while faulty
+        probe.close()
+        gated = reply[:2] == bytes([0x84, 6])
+        print(f"faults act on the wire (unit 4 answers exception 06): {'yes' if gated else 'NO'}")
         for connections in (1, 16):
             a, b = [], []
             for _ in range(ROUNDS):
