@@ -16,12 +16,15 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/python -m hil_client.demo $(DEMO_ARGS)
 
-# mbpoll (Debian) is a Modbus client the project did not write; its interop test is skipped
-# where it cannot be installed (no root, no apt-get).
+# mbpoll and libmodbus (Debian) are Modbus clients the project did not write; their interop
+# tests are skipped where they cannot be installed (no root, no apt-get).
 tools:
 	@command -v mbpoll >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
 	  && (apt-get update -qq && apt-get install -y -qq mbpoll) >/dev/null 2>&1; } \
 	  || echo "note: mbpoll not installed; its interop test will be skipped"
+	@test -f /usr/include/modbus/modbus.h || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
+	  && (apt-get update -qq && apt-get install -y -qq libmodbus-dev gcc) >/dev/null 2>&1; } \
+	  || echo "note: libmodbus-dev not installed; the libmodbus C client test will be skipped"
 	@command -v chromium >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
 	  && (apt-get update -qq && apt-get install -y -qq chromium) >/dev/null 2>&1; } \
 	  || echo "note: chromium not installed; the dashboard's browser test will be skipped"
@@ -35,6 +38,9 @@ bench: $(STAMP)
 	$(BIN)/python bench/bench_dashboard.py
 	$(BIN)/python bench/bench_clock.py
 	$(BIN)/python bench/bench_faults.py
+	$(BIN)/python bench/fuzz_modbus.py
+	$(BIN)/python bench/reality_gap.py 20
+	$(BIN)/python bench/bench_transports.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

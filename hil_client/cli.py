@@ -39,7 +39,8 @@ from hil_client.protocol.definition import ProtocolError, load_protocol
 from hil_client.protocol.rig import RigError
 from hil_client.protocol.runner import RunResult, run_protocol
 from hil_client.rigs.local import LocalRig
-from hil_client.rigs.modbus import ModbusRig, parse_url
+from hil_client.rigs.modbus import ModbusRig
+from hil_client.rigs.transports import RIG_TIMEOUT_S, connector, tls_files
 from hil_client.summary import RunSummary
 from rig_emulator.boilers import dump_boiler
 from rig_emulator.cli_support import (
@@ -74,8 +75,17 @@ def _build_parser() -> argparse.ArgumentParser:
         "--boiler", required=True, type=text_input, help="boiler NAME or parameter file PATH"
     )
     run.add_argument(
-        "--rig", default="local", help="local (in-process) or modbus://HOST:PORT [local]"
+        "--rig",
+        default="local",
+        help="local (in-process), modbus://HOST:PORT, modbus+tls://HOST:PORT (Modbus/TCP "
+        "Security, with --tls-*) or modbus-rtu:///DEVICE?baud=19200&parity=E [local]",
     )
+    for option, what in (
+        ("--tls-cert", "client certificate (PEM) for modbus+tls://"),
+        ("--tls-key", "its private key (PEM)"),
+        ("--tls-ca", "CA certificate (PEM) that signed the server's certificate"),
+    ):
+        run.add_argument(option, type=Path, default=None, help=what)
     run.add_argument(
         "--profile",
         default="clean",
@@ -377,10 +387,13 @@ def _make_rig(args: argparse.Namespace, params):
         with bad_input(ProfileError, prefix="--profile: "):
             profile = load_profile(args.profile)
         return LocalRig(params, profile, seed=args.seed)
-    if not args.rig.startswith("modbus://"):
-        raise UsageError(f"--rig: '{args.rig}' is neither 'local' nor modbus://HOST:PORT")
+    if not args.rig.startswith(("modbus://", "modbus+tls://", "modbus-rtu://")):
+        raise UsageError(
+            f"--rig: '{args.rig}' is neither 'local' nor modbus://HOST:PORT, "
+            "modbus+tls://HOST:PORT or modbus-rtu:///DEVICE"
+        )
     with bad_input(ValueError, prefix="--rig/--map: "):  # MapError is a ValueError too
-        parse_url(args.rig)
+        connect = connector(args.rig, RIG_TIMEOUT_S, tls_files(args))
         register_map = load_map(args.map)
     if args.reconnect_timeout < 0:
         raise UsageError("--reconnect-timeout must not be negative")
@@ -389,6 +402,7 @@ def _make_rig(args: argparse.Namespace, params):
         register_map,
         reconnect_timeout_s=args.reconnect_timeout,
         on_restart=args.on_restart,
+        connect=connect,
     )
 
 

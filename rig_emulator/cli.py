@@ -15,6 +15,8 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from rig_emulator import cli_transports as transport_options
+from rig_emulator.certs import make_lab_certificates
 from rig_emulator.cli_support import (
     Parser,
     UsageError,
@@ -58,7 +60,10 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     serve.add_argument("--host", default="127.0.0.1", help="address to listen on [127.0.0.1]")
     serve.add_argument(
-        "--port", type=int_in(0, 65535), default=5020, help="TCP port (0: any free) [5020]"
+        "--port",
+        type=int_in(0, 65535),
+        default=None,
+        help="TCP port (0: any free) [5020; 802 with --tls-*]",
     )
     pace = serve.add_mutually_exclusive_group()
     pace.add_argument(
@@ -113,6 +118,37 @@ def _build_parser() -> argparse.ArgumentParser:
         metavar="JOURNAL.jsonl",
         help="write one JSON line per fault start and end [none]",
     )
+    serve.add_argument(
+        "--idle-timeout",
+        type=finite_float(0.0, 1e7, "s"),
+        default=300.0,
+        metavar="SECONDS",
+        help="close client connections silent this long (0: never) [300]",
+    )
+    serve.add_argument(
+        "--max-connections",
+        type=int_in(1, 100_000),
+        default=100,
+        metavar="N",
+        help="client connections open at once; more are closed at once, logged [100]",
+    )
+    certs = sub.add_parser(
+        "certs",
+        help="make a CA, a server certificate and client certificates per role (TLS)",
+        description="Write ca, server (127.0.0.1, localhost), observer, operator, engineer "
+        "and norole (no role extension) certificates (.pem) and keys (.key) into DIR, for "
+        "Modbus/TCP Security tests and demos.",
+    )
+    certs.add_argument("--out", required=True, type=Path, help="directory to write")
+    certs.add_argument(
+        "--server-name",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="another host name or IP of the server certificate (repeatable) "
+        "[127.0.0.1, localhost]",
+    )
+    transport_options.add_arguments(serve)
     doc = sub.add_parser("map-doc", help="write the Markdown reference of a register map")
     doc.add_argument(
         "--map", default=None, type=text_input, help="register map YAML [the shipped one]"
@@ -176,6 +212,21 @@ def _cmd_steady(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_certs(args: argparse.Namespace) -> int:
+    if args.out.exists() and not args.out.is_dir():
+        raise UsageError(f"--out: '{args.out}' is a file, not a directory")
+    for name in args.server_name:
+        if not name or not name.isascii() or any(c.isspace() or c in "/\\:@" for c in name):
+            raise UsageError(f"--server-name: '{name}' is not a host name or IP address")
+    try:
+        written = make_lab_certificates(args.out, server_names=tuple(args.server_name))
+    except OSError as exc:
+        raise UsageError(f"--out: cannot write into '{args.out}' ({exc.strerror})") from None
+    for path in written:
+        print(f"written: {path} (key {path.with_suffix('.key')})")
+    return 0
+
+
 def _cmd_map_doc(args: argparse.Namespace) -> int:
     with bad_input(MapError):
         text = markdown(load_map(args.map))
@@ -204,6 +255,7 @@ def _cmd_serve(args: argparse.Namespace) -> int:
         raise UsageError(f"--http: {args.http} is not a TCP port")
     if args.http_control and args.http is None:
         raise UsageError("--http-control needs --http PORT")
+    args.transport_plan = transport_options.plan(args)
     logging.basicConfig(
         level=logging.INFO, format="%(asctime)s rig-emulator: %(message)s", stream=sys.stderr
     )
@@ -213,13 +265,16 @@ def _cmd_serve(args: argparse.Namespace) -> int:
         emulator,
         register_map,
         args.host,
-        args.port,
+        args.transport_plan.port,
         args.speed,
         args.lockstep,
         args.tick_hz,
         allow_control=args.allow_control,
         faults=faults,
         fault_log=args.fault_log,
+        idle_timeout_s=args.idle_timeout,
+        max_connections=args.max_connections,
+        ssl_context=args.transport_plan.ssl_context,
     )
     try:
         asyncio.run(_serve(server, args))
@@ -227,7 +282,7 @@ def _cmd_serve(args: argparse.Namespace) -> int:
         raise UsageError(
             str(exc)
             if exc.strerror is None
-            else f"cannot serve on {args.host}:{args.port}: {exc.strerror}"
+            else f"cannot serve on {args.host}:{args.transport_plan.port}: {exc.strerror}"
         ) from None
     return 0
 
@@ -238,6 +293,11 @@ async def _serve(server: BenchServer, args: argparse.Namespace) -> None:
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, stop.set)
     await server.start()
+    try:
+        transports = await transport_options.start(server, args.transport_plan)
+    except UsageError:
+        await server.stop()
+        raise
     pace = "lockstep" if args.lockstep else f"real time x{args.speed:g}"
     units = ", ".join(f"{d.unit_id}={d.name}" for d in server.map.devices)
     logging.getLogger("rig_emulator.serve").info(
@@ -270,6 +330,7 @@ async def _serve(server: BenchServer, args: argparse.Namespace) -> None:
     )
     if dashboard is not None:
         await dashboard.stop()
+    await transports.stop()
     await server.stop()
 
 
@@ -282,6 +343,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             "steady": _cmd_steady,
             "serve": _cmd_serve,
             "map-doc": _cmd_map_doc,
+            "certs": _cmd_certs,
         }
         with input_errors():
             return commands[args.command](args)

@@ -105,7 +105,7 @@ class RunningServer:
         self.thread = threading.Thread(target=self.loop.run_forever, daemon=True)
         self.thread.start()
         profile = load_profile(kwargs.pop("profile", "clean"))
-        emulator = Emulator(
+        emulator = kwargs.pop("emulator", None) or Emulator(
             load_boiler(kwargs.pop("boiler", "windhager_12kw")), profile, kwargs.pop("seed", 0)
         )
         self.map = kwargs.pop("register_map", None) or load_map()

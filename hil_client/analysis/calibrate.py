@@ -59,6 +59,8 @@ DUCT_AREA_M2 = math.pi * 0.10**2 / 4  # DN100 chimney of the bench
 R_AIR = 287.05  # [J/(kg K)]
 CP_AIR = 1.006  # [kJ/(kg K)]
 SKIP_S = 600.0  # transient at the start of a stationary interval
+MIN_INTERVAL_S = 1200.0  # shortest stationary interval kept (after the skip)
+TRIM_S = 300.0  # a slow approach is cut off in steps of this long
 
 
 def _u(name: str, value: float) -> float:
@@ -134,18 +136,22 @@ def stationary_intervals(log: LabLog, phases: Phases) -> list[Interval]:
                     segments.append((int(start), int(i), f"plateau_{level:.0f}kg_h"))
                 start = i
     out = []
+
+    def span(i0: int, i1: int) -> float:  # covered time [s], whatever the sampling period
+        return float(t[i1 - 1] - t[i0]) if i1 - 1 > i0 else 0.0
+
     for i0, i1, name in segments:
         i0 = int(np.searchsorted(t, t[i0] + SKIP_S))
-        if i1 - i0 < 300:
+        if i1 - i0 < 2 or span(i0, i1) < TRIM_S:
             continue
         if log.has("boiler_on") and np.nanmin(log["boiler_on"][i0:i1]) < 0.5:
             continue  # the burner stopped: below the modulation range
         # the water must hold within 3 K: drop a slow approach at the start, if any
         tb = log["boiler_water_temp_C"][i0:i1]
-        while i1 - i0 >= 1200 and np.nanmax(tb) - np.nanmin(tb) > 3.0:
-            i0 += 300
+        while span(i0, i1) >= MIN_INTERVAL_S and np.nanmax(tb) - np.nanmin(tb) > 3.0:
+            i0 = int(np.searchsorted(t, t[i0] + TRIM_S))
             tb = log["boiler_water_temp_C"][i0:i1]
-        if i1 - i0 < 1200 or np.nanmax(tb) - np.nanmin(tb) > 3.0:
+        if span(i0, i1) < MIN_INTERVAL_S or np.nanmax(tb) - np.nanmin(tb) > 3.0:
             continue
         out.append(Interval(log, i0, i1, name))
     return out

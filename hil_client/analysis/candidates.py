@@ -47,6 +47,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -186,6 +187,10 @@ class CurveCandidate:
             after,
         )
 
+    def prediction(self, case: Case, theta: dict[str, float]) -> dict[str, np.ndarray]:
+        """The lab signals this effect changes, as the model with it predicts them."""
+        return {self.signal: self.predict(case, theta)}
+
     def held_out(self, case: Case, theta: dict[str, float]) -> tuple[float, float]:
         """RMSD before and after on another log, where the effect acts (parameters frozen)."""
         blocks = self.blocks(case)
@@ -289,7 +294,27 @@ def _flue_predict(case: Case, theta: dict[str, float] | None) -> np.ndarray:
     return first_order_lag(gas, case.dt, SENSOR_TAU_S["flue_gas_temp_C"])
 
 
-PIPE = CurveCandidate(
+class PipeCandidate(CurveCandidate):
+    """The exit pipe also moves the heat to water the lab computes from the forward
+    reading (Eq. 7)."""
+
+    def prediction(self, case: Case, theta: dict[str, float]) -> dict[str, np.ndarray]:
+        pipe = pipe_sensor(
+            case.model["t_boiler_C"],
+            case.flow,
+            case.room,
+            case.dt,
+            theta["pipe_kg"],
+            theta["tau_loss_s"],
+            theta["tau_coupling_s"],
+        )
+        return {
+            "water_out_temp_C": first_order_lag(pipe, case.dt, SENSOR_TAU_S["water_out_temp_C"]),
+            "heat_to_water_kW": heat_to_water_kW(case.flow, case.t_in, pipe),
+        }
+
+
+PIPE = PipeCandidate(
     "outlet_sensor_pipe",
     "water_out_temp_C",
     "stand_by",
@@ -426,6 +451,15 @@ class IgnitionCandidate:
     def held_out(self, case: Case, theta: dict[str, float]) -> tuple[float, float]:
         return _ignition_rmsd(_pre_feed(case), theta.get("delay_s", 0.0))
 
+    def prediction(self, case: Case, theta: dict[str, float]) -> dict[str, np.ndarray]:
+        """The balance loses the pre-feed of every start on top of the model's fuel."""
+        fuel = case.base_prediction()["fuel_cum_kg"].copy()
+        per_start = theta["delay_s"] * case.params.p_start_kW / case.params.fuel.lhv_dry_kJ_kg
+        per_start *= case.params.fuel.balance_loss_per_kg_dry
+        for i in case.firing.starts:
+            fuel[i:] += per_start
+        return {"fuel_cum_kg": fuel}
+
 
 # --------------------------------------------------------------------------------------
 # fuel energy: closure of the measured energy balance
@@ -552,37 +586,36 @@ class BiasCandidate:
     def held_out(self, case: Case, theta: dict[str, float]) -> tuple[float, float]:
         return _bias_rmsd(_closure_blocks(case), theta.get("bias", 0.0))
 
+    def prediction(self, case: Case, theta: dict[str, float]) -> dict[str, np.ndarray]:
+        return {"fuel_cum_kg": case.fuel_cum(1.0 + theta["bias"])}
 
-CANDIDATES = {c.effect: c for c in (PIPE, BODY, IgnitionCandidate(), FLUE, BiasCandidate())}
+
+class Candidate(Protocol):
+    """What the diagnosis needs of a candidate effect: its name (CONTRACT section 4), its
+    fingerprint (the signal and the phases where it must act), its out-of-sample evidence
+    on the calibration log, its held-out RMSD on the validation log, and its prediction of
+    the signals it changes. Adding an effect is one such class registered here."""
+
+    effect: str
+    signal: str
+    locus: str
+
+    def assess(self, case: Case) -> Assessment: ...
+
+    def held_out(self, case: Case, theta: dict[str, float]) -> tuple[float, float]: ...
+
+    def prediction(self, case: Case, theta: dict[str, float]) -> dict[str, np.ndarray]: ...
+
+
+#: The registry of candidate effects, by name.
+CANDIDATES: dict[str, Candidate] = {
+    c.effect: c for c in (PIPE, BODY, IgnitionCandidate(), FLUE, BiasCandidate())
+}
 
 
 def full_prediction(case: Case, effect: str, theta: dict[str, float]) -> dict[str, np.ndarray]:
     """The model's prediction of every lab signal with one effect added (for the figures)."""
     pred = case.base_prediction()
-    if effect == "outlet_sensor_pipe" and theta:
-        node = case.model["t_boiler_C"]
-        pipe = pipe_sensor(
-            node,
-            case.flow,
-            case.room,
-            case.dt,
-            theta["pipe_kg"],
-            theta["tau_loss_s"],
-            theta["tau_coupling_s"],
-        )
-        pred["water_out_temp_C"] = first_order_lag(pipe, case.dt, SENSOR_TAU_S["water_out_temp_C"])
-        pred["heat_to_water_kW"] = heat_to_water_kW(case.flow, case.t_in, pipe)
-    elif effect == "body_heat_diffusion" and theta:
-        pred["boiler_water_temp_C"] = _body_predict(case, theta)
-    elif effect == "flue_gas_lag" and theta:
-        pred["flue_gas_temp_C"] = _flue_predict(case, theta)
-    elif effect == "fuel_energy_bias" and theta:
-        pred["fuel_cum_kg"] = case.fuel_cum(1.0 + theta["bias"])
-    elif effect == "ignition_delay" and theta:
-        fuel = pred["fuel_cum_kg"].copy()
-        per_start = theta["delay_s"] * case.params.p_start_kW / case.params.fuel.lhv_dry_kJ_kg
-        per_start *= case.params.fuel.balance_loss_per_kg_dry
-        for i in case.firing.starts:
-            fuel[i:] += per_start
-        pred["fuel_cum_kg"] = fuel
+    if effect in CANDIDATES and theta:
+        pred.update(CANDIDATES[effect].prediction(case, theta))
     return pred

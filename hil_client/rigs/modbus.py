@@ -170,6 +170,8 @@ class ModbusRig:
         on_restart: what a break does: ``abort``, ``restart-phase`` or ``continue``.
         checks: read and check the simulation control each step and keep the journal (off
             only to measure what they cost: ``make bench``).
+        connect: opens a connection (TLS, RTU: :func:`hil_client.rigs.transports.connector`);
+            None: plain TCP to the ``modbus://`` URL.
     """
 
     def __init__(
@@ -180,11 +182,14 @@ class ModbusRig:
         reconnect_timeout_s: float = 60.0,
         on_restart: str = "abort",
         checks: bool = True,
+        connect: Callable[[], Connection] | None = None,
     ) -> None:
-        try:
-            self.host, self.port = parse_url(url)
-        except ValueError as exc:
-            raise RigError(str(exc)) from None
+        if connect is None:
+            try:
+                self.host, self.port = parse_url(url)
+            except ValueError as exc:
+                raise RigError(str(exc)) from None
+        self._open = connect or (lambda: Connection(self.host, self.port, self.timeout_s))
         if on_restart not in ON_RESTART:
             raise RigError(f"on_restart: '{on_restart}' is not one of {', '.join(ON_RESTART)}")
         self.url = url
@@ -268,7 +273,7 @@ class ModbusRig:
     # ------------------------------------------------------------------ connections
     def _connect(self) -> None:
         self.close()
-        self._conn = Connection(self.host, self.port, self.timeout_s)
+        self._conn = self._open()
 
     def _reconnect(self, reason: str) -> dict[str, float]:
         """Connect again (with backoff); the server's status once back."""

@@ -1,130 +1,425 @@
-"""The per-connection request handler of the emulator's pymodbus server.
+"""The emulator's Modbus TCP server: connections, framing, gates and in-order answers.
 
-pymodbus 3.16's ``ServerRequestHandler`` decodes one frame per ``data_received`` and
-answers it later, from a task; sending the answer clears the receive buffer. Several
-requests that arrive in one TCP segment (a client with more than one transaction
-outstanding, which Modbus TCP allows: that is what the transaction ID is for) are
-therefore answered wrongly or not at all (cf. pymodbus issue #1949). This handler keeps
-pymodbus's framer, PDU classes and ``SimDevice`` datastore but
+pymodbus keeps the datastore (``SimCore`` over one ``SimDevice`` per instrument); the rest
+is here, written from the Modbus specs rather than from pymodbus's server:
 
-- decodes every complete frame of a segment, in order, and answers each at once (the
-  datastore and the emulator's write callback never wait, so a request needs no task);
-- sends the answers to one segment in one write;
-- logs one line per client connect and disconnect.
-
-A request whose handling does wait after all is finished as a task, as pymodbus would.
+- :mod:`rig_emulator.modbus.framing` cuts the byte stream into MBAP frames, however TCP
+  segments it; a header that cannot be trusted closes the connection with one log line;
+- :meth:`BenchModbusServer.execute` is transport-neutral (TCP, TLS and RTU use it): the
+  gates first (:class:`GateDecision`: delay, drop or force an exception), then the unit
+  check (0B), then :func:`rig_emulator.modbus.conformance.process`;
+- answers go out in the order the requests came, per connection. A request that never
+  waits is answered at once, without a task (answers to one segment leave in one write);
+  one that waits (a gate's delay, a long lockstep advance) holds the later requests of
+  its connection behind it while other connections are served;
+- a connection stops being read while its answers are not taken (the transport's buffer
+  is full) or while more than :data:`MAX_QUEUED_BYTES` of its requests wait: TCP flow
+  control, nothing dropped; connections idle for ``idle_timeout_s`` are closed, and at
+  most ``max_connections`` are open (the next ones are closed at once); each logged.
 """
 
 from __future__ import annotations
 
 import asyncio
 import logging
+import time
 import types
-from collections.abc import Coroutine, Generator
+from collections import deque
+from collections.abc import Callable, Coroutine, Generator, Iterable
+from dataclasses import dataclass
 from typing import Any
 
-from pymodbus.constants import ExcCodes
-from pymodbus.exceptions import ModbusIOException
-from pymodbus.pdu import ExceptionResponse
-from pymodbus.server import ModbusTcpServer
-from pymodbus.server.requesthandler import ServerRequestHandler
-from pymodbus.transaction import TransactionManager
+from pymodbus.simulator import SimDevice
+from pymodbus.simulator.simcore import SimCore
+
+from rig_emulator.modbus.conformance import (
+    GATEWAY_TARGET_FAILED,
+    SERVER_DEVICE_FAILURE,
+    DeviceIdentity,
+    exception_pdu,
+    process,
+)
+from rig_emulator.modbus.framing import MbapFrame, frame_bytes, split_frames
 
 log = logging.getLogger("rig_emulator.serve")
 _PENDING: set[asyncio.Task] = set()  # strong references to requests that had to wait
 
+MAX_QUEUED_BYTES = 65536  # requests of one connection waiting behind a slow one [bytes]
+DEFAULT_IDLE_TIMEOUT_S = 300.0
+DEFAULT_MAX_CONNECTIONS = 100
+_REFUSAL_LOG_INTERVAL_S = 10.0  # connection-limit refusals: one line per interval at most
 
-def run_now(coro: Coroutine[Any, Any, None]) -> None:
-    """Run ``coro`` to completion at once; if it waits on a future, finish it as a task."""
+
+@dataclass(frozen=True)
+class RequestInfo:
+    """One decoded request, before it touches any datastore."""
+
+    unit_id: int
+    function_code: int
+    peer: str  # "host:port" or "pty"
+    role: str | None  # TLS role of the connection; None on plain TCP / RTU
+
+
+@dataclass(frozen=True)
+class GateDecision:
+    """What a gate decides for one request."""
+
+    delay_s: float = 0.0  # answer this much later (later requests of the connection wait)
+    drop: bool = False  # send no reply at all
+    exception_code: int | None = None  # answer FC|0x80 with this code, change nothing
+
+
+Gate = Callable[[RequestInfo], "GateDecision | None"]
+
+
+def run_now(coro: Coroutine[Any, Any, Any]) -> asyncio.Task | None:
+    """Run ``coro`` to completion at once; if it waits on a future, finish it as a task
+    (returned; None when it finished at once)."""
     try:
         future = coro.send(None)
     except StopIteration:
-        return
+        return None
     task = asyncio.get_running_loop().create_task(_resume(coro, future))
     _PENDING.add(task)
     task.add_done_callback(_PENDING.discard)
+    return task
 
 
 @types.coroutine
-def _resume(coro: Coroutine[Any, Any, None], future: Any) -> Generator[Any, None, None]:
-    """Hand the futures ``coro`` waits on to the task running this, until it returns."""
+def _resume(coro: Coroutine[Any, Any, Any], future: Any) -> Generator[Any, None, Any]:
+    """Hand the futures ``coro`` waits on to the task running this; return its result."""
     while True:
-        yield future
+        try:
+            yield future
+        except BaseException as exc:  # cancelled while waiting: pass it on
+            try:
+                future = coro.throw(exc)
+            except StopIteration as stop:
+                return stop.value
+            continue
         try:
             future = coro.send(None)
-        except StopIteration:
-            return
+        except StopIteration as stop:
+            return stop.value
 
 
-class RequestHandler(ServerRequestHandler):
+class RequestHandler(asyncio.Protocol):
     """One client connection (see the module docstring)."""
 
-    server: BenchModbusServer
-    _out: list[bytes] | None = None
+    def __init__(self, server: BenchModbusServer) -> None:
+        self.server = server
+        self.transport: Any = None
+        self.peer = "?"
+        self.role: str | None = None  # set by a TLS transport when the connection is made
+        self._buffer = bytearray()
+        self._queue: deque[MbapFrame] = deque()
+        self._queued_bytes = 0
+        self._busy = False  # a request of this connection is waiting
+        self._task: asyncio.Task | None = None  # the task finishing it
+        self._closed = False
+        self._close_after: str | None = None  # close once the queued requests are answered
+        self._eof = False  # the client half-closed: close once its requests are answered
+        self._registered = False
+        self._write_paused = False
+        self._read_paused = False
+        self._last_activity = time.monotonic()
+        self._idle_timer: asyncio.TimerHandle | None = None
 
-    def datagram_received(self, data: bytes, addr: tuple | None) -> None:
-        buffer = self.recv_buffer + data
-        if len(buffer) > self.max_buffer_size:
-            self.recv_buffer = b""
-            return
-        self._out = []
-        try:
-            while buffer:
-                used = self.callback_data(buffer, addr)
-                if not used:
-                    break
-                buffer = buffer[used:]
-        finally:
-            self.recv_buffer = buffer
-            out, self._out = self._out, None
-            if out and self.transport:
-                self.transport.write(b"".join(out))
-
-    def callback_data(self, data: bytes, addr: tuple | None = None) -> int:
-        try:
-            used = TransactionManager.callback_data(self, data, addr)
-        except ModbusIOException as exc:  # undecodable request: pymodbus's answer
-            response = ExceptionResponse(
-                0 if exc.fcode is None else exc.fcode,
-                exception_code=ExcCodes.ILLEGAL_FUNCTION,
-                device_id=exc.dev_id,
-                transaction=exc.transaction_id,
-            )
-            self.server_send(response, addr)
-            return len(data)
-        if self.last_pdu:
-            run_now(self.handle_request())
-        return used
-
-    def send(self, data: bytes, addr: tuple | None = None) -> None:
-        if self._out is not None:
-            self._out.append(data)
-        elif self.transport:
-            self.transport.write(data)
-
-    def callback_connected(self) -> None:
-        super().callback_connected()
-        peer = self.transport.get_extra_info("peername") if self.transport else None
+    # ------------------------------------------------------------------ connection
+    def connection_made(self, transport: Any) -> None:
+        self.transport = transport
+        peer = transport.get_extra_info("peername")
         self.peer = f"{peer[0]}:{peer[1]}" if peer else "?"
-        self.server.connections += 1
-        log.info("client %s connected (%d open)", self.peer, self.server.connections)
+        server = self.server
+        if len(server.handlers) >= server.max_connections:
+            server.refuse_connection(self.peer)
+            self._closed = True
+            transport.close()
+            return
+        server.handlers.add(self)
+        self._registered = True
+        for hook in server.connection_hooks:
+            hook(self)
+        log.info("client %s connected (%d open)", self.peer, len(server.handlers))
+        self._arm_idle_timer(server.idle_timeout_s)
 
-    def callback_disconnected(self, exc: Exception | None) -> None:
-        super().callback_disconnected(exc)
-        self.server.connections -= 1
+    def connection_lost(self, exc: Exception | None) -> None:
+        self._closed = True
+        if self._idle_timer is not None:
+            self._idle_timer.cancel()
+        if not self._registered:
+            return
+        self._registered = False
+        self.server.handlers.discard(self)
         reason = f" ({exc})" if exc else ""
-        log.info(
-            "client %s disconnected%s (%d open)",
-            getattr(self, "peer", "?"),
-            reason,
-            self.server.connections,
-        )
+        log.info("client %s disconnected%s (%d open)", self.peer, reason, len(self.server.handlers))
+
+    def eof_received(self) -> bool:
+        """The client sent all it will send: answer what it asked, then close."""
+        self._eof = True
+        if not self.waiting:
+            self.transport.close()
+        return True  # keep the transport open for the answers still to come
+
+    def close(self, reason: str) -> None:
+        """Close the connection with one log line naming ``reason``."""
+        if self._closed or self.transport is None:
+            return
+        self._closed = True
+        log.warning("closing the connection of %s: %s", self.peer, reason)
+        self.transport.close()
+
+    def _arm_idle_timer(self, delay_s: float) -> None:
+        if self.server.idle_timeout_s > 0 and hasattr(self.transport, "get_extra_info"):
+            loop = asyncio.get_running_loop()
+            self._idle_timer = loop.call_later(delay_s, self._check_idle)
+
+    def _check_idle(self) -> None:
+        timeout_s = self.server.idle_timeout_s
+        idle_s = time.monotonic() - self._last_activity
+        if self._busy or idle_s < timeout_s:
+            self._arm_idle_timer(max(timeout_s - idle_s, 0.01) if not self._busy else timeout_s)
+            return
+        self.close(f"idle for {idle_s:.0f} s (--idle-timeout {timeout_s:g})")
+
+    # ------------------------------------------------------------------ flow control
+    def pause_writing(self) -> None:
+        self._write_paused = True
+        self._update_reading()
+
+    def resume_writing(self) -> None:
+        self._write_paused = False
+        self._update_reading()
+
+    def _update_reading(self) -> None:
+        want_pause = self._write_paused or self._queued_bytes > MAX_QUEUED_BYTES
+        if self._closed or want_pause == self._read_paused:
+            return
+        self._read_paused = want_pause
+        if want_pause:
+            self.transport.pause_reading()
+        else:
+            self.transport.resume_reading()
+
+    # ------------------------------------------------------------------ requests
+    def data_received(self, data: bytes) -> None:
+        if self._closed or self._close_after is not None:
+            return
+        self._last_activity = time.monotonic()
+        self._buffer += data
+        frames, error = split_frames(self._buffer)
+        if error is not None:  # answer the frames before the bad header, then close
+            self._buffer.clear()
+            self._close_after = f"bad MBAP header ({error}); the stream cannot be resynchronised"
+        for frame in frames:
+            self._queue.append(frame)
+            self._queued_bytes += len(frame.pdu) + 7
+        self._drain()
+
+    @property
+    def waiting(self) -> bool:
+        """Whether requests of this connection are still to be answered."""
+        return self._busy or bool(self._queue)
+
+    def cancel(self) -> None:
+        """Abandon the request in progress and the queued ones (the server stops)."""
+        self._closed = True
+        self._queue.clear()
+        if self._task is not None:
+            self._task.cancel()
+
+    def datagram_received(self, data: bytes, _addr: tuple | None = None) -> None:
+        """The same as :meth:`data_received` (kept for the benchmarks' in-process driver)."""
+        self.data_received(data)
+
+    def _drain(self) -> None:
+        """Answer the queued requests in order until one has to wait (then it goes on in a
+        task, and this resumes when it is done)."""
+        out: list[bytes] = []
+        while self._queue and not self._busy and not self._closed:
+            frame = self._queue.popleft()
+            self._queued_bytes -= len(frame.pdu) + 7
+            coro = self._answer(frame)
+            try:
+                future = coro.send(None)
+            except StopIteration as stop:
+                if stop.value is not None:
+                    out.append(stop.value)
+                continue
+            self._busy = True
+            self._task = asyncio.get_running_loop().create_task(self._finish(coro, future))
+            _PENDING.add(self._task)
+            self._task.add_done_callback(_PENDING.discard)
+        self._send(out)
+        if not self._queue and not self._busy:
+            if self._close_after is not None:
+                self.close(self._close_after)
+                return
+            if self._eof and not self._closed:
+                self._closed = True
+                self.transport.close()
+                return
+        self._update_reading()
+
+    async def _finish(self, coro: Coroutine[Any, Any, bytes | None], future: Any) -> None:
+        try:
+            reply = await _resume(coro, future)
+        finally:
+            self._busy = False
+            self._task = None
+        if reply is not None:
+            self._send([reply])
+        self._drain()
+
+    def _send(self, replies: list[bytes]) -> None:
+        if replies and not self._closed and self.transport is not None:
+            self._last_activity = time.monotonic()
+            self.transport.write(b"".join(replies))
+
+    async def _answer(self, frame: MbapFrame) -> bytes | None:
+        info = RequestInfo(frame.unit_id, frame.pdu[0], self.peer, self.role)
+        try:
+            response = await self.server.execute(info, frame.pdu)
+        except Exception:  # a gate failed: the spec's 04, and the connection goes on
+            log.exception("request %s of %s failed", frame.pdu[:8].hex(), self.peer)
+            response = exception_pdu(info.function_code, SERVER_DEVICE_FAILURE)
+        if response is None:
+            return None
+        return frame_bytes(frame.transaction_id, frame.unit_id, response)
 
 
-class BenchModbusServer(ModbusTcpServer):
-    """``ModbusTcpServer`` whose connections use :class:`RequestHandler`."""
+class BenchModbusServer:
+    """A Modbus TCP server over pymodbus ``SimDevice`` datastores (see the module docstring).
 
-    connections = 0
+    Args:
+        devices: one ``SimDevice`` per unit; device id 0 is the catch-all of unknown units.
+        address: (host, port) to listen on (port 0: any free one).
+        identity: what read device identification (43/14) answers; None: exception 01.
+        idle_timeout_s: close connections that sent nothing for this long (0: never).
+        max_connections: connections open at once; the next ones are closed at once.
+        ssl: an ``ssl.SSLContext`` for Modbus/TCP Security, or None.
+    """
+
+    def __init__(
+        self,
+        devices: list[SimDevice],
+        address: tuple[str, int] = ("127.0.0.1", 5020),
+        *,
+        identity: DeviceIdentity | None = None,
+        idle_timeout_s: float = DEFAULT_IDLE_TIMEOUT_S,
+        max_connections: int = DEFAULT_MAX_CONNECTIONS,
+        ssl: Any = None,
+    ) -> None:
+        self.context = SimCore(devices)
+        self.units = frozenset(d.id for d in devices if d.id != 0)
+        self.address = address
+        self.identity = identity
+        self.idle_timeout_s = idle_timeout_s
+        self.max_connections = max_connections
+        self.ssl = ssl
+        #: consulted in order for every decoded request; the first non-None decision wins
+        self.gates: list[Gate] = []
+        #: called with each new connection (a TLS transport sets ``handler.role`` here)
+        self.connection_hooks: list[Callable[[RequestHandler], None]] = []
+        self.handlers: set[RequestHandler] = set()
+        self.transport: asyncio.Server | None = None
+        self._refusals = 0
+        self._refusal_logged_s = -_REFUSAL_LOG_INTERVAL_S
+
+    @property
+    def connections(self) -> int:
+        """Connections open now."""
+        return len(self.handlers)
 
     def callback_new_connection(self) -> RequestHandler:
-        return RequestHandler(self, self.trace_packet, self.trace_pdu, self.trace_connect)
+        return RequestHandler(self)
+
+    async def serve_forever(self, *, background: bool = True) -> None:
+        """Listen (raises ``RuntimeError`` when it cannot); with ``background=False`` also
+        wait until :meth:`shutdown`."""
+        loop = asyncio.get_running_loop()
+        host, port = self.address
+        try:
+            self.transport = await loop.create_server(
+                self.callback_new_connection, host, port, ssl=self.ssl, reuse_address=True
+            )
+        except OSError as exc:
+            raise RuntimeError(f"cannot listen on {host}:{port}: {exc}") from exc
+        if not background:
+            await self.transport.serve_forever()
+
+    async def shutdown(self) -> None:
+        """Stop listening and close every connection."""
+        if self.transport is not None:
+            self.transport.close()
+        for handler in list(self.handlers):
+            handler.cancel()
+            if handler.transport is not None:
+                handler.transport.close()
+        self.handlers.clear()
+
+    def close_all_connections(self, reason: str) -> int:
+        """Close every open connection (one log line each); returns how many."""
+        handlers = list(self.handlers)
+        for handler in handlers:
+            handler.close(reason)
+        return len(handlers)
+
+    def refuse_connection(self, peer: str) -> None:
+        """Log a connection refused at the limit: one line per interval, with a count."""
+        self._refusals += 1
+        now = time.monotonic()
+        if now - self._refusal_logged_s >= _REFUSAL_LOG_INTERVAL_S:
+            log.warning(
+                "refused the connection of %s: %d connections open (--max-connections); "
+                "%d refused so far",
+                peer,
+                len(self.handlers),
+                self._refusals,
+            )
+            self._refusal_logged_s = now
+
+    # ------------------------------------------------------------------ requests
+    def decide(self, info: RequestInfo, gates: Iterable[Gate] | None = None) -> GateDecision:
+        """The first non-None decision of the gates, or the default (answer normally)."""
+        for gate in self.gates if gates is None else gates:
+            decision = gate(info)
+            if decision is not None:
+                return decision
+        return _PASS
+
+    async def execute(self, info: RequestInfo, pdu: bytes) -> bytes | None:
+        """The response PDU to ``pdu`` (None: no reply): the gates, then the unit check
+        (0B for a unit the bench does not have, whatever the function), then the request
+        itself, checked per the spec (:mod:`rig_emulator.modbus.conformance`)."""
+        decision = self.decide(info) if self.gates else _PASS
+        if decision.delay_s > 0:
+            await asyncio.sleep(decision.delay_s)
+        if decision.drop:
+            return None
+        if decision.exception_code is not None:
+            return exception_pdu(info.function_code, decision.exception_code)
+        if info.unit_id not in self.units:
+            return exception_pdu(info.function_code, GATEWAY_TARGET_FAILED)
+        try:
+            return await process(self.context, info.unit_id, pdu, self.identity)
+        except Exception:  # a datastore fault: the spec's 04, and the server goes on
+            log.exception("request %s of %s failed", pdu[:8].hex(), info.peer)
+            return exception_pdu(info.function_code, SERVER_DEVICE_FAILURE)
+
+    # ------------------------------------------------------------------ datastore
+    async def async_setValues(
+        self, device_id: int, func_code: int, address: int, values: list
+    ) -> None:
+        """Set values in the datastore (the emulator's publishing); refusal is a bug."""
+        if await self.context.async_setValues(device_id, func_code, address, values):
+            raise TypeError(f"the datastore refused {func_code}@{address} of unit {device_id}")
+
+    async def async_getValues(
+        self, device_id: int, func_code: int, address: int, count: int = 1
+    ) -> list:
+        """Values of the datastore (or the exception code it answers)."""
+        return await self.context.async_getValues(device_id, func_code, address, count)
+
+
+_PASS = GateDecision()

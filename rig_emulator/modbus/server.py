@@ -1,6 +1,6 @@
 """The thin, declarative Modbus TCP adapter: a register map over the emulator.
 
-Built on pymodbus 3.16's ``ModbusTcpServer`` with one ``SimDevice`` per map device (its own
+Built on pymodbus 3.16's datastore, one ``SimDevice`` per map device (its own
 unit ID, separate coil, discrete, holding and input address spaces) and a catch-all device
 for unknown unit IDs. Values are published with ``server.async_setValues`` (the runs that
 changed); client writes are checked in the devices' action callback before pymodbus stores them:
@@ -11,9 +11,10 @@ changed); client writes are checked in the devices' action callback before pymod
 - unmapped addresses get exception 02 (pymodbus marks gaps invalid);
 - an unknown unit ID gets exception 0B (gateway target device failed to respond) at once.
 
-Requests are answered in arrival order and at once, several in one TCP segment too
-(:mod:`rig_emulator.modbus.handler`). Everything runs in one asyncio loop: the tick never
-waits for a client, and a client that stops reading only fills its own socket buffer.
+Framing, the spec's checks and exception codes, in-order answers per connection, the idle
+timeout and the connection limit are :mod:`rig_emulator.modbus.handler`'s. Everything runs
+in one asyncio loop: the tick never waits for a client, and a client that stops reading
+only fills its own socket buffer.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ import contextlib
 import logging
 import secrets
 import socket
+import ssl
 import struct
 import threading
 from collections.abc import Callable, Iterable, Mapping
@@ -33,11 +35,17 @@ from typing import Any
 from pymodbus.constants import ExcCodes
 from pymodbus.simulator import DataType, SimData, SimDevice
 
+from rig_emulator import __version__
 from rig_emulator.clock import LOCKSTEP, REALTIME, LatenessStats, Pacer, SimClock
 from rig_emulator.emulator import CommandError, Emulator, check_command
 from rig_emulator.faults import Entry
+from rig_emulator.modbus.conformance import DeviceIdentity
 from rig_emulator.modbus.fault_control import FAULT_COMMANDS, ServerFaults
-from rig_emulator.modbus.handler import BenchModbusServer
+from rig_emulator.modbus.handler import (
+    DEFAULT_IDLE_TIMEOUT_S,
+    DEFAULT_MAX_CONNECTIONS,
+    BenchModbusServer,
+)
 from rig_emulator.registers import Device, Point, RegisterMap, decode, encode, run_encoder
 
 log = logging.getLogger("rig_emulator.serve")
@@ -147,6 +155,10 @@ class BenchServer:
             (a lockstep server always accepts them).
         faults: faults to schedule (``FAULTS.yaml`` entries; the profile's come too).
         fault_log: the JSONL journal of fault starts and ends (None: none).
+        idle_timeout_s: close client connections silent this long (0: never).
+        max_connections: client connections open at once (the next ones are closed).
+        ssl_context: serve Modbus/TCP Security (TLS) on ``host:port`` instead of plain TCP
+            (:mod:`rig_emulator.modbus.transports` adds more listeners and lines).
     """
 
     def __init__(
@@ -161,8 +173,14 @@ class BenchServer:
         allow_control: bool = False,
         faults: Iterable[Entry] = (),
         fault_log: str | Path | None = None,
+        idle_timeout_s: float = DEFAULT_IDLE_TIMEOUT_S,
+        max_connections: int = DEFAULT_MAX_CONNECTIONS,
+        ssl_context: ssl.SSLContext | None = None,
     ) -> None:
         check_command("speed_factor", speed)
+        self.idle_timeout_s = idle_timeout_s
+        self.max_connections = max_connections
+        self.ssl_context = ssl_context
         self.emulator = emulator
         self.map = register_map
         self.host = host
@@ -175,6 +193,7 @@ class BenchServer:
         self.epoch_id = secrets.randbits(32)
         self.last_advance_s = 0.0
         self.allow_control = allow_control
+        self._kernels_ready = threading.Event()
         self.achieved_speed = speed
         self.tick_overrun_ms = 0.0
         self._clock_lock = asyncio.Lock()  # one clock command (advance, reset, ...) at a time
@@ -218,7 +237,19 @@ class BenchServer:
     async def start(self) -> None:
         """Listen, publish the initial state and start the tick."""
         loop = asyncio.get_running_loop()
-        self._server = BenchModbusServer(self._devices(), address=(self.host, self.port))
+        identity = DeviceIdentity(
+            vendor_name="boiler-rig-emulator",
+            product_code={d.unit_id: d.name for d in self.map.devices},
+            revision=__version__,
+        )
+        self._server = BenchModbusServer(
+            self._devices(),
+            address=(self.host, self.port),
+            identity=identity,
+            idle_timeout_s=self.idle_timeout_s,
+            max_connections=self.max_connections,
+            ssl=self.ssl_context,
+        )
         try:
             await self._server.serve_forever(background=True)
         except RuntimeError:  # pymodbus hides the reason: ask the OS for it
@@ -231,12 +262,17 @@ class BenchServer:
         if sock is not None:
             self.port = sock.getsockname()[1]
         threading.Thread(
-            target=self.emulator.compile_kernels, name="compile kernels", daemon=True
-        ).start()  # listening already; the kernels load meanwhile
+            target=self._compile_kernels, name="compile kernels", daemon=True
+        ).start()  # listening already; the kernels load meanwhile, replies go on
         now = loop.time()
         self.clock.anchor(now, self.emulator.sim_time_s)
         await self.publish()
         self._tick_task = asyncio.create_task(self._tick_loop(now), name="rig tick")
+
+    @property
+    def modbus_server(self) -> BenchModbusServer | None:
+        """The Modbus server once started (other transports share its datastore and gates)."""
+        return self._server
 
     async def stop(self) -> None:
         if self._tick_task is not None:
@@ -246,6 +282,19 @@ class BenchServer:
         if self._server is not None:
             await self._server.shutdown()
         self.faults.close()
+
+    def _compile_kernels(self) -> None:
+        """Compile (or load) numba's kernels off the event loop: a cold cache takes tens of
+        seconds, during which the loop must go on answering. Until they are ready the
+        clock stands (published as overrun) and lockstep advances wait, without blocking."""
+        try:
+            self.emulator.compile_kernels()
+        finally:  # a failure shows on the first step, which then compiles by itself
+            self._kernels_ready.set()
+
+    async def _kernels(self) -> None:
+        while not self._kernels_ready.is_set():
+            await asyncio.sleep(0.02)
 
     # ------------------------------------------------------------------ time
     async def _tick_loop(self, start: float) -> None:
@@ -285,6 +334,8 @@ class BenchServer:
         letting clients in every ``ADVANCE_SLICE_S``; returns the simulated seconds undone."""
         if seconds <= 0.0:
             return 0.0
+        if not self._kernels_ready.is_set():
+            return seconds  # the kernels still load: nothing simulated, nothing blocked
         loop = asyncio.get_running_loop()
         n, dt = self.emulator.substeps(seconds)
         slice_end_s = loop.time() + ADVANCE_SLICE_S
@@ -310,6 +361,7 @@ class BenchServer:
         ``await`` between them, so other clients are answered meanwhile; the registers keep
         the state before the advance until it is done."""
         if seconds > 0:
+            await self._kernels()
             loop = asyncio.get_running_loop()
             n, dt = self.emulator.substeps(seconds)
             while n > 0:

@@ -63,7 +63,7 @@ def test_compose_services_use_the_same_cli():
     assert emulator[:2] == ["rig-emulator", "serve"]
     args = emulator_parser().parse_args(emulator[1:])  # valid for the real parser
     assert (args.host, args.port, args.lockstep) == ("0.0.0.0", 5020, True)
-    assert services["emulator"]["ports"] == ["5020:5020"]
+    assert services["emulator"]["ports"] == ["127.0.0.1:5020:5020"]  # loopback only
     client = " ".join(services["client"]["command"][-1].split())
     wait, run = client.split(" && ")
     assert wait == "python -m hil_client.wait_for_port emulator 5020 --timeout 120"
@@ -72,6 +72,23 @@ def test_compose_services_use_the_same_cli():
     assert services["client"]["depends_on"]["emulator"]["condition"] == "service_healthy"
     assert "./out:/out" in services["client"]["volumes"]
     assert (REPO / "Dockerfile").read_text().startswith("#")
+
+
+def test_compose_tls_variant_uses_the_same_cli():
+    base = yaml.safe_load((REPO / "docker-compose.yml").read_text())["services"]
+    services = yaml.safe_load((REPO / "docker-compose.tls.yml").read_text())["services"]
+    emulator = emulator_parser().parse_args(services["emulator"]["command"][1:])
+    assert (emulator.port, emulator.tcp_port) == (802, 5020)
+    assert emulator.tls_ca == "/certs/ca.pem" and emulator.tls_cert == "/certs/server.pem"
+    # the base health check still finds plain TCP on 5020 inside the container
+    assert "5020" in " ".join(base["emulator"]["healthcheck"]["test"])
+    assert services["emulator"]["ports"] == ["802:802"]
+    client = " ".join(services["client"]["command"][-1].split())
+    wait, run = client.split(" && ")
+    assert wait == "python -m hil_client.wait_for_port emulator 802 --timeout 120"
+    run_args = client_parser().parse_args(run.split()[1:])
+    assert run_args.rig == "modbus+tls://emulator:802"
+    assert str(run_args.tls_cert) == "/certs/engineer.pem"
 
 
 def test_wait_for_port(capsys):

@@ -179,3 +179,16 @@ def test_diagnose_and_calibrate_take_real_logs(logs, variant, tmp_path, capsys):
         assert err.count("\n") == 1 and "Traceback" not in err, err
     else:
         assert (tmp_path / "p.yaml").exists()
+
+
+@pytest.mark.parametrize("variant", (every_10_s, irregular), ids=lambda v: v.__name__)
+def test_calibrate_finds_the_load_cycles_plateaus_at_any_sampling(logs, variant, tmp_path):
+    """The stationary intervals are found by time, not by row count: the load cycle's
+    50-min plateaus are as usable sampled every 10 s as every second."""
+    cal = tmp_path / "lc.csv"
+    _write(cal, *variant(*_read(logs["load_cycle"]), np.random.default_rng(3)))
+    out = tmp_path / "p.yaml"
+    assert main(["calibrate", str(cal), "--boiler", BOILER, "--out", str(out)]) == 0
+    fitted = json.loads(out.with_name("p.uncertainty.json").read_text())
+    # the plateaus span flows from 13 % to 100 % load: the Fig. 4 slope is fitted from them
+    assert fitted["dt_hx_wat_K"]["points"] >= 3

@@ -9,6 +9,8 @@ import threading
 import time
 
 from hil_client.demo import rig_emulator_serve
+from rig_emulator.emulator import Emulator
+from rig_emulator.instruments import load_profile
 from rig_emulator.registers import encode
 from tests.modbus_helpers import ADVANCE, client, point, read_point, write
 
@@ -140,3 +142,38 @@ def test_allow_control_option_of_serve():
         assert reply.isError() and reply.exception_code == 1
         assert read_point(c, dev, speed) == 1.0
         c.close()
+
+
+class _SlowKernels(Emulator):
+    """An emulator whose kernels take 3 s to load, as a cold numba cache does (tens of
+    seconds on a fresh machine)."""
+
+    def compile_kernels(self) -> None:
+        time.sleep(3.0)
+        super().compile_kernels()
+
+
+def test_replies_go_on_while_the_kernels_load(serve, params_12kw):
+    srv = serve(emulator=_SlowKernels(params_12kw, load_profile("clean"), 0))
+    dev, sim_time = point(srv, "sim_control", "sim_time")
+    advancer, reader = client(srv.port, timeout_s=60), client(srv.port)
+    done = threading.Event()
+    result = {}
+
+    def advance() -> None:
+        result["reply"] = write(advancer, srv, *ADVANCE, 60)
+        done.set()
+
+    thread = threading.Thread(target=advance)
+    thread.start()
+    reads_while_loading = 0
+    while not done.is_set():
+        assert read_point(reader, dev, sim_time) == 0.0  # answered, and time stands
+        reads_while_loading += 1
+        time.sleep(0.05)
+    thread.join(timeout=60)
+    assert not result["reply"].isError()
+    assert reads_while_loading >= 5  # the 3-s load did not block the loop
+    assert read_point(reader, dev, sim_time) == 60.0
+    advancer.close()
+    reader.close()

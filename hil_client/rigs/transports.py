@@ -1,0 +1,236 @@
+"""How the Modbus rig reaches its server: plain TCP, Modbus/TCP Security (TLS) or RTU.
+
+``--rig`` URLs (CONTRACT sections 1 and 6):
+
+- ``modbus://HOST:PORT``: plain Modbus TCP (:class:`~hil_client.modbus_client.Connection`);
+- ``modbus+tls://HOST:PORT``: Modbus/TCP Security (default port 802), TLS 1.2 or newer,
+  the client certificate and key presented and the server verified against the CA
+  (:class:`TlsFiles`);
+- ``modbus-rtu:///dev/ttyX?baud=19200&parity=E``: Modbus RTU on a serial line.
+
+Every connection offers the same three calls (``send`` requests, ``receive`` their
+replies in order, ``close``), so the rig does not know which one it drives. RTU has no
+pipelining: its ``send`` queues, and each ``receive`` is one transaction on the line.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import select
+import ssl
+import termios
+import time
+import tty
+from collections import deque
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+from urllib.parse import parse_qs, urlparse
+
+from hil_client.modbus_client import Connection, ConnectionLost, ModbusExceptionResponse
+from rig_emulator.modbus.rtu_wire import PARITIES, frame, reply_length, silence_s, unframe
+
+DEFAULT_TLS_PORT = 802
+DEFAULT_BAUD = 19200
+DEFAULT_PARITY = "E"
+SCHEMES = ("modbus", "modbus+tls", "modbus-rtu")
+RIG_TIMEOUT_S = 5.0  # one request, as ModbusRig's default
+
+
+@dataclass(frozen=True)
+class TlsFiles:
+    """The client certificate, its key and the CA that signed the server's certificate."""
+
+    cert: Path
+    key: Path
+    ca: Path
+
+
+def tls_files(options: Any) -> TlsFiles | None:
+    """The :class:`TlsFiles` of parsed ``--tls-cert``/``--tls-key``/``--tls-ca`` options
+    (None if none is given; ValueError if only some are)."""
+    given = {name: getattr(options, name, None) for name in ("tls_cert", "tls_key", "tls_ca")}
+    if not any(given.values()):
+        return None
+    missing = [f"--{k.replace('_', '-')}" for k, v in given.items() if not v]
+    if missing:
+        raise ValueError(f"TLS needs {', '.join(missing)} too")
+    return TlsFiles(Path(given["tls_cert"]), Path(given["tls_key"]), Path(given["tls_ca"]))
+
+
+@dataclass(frozen=True)
+class Endpoint:
+    """A parsed ``--rig`` URL."""
+
+    scheme: str
+    host: str = ""
+    port: int = 0
+    path: str = ""
+    baud: int = DEFAULT_BAUD
+    parity: str = DEFAULT_PARITY
+
+
+def parse_endpoint(url: str) -> Endpoint:
+    """The endpoint of a ``modbus://``, ``modbus+tls://`` or ``modbus-rtu://`` URL;
+    ValueError (one line naming the fault) if it is none of them."""
+    parsed = urlparse(url)
+    if parsed.scheme not in SCHEMES:
+        raise ValueError(
+            f"'{url}' is not modbus://HOST:PORT, modbus+tls://HOST:PORT or "
+            "modbus-rtu:///DEVICE?baud=N"
+        )
+    if parsed.scheme == "modbus-rtu":
+        if not parsed.path or parsed.netloc:
+            raise ValueError(f"'{url}' names no device (modbus-rtu:///dev/ttyX?baud=N)")
+        query = parse_qs(parsed.query)
+        unknown = sorted(set(query) - {"baud", "parity"})
+        if unknown:
+            raise ValueError(f"'{url}': unknown parameter '{unknown[0]}' (baud, parity)")
+        baud_text = query.get("baud", [str(DEFAULT_BAUD)])[-1]
+        if not baud_text.isdigit() or not 50 <= int(baud_text) <= 4_000_000:
+            raise ValueError(f"'{url}': baud '{baud_text}' is not a line speed")
+        parity = query.get("parity", [DEFAULT_PARITY])[-1].upper()
+        if parity not in PARITIES:
+            raise ValueError(f"'{url}': parity '{parity}' is not one of {', '.join(PARITIES)}")
+        return Endpoint("modbus-rtu", path=parsed.path, baud=int(baud_text), parity=parity)
+    if not parsed.hostname:
+        raise ValueError(f"'{url}' names no host ({parsed.scheme}://HOST:PORT)")
+    try:
+        port = parsed.port or (DEFAULT_TLS_PORT if parsed.scheme == "modbus+tls" else 502)
+    except ValueError:
+        raise ValueError(f"'{url}' has a bad port") from None
+    return Endpoint(parsed.scheme, host=parsed.hostname, port=port)
+
+
+def tls_client_context(files: TlsFiles) -> ssl.SSLContext:
+    """TLS 1.2 or newer; the server verified against ``files.ca`` (its name or address
+    too); ``files.cert``/``files.key`` presented. ValueError naming a file that cannot be
+    used."""
+    ctx = ssl.SSLContext(ssl.PROTOCOL_TLS_CLIENT)
+    ctx.minimum_version = ssl.TLSVersion.TLSv1_2
+    for name, path in (("--tls-cert", files.cert), ("--tls-key", files.key)):
+        if not path.is_file():
+            raise ValueError(f"{name} {path}: no such file")
+    if not files.ca.is_file():
+        raise ValueError(f"--tls-ca {files.ca}: no such file")
+    try:
+        ctx.load_cert_chain(str(files.cert), str(files.key))
+    except (ssl.SSLError, ValueError) as exc:
+        raise ValueError(f"--tls-cert/--tls-key {files.cert}: cannot be used ({exc})") from None
+    try:
+        ctx.load_verify_locations(cafile=str(files.ca))
+    except (ssl.SSLError, ValueError) as exc:
+        raise ValueError(f"--tls-ca {files.ca}: cannot be used ({exc})") from None
+    return ctx
+
+
+class TlsConnection(Connection):
+    """A Modbus/TCP Security connection: :class:`Connection` inside TLS."""
+
+    def __init__(self, host: str, port: int, timeout_s: float, context: ssl.SSLContext):
+        super().__init__(host, port, timeout_s)
+        try:
+            self.sock = context.wrap_socket(self.sock, server_hostname=host)
+        except (ssl.SSLError, OSError) as exc:
+            self.close()
+            raise ConnectionLost(f"TLS handshake with {host}:{port} failed ({exc})") from None
+
+
+class RtuConnection:
+    """A Modbus RTU client on a serial line: one transaction at a time, frames with CRC,
+    a silence of 3.5 characters before each request."""
+
+    def __init__(self, path: str, baud: int, parity: str, timeout_s: float) -> None:
+        self.path = path
+        self.timeout_s = timeout_s
+        self.silence_s = silence_s(baud)
+        self._pending: deque[tuple[int, bytes]] = deque()
+        self._line_free = 0.0
+        try:
+            self._fd = os.open(path, os.O_RDWR | os.O_NOCTTY)
+        except OSError as exc:
+            raise ConnectionLost(f"cannot open {path}: {exc.strerror}") from None
+        try:
+            tty.setraw(self._fd)
+        except termios.error:
+            os.close(self._fd)
+            raise ConnectionLost(f"{path} is not a serial line") from None
+        attrs = termios.tcgetattr(self._fd)
+        attrs[2] &= ~(termios.PARENB | termios.PARODD | termios.CSTOPB)
+        if parity != "N":
+            attrs[2] |= termios.PARENB | (termios.PARODD if parity == "O" else 0)
+        else:
+            attrs[2] |= termios.CSTOPB
+        speed = getattr(termios, f"B{baud}", None)
+        if speed is not None:
+            attrs[4] = attrs[5] = speed
+        # a pseudo-terminal has no line: some kernels refuse parity settings on one; raw
+        # mode is what matters there
+        with contextlib.suppress(termios.error):
+            termios.tcsetattr(self._fd, termios.TCSANOW, attrs)
+
+    def send(self, requests: Sequence[tuple[int, bytes]]) -> None:
+        """Queue ``(unit, pdu)`` requests; each :meth:`receive` carries out the oldest."""
+        self._pending.extend(requests)
+
+    def receive(self) -> bytes:
+        """The reply PDU to the oldest queued request (sent now, on a quiet line)."""
+        unit, pdu = self._pending.popleft()
+        wait = self._line_free - time.monotonic()
+        if wait > 0:
+            time.sleep(wait)
+        with contextlib.suppress(termios.error):
+            termios.tcflush(self._fd, termios.TCIFLUSH)  # stale bytes of a timed-out reply
+        try:
+            os.write(self._fd, frame(unit, pdu))
+        except OSError as exc:
+            raise ConnectionLost(f"{self.path}: write failed ({exc.strerror})") from None
+        reply = self._read_reply(time.monotonic() + self.timeout_s)
+        self._line_free = time.monotonic() + self.silence_s
+        decoded = unframe(reply)
+        if decoded is None or decoded[0] != unit:
+            raise ConnectionLost(f"{self.path}: garbled reply from unit {unit} ({reply.hex()})")
+        body = decoded[1]
+        if body[0] == pdu[0] | 0x80:
+            raise ModbusExceptionResponse(unit, pdu[0], body[1])
+        return body
+
+    def _read_reply(self, deadline: float) -> bytes:
+        reply = b""
+        while True:
+            needed = reply_length(reply)
+            if needed is not None and len(reply) >= needed:
+                return reply[:needed]
+            left = deadline - time.monotonic()
+            ready = select.select([self._fd], [], [], max(left, 0.0))[0] if left > 0 else []
+            if not ready:
+                raise ConnectionLost(f"{self.path}: no reply within {self.timeout_s:g} s")
+            try:
+                reply += os.read(self._fd, 512)
+            except OSError as exc:
+                raise ConnectionLost(f"{self.path}: read failed ({exc.strerror})") from None
+
+    def close(self) -> None:
+        with contextlib.suppress(OSError):
+            os.close(self._fd)
+
+
+Connector = Callable[[], Connection | RtuConnection]
+
+
+def connector(url: str, timeout_s: float, tls: TlsFiles | None = None) -> Connector:
+    """A function that opens a connection to ``url`` (ValueError for a bad URL, or TLS
+    options that are missing, unneeded or unusable)."""
+    endpoint = parse_endpoint(url)
+    if endpoint.scheme == "modbus+tls":
+        if tls is None:
+            raise ValueError(f"{url} needs --tls-cert, --tls-key and --tls-ca")
+        context = tls_client_context(tls)
+        return lambda: TlsConnection(endpoint.host, endpoint.port, timeout_s, context)
+    if tls is not None:
+        raise ValueError(f"--tls-* options need a modbus+tls:// rig, not {url}")
+    if endpoint.scheme == "modbus-rtu":
+        return lambda: RtuConnection(endpoint.path, endpoint.baud, endpoint.parity, timeout_s)
+    return lambda: Connection(endpoint.host, endpoint.port, timeout_s)

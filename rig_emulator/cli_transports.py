@@ -1,0 +1,157 @@
+"""The transport options of ``rig-emulator serve`` (CONTRACT section 6).
+
+- ``--tls-cert CERT --tls-key KEY --tls-ca CA [--roles ROLES.yaml]``: ``--port`` (default
+  802, Modbus/TCP Security's port) serves TLS with client certificates and roles instead of
+  plain TCP; ``--tcp-port PORT`` adds a plain TCP listener beside it (on the same host);
+- ``--serial PATH|pty [--baud 19200] [--parity E|N|O]``: also serve the units on an RTU
+  line; ``pty`` creates a pseudo-terminal and prints ``serial: /dev/pts/N`` on stdout;
+- ``--plain-role ROLE``: hold plain TCP and RTU clients to a role too (default: they pass
+  the role gate and meet only the server's own checks, among them ``--allow-control``).
+
+Bad files and values are one line and exit 2 (:class:`UsageError`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import ssl
+from dataclasses import dataclass
+
+from rig_emulator.cli_support import UsageError, int_in
+from rig_emulator.modbus import BenchServer
+from rig_emulator.modbus.roles import DEFAULT_POLICY, RolePolicy, RolesError, load_policy
+from rig_emulator.modbus.rtu import SerialConfigError, check_line_options
+from rig_emulator.modbus.rtu_wire import PARITIES
+from rig_emulator.modbus.tls import DEFAULT_TLS_PORT, TlsConfigError, server_context
+from rig_emulator.modbus.transports import Transports
+
+PLAIN_PORT = 5020
+log = logging.getLogger("rig_emulator.serve")
+
+
+def add_arguments(serve: argparse.ArgumentParser) -> None:
+    """Add the transport options to the ``serve`` parser."""
+    tls = serve.add_argument_group("Modbus/TCP Security (TLS)")
+    tls.add_argument("--tls-cert", default=None, help="server certificate (PEM)")
+    tls.add_argument("--tls-key", default=None, help="its private key (PEM)")
+    tls.add_argument("--tls-ca", default=None, help="CA certificate (PEM) of the clients")
+    tls.add_argument(
+        "--roles", default=None, help="ROLES.yaml redefining the roles [observer/operator/engineer]"
+    )
+    tls.add_argument(
+        "--tcp-port",
+        type=int_in(0, 65535),
+        default=None,
+        help="with --tls-*: also serve plain TCP on this port (0: any free) [off]",
+    )
+    tls.add_argument(
+        "--plain-role",
+        default=None,
+        help="hold plain TCP and RTU clients to this role [no role check]",
+    )
+    rtu = serve.add_argument_group("Modbus RTU")
+    rtu.add_argument(
+        "--serial", default=None, metavar="PATH|pty", help="also serve RTU on this line [off]"
+    )
+    rtu.add_argument("--baud", type=int_in(50, 4_000_000), default=19200, help="line speed [19200]")
+    rtu.add_argument("--parity", default="E", type=str.upper, choices=PARITIES, help="parity [E]")
+
+
+@dataclass(frozen=True)
+class TransportPlan:
+    """What the options ask for, checked before anything listens."""
+
+    ssl_context: ssl.SSLContext | None
+    policy: RolePolicy
+    port: int
+    tcp_port: int | None
+    plain_role: str | None
+    serial: str | None
+    baud: int
+    parity: str
+
+
+def plan(args: argparse.Namespace) -> TransportPlan:
+    """Check the transport options (files included); UsageError naming the fault."""
+    files = {"--tls-cert": args.tls_cert, "--tls-key": args.tls_key, "--tls-ca": args.tls_ca}
+    given = [k for k, v in files.items() if v]
+    context = None
+    if given:
+        missing = [k for k, v in files.items() if not v]
+        if missing:
+            raise UsageError(f"{given[0]} needs {', '.join(missing)} too")
+        try:
+            context = server_context(args.tls_cert, args.tls_key, args.tls_ca)
+        except TlsConfigError as exc:
+            raise UsageError(str(exc)) from None
+    elif args.tcp_port is not None:
+        raise UsageError("--tcp-port goes with --tls-* (without TLS, --port is plain TCP)")
+    if args.roles is not None and context is None and args.plain_role is None:
+        raise UsageError("--roles needs --tls-* or --plain-role")
+    try:
+        policy = load_policy(args.roles) if args.roles is not None else DEFAULT_POLICY
+    except RolesError as exc:
+        raise UsageError(f"--roles: {exc}") from None
+    if args.plain_role is not None and args.plain_role not in policy.roles:
+        raise UsageError(
+            f"--plain-role: '{args.plain_role}' is not one of {', '.join(policy.roles)}"
+        )
+    if args.serial is not None:
+        try:
+            check_line_options(args.baud, args.parity)
+        except SerialConfigError as exc:
+            raise UsageError(str(exc)) from None
+    port = args.port if args.port is not None else (DEFAULT_TLS_PORT if context else PLAIN_PORT)
+    return TransportPlan(
+        context,
+        policy,
+        port,
+        args.tcp_port,
+        args.plain_role,
+        args.serial,
+        args.baud,
+        args.parity,
+    )
+
+
+async def start(server: BenchServer, transport_plan: TransportPlan) -> Transports:
+    """Add the planned listeners, role gate and lines to the started ``server``."""
+    modbus = server.modbus_server
+    assert modbus is not None
+    transports = Transports(modbus)
+    p = transport_plan
+    if p.ssl_context is not None or p.plain_role is not None:
+        transports.authorise(p.policy, p.plain_role)
+    if p.ssl_context is not None:
+        log.info(
+            "Modbus/TCP Security on %s:%d (TLS 1.2+, client certificates of --tls-ca; "
+            "roles: %s; no role extension: %s)",
+            server.host,
+            server.port,
+            ", ".join(p.policy.roles),
+            p.policy.default_role,
+        )
+    try:
+        if p.tcp_port is not None:
+            host, port = await transports.add_tcp(server.host, p.tcp_port)
+            log.info("plain Modbus TCP also on %s:%d", host, port)
+        if p.serial is not None:
+            line = await transports.add_rtu(p.serial, p.baud, p.parity)
+            print(f"serial: {line.path}", flush=True)
+            log.info(
+                "Modbus RTU on %s (%d baud, parity %s, units %s)",
+                line.path,
+                p.baud,
+                p.parity,
+                ", ".join(str(u) for u in sorted(modbus.units)),
+            )
+    except SerialConfigError as exc:
+        await transports.stop()
+        raise UsageError(str(exc)) from None
+    except OSError as exc:
+        await transports.stop()
+        raise UsageError(
+            f"cannot serve plain TCP on {server.host}:{p.tcp_port}: {exc.strerror or exc}"
+        ) from None
+    return transports

@@ -1,0 +1,178 @@
+"""Role-based authorisation of Modbus/TCP Security (the roles of the client certificates).
+
+A role says which units a client may read and which it may write. The defaults
+(CONTRACT section 6):
+
+- ``observer`` reads every unit and writes none;
+- ``operator`` also writes the ``rw`` points of the instruments, units 1-7;
+- ``engineer`` also writes the simulation control, unit 100.
+
+A certificate without the role extension gets ``default_role`` (``observer``); a role the
+policy does not know may do nothing. A ``ROLES.yaml`` file redefines them::
+
+    default_role: observer          # optional; for certificates without the role extension
+    roles:
+      observer: {read: all, write: []}
+      operator: {read: all, write: [1, 2, 3, 4, 5, 6, 7]}
+      engineer: {read: all, write: [1, 2, 3, 4, 5, 6, 7, 100]}
+
+``read``/``write`` are ``all`` or a list of unit IDs (0-255). The role only decides who may
+ask: what may be written at all (``rw`` points, ranges) is still checked by the server.
+
+Function codes: 1, 2, 3, 4 (reads), 7, 11, 12, 17 and 43 (diagnostic reads) need ``read``;
+every other function code (writes, FC 23 read/write, FC 8 diagnostics ...) needs ``write``.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from rig_emulator.yamlio import read_yaml
+
+READ_FUNCTIONS = frozenset({1, 2, 3, 4, 7, 11, 12, 17, 43})
+ALL_UNITS = frozenset(range(256))
+INSTRUMENT_UNITS = frozenset(range(1, 8))
+SIM_CONTROL_UNIT = 100
+
+
+class RolesError(ValueError):
+    """A bad ROLES.yaml (the message names the file and the key at fault)."""
+
+
+@dataclass(frozen=True)
+class Role:
+    """What one role may do: the units it may read and the units it may write."""
+
+    name: str
+    read_units: frozenset[int]
+    write_units: frozenset[int]
+
+    def refusal(self, unit_id: int, function_code: int) -> str | None:
+        """Why this role may not send ``function_code`` to ``unit_id`` (None: it may)."""
+        if function_code in READ_FUNCTIONS:
+            return None if unit_id in self.read_units else f"read unit {unit_id}"
+        return None if unit_id in self.write_units else f"write unit {unit_id}"
+
+
+@dataclass(frozen=True)
+class RolePolicy:
+    """The roles of a server and the role of a certificate without the role extension."""
+
+    roles: Mapping[str, Role]
+    default_role: str
+
+    def refusal(self, role: str, unit_id: int, function_code: int) -> str | None:
+        """Why ``role`` may not send ``function_code`` to ``unit_id`` (None: it may)."""
+        known = self.roles.get(role)
+        if known is None:
+            return f"unknown role '{role}'"
+        return known.refusal(unit_id, function_code)
+
+
+DEFAULT_POLICY = RolePolicy(
+    roles={
+        "observer": Role("observer", ALL_UNITS, frozenset()),
+        "operator": Role("operator", ALL_UNITS, INSTRUMENT_UNITS),
+        "engineer": Role("engineer", ALL_UNITS, INSTRUMENT_UNITS | {SIM_CONTROL_UNIT}),
+    },
+    default_role="observer",
+)
+
+
+def _units(value: Any, where: str) -> frozenset[int]:
+    if value == "all":
+        return ALL_UNITS
+    if value is None:
+        return frozenset()
+    if not isinstance(value, list):
+        raise RolesError(f"{where}: '{value}' is neither 'all' nor a list of unit IDs")
+    units = set()
+    for item in value:
+        if isinstance(item, bool) or not isinstance(item, int) or not 0 <= item <= 255:
+            raise RolesError(f"{where}: '{item}' is not a unit ID (0-255)")
+        units.add(item)
+    return frozenset(units)
+
+
+def policy_from_mapping(data: Any, source: str) -> RolePolicy:
+    """A :class:`RolePolicy` from the parsed content of a ROLES.yaml (``source`` names it in
+    errors)."""
+    if not isinstance(data, dict):
+        raise RolesError(f"{source}: expected a mapping with 'roles'")
+    unknown = sorted(set(data) - {"roles", "default_role"})
+    if unknown:
+        raise RolesError(f"{source}: unknown key '{unknown[0]}' (expected roles, default_role)")
+    entries = data.get("roles")
+    if not isinstance(entries, dict) or not entries:
+        raise RolesError(f"{source}: 'roles' must be a non-empty mapping of role names")
+    roles: dict[str, Role] = {}
+    for name, spec in entries.items():
+        where = f"{source}: roles.{name}"
+        if not isinstance(name, str) or not name.strip():
+            raise RolesError(f"{source}: role name '{name}' is not a non-empty text")
+        if not isinstance(spec, dict):
+            raise RolesError(f"{where}: expected a mapping with read and write")
+        extra = sorted(set(spec) - {"read", "write"})
+        if extra:
+            raise RolesError(f"{where}: unknown key '{extra[0]}' (expected read, write)")
+        roles[name] = Role(
+            name,
+            _units(spec.get("read"), f"{where}.read"),
+            _units(spec.get("write"), f"{where}.write"),
+        )
+    default = data.get("default_role", "observer")
+    if default not in roles:
+        raise RolesError(
+            f"{source}: default_role '{default}' is not one of the roles ({', '.join(roles)})"
+        )
+    return RolePolicy(roles, default)
+
+
+def load_policy(path: str | Path | None) -> RolePolicy:
+    """The policy of a ROLES.yaml, or :data:`DEFAULT_POLICY` for None."""
+    if path is None:
+        return DEFAULT_POLICY
+    return policy_from_mapping(read_yaml(Path(path), RolesError), str(path))
+
+
+class RefusalLog:
+    """Decides which refusals get a log line, so a flood does not flood the log: the first
+    refusal of each (connection, reason) is logged, and at most ``burst`` lines per
+    ``window_s`` in all; the rest are counted and reported with the next line logged."""
+
+    def __init__(self, burst: int = 20, window_s: float = 60.0, max_keys: int = 10000) -> None:
+        self.burst = burst
+        self.window_s = window_s
+        self.max_keys = max_keys
+        self._seen: set[tuple[str, str]] = set()
+        self._window_start = -float("inf")
+        self._in_window = 0
+        self.suppressed = 0
+
+    def admit(self, connection: str, reason: str, now: float | None = None) -> int | None:
+        """None if this refusal is not to be logged; else how many were suppressed before
+        it (and the count restarts)."""
+        key = (connection, reason)
+        if key in self._seen:
+            self.suppressed += 1
+            return None
+        now = time.monotonic() if now is None else now
+        if now - self._window_start >= self.window_s:
+            self._window_start, self._in_window = now, 0
+        if self._in_window >= self.burst:
+            self.suppressed += 1
+            return None
+        if len(self._seen) >= self.max_keys:
+            self._seen.clear()
+        self._seen.add(key)
+        self._in_window += 1
+        suppressed, self.suppressed = self.suppressed, 0
+        return suppressed
+
+    def forget(self, connection: str) -> None:
+        """A connection closed: its keys may go (a new one from the same port logs again)."""
+        self._seen = {k for k in self._seen if k[0] != connection}

@@ -1,0 +1,279 @@
+"""Modbus RTU on a serial line (a device, or a pseudo-terminal the emulator creates).
+
+The same units and map as TCP: every request goes through
+:meth:`~rig_emulator.modbus.handler.BenchModbusServer.execute` (gates included) with
+``peer`` the line's path and no role. The line behaves as a real one would
+(:mod:`rig_emulator.modbus.rtu_wire`):
+
+- a frame ends with 3.5 characters of silence; bytes that come before that belong to it;
+- a frame with a bad CRC, a unit no instrument on the line has, and a broadcast (unit 0)
+  get no reply; a broadcast write is carried out by every unit of the map;
+- a pty has no line speed, so the emulator keeps the time the wire would take (on a
+  device the UART takes the reply's time itself and the emulator only keeps the rest): a frame
+  occupies the line for its characters at the baud rate from its first byte, it is taken
+  as ended only after the silence that follows, the reply is handed over when its last
+  character would have arrived, and the next request starts on the line no earlier than a
+  silence after that. A transaction thus takes at least request + silence + reply +
+  silence, as on a line.
+
+The line is served by one thread with blocking I/O and ``select`` timeouts (microseconds,
+where the event loop's timers are good to about a millisecond); the requests run in the
+server's event loop. A read whose frame is complete (CRC valid) is started at once, while
+its silence passes, and its answer dropped if more bytes follow; writes run only once their
+frame has ended.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import os
+import select
+import termios
+import threading
+import time
+import tty
+from concurrent.futures import Future
+
+from rig_emulator.modbus.handler import BenchModbusServer, RequestInfo
+from rig_emulator.modbus.rtu_wire import (
+    BROADCAST_UNIT,
+    PARITIES,
+    character_s,
+    frame,
+    silence_s,
+    unframe,
+)
+
+log = logging.getLogger("rig_emulator.serve")
+
+WRITE_FUNCTIONS = frozenset({5, 6, 15, 16, 22, 23})
+READ_AHEAD_FUNCTIONS = frozenset({1, 2, 3, 4})
+MAX_FRAME_BYTES = 256  # the longest RTU frame (section 2.5.1.1); longer runs are noise
+EXECUTE_TIMEOUT_S = 30.0
+_BAUD_CONSTANTS = {
+    int(name[1:]): getattr(termios, name)
+    for name in dir(termios)
+    if name.startswith("B") and name[1:].isdigit()
+}
+
+
+class SerialConfigError(ValueError):
+    """A serial line that cannot be opened or configured (the message names it)."""
+
+
+def check_line_options(baud: int, parity: str) -> None:
+    """SerialConfigError unless ``baud`` is a speed termios knows and ``parity`` E, N or O."""
+    if parity not in PARITIES:
+        raise SerialConfigError(f"--parity: '{parity}' is not one of {', '.join(PARITIES)}")
+    if baud not in _BAUD_CONSTANTS:
+        known = ", ".join(str(b) for b in sorted(_BAUD_CONSTANTS) if b >= 1200)
+        raise SerialConfigError(f"--baud: {baud} is not a serial line speed ({known})")
+
+
+def open_line(path: str, baud: int, parity: str) -> tuple[int, int | None, str]:
+    """(fd the server uses, fd to keep open or None, path clients use) of ``path`` or, for
+    ``pty``, of a new pseudo-terminal; raw mode, 8 data bits, ``baud``, ``parity``."""
+    check_line_options(baud, parity)
+    if path == "pty":
+        server_fd, client_fd = os.openpty()
+        # the server keeps the client side open too, so reads never fail with EIO while
+        # no client has it open; clients configure it as they like
+        _configure(client_fd, baud, parity)
+        tty.setraw(server_fd)
+        return server_fd, client_fd, os.ttyname(client_fd)
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_NOCTTY)
+    except OSError as exc:
+        raise SerialConfigError(f"--serial {path}: {exc.strerror}") from None
+    try:
+        configured = _configure(fd, baud, parity)
+    except termios.error:
+        os.close(fd)
+        raise SerialConfigError(f"--serial {path}: not a serial line (a terminal)") from None
+    if not configured:
+        log.warning("RTU %s: the line refused %d baud, parity %s; served raw", path, baud, parity)
+    return fd, None, path
+
+
+def _configure(fd: int, baud: int, parity: str) -> bool:
+    """Raw mode, 8 data bits, ``baud`` and ``parity``; False if the line refused the speed
+    and parity (a pty has no line, and some kernels refuse parity on one): raw mode only."""
+    tty.setraw(fd)
+    attrs = termios.tcgetattr(fd)
+    cflag = attrs[2] & ~(termios.PARENB | termios.PARODD | termios.CSTOPB | termios.CSIZE)
+    cflag |= termios.CS8 | termios.CREAD | termios.CLOCAL
+    if parity != "N":
+        cflag |= termios.PARENB | (termios.PARODD if parity == "O" else 0)
+    else:
+        cflag |= termios.CSTOPB  # no parity: two stop bits keep the 11-bit character
+    attrs[2] = cflag
+    attrs[4] = attrs[5] = _BAUD_CONSTANTS[baud]
+    try:
+        termios.tcsetattr(fd, termios.TCSANOW, attrs)
+    except termios.error:
+        return False
+    return True
+
+
+class RtuLine:
+    """Serves the units of ``server`` on a serial line (see the module docstring).
+
+    Args:
+        server: the Modbus server whose ``execute`` answers the requests.
+        path: a device path, or ``pty`` for a new pseudo-terminal (see :attr:`path`).
+        baud: line speed [bit/s].
+        parity: ``E``, ``N`` or ``O``.
+    """
+
+    def __init__(
+        self, server: BenchModbusServer, path: str = "pty", baud: int = 19200, parity: str = "E"
+    ) -> None:
+        self.server = server
+        self.baud = baud
+        self.parity = parity
+        self.character_s = character_s(baud)
+        self.silence_s = silence_s(baud)
+        self._fd, self._keep_fd, self.path = open_line(path, baud, parity)
+        #: keep the reply's on-wire time (a pty); a device's UART takes it itself
+        self.paced = path == "pty"
+        self.crc_errors = 0
+        self.transactions = 0
+        self._stop_r, self._stop_w = os.pipe()
+        self._thread: threading.Thread | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+
+    async def start(self) -> None:
+        """Serve the line from a thread; the requests run in the running event loop."""
+        self._loop = asyncio.get_running_loop()
+        self._thread = threading.Thread(target=self._serve, name=f"rtu {self.path}", daemon=True)
+        self._thread.start()
+
+    async def stop(self) -> None:
+        os.write(self._stop_w, b"x")
+        if self._thread is not None:
+            await asyncio.to_thread(self._thread.join, 5.0)
+        for fd in (self._fd, self._keep_fd, self._stop_r, self._stop_w):
+            if fd is not None:
+                with contextlib.suppress(OSError):
+                    os.close(fd)
+
+    # ------------------------------------------------------------------ the line
+    def _serve(self) -> None:
+        buffer = bytearray()  # the frame so far (at most MAX_FRAME_BYTES + 1 kept)
+        received = 0  # its characters on the line, kept or not
+        frame_start = 0.0  # when the frame's first character went on the line
+        line_free = 0.0  # the end of the silence after the last frame on the line
+        deadline = 0.0  # when the silence after the bytes received so far is complete
+        early: tuple[int, Future] | None = None  # a read answered ahead: (length, answer)
+        while True:
+            timeout = max(deadline - time.monotonic(), 0.0) if received else None
+            ready, _, _ = select.select([self._fd, self._stop_r], [], [], timeout)
+            if self._stop_r in ready:
+                return
+            now = time.monotonic()
+            if self._fd in ready:
+                try:
+                    data = os.read(self._fd, 4096)
+                except OSError:  # the line went away (EIO): wait a moment and go on
+                    time.sleep(0.01)
+                    continue
+                if not received:
+                    frame_start = max(now, line_free)
+                received += len(data)
+                if len(buffer) <= MAX_FRAME_BYTES:  # beyond: noise until the next silence
+                    buffer += data[: MAX_FRAME_BYTES + 1 - len(buffer)]
+                wire_end = frame_start + received * self.character_s
+                deadline = max(wire_end, now) + self.silence_s
+                early = self._read_ahead(bytes(buffer)) if received <= MAX_FRAME_BYTES else None
+                continue
+            if received and now >= deadline:
+                request, buffer, received = bytes(buffer), bytearray(), 0
+                answer = early[1] if early is not None and early[0] == len(request) else None
+                early = None
+                line_free = self._transaction(request, deadline, answer)
+
+    def _read_ahead(self, request: bytes) -> tuple[int, Future] | None:
+        """Start answering ``request`` before its silence has passed if it is already a whole
+        read frame (CRC valid): reads change nothing, so an answer that more bytes turn out
+        to belong to is simply dropped; the reply still waits for the line's time. Writes
+        are carried out only once their frame has ended, as a device does."""
+        decoded = unframe(request)
+        if decoded is None or not decoded[1] or decoded[1][0] not in READ_AHEAD_FUNCTIONS:
+            return None
+        unit_id, pdu = decoded
+        if unit_id not in self.server.units or self._loop is None:
+            return None
+        info = RequestInfo(unit_id, pdu[0], self.path, None)
+        return len(request), asyncio.run_coroutine_threadsafe(
+            self.server.execute(info, pdu), self._loop
+        )
+
+    def _transaction(self, request: bytes, ended: float, answer: Future | None = None) -> float:
+        """Answer one frame that ended (silence included) at ``ended`` (``answer``: its reply,
+        already under way); when the line is free again."""
+        if len(request) > MAX_FRAME_BYTES:
+            self.crc_errors += 1
+            return ended
+        decoded = unframe(request)
+        if decoded is None:
+            self.crc_errors += 1
+            log.debug("RTU %s: frame with a bad CRC ignored (%s)", self.path, request[:16].hex())
+            return ended
+        unit_id, pdu = decoded
+        if not pdu:
+            return ended
+        if unit_id == BROADCAST_UNIT:
+            if pdu[0] in WRITE_FUNCTIONS:
+                self._run(self._broadcast(pdu))
+            return ended
+        if unit_id not in self.server.units:
+            return ended  # nobody on the line has that address: silence, as on a line
+        if answer is None:
+            info = RequestInfo(unit_id, pdu[0], self.path, None)
+            answer = asyncio.run_coroutine_threadsafe(self.server.execute(info, pdu), self._loop)
+        reply = self._result(answer)
+        if reply is None:
+            return ended
+        out = frame(unit_id, reply)
+        wire_s = len(out) * self.character_s
+        if self.paced:
+            # the reply goes on the line after the request's silence; the emulator's own work
+            # overlaps its on-wire time (a reply that took longer is handed over when ready)
+            reply_end = max(ended + wire_s, time.monotonic())
+            _sleep_until(reply_end)
+        else:  # a real line: its UART takes the reply's time itself
+            _sleep_until(ended)
+            reply_end = time.monotonic() + wire_s
+        try:
+            os.write(self._fd, out)
+        except OSError as exc:
+            log.warning("RTU %s: reply not written (%s)", self.path, exc.strerror)
+        self.transactions += 1
+        return reply_end + self.silence_s
+
+    async def _broadcast(self, pdu: bytes) -> None:
+        for unit_id in sorted(self.server.units):
+            await self.server.execute(RequestInfo(unit_id, pdu[0], self.path, None), pdu)
+
+    def _run(self, coro) -> bytes | None:
+        assert self._loop is not None
+        return self._result(asyncio.run_coroutine_threadsafe(coro, self._loop))
+
+    def _result(self, future: Future) -> bytes | None:
+        try:
+            return future.result(EXECUTE_TIMEOUT_S)
+        except Exception as exc:  # the loop stopped, or the request failed: no reply
+            future.cancel()
+            log.warning("RTU %s: request not answered (%s)", self.path, exc or type(exc).__name__)
+            return None
+
+
+def _sleep_until(when: float) -> None:
+    """Sleep until the monotonic clock reads ``when`` (to about 0.1 ms)."""
+    while True:
+        left = when - time.monotonic()
+        if left <= 0:
+            return
+        time.sleep(left)

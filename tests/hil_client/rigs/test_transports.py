@@ -1,0 +1,60 @@
+"""``--rig`` URLs of the three transports and the TLS options that go with them."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import pytest
+
+from hil_client.rigs.transports import Endpoint, connector, parse_endpoint, tls_files
+
+
+@pytest.mark.parametrize(
+    ("url", "endpoint"),
+    [
+        ("modbus://127.0.0.1:5020", Endpoint("modbus", host="127.0.0.1", port=5020)),
+        ("modbus+tls://localhost", Endpoint("modbus+tls", host="localhost", port=802)),
+        ("modbus+tls://127.0.0.1:8020", Endpoint("modbus+tls", host="127.0.0.1", port=8020)),
+        (
+            "modbus-rtu:///dev/pts/7?baud=115200",
+            Endpoint("modbus-rtu", path="/dev/pts/7", baud=115200),
+        ),
+        (
+            "modbus-rtu:///dev/ttyUSB0?baud=9600&parity=n",
+            Endpoint("modbus-rtu", path="/dev/ttyUSB0", baud=9600, parity="N"),
+        ),
+        ("modbus-rtu:///dev/ttyS0", Endpoint("modbus-rtu", path="/dev/ttyS0", baud=19200)),
+    ],
+)
+def test_good_urls(url, endpoint):
+    assert parse_endpoint(url) == endpoint
+
+
+@pytest.mark.parametrize(
+    ("url", "fault"),
+    [
+        ("tcp://1.2.3.4:5", "is not modbus://"),
+        ("modbus+tls://:802", "names no host"),
+        ("modbus+tls://h:99999", "bad port"),
+        ("modbus-rtu://host/dev/x", "names no device"),
+        ("modbus-rtu:///dev/x?baud=fast", "baud 'fast'"),
+        ("modbus-rtu:///dev/x?parity=X", "parity 'X'"),
+        ("modbus-rtu:///dev/x?speed=9600", "unknown parameter 'speed'"),
+    ],
+)
+def test_bad_urls_name_the_fault(url, fault):
+    with pytest.raises(ValueError, match=fault):
+        parse_endpoint(url)
+
+
+def test_tls_options_all_or_none(tmp_path):
+    assert tls_files(SimpleNamespace(tls_cert=None, tls_key=None, tls_ca=None)) is None
+    with pytest.raises(ValueError, match="--tls-key, --tls-ca"):
+        tls_files(SimpleNamespace(tls_cert=tmp_path / "c", tls_key=None, tls_ca=None))
+    files = tls_files(SimpleNamespace(tls_cert="c", tls_key="k", tls_ca="a"))
+    with pytest.raises(ValueError, match="need a modbus\\+tls"):
+        connector("modbus://127.0.0.1:5020", 1.0, files)
+    with pytest.raises(ValueError, match="needs --tls-cert"):
+        connector("modbus+tls://127.0.0.1:802", 1.0, None)
+    with pytest.raises(ValueError, match="--tls-cert c: no such file"):
+        connector("modbus+tls://127.0.0.1:802", 1.0, files)

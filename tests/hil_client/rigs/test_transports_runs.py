@@ -1,0 +1,142 @@
+"""``hil-client run`` over Modbus/TCP Security and over Modbus RTU on a real pty: in
+lockstep each run equals the in-process run of the same protocol."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from hil_client.analysis.logio import read_log
+from hil_client.cli import main
+from rig_emulator.certs import make_lab_certificates
+from rig_emulator.modbus.roles import DEFAULT_POLICY
+from rig_emulator.modbus.tls import server_context
+from rig_emulator.modbus.transports import Transports
+from tests.hil_client.test_modbus_rig import SHORT, assert_logs_equal
+
+# a protocol of about 20 simulated minutes at 10 s per row (about 150 rows), so a run over
+# a serial line (one request at a time, ten per row) takes seconds, not minutes
+TINY = """\
+name: tiny
+test: tiny
+acquisition_period_s: 10
+flow_spread_K: 15
+preheat: {temperature_C: 30, tolerance_K: 1, hold_s: 20, load_pct: 100, max_duration_s: 900}
+start_up: {return_setpoint_C: 30, t1_window_s: 60, t1_max_rise_K_min: 5, min_duration_s: 60,
+           max_duration_s: 300}
+test_sequence:
+  return_setpoint_C: 30
+  sequences:
+    - {name: peak, load_pct: 100, duration: "00:03:00"}
+    - {name: stationary_50, load_pct: 50, duration: "00:03:00"}
+cooling_1: {load_pct: 20, return_setpoint_C: 30, until_forward_C: 90, max_duration_s: 120}
+cooling_2: {until_after_t2_s: 240}
+"""
+
+
+def _run(protocol: str, *args: str) -> int:
+    return main(["run", protocol, "--boiler", "windhager_12kw", "--quiet", *args])
+
+
+@pytest.fixture(scope="module")
+def certs(tmp_path_factory):
+    out = tmp_path_factory.mktemp("certs")
+    make_lab_certificates(out)
+    return out
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("protocol") / "tiny.yaml"
+    path.write_text(TINY)
+    return path
+
+
+def _local(protocol: str, out: Path):
+    assert _run(protocol, "--rig", "local", "--out", str(out)) == 0
+    return read_log(out)
+
+
+@pytest.fixture
+def tls_server(serve, certs):
+    srv = serve(
+        ssl_context=server_context(certs / "server.pem", certs / "server.key", certs / "ca.pem")
+    )
+
+    async def setup():
+        transports = Transports(srv.server.modbus_server)
+        transports.authorise(DEFAULT_POLICY)
+        return transports
+
+    srv.transports = srv.call(setup())
+    yield srv
+    srv.call(srv.transports.stop())
+
+
+def _tls_args(certs: Path, stem: str) -> list[str]:
+    return [
+        "--tls-cert",
+        str(certs / f"{stem}.pem"),
+        "--tls-key",
+        str(certs / f"{stem}.key"),
+        "--tls-ca",
+        str(certs / "ca.pem"),
+    ]
+
+
+def test_run_over_tls_equals_the_local_run(tls_server, certs, tmp_path):
+    local = _local(SHORT, tmp_path / "local.csv")
+    out = tmp_path / "tls.csv"
+    rig = f"modbus+tls://127.0.0.1:{tls_server.port}"
+    assert _run(SHORT, "--rig", rig, *_tls_args(certs, "engineer"), "--out", str(out)) == 0
+    remote = read_log(out)
+    assert remote.meta["clock"] == "lockstep" and remote.meta["complete"] is True
+    assert_logs_equal(local, remote)
+    assert tls_server.transports.authorisation.refusals == 0
+
+
+def test_operator_cannot_drive_the_clock(tls_server, certs, tmp_path, capsys):
+    # a lockstep run advances the simulation control (unit 100): an operator is refused
+    rig = f"modbus+tls://127.0.0.1:{tls_server.port}"
+    out = tmp_path / "op.csv"
+    assert _run(SHORT, "--rig", rig, *_tls_args(certs, "operator"), "--out", str(out)) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert "exception 01" in err[-1], err
+    assert tls_server.values()["sim_time_s"] == 0.0
+
+
+def test_tls_options_checked_before_connecting(certs, tmp_path, capsys):
+    out = tmp_path / "x.csv"
+    args = ["--rig", "modbus+tls://127.0.0.1:1", "--out", str(out)]
+    assert _run(SHORT, *args) == 2
+    assert "needs --tls-cert" in capsys.readouterr().err
+    missing = [*_tls_args(certs, "engineer")[:4], "--tls-ca", str(tmp_path / "none.pem")]
+    assert _run(SHORT, *args, *missing) == 2
+    assert "--tls-ca" in capsys.readouterr().err and not out.exists()
+
+
+@pytest.fixture
+def rtu_server(serve):
+    srv = serve()
+
+    async def setup():
+        transports = Transports(srv.server.modbus_server)
+        return transports, await transports.add_rtu("pty", 115200, "E")
+
+    srv.transports, srv.line = srv.call(setup())
+    yield srv
+    srv.call(srv.transports.stop())
+
+
+def test_run_over_rtu_equals_the_local_run(rtu_server, tiny, tmp_path):
+    local = _local(str(tiny), tmp_path / "local.csv")
+    assert len(local) > 50
+    out = tmp_path / "rtu.csv"
+    rig = f"modbus-rtu://{rtu_server.line.path}?baud=115200&parity=E"
+    assert _run(str(tiny), "--rig", rig, "--out", str(out)) == 0
+    remote = read_log(out)
+    assert remote.meta["complete"] is True and remote.meta["rig"] == rig
+    assert_logs_equal(local, remote)
+    assert rtu_server.line.transactions >= 8 * len(remote)  # one request at a time
+    assert rtu_server.line.crc_errors == 0

@@ -1,0 +1,382 @@
+"""Modbus RTU on a real pseudo-terminal: frames built by pymodbus's RTU framer (not the
+project's), CRC errors, broadcast, timing against the wire, mbpoll (Debian) interoperating,
+and the same plant over TCP at the same time."""
+
+from __future__ import annotations
+
+import os
+import select
+import shutil
+import struct
+import subprocess
+import sys
+import termios
+import time
+import tty
+from pathlib import Path
+
+import pytest
+from pymodbus.framer.rtu import FramerRTU
+
+from rig_emulator.modbus.rtu_wire import character_s, silence_s
+from rig_emulator.modbus.transports import Transports
+from tests.modbus_helpers import client, read_point
+
+BAUD = 19200
+MBPOLL = shutil.which("mbpoll")
+
+
+def rtu_frame(unit: int, pdu: bytes) -> bytes:
+    return FramerRTU.encode(None, pdu, unit, 0)  # type: ignore[arg-type]
+
+
+@pytest.fixture
+def rtu_server(serve):
+    srv = serve()
+
+    async def setup():
+        transports = Transports(srv.server.modbus_server)
+        return transports, await transports.add_rtu("pty", BAUD, "E")
+
+    srv.transports, srv.line = srv.call(setup())
+    yield srv
+    srv.call(srv.transports.stop())
+
+
+class Line:
+    """The client side of the pty, raw."""
+
+    def __init__(self, path: str) -> None:
+        self.fd = os.open(path, os.O_RDWR | os.O_NOCTTY)
+        tty.setraw(self.fd)
+        termios.tcflush(self.fd, termios.TCIOFLUSH)
+
+    def send(self, data: bytes) -> float:
+        os.write(self.fd, data)
+        return time.monotonic()
+
+    def read(self, n: int, timeout_s: float = 2.0) -> bytes:
+        """Up to ``n`` bytes, whatever came within ``timeout_s``."""
+        out = b""
+        deadline = time.monotonic() + timeout_s
+        while len(out) < n:
+            left = deadline - time.monotonic()
+            if left <= 0 or not select.select([self.fd], [], [], left)[0]:
+                break
+            out += os.read(self.fd, n - len(out))
+        return out
+
+    def close(self) -> None:
+        os.close(self.fd)
+
+
+@pytest.fixture
+def line(rtu_server):
+    c = Line(rtu_server.line.path)
+    yield c
+    c.close()
+
+
+def _fc4(address: int, count: int) -> bytes:
+    return struct.pack(">BHH", 4, address, count)
+
+
+def test_read_equals_tcp_and_crc_is_valid(rtu_server, line):
+    line.send(rtu_frame(1, _fc4(0, 14)))
+    reply = line.read(5 + 28)
+    assert len(reply) == 33 and reply[:3] == bytes([1, 4, 28])
+    assert rtu_frame(1, reply[1:-2]) == reply  # pymodbus's CRC of it agrees
+    registers = list(struct.unpack(">14H", reply[3:-2]))
+    tcp = client(rtu_server.port)
+    try:
+        r = tcp.read_input_registers(0, count=14, device_id=1)
+        assert r.registers == registers  # lockstep: nothing moved in between
+    finally:
+        tcp.close()
+
+
+def test_bad_crc_gets_silence_and_the_line_goes_on(rtu_server, line):
+    good = rtu_frame(1, _fc4(0, 2))
+    bad = good[:-1] + bytes([good[-1] ^ 0x01])
+    line.send(bad)
+    assert line.read(64, timeout_s=0.5) == b""
+    assert rtu_server.line.crc_errors == 1
+    line.send(good)
+    assert len(line.read(9)) == 9  # the control: the same request with its CRC is answered
+
+
+def test_unknown_unit_and_broadcast_read_get_silence(rtu_server, line):
+    line.send(rtu_frame(50, _fc4(0, 2)))
+    assert line.read(64, timeout_s=0.4) == b""
+    line.send(rtu_frame(0, _fc4(0, 2)))
+    assert line.read(64, timeout_s=0.4) == b""
+
+
+def test_exception_reply_is_a_valid_frame(rtu_server, line):
+    line.send(rtu_frame(1, _fc4(500, 2)))  # unmapped: exception 02
+    reply = line.read(5)
+    assert reply == rtu_frame(1, bytes([0x84, 0x02]))
+
+
+def test_broadcast_write_no_reply_every_unit_acts(rtu_server, line):
+    srv = rtu_server
+    tcp = client(srv.port)
+    try:  # pump (unit 1, coil 0) and boiler command (unit 7, coil 0) on, over TCP
+        assert not tcp.write_coil(0, True, device_id=1).isError()
+        assert not tcp.write_coil(0, True, device_id=7).isError()
+    finally:
+        tcp.close()
+    before = srv.values()
+    assert before["pump_on"] == 1.0 and before["boiler_command"] == 1.0
+    # FC5 coil 0 OFF to everyone on the line
+    line.send(rtu_frame(0, struct.pack(">BHH", 5, 0, 0x0000)))
+    assert line.read(64, timeout_s=0.5) == b""
+    after = srv.values()
+    assert after["pump_on"] == 0.0 and after["boiler_command"] == 0.0
+
+
+def test_transaction_takes_at_least_the_wire_time(rtu_server, line):
+    # FC4 of 14 registers: request 8 characters, reply 33, t3.5 between them
+    least_s = (8 + 33) * character_s(BAUD) + silence_s(BAUD)
+    durations = []
+    for _ in range(10):
+        sent = line.send(rtu_frame(1, _fc4(0, 14)))
+        assert len(line.read(33)) == 33
+        durations.append(time.monotonic() - sent)
+    print(f"least {least_s * 1e3:.2f} ms, measured {min(durations) * 1e3:.2f} ms min")
+    assert min(durations) >= least_s
+    # back to back, the silence after each reply is kept too: n transactions take at least
+    # n * (request + reply + 2 silences) minus the last silence
+    n = 20
+    start = time.monotonic()
+    for _ in range(n):
+        line.send(rtu_frame(1, _fc4(0, 14)))
+        assert len(line.read(33)) == 33
+    elapsed = time.monotonic() - start
+    assert elapsed >= n * (least_s + silence_s(BAUD)) - silence_s(BAUD)
+
+
+def test_tcp_keeps_serving_alongside(rtu_server, line):
+    srv = rtu_server
+    dev = srv.map.device("bench_plc")
+    flow = next(p for p in dev.points if p.name == "flow_setpoint")
+    from rig_emulator.registers import encode
+
+    words = encode(flow, 777.0)
+    pdu = struct.pack(">BHHB2H", 16, flow.address, 2, 4, *words)
+    line.send(rtu_frame(1, pdu))
+    assert line.read(8) == rtu_frame(1, struct.pack(">BHH", 16, flow.address, 2))
+    tcp = client(srv.port)
+    try:
+        assert read_point(tcp, dev, flow) == 777.0
+    finally:
+        tcp.close()
+
+
+# ---------------------------------------------------------------------- the real CLI + mbpoll
+@pytest.fixture
+def cli_server(tmp_path):
+    """``rig-emulator serve --serial pty`` as a subprocess; (path, tcp port, process)."""
+    from hil_client.wait_for_port import free_port
+
+    port = free_port()
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "rig_emulator.cli",
+            "serve",
+            "--boiler",
+            "windhager_12kw",
+            "--lockstep",
+            "--port",
+            str(port),
+            "--serial",
+            "pty",
+            "--baud",
+            str(BAUD),
+            "--parity",
+            "E",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[3])},
+    )
+    try:
+        first = proc.stdout.readline() if proc.stdout else ""
+        assert first.startswith("serial: /dev/pts/"), (first, proc.poll())
+        yield first.split(": ", 1)[1].strip(), port, proc
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(timeout=10)
+
+
+def _mbpoll(*args: str, check: bool = True) -> subprocess.CompletedProcess:
+    """mbpoll once, 0-based references, 1 s timeout, 19200 8E1."""
+    done = subprocess.run(
+        [MBPOLL, "-m", "rtu", "-b", str(BAUD), "-P", "even", "-0", "-1", "-o", "1", *args],
+        capture_output=True,
+        text=True,
+        timeout=20,
+    )
+    if check:
+        assert done.returncode == 0, done.stdout + done.stderr
+    return done
+
+
+def _mbpoll_values(out: str) -> dict[int, str]:
+    """``[ref]: value`` lines of mbpoll's output."""
+    values = {}
+    for text in out.splitlines():
+        if text.startswith("[") and "]:" in text:
+            ref, value = text.split("]:", 1)
+            values[int(ref[1:])] = value.split()[0]
+    return values
+
+
+needs_mbpoll = pytest.mark.skipif(
+    MBPOLL is None, reason="mbpoll not installed (Debian: apt-get install mbpoll)"
+)
+
+
+@needs_mbpoll
+def test_mbpoll_reads_what_tcp_reads(cli_server):
+    path, port, _ = cli_server
+    values = _mbpoll_values(_mbpoll("-a", "100", "-t", "3", "-r", "0", "-c", "15", path).stdout)
+    assert sorted(values) == list(range(15))
+    tcp = client(port)
+    try:
+        r = tcp.read_input_registers(0, count=15, device_id=100)
+        # mbpoll prints 16-bit registers signed where the top bit is set
+        assert [int(values[i]) & 0xFFFF for i in range(15)] == r.registers
+    finally:
+        tcp.close()
+
+
+@needs_mbpoll
+def test_mbpoll_writes_and_reads_back_in_rtu_mode(cli_server):
+    path, port, _ = cli_server
+    _mbpoll("-a", "1", "-t", "4:float", "-B", "-r", "0", path, "456.25")  # flow setpoint
+    _mbpoll("-a", "1", "-t", "0", "-r", "0", path, "1")  # pump coil on
+    values = _mbpoll_values(
+        _mbpoll("-a", "1", "-t", "4:float", "-B", "-r", "0", "-c", "2", path).stdout
+    )
+    assert float(values[0]) == 456.25
+    assert _mbpoll_values(_mbpoll("-a", "1", "-t", "0", "-r", "0", "-c", "2", path).stdout) == {
+        0: "1",
+        1: "0",
+    }
+    tcp = client(port)
+    try:
+        r = tcp.read_holding_registers(0, count=2, device_id=1)
+        assert struct.unpack(">f", struct.pack(">2H", *r.registers))[0] == 456.25
+        assert tcp.read_coils(0, count=1, device_id=1).bits[0] is True
+    finally:
+        tcp.close()
+    # out of the point's range (0..2000 kg/h): mbpoll reports the exception, nothing changes
+    refused = _mbpoll("-a", "1", "-t", "4:float", "-B", "-r", "0", path, "5000", check=False)
+    assert refused.returncode != 0
+    values = _mbpoll_values(
+        _mbpoll("-a", "1", "-t", "4:float", "-B", "-r", "0", "-c", "1", path).stdout
+    )
+    assert float(values[0]) == 456.25
+    # nobody at unit 50 on this line: mbpoll times out
+    assert _mbpoll("-a", "50", "-t", "3", "-r", "0", path, check=False).returncode != 0
+
+
+def test_bad_serial_options_are_one_line(tmp_path, capsys):
+    from rig_emulator.cli import main
+
+    base = ["serve", "--boiler", "windhager_12kw", "--port", "0"]
+    for extra, fault in (
+        (["--serial", "pty", "--baud", "12345"], "--baud: 12345 is not a serial line speed"),
+        (["--serial", "pty", "--parity", "X"], "--parity"),
+        (["--serial", str(tmp_path / "nothing")], "No such file"),
+        (["--serial", str(tmp_path)], "--serial"),
+    ):
+        assert main([*base, *extra]) == 2, extra
+        err = capsys.readouterr().err.strip().splitlines()
+        assert fault in err[-1], (extra, err)
+        assert not any("Traceback" in e for e in err)
+
+
+def test_plain_role_holds_rtu_clients_to_a_role(serve):
+    from rig_emulator.modbus.roles import DEFAULT_POLICY
+
+    srv = serve()
+
+    async def setup():
+        transports = Transports(srv.server.modbus_server)
+        transports.authorise(DEFAULT_POLICY, plain_role="operator")
+        return transports, await transports.add_rtu("pty", BAUD, "E")
+
+    transports, rtu = srv.call(setup())
+    c = Line(rtu.path)
+    try:
+        before = srv.values()["sim_time_s"]
+        advance = struct.pack(">BHHB2H", 16, 4, 2, 4, 0, 10)  # lockstep_advance = 10 s
+        c.send(rtu_frame(100, advance))
+        assert c.read(5) == rtu_frame(100, bytes([0x90, 0x01]))  # exception 01
+        assert srv.values()["sim_time_s"] == before
+        c.send(rtu_frame(1, struct.pack(">BHH", 5, 0, 0xFF00)))  # pump on: an operator may
+        assert c.read(8) == rtu_frame(1, struct.pack(">BHH", 5, 0, 0xFF00))
+    finally:
+        c.close()
+        srv.call(transports.stop())
+    assert transports.authorisation.refusals == 1
+
+
+def test_noise_without_silence_is_dropped_whole(rtu_server, line):
+    # 2 KiB of noise in one burst: one over-long frame (its 1.2 s on the wire at 19,200
+    # baud), no reply, then the line works
+    line.send(bytes(range(256)) * 8)
+    assert line.read(64, timeout_s=2.0) == b""
+    assert rtu_server.line.crc_errors == 1
+    line.send(rtu_frame(1, _fc4(0, 2)))
+    assert len(line.read(9)) == 9
+
+
+SOCAT = shutil.which("socat")
+
+
+@pytest.mark.skipif(SOCAT is None or MBPOLL is None, reason="socat or mbpoll not installed")
+def test_device_path_served_through_a_socat_line(serve, tmp_path):
+    """``--serial PATH``: a line the emulator did not create (socat's pty pair standing in
+    for a serial adapter; a device's UART keeps the reply's time itself)."""
+    ours, theirs = tmp_path / "emulator", tmp_path / "client"
+    socat = subprocess.Popen(
+        [SOCAT, f"pty,raw,echo=0,link={ours}", f"pty,raw,echo=0,link={theirs}"],
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        deadline = time.monotonic() + 10
+        while not (ours.exists() and theirs.exists()) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        srv = serve()
+
+        async def setup():
+            transports = Transports(srv.server.modbus_server)
+            return transports, await transports.add_rtu(str(ours), BAUD, "E")
+
+        transports, rtu = srv.call(setup())
+        try:
+            assert rtu.path == str(ours) and not rtu.paced
+            _mbpoll("-a", "1", "-t", "4:float", "-B", "-r", "0", str(theirs), "321.5")
+            out = _mbpoll("-a", "1", "-t", "4:float", "-B", "-r", "0", "-c", "2", str(theirs))
+            assert float(_mbpoll_values(out.stdout)[0]) == 321.5
+            tcp = client(srv.port)
+            try:
+                r = tcp.read_holding_registers(0, count=2, device_id=1)
+            finally:
+                tcp.close()
+            assert struct.unpack(">f", struct.pack(">2H", *r.registers))[0] == 321.5
+        finally:
+            srv.call(transports.stop())
+    finally:
+        socat.terminate()
+        socat.wait(timeout=10)

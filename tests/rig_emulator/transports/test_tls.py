@@ -1,0 +1,370 @@
+"""Modbus/TCP Security over real TLS sockets with the certificates of ``rig-emulator certs``,
+driven by pymodbus's TLS client and Python's ``ssl`` (clients the project did not write)."""
+
+from __future__ import annotations
+
+import logging
+import socket
+import ssl
+import struct
+
+import pytest
+from pymodbus.client import ModbusTcpClient, ModbusTlsClient
+
+from rig_emulator.certs import make_ca, make_client, make_lab_certificates, write_pair
+from rig_emulator.modbus.roles import DEFAULT_POLICY
+from rig_emulator.modbus.tls import server_context
+from rig_emulator.modbus.transports import Transports
+from rig_emulator.registers import decode, encode
+
+ROLES = ("observer", "operator", "engineer", "norole")
+
+
+@pytest.fixture(scope="module")
+def certs(tmp_path_factory):
+    out = tmp_path_factory.mktemp("certs")
+    make_lab_certificates(out)
+    return out
+
+
+@pytest.fixture
+def tls_server(serve, certs):
+    """A lockstep server speaking TLS on its port, with the default roles and a plain TCP
+    listener beside it."""
+    srv = serve(
+        ssl_context=server_context(certs / "server.pem", certs / "server.key", certs / "ca.pem")
+    )
+
+    async def setup():
+        transports = Transports(srv.server.modbus_server)
+        transports.authorise(DEFAULT_POLICY)
+        return transports, await transports.add_tcp("127.0.0.1", 0)
+
+    srv.transports, (_, srv.plain_port) = srv.call(setup())
+    yield srv
+    srv.call(srv.transports.stop())
+
+
+def client_context(certs, stem: str | None, ca: str = "ca.pem", **versions) -> ssl.SSLContext:
+    ctx = ssl.SSLContext(ssl.PROTOCOL_TLS_CLIENT)
+    ctx.load_verify_locations(cafile=str(certs / ca))
+    if stem is not None:
+        ctx.load_cert_chain(str(certs / f"{stem}.pem"), str(certs / f"{stem}.key"))
+    for name, value in versions.items():
+        setattr(ctx, name, value)
+    return ctx
+
+
+def tls_client(port: int, certs, stem: str) -> ModbusTlsClient:
+    ctx = client_context(certs, stem)
+    ctx.check_hostname = False  # pymodbus's sync TLS client passes no server name; the
+    # chain is still verified against the CA
+    c = ModbusTlsClient("127.0.0.1", port=port, sslctx=ctx, timeout=5, retries=0)
+    assert c.connect()
+    return c
+
+
+def _point(srv, device: str, name: str):
+    dev = srv.map.device(device)
+    return dev, next(p for p in dev.points if p.name == name)
+
+
+def _read_holding(c, srv, device: str, name: str) -> float:
+    dev, p = _point(srv, device, name)
+    r = c.read_holding_registers(p.address, count=p.width, device_id=dev.unit_id)
+    assert not r.isError(), r
+    return decode(p, r.registers)
+
+
+def _write(c, srv, device: str, name: str, value: float):
+    dev, p = _point(srv, device, name)
+    return c.write_registers(p.address, encode(p, value), device_id=dev.unit_id)
+
+
+@pytest.mark.parametrize("stem", ROLES)
+def test_each_role_allowed_or_refused_with_01_and_no_change(tls_server, certs, stem):
+    srv = tls_server
+    c = tls_client(srv.port, certs, stem)
+    try:
+        # every role reads every unit
+        flow_before = _read_holding(c, srv, "bench_plc", "flow_setpoint")
+        r = c.read_input_registers(0, count=7, device_id=100)
+        assert not r.isError()
+        time_before = srv.values()["sim_time_s"]
+        counter_before = srv.values()["lockstep_counter"]
+
+        # instruments (unit 1): operator and engineer write, observer and no role do not
+        r = _write(c, srv, "bench_plc", "flow_setpoint", 321.5)
+        if stem in ("operator", "engineer"):
+            assert not r.isError(), r
+            assert _read_holding(c, srv, "bench_plc", "flow_setpoint") == 321.5
+            assert srv.values()["water_flow_setpoint_kg_h"] == 321.5
+        else:
+            assert r.isError() and r.exception_code == 1, r
+            assert _read_holding(c, srv, "bench_plc", "flow_setpoint") == flow_before
+            assert srv.values()["water_flow_setpoint_kg_h"] == flow_before
+        # coil write (FC5) of the boiler command on unit 7
+        before = srv.values()["boiler_command"]
+        r = c.write_coil(0, not bool(before), device_id=7)
+        assert r.isError() == (stem in ("observer", "norole")), r
+        if r.isError():
+            assert r.exception_code == 1
+            assert srv.values()["boiler_command"] == before
+
+        # simulation control (unit 100): only the engineer advances the plant
+        r = _write(c, srv, "sim_control", "lockstep_advance", 5)
+        if stem == "engineer":
+            assert not r.isError(), r
+            assert srv.values()["sim_time_s"] == pytest.approx(time_before + 5.0)
+        else:
+            assert r.isError() and r.exception_code == 1, r
+            assert srv.values()["sim_time_s"] == time_before
+            assert srv.values()["lockstep_counter"] == counter_before
+    finally:
+        c.close()
+
+
+def test_plain_tcp_beside_tls_sees_the_same_plant(tls_server, certs):
+    srv = tls_server
+    c = tls_client(srv.port, certs, "operator")
+    plain = ModbusTcpClient("127.0.0.1", port=srv.plain_port, timeout=5, retries=0)
+    assert plain.connect()
+    try:
+        assert not _write(c, srv, "bench_plc", "return_setpoint", 61.0).isError()
+        assert _read_holding(plain, srv, "bench_plc", "return_setpoint") == 61.0
+        assert not _write(plain, srv, "bench_plc", "return_setpoint", 48.0).isError()
+        assert _read_holding(c, srv, "bench_plc", "return_setpoint") == 48.0
+    finally:
+        c.close()
+        plain.close()
+
+
+def _raw_exchange(ctx: ssl.SSLContext, port: int) -> bytes:
+    """Handshake and one FC4 request; the reply bytes (raises if TLS refuses)."""
+    with (
+        socket.create_connection(("127.0.0.1", port), timeout=5) as raw,
+        ctx.wrap_socket(raw, server_hostname="127.0.0.1") as tls,
+    ):
+        tls.sendall(struct.pack(">HHHB", 1, 0, 6, 1) + struct.pack(">BHH", 4, 0, 2))
+        reply = tls.recv(256)
+        if not reply:
+            raise ConnectionError("closed")
+        return reply
+
+
+def test_good_client_gets_an_answer(tls_server, certs):
+    # the control for the refusals below: the same raw exchange with a valid certificate
+    reply = _raw_exchange(client_context(certs, "observer"), tls_server.port)
+    assert reply[7] == 4 and reply[8] == 4
+
+
+def test_no_client_certificate_refused(tls_server, certs):
+    with pytest.raises((ssl.SSLError, ConnectionError, OSError)):
+        _raw_exchange(client_context(certs, None), tls_server.port)
+
+
+def test_certificate_of_another_ca_refused(tls_server, certs, tmp_path):
+    other = make_ca("another lab CA")
+    write_pair(make_client(other, "stranger", "engineer"), tmp_path, "stranger")
+    (tmp_path / "ca.pem").write_bytes((certs / "ca.pem").read_bytes())
+    with pytest.raises((ssl.SSLError, ConnectionError, OSError)):
+        _raw_exchange(client_context(tmp_path, "stranger"), tls_server.port)
+
+
+@pytest.mark.filterwarnings("ignore:ssl.TLSVersion.TLSv1:DeprecationWarning")
+def test_tls_below_1_2_refused(tls_server, certs):
+    legacy = dict(minimum_version=ssl.TLSVersion.TLSv1, maximum_version=ssl.TLSVersion.TLSv1_1)
+    ctx = client_context(certs, "engineer", **legacy)
+    try:
+        ctx.set_ciphers("DEFAULT:@SECLEVEL=0")  # let this OpenSSL offer TLS 1.0/1.1 at all
+    except ssl.SSLError:
+        pytest.skip("this OpenSSL cannot offer TLS below 1.2")
+    with pytest.raises((ssl.SSLError, ConnectionError, OSError)) as info:
+        _raw_exchange(ctx, tls_server.port)
+    print(f"TLS 1.0/1.1 client: {info.value}")
+    assert "NO_PROTOCOLS_AVAILABLE" not in str(info.value)  # it did offer 1.0/1.1
+    # the same client allowed TLS 1.2 gets through: the version was the reason
+    ctx = client_context(certs, "engineer", maximum_version=ssl.TLSVersion.TLSv1_2)
+    assert _raw_exchange(ctx, tls_server.port)[7] == 4
+
+
+def test_refusals_logged_with_subject_once_per_connection(tls_server, certs, caplog):
+    srv = tls_server
+    caplog.set_level(logging.INFO, logger="rig_emulator.serve")
+    c = tls_client(srv.port, certs, "observer")
+    try:
+        for i in range(200):  # a flood of refused writes
+            r = _write(c, srv, "bench_plc", "flow_setpoint", 100.0 + i)
+            assert r.isError() and r.exception_code == 1
+        r = _write(c, srv, "sim_control", "speed_factor", 2.0)  # another reason
+        assert r.isError() and r.exception_code == 1
+    finally:
+        c.close()
+    refusals = [r.getMessage() for r in caplog.records if r.getMessage().startswith("refused")]
+    assert len(refusals) == 2, refusals
+    assert "CN=observer client" in refusals[0] and "role observer" in refusals[0]
+    assert "write unit 1" in refusals[0] and "write unit 100" in refusals[1]
+    assert srv.transports.authorisation.refusals == 201
+    connected = [m.getMessage() for m in caplog.records if "TLS, subject" in m.getMessage()]
+    assert any("CN=observer client" in m and "role observer" in m for m in connected)
+
+
+# ---------------------------------------------------------------------- the real CLI
+def _tls_options(certs) -> list[str]:
+    return [
+        "--tls-cert",
+        str(certs / "server.pem"),
+        "--tls-key",
+        str(certs / "server.key"),
+        "--tls-ca",
+        str(certs / "ca.pem"),
+    ]
+
+
+def test_tls_port_defaults_to_802(certs):
+    from rig_emulator import cli_transports
+    from rig_emulator.cli import _build_parser
+
+    parse = _build_parser().parse_args
+    tls = cli_transports.plan(parse(["serve", "--boiler", "x", *_tls_options(certs)]))
+    assert tls.port == 802 and tls.ssl_context is not None and tls.tcp_port is None
+    plain = cli_transports.plan(parse(["serve", "--boiler", "x"]))
+    assert plain.port == 5020 and plain.ssl_context is None
+
+
+@pytest.mark.parametrize(
+    ("extra", "fault"),
+    [
+        (["--tls-cert", "server.pem"], "--tls-cert needs --tls-key, --tls-ca too"),
+        (["--tcp-port", "0"], "--tcp-port goes with --tls-*"),
+        (["--roles", "ROLES"], "--roles needs --tls-*"),
+        (["TLS", "--roles", "ROLES"], "roles.admin.write: 'x' is not a unit ID"),
+        (["TLS", "--plain-role", "root"], "--plain-role: 'root' is not one of"),
+        (["TLS-BAD-KEY"], "cannot be used"),
+    ],
+)
+def test_bad_tls_options_are_one_line(certs, tmp_path, capsys, extra, fault):
+    from rig_emulator.cli import main
+
+    roles = tmp_path / "roles.yaml"
+    roles.write_text("roles:\n  admin: {read: all, write: [x]}\n")
+    args = []
+    for item in extra:
+        if item == "TLS":
+            args += _tls_options(certs)
+        elif item == "TLS-BAD-KEY":
+            args += [*_tls_options(certs)[:2], "--tls-key", str(certs / "ca.pem")]
+            args += _tls_options(certs)[4:]
+        elif item == "ROLES":
+            args.append(str(roles))
+        elif item == "server.pem":
+            args.append(str(certs / "server.pem"))
+        else:
+            args.append(item)
+    assert main(["serve", "--boiler", "windhager_12kw", "--port", "0", *args]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and fault in err, err
+
+
+def test_cli_serves_tls_with_a_roles_file_and_plain_tcp(certs, tmp_path):
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from hil_client.wait_for_port import free_port, wait_for_port
+
+    roles = tmp_path / "roles.yaml"
+    # the balance technician may write nothing but the balance (unit 5); the default
+    # operator role no longer exists
+    roles.write_text(
+        "default_role: observer\nroles:\n  observer: {read: all, write: []}\n"
+        "  engineer: {read: all, write: all}\n  balance_tech: {read: all, write: [5]}\n"
+    )
+    tech = make_client(_ca_of(certs), "balance technician", "balance_tech")  # signed by the lab CA
+    write_pair(tech, tmp_path, "tech")
+    (tmp_path / "ca.pem").write_bytes((certs / "ca.pem").read_bytes())
+    port, plain_port = free_port(), free_port()
+    proc = subprocess.Popen(
+        [
+            *(sys.executable, "-m", "rig_emulator.cli", "serve", "--boiler", "windhager_12kw"),
+            *("--lockstep", "--port", str(port), "--tcp-port", str(plain_port)),
+            *(*_tls_options(certs), "--roles", str(roles)),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[3])},
+    )
+    try:
+        assert wait_for_port("127.0.0.1", port, 60.0) and wait_for_port(
+            "127.0.0.1", plain_port, 60.0
+        )
+        ctx = client_context(tmp_path, "tech")
+        ctx.check_hostname = False
+        c = ModbusTlsClient("127.0.0.1", port=port, sslctx=ctx, timeout=5, retries=0)
+        assert c.connect()
+        try:
+            r = c.write_coil(0, True, device_id=1)  # pump: not the balance
+            assert r.isError() and r.exception_code == 1
+            assert not c.read_input_registers(0, count=2, device_id=5).isError()
+        finally:
+            c.close()
+        op = tls_client(port, certs, "operator")  # a role this file does not define
+        try:
+            r = op.read_input_registers(0, count=2, device_id=1)
+            assert r.isError() and r.exception_code == 1
+        finally:
+            op.close()
+        plain = ModbusTcpClient("127.0.0.1", port=plain_port, timeout=5, retries=0)
+        assert plain.connect()
+        try:
+            assert not plain.write_coil(0, True, device_id=1).isError()
+        finally:
+            plain.close()
+    finally:
+        proc.terminate()
+        _, err = proc.communicate(timeout=20)
+    assert proc.returncode == 0, err
+    assert "CN=balance technician" in err and "may not write unit 1" in err
+    assert "unknown role 'operator'" in err
+
+
+def _ca_of(certs):
+    from cryptography import x509
+    from cryptography.hazmat.primitives import serialization
+
+    from rig_emulator.certs import Issued
+
+    key = serialization.load_pem_private_key((certs / "ca.key").read_bytes(), None)
+    cert = x509.load_pem_x509_certificate((certs / "ca.pem").read_bytes())
+    return Issued(key, cert)
+
+
+@pytest.mark.parametrize("allow_control", [False, True])
+def test_engineer_clock_on_real_time_server_needs_allow_control(serve, certs, allow_control):
+    srv = serve(
+        lockstep=False,
+        allow_control=allow_control,
+        ssl_context=server_context(certs / "server.pem", certs / "server.key", certs / "ca.pem"),
+    )
+
+    async def setup():
+        transports = Transports(srv.server.modbus_server)
+        transports.authorise(DEFAULT_POLICY)
+        return transports
+
+    transports = srv.call(setup())
+    try:
+        for stem, allowed in (("operator", False), ("engineer", allow_control)):
+            c = tls_client(srv.port, certs, stem)
+            try:
+                r = _write(c, srv, "sim_control", "speed_factor", 3.0 if allowed else 1.0)
+                assert r.isError() != allowed, (stem, r)
+                if not allowed:
+                    assert r.exception_code == 1
+            finally:
+                c.close()
+        assert srv.values()["speed_factor"] == (3.0 if allow_control else 1.0)
+    finally:
+        srv.call(transports.stop())
