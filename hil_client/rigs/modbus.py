@@ -35,7 +35,8 @@ a failed setpoint write is sent again next step. Each is an entry of :attr:`comm
 (``time_s`` of the row, ``server_time_s``, ``event``: ``timeout``, ``no_reply``,
 ``exception`` with its ``code``, ``late`` with ``wait_s``, ``invalid``, ``disconnect``;
 ``unit``, ``function`` and ``signals``). After a timeout the rig reconnects, so later
-steps do not queue behind a slow unit. The simulation control (unit 100) must answer.
+steps do not queue behind a slow unit (on an RTU line a silent unit costs one timeout per
+request, one transaction at a time). The simulation control (unit 100) must answer.
 
 Each break or outage is an entry of :attr:`gaps` in the log's own time base
 (``start_time_s``: the last row before, ``end_time_s``: the first row after, None if none).
