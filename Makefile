@@ -37,6 +37,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/bench_modbus.py
 	$(BIN)/python bench/bench_dashboard.py
 	$(BIN)/python bench/bench_clock.py
+	$(BIN)/python bench/bench_faults.py
 	$(BIN)/python bench/fuzz_modbus.py
 	$(BIN)/python bench/reality_gap.py 20
 	$(BIN)/python bench/reality2_gap.py --cases 20

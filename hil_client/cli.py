@@ -31,6 +31,8 @@ from hil_client.analysis.logio import LabLog, LogError, read_log
 from hil_client.analysis.phases import Phases, find_phases
 from hil_client.analysis.report import validation_report
 from hil_client.analysis.validate import compare, validation_metrics
+from hil_client.fault_files import events_path, fault_report, write_events, write_report
+from hil_client.fault_files import summary as fault_summary
 from hil_client.lablog import LabLogWriter, meta_path, write_meta
 from hil_client.progress import LiveView, ProgressLine
 from hil_client.protocol.definition import ProtocolError, load_protocol
@@ -116,6 +118,21 @@ def _build_parser() -> argparse.ArgumentParser:
         "--live", action="store_true", help="live view of phase, sequence, time and key values"
     )
     run.add_argument("--quiet", action="store_true", help="no progress line, no summary")
+    run.add_argument(
+        "--fault-journal",
+        type=text_file,
+        default=None,
+        metavar="JOURNAL.jsonl",
+        help="the server's fault journal (serve --fault-log), for --fault-report",
+    )
+    run.add_argument(
+        "--fault-report",
+        type=Path,
+        default=None,
+        metavar="REPORT.json",
+        help="after the run, compare what the client saw with the fault journal: "
+        "detected, missed, false (needs --fault-journal and a Modbus rig)",
+    )
     bal = sub.add_parser(
         "balance",
         help="energy balance per phase from the instruments (Eq. 3-7)",
@@ -166,6 +183,16 @@ def _build_parser() -> argparse.ArgumentParser:
     dia.add_argument("--validation", required=True, type=Path, help="VAL.csv (held out)")
     dia.add_argument("--boiler", required=True, help="documentation values: NAME or PATH")
     dia.add_argument("--out", required=True, type=Path, help="output directory")
+    frep = sub.add_parser(
+        "fault-report",
+        help="compare what a run saw with the server's fault journal",
+        description="Compare a Modbus run's events (LOG.modbus_events.jsonl) and log with "
+        "the server's fault journal (serve --fault-log): each fault detected or missed, "
+        "and the client's false alarms. Writes REPORT.json.",
+    )
+    frep.add_argument("log", type=text_file, help="lab log (CSV) of a Modbus run")
+    frep.add_argument("--journal", required=True, type=text_file, help="fault journal (JSONL)")
+    frep.add_argument("--out", required=True, type=Path, help="report to write (JSON)")
     gap = sub.add_parser(
         "gap-benchmark",
         help="blind benchmark of the diagnosis on generated cases",
@@ -389,6 +416,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise UsageError(f"--out: '{out}' must name a .csv file")
     if out.is_dir():
         raise UsageError(f"--out: '{out}' is a directory")
+    if args.fault_report is not None and args.fault_journal is None:
+        raise UsageError("--fault-report needs --fault-journal JOURNAL.jsonl")
+    if args.fault_report is not None and args.rig == "local":
+        raise UsageError("--fault-report needs a Modbus rig (faults act in the server)")
     try:
         rig = _make_rig(args, params)
     except RigError as exc:
@@ -447,11 +478,23 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return 1
     finally:
         rig.close()
+        if remote:  # what faulty units did, beside the log
+            write_events(out, rig.comm_events)
     if progress is not None:
         progress.done()
     wall = time.monotonic() - started
     meta["complete"] = True
+    if remote:
+        meta["modbus_events"] = events_path(out).name
+        meta["modbus_event_count"] = len(rig.comm_events)
+        meta["server_time_offset_s"] = rig.server_time_offset_s
     save_meta(result)
+    if args.fault_report is not None:
+        with bad_input(ValueError, LogError, prefix="--fault-report: "):
+            fault_rep = fault_report(out, args.fault_journal)
+        write_report(fault_rep, output_file(args.fault_report))
+        if not args.quiet:
+            print(fault_summary(fault_rep))
     if not args.quiet:
         times = "  ".join(f"{k[:2]}={v / 3600:.3f} h" for k, v in result.times.items())
         print(
@@ -471,6 +514,15 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_fault_report(args: argparse.Namespace) -> int:
+    with bad_input(ValueError, LogError):
+        rep = fault_report(args.log, args.journal)
+    write_report(rep, output_file(args.out))
+    print(fault_summary(rep))
+    print(f"written: {args.out}")
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``hil-client``; returns the exit code."""
     commands = {
@@ -480,6 +532,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "validate": _cmd_validate,
         "diagnose": _cmd_diagnose,
         "gap-benchmark": _cmd_gap_benchmark,
+        "fault-report": _cmd_fault_report,
     }
     try:
         args = _build_parser().parse_args(argv)

@@ -7,6 +7,10 @@ segment and then collects the replies, so a step costs one round trip, not one p
 
 Errors: :class:`ModbusExceptionResponse` for an exception reply (with its code),
 :class:`ConnectionLost` for a closed, reset or timed-out connection.
+
+:meth:`Connection.receive_all` survives a faulty unit: it returns, per request, the reply,
+the exception, or a :class:`NoReply` (the unit never answered: a later request's reply came
+first, which an in-order server only does when it dropped this one; or the timeout passed).
 """
 
 from __future__ import annotations
@@ -14,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import socket
 import struct
+import time
 from collections import deque
 from collections.abc import Sequence
 
@@ -31,6 +36,22 @@ class ModbusExceptionResponse(RuntimeError):
         self.function = function
         self.code = code
 
+
+class ReplyTimeout(ConnectionLost):
+    """No reply within the connection's timeout."""
+
+
+class NoReply(Exception):
+    """A request that got no reply (``reason``: ``no reply`` or ``timeout``)."""
+
+    def __init__(self, unit: int, function: int, reason: str) -> None:
+        super().__init__(f"unit {unit}: function {function}: {reason}")
+        self.unit = unit
+        self.function = function
+        self.reason = reason
+
+
+Reply = bytes | ModbusExceptionResponse | NoReply
 
 _HEADER = struct.Struct(">HHHB")
 
@@ -76,12 +97,49 @@ class Connection:
             raise ModbusExceptionResponse(unit, function, body[1])
         return body
 
+    def receive_all(self, count: int) -> tuple[list[Reply], list[float]]:
+        """The outcome of each of the ``count`` oldest outstanding requests, in order, and
+        the wall time [s, monotonic] each outcome was known. After a timeout the connection
+        may still carry late replies: close it (or let the transaction IDs skip them)."""
+        out: list[Reply] = []
+        times: list[float] = []
+        while len(out) < count:
+            try:
+                header = self._recv(7)
+                got_tid, _, length, _ = _HEADER.unpack(header)
+                body = self._recv(length - 1)
+            except ReplyTimeout:
+                now = time.monotonic()
+                while len(out) < count:
+                    _, unit, function = self._expect.popleft()
+                    out.append(NoReply(unit, function, "timeout"))
+                    times.append(now)
+                break
+            wanted = [e[0] for e in list(self._expect)[: count - len(out)]]
+            if got_tid not in wanted:
+                continue  # a late reply to an earlier request given up on
+            now = time.monotonic()
+            while self._expect[0][0] != got_tid:  # answered out of turn: those were dropped
+                _, unit, function = self._expect.popleft()
+                out.append(NoReply(unit, function, "no reply"))
+                times.append(now)
+            _, unit, function = self._expect.popleft()
+            if body[0] == function | 0x80:
+                out.append(ModbusExceptionResponse(unit, function, body[1]))
+            else:
+                out.append(body)
+            times.append(now)
+        return out, times
+
     def _recv(self, n: int) -> bytes:
         """``n`` bytes; reads whatever has arrived (several replies in one call, usually)."""
         buffer = self._buffer
         while len(buffer) < n:
             try:
                 chunk = self.sock.recv(65536)
+            except TimeoutError:
+                self._buffer = b""  # a partial frame is lost: the caller reconnects
+                raise ReplyTimeout("no reply within the timeout") from None
             except OSError as exc:
                 raise ConnectionLost(f"receive failed ({exc})") from None
             if not chunk:

@@ -27,10 +27,12 @@ from rig_emulator.cli_support import (
     int_in,
     output_file,
     report,
+    text_file,
     text_input,
 )
 from rig_emulator.dashboard import Dashboard
 from rig_emulator.emulator import CommandError, Emulator, check_command
+from rig_emulator.faults import FaultError, load_faults
 from rig_emulator.instruments import ProfileError, load_profile
 from rig_emulator.modbus import BenchServer
 from rig_emulator.model import pack_constants, steady_state
@@ -101,6 +103,20 @@ def _build_parser() -> argparse.ArgumentParser:
         "--allow-control",
         action="store_true",
         help="let clients change speed/clock mode, reset or advance a real-time server",
+    )
+    serve.add_argument(
+        "--faults",
+        default=None,
+        type=text_file,
+        metavar="FAULTS.yaml",
+        help="faults to inject, scheduled in simulated time (CONTRACT section 5) [none]",
+    )
+    serve.add_argument(
+        "--fault-log",
+        default=None,
+        type=Path,
+        metavar="JOURNAL.jsonl",
+        help="write one JSON line per fault start and end [none]",
     )
     serve.add_argument(
         "--idle-timeout",
@@ -228,6 +244,13 @@ def _cmd_serve(args: argparse.Namespace) -> int:
         profile = load_profile(args.profile)
     with bad_input(CommandError, prefix="--speed: "):
         check_command("speed_factor", args.speed)
+    with bad_input(FaultError, prefix="--faults: "):
+        faults = load_faults(args.faults) if args.faults is not None else []
+    if args.fault_log is not None:
+        try:
+            output_file(args.fault_log)
+        except UsageError as exc:
+            raise UsageError(str(exc).replace("--out:", "--fault-log:", 1)) from None
     if args.http is not None and not 0 <= args.http <= 65535:
         raise UsageError(f"--http: {args.http} is not a TCP port")
     if args.http_control and args.http is None:
@@ -247,6 +270,8 @@ def _cmd_serve(args: argparse.Namespace) -> int:
         args.lockstep,
         args.tick_hz,
         allow_control=args.allow_control,
+        faults=faults,
+        fault_log=args.fault_log,
         idle_timeout_s=args.idle_timeout,
         max_connections=args.max_connections,
         ssl_context=args.transport_plan.ssl_context,

@@ -19,6 +19,7 @@ import dataclasses
 import hashlib
 import json
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -60,8 +61,17 @@ NOX_CONVERSION = 0.35  # fraction of fuel N emitted as NO
 OGC_PER_CO = 0.05  # organic gaseous carbon [ppm C1] per ppm CO
 CO_RANGE_PPM = 10_000.0  # analyser range; above it the status word flags over-range
 STABLE_WINDOW_S = 5.0  # the balance reports "stable" when unchanged this long
+#: Readings of the gas analyser (unit 2): an invalid one clears its "measuring" bit.
+ANALYSER_SIGNALS = (
+    "flue_gas_O2_pct",
+    "flue_gas_CO2_pct",
+    "flue_gas_CO_ppm",
+    "flue_gas_NOx_ppm",
+    "flue_gas_SO2_ppm",
+)
 
 _INDEX = {name: i for i, name in enumerate(MEASURED)}
+_TRUE_KEYS = tuple("true_" + name for name in MEASURED)  # the plant's values, published
 
 
 class CommandError(ValueError):
@@ -134,6 +144,9 @@ class Emulator:
         self.seed = seed
         self.max_step_s = max_step_s
         self.bench = Bench(params, config, profile.effects)
+        #: changes the readings (by signal) before they are published, e.g. instrument
+        #: faults (:mod:`rig_emulator.faults`); called as ``hook(readings, sim_time_s)``
+        self.reading_hook: Callable[[dict[str, float], float], None] | None = None
         #: published with the readings: what identifies the set-up (CONTRACT section 7)
         self.identity = plant_identity(params, profile, seed, self.bench.config)
         fuel_n = params.fuel.n
@@ -291,15 +304,24 @@ class Emulator:
         return dict(zip(MEASURED, self._true, strict=True))
 
     def values(self) -> dict[str, float]:
-        """Every published signal: readings, status and current commands.
+        """Every published signal: readings, status, current commands and the plant's true
+        value of each measured signal (``true_NAME``, the truth unit of the map).
 
         The balance's "stable" flag and the energy counter are evaluated here, i.e. at the
-        rate the values are published; the counter integrates the plant's power.
+        rate the values are published; the counter integrates the plant's power. The
+        :attr:`reading_hook` (instrument faults) acts before the status flags, so they see
+        what it did: an invalid (NaN) analyser reading clears the analyser's "measuring"
+        bit and sets bit 2; an invalid or jumping balance is not "stable".
         """
         out = self.reading_by_name()
+        true = dict(zip(_TRUE_KEYS, self._true, strict=True))
+        if self.reading_hook is not None:
+            self.reading_hook(out, self.sim_time_s)
         y = self.bench.y
         co = out["flue_gas_CO_ppm"]
-        out["analyser_status"] = 1.0 + (2.0 if co > CO_RANGE_PPM else 0.0)
+        invalid = any(math.isnan(out[name]) for name in ANALYSER_SIGNALS)
+        # bit 0 measuring, bit 1 CO over range, bit 2 a reading invalid (not measuring)
+        out["analyser_status"] = (4.0 if invalid else 1.0) + (2.0 if co > CO_RANGE_PPM else 0.0)
         balance = out["balance_mass_kg"]
         if balance != self._balance_last:
             self._balance_last = balance
@@ -314,4 +336,5 @@ class Emulator:
         out["sim_time_s"] = self.sim_time_s
         out.update(self.identity)
         out.update(self.commands)
+        out.update(true)
         return out

@@ -52,7 +52,11 @@ _MEASURED = (
     ("electric_power_W", "W", "electric power drawn by the boiler"),
 )
 _STATUS = (
-    ("analyser_status", "-", "analyser status word: bit 0 measuring, bit 1 CO over range"),
+    (
+        "analyser_status",
+        "-",
+        "analyser status word: bit 0 measuring, bit 1 CO over range, bit 2 a reading invalid",
+    ),
     ("balance_stable", "0/1", "balance reading unchanged for 5 s"),
     ("electric_energy_Wh", "Wh", "electric energy counter since the start"),
     ("boiler_on", "0/1", "burner firing, as the boiler controller reports it"),
@@ -67,6 +71,7 @@ _STATUS = (
     ("seed", "-", "seed of the instrument errors and noise (modulo 2^32)"),
     ("achieved_speed", "-", "simulated s per wall s of the last real-time tick (0 in lockstep)"),
     ("tick_overrun_ms", "ms", "simulation the last tick could not do in its budget, dropped"),
+    ("active_fault_count", "-", "number of active faults (fault injection)"),
 )
 _COMMANDS = (
     ("water_flow_setpoint_kg_h", "kg/h", "flow setpoint of the bench pump/valve", 0.0, 2000.0),
@@ -85,6 +90,13 @@ _COMMANDS = (
         86400.0,
     ),
     ("reset", "-", "write 1: back to the initial state (same seed)", 0.0, 1.0),
+    # the fault command block of the simulation control (rig_emulator/faults/wire.py)
+    ("fault_kind", "-", "fault kind code: 1 delay .. 9 offset (see the README)", 0.0, 9.0),
+    ("fault_target", "-", "unit ID, or signal index for instrument faults", 0.0, 65535.0),
+    ("fault_parameter", "-", "delay_ms, exception code, rate_per_h or value", -1e9, 1e9),
+    ("fault_duration_s", "s", "for_s of the fault; 0 until cleared", 0.0, 1e9),
+    ("fault_at_s", "s", "at_s of the fault in simulated seconds; 0 now", 0.0, 1e9),
+    ("fault_command", "-", "write 1: set the fault of the block; 2: clear all faults", 0.0, 2.0),
 )
 
 SIGNALS: dict[str, Signal] = {}
@@ -96,4 +108,9 @@ for _name, _unit, _text, _lo, _hi in _COMMANDS:
     SIGNALS[_name] = Signal(_name, _unit, "command", _text, _lo, _hi)
 
 MEASURED: tuple[str, ...] = tuple(n for n, s in SIGNALS.items() if s.kind == "measured")
+#: The plant's true value of each measured signal (fault injection's truth block).
+for _name in MEASURED:
+    SIGNALS["true_" + _name] = Signal(
+        "true_" + _name, SIGNALS[_name].unit, "status", f"true plant value: {_name}"
+    )
 COMMANDS: tuple[str, ...] = tuple(n for n, s in SIGNALS.items() if s.kind == "command")

@@ -27,6 +27,17 @@ seed). The rig knows what to expect, so it detects
   :class:`RigError`), ``continue`` or ``restart-phase`` (go on with :attr:`epoch` one higher,
   the runner restarting the phase for the latter).
 
+Faulty instruments (CONTRACT section 5) never stop a run: a unit that gives no reply (a
+later reply comes first, or the timeout passes), answers with an exception, or sends an
+invalid reading (NaN, or an integer at its invalid code: the type's most negative value if
+signed, its largest if unsigned) leaves its fields empty in that row, never the last value;
+a failed setpoint write is sent again next step. Each is an entry of :attr:`comm_events`
+(``time_s`` of the row, ``server_time_s``, ``event``: ``timeout``, ``no_reply``,
+``exception`` with its ``code``, ``late`` with ``wait_s``, ``invalid``, ``disconnect``;
+``unit``, ``function`` and ``signals``). After a timeout the rig reconnects, so later
+steps do not queue behind a slow unit (on an RTU line a silent unit costs one timeout per
+request, one transaction at a time). The simulation control (unit 100) must answer.
+
 Each break or outage is an entry of :attr:`gaps` in the log's own time base
 (``start_time_s``: the last row before, ``end_time_s``: the first row after, None if none).
 The log time is the server's time plus an offset; across a break it jumps by the time the
@@ -47,6 +58,8 @@ from hil_client.modbus_client import (
     Connection,
     ConnectionLost,
     ModbusExceptionResponse,
+    NoReply,
+    Reply,
     bits_of,
     read_pdu,
     registers_of,
@@ -68,6 +81,15 @@ _IDENTITY = {"boiler_id": "boiler", "profile_id": "profile", "seed": "seed"}
 # bytes (pymodbus's max_buffer_size for Modbus TCP: the largest frame, 260, and slack)
 _REPLAY_SEGMENT_BYTES = 240
 _TIME_TOLERANCE_S = 1e-6  # the server's float64 time against the rig's sum of the same steps
+LATE_S = 0.25  # an instrument's reply this much after the one before it: a "late" event
+_INVALID_RAW = {"int16": -(2**15), "int32": -(2**31), "uint16": 2**16 - 1, "uint32": 2**32 - 1}
+
+
+def invalid_reading(point: Point) -> float | None:
+    """The value an integer point carries at its invalid code (None: a float point, whose
+    invalid reading is NaN)."""
+    raw = _INVALID_RAW.get(point.datatype)
+    return None if raw is None else raw * point.scale + point.offset
 
 
 class _Break(Exception):
@@ -180,6 +202,18 @@ class ModbusRig:
         self.restart_phase = on_restart == "restart-phase"
         self.checks = checks
         self.gaps: list[dict[str, Any]] = []
+        #: what faulty units did (see the module docstring), in order
+        self.comm_events: list[dict[str, Any]] = []
+        self._step_events: list[dict[str, Any]] = []
+        self._own_units = {
+            register_map.point(s)[0].unit_id for s in (*STATUS_KEYS, "lockstep_advance_s")
+        }
+        self._invalid = {
+            p.signal: v
+            for d in register_map.devices
+            for p in d.points
+            if p.signal in READING_KEYS and (v := invalid_reading(p)) is not None
+        }
         #: the ``rig_epoch`` column: 0, one higher after each break the rig went on from
         self.epoch = 0
         plan = _read_plan(register_map, READING_KEYS)  # a map without a reading fails here
@@ -228,7 +262,8 @@ class ModbusRig:
         self._offset = -status["sim_time_s"]
         self._row_server_time = status["sim_time_s"]
         self._row_wall = time.monotonic()
-        self._reads = plan + self._check_plan if checks else plan
+        # the simulation control first: a slow instrument never holds up the step's checks
+        self._reads = self._check_plan + plan if checks else plan
         if not checks and not self.lockstep:
             self._reads = plan + _read_plan(register_map, ("sim_time_s",))
         self._read_requests = [
@@ -261,6 +296,11 @@ class ModbusRig:
             except ModbusExceptionResponse as exc:
                 raise RigError(f"{self.url}: {exc}") from None
 
+    @property
+    def server_time_offset_s(self) -> float:
+        """Log time minus server time (constant between breaks)."""
+        return self._offset
+
     def close(self) -> None:
         if self._conn is not None:
             self._conn.close()
@@ -274,6 +314,70 @@ class ModbusRig:
             return []
         self._conn.send(requests)
         return [self._conn.receive() for _ in requests]
+
+    def _event(self, event: str, unit: int, function: int, **extra: Any) -> None:
+        self._step_events.append({"event": event, "unit": unit, "function": function, **extra})
+
+    def _exchange_tolerant(self, requests: list[tuple[int, bytes]]) -> list[Reply]:
+        """Like :meth:`_exchange`, but a unit's failure is its outcome, not an error; a
+        timeout reconnects (late replies left behind). Replies of instruments that came
+        :data:`LATE_S` after the one before are ``late`` events."""
+        assert self._conn is not None
+        if not requests:
+            return []
+        sent = time.monotonic()
+        self._conn.send(requests)
+        replies, times = self._conn.receive_all(len(requests))
+        previous = sent
+        for (unit, pdu), reply, at in zip(requests, replies, times, strict=True):
+            late = at - previous > LATE_S
+            if late and unit not in self._own_units and not isinstance(reply, NoReply):
+                self._event("late", unit, pdu[0], wait_s=round(at - previous, 3))
+            previous = at
+        if any(isinstance(r, NoReply) and r.reason == "timeout" for r in replies):
+            self._connect()
+        return replies
+
+    def _failed(self, unit: int, function: int, reply: Reply, signals: list[str]) -> None:
+        """Record a unit's failure; the simulation control's is the rig's own error."""
+        if unit in self._own_units:
+            if isinstance(reply, ModbusExceptionResponse):
+                raise reply
+            raise ConnectionLost(f"the simulation control (unit {unit}): {reply}")
+        if isinstance(reply, ModbusExceptionResponse):
+            self._event("exception", unit, function, code=reply.code, signals=signals)
+        else:
+            event = "timeout" if reply.reason == "timeout" else "no_reply"  # type: ignore[union-attr]
+            self._event(event, unit, function, signals=signals)
+
+    def _decode_tolerant(
+        self, reads: list[_Read], replies: list[Reply], into: dict[str, float]
+    ) -> None:
+        """:meth:`_decode`, a failed unit's fields NaN (empty), invalid readings NaN."""
+        for read, reply in zip(reads, replies, strict=True):
+            if not isinstance(reply, bytes):
+                self._failed(read.unit, read.function, reply, [p.signal for p in read.points])
+                for p in read.points:
+                    into[p.signal] = math.nan
+                continue
+            self._decode([read], [reply], into)
+            invalid = [
+                p.signal
+                for p in read.points
+                if p.signal in READING_KEYS
+                and (math.isnan(into[p.signal]) or into[p.signal] == self._invalid.get(p.signal))
+            ]
+            if invalid:
+                for signal in invalid:
+                    into[signal] = math.nan
+                self._event("invalid", read.unit, read.function, signals=invalid)
+
+    def _commands_tolerant(self, requests: list[tuple[int, bytes]], replies: list[Reply]) -> None:
+        """Failed setpoint or switch writes: recorded, and written again next step."""
+        for (unit, pdu), reply in zip(requests, replies, strict=True):
+            if not isinstance(reply, bytes):
+                self._failed(unit, pdu[0], reply, [])
+                self._written_switches = None
 
     def _decode(self, reads: list[_Read], replies: list[bytes], into: dict[str, float]) -> None:
         for read, reply in zip(reads, replies, strict=True):
@@ -375,6 +479,7 @@ class ModbusRig:
 
     def _recover(self, reason: str) -> None:
         """After a lost connection: connect again and settle what the server holds."""
+        self._event("disconnect", 0, 0, reason=reason)
         status = self._reconnect(reason)
         self.speed = status["speed_factor"]
         if status["epoch_id"] != self._epoch_id:
@@ -474,6 +579,11 @@ class ModbusRig:
             except ModbusExceptionResponse as exc:
                 raise RigError(f"{self.url}: {exc}") from None
             self._row_wall = time.monotonic()
+            for event in self._step_events:
+                self.comm_events.append(
+                    {"time_s": round(self.log_time_s, 3), "server_time_s": self.sim_time_s} | event
+                )
+            self._step_events.clear()
             if self.gaps and self.gaps[-1]["end_time_s"] is None:
                 for gap in self.gaps:
                     if gap["end_time_s"] is None:
@@ -512,10 +622,11 @@ class ModbusRig:
         pending = journal[self._applied :]
         requests = pending[0] if pending else []
         # (none pending: the server applied the step before the connection was lost)
-        replies = self._exchange(requests + self._read_requests)
+        replies = self._exchange_tolerant(requests + self._read_requests)
+        self._commands_tolerant(requests, replies[: len(requests)])
         self._applied = len(journal)
         values = self.values
-        self._decode(self._reads, replies[len(replies) - self._n_reads :], values)
+        self._decode_tolerant(self._reads, replies[len(replies) - self._n_reads :], values)
         if self.checks:
             reason = self._same_plant(values)
             if reason is not None:
@@ -529,11 +640,20 @@ class ModbusRig:
         return passed
 
     def _step_realtime(self, dt_s: float) -> float:
-        self._exchange(self._command_requests())
+        commands = self._command_requests()
+        # a read of the simulation control closes the batch: a dropped write shows at once
+        sentinel = [(self._check_plan[0].unit, self._read_requests[0][1])] if commands else []
+        if commands and self.checks:
+            replies = self._exchange_tolerant(commands + sentinel)
+            self._commands_tolerant(commands, replies[: len(commands)])
+            if not isinstance(replies[-1], bytes):
+                self._failed(sentinel[0][0], 4, replies[-1], [])
+        elif commands:
+            self._commands_tolerant(commands, self._exchange_tolerant(commands))
         self._wait_until(self.log_time_s + dt_s - self._offset)
-        replies = self._exchange(self._read_requests)
+        replies = self._exchange_tolerant(self._read_requests)
         values = self.values
-        self._decode(self._reads, replies, values)
+        self._decode_tolerant(self._reads, replies, values)
         if self.checks:
             reason = self._same_plant(values)
             if reason is not None:

@@ -29,7 +29,14 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import parse_qs, urlparse
 
-from hil_client.modbus_client import Connection, ConnectionLost, ModbusExceptionResponse
+from hil_client.modbus_client import (
+    Connection,
+    ConnectionLost,
+    ModbusExceptionResponse,
+    NoReply,
+    Reply,
+    ReplyTimeout,
+)
 from rig_emulator.modbus.rtu_wire import PARITIES, frame, reply_length, silence_s, unframe
 
 DEFAULT_TLS_PORT = 802
@@ -197,6 +204,24 @@ class RtuConnection:
             raise ModbusExceptionResponse(unit, pdu[0], body[1])
         return body
 
+    def receive_all(self, count: int) -> tuple[list[Reply], list[float]]:
+        """The outcome of each of the ``count`` oldest queued requests (the reply, the
+        exception, or :class:`NoReply` after the timeout: a silent unit) and when each was
+        known; as :meth:`Connection.receive_all`, one transaction at a time."""
+        out: list[Reply] = []
+        times: list[float] = []
+        for _ in range(count):
+            unit, pdu = self._pending[0]
+            try:
+                out.append(self.receive())
+            except ModbusExceptionResponse as exc:
+                out.append(exc)
+            except ReplyTimeout:
+                self._line_free = time.monotonic() + self.silence_s
+                out.append(NoReply(unit, pdu[0], "timeout"))
+            times.append(time.monotonic())
+        return out, times
+
     def _read_reply(self, deadline: float) -> bytes:
         reply = b""
         while True:
@@ -206,7 +231,7 @@ class RtuConnection:
             left = deadline - time.monotonic()
             ready = select.select([self._fd], [], [], max(left, 0.0))[0] if left > 0 else []
             if not ready:
-                raise ConnectionLost(f"{self.path}: no reply within {self.timeout_s:g} s")
+                raise ReplyTimeout(f"{self.path}: no reply within {self.timeout_s:g} s")
             try:
                 reply += os.read(self._fd, 512)
             except OSError as exc:

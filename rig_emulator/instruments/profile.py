@@ -28,9 +28,13 @@ with a ``strength`` (0 off, 1 the lab default) and optional explicit parameters:
       body_heat_diffusion: {strength: 1.0}
       fuel_energy_bias: {relative_bias: -0.05}
 
-Names, parameters, units, defaults and ranges: :mod:`rig_emulator.bench.effects`. Shipped:
-``clean`` (ideal instruments, no effects), ``lab`` (the bench's instruments and all five
-effects at lab strength), ``lab_instruments`` (the same instruments, no effects).
+Names, parameters, units, defaults and ranges: :mod:`rig_emulator.bench.effects`.
+
+A profile may also carry ``faults:``, a list as in ``FAULTS.yaml`` (:mod:`rig_emulator.faults`),
+which a server with this profile schedules. Shipped: ``clean`` (ideal instruments, no
+effects), ``lab`` (the bench's instruments and all five effects at lab strength),
+``lab_instruments`` (the same instruments, no effects), ``lab_faulty`` (``lab`` plus
+random faults at a low rate).
 """
 
 from __future__ import annotations
@@ -42,6 +46,7 @@ from pathlib import Path
 from typing import Any
 
 from rig_emulator.bench.effects import EffectError, check_effects
+from rig_emulator.faults.spec import Entry, FaultError, faults_from_list
 from rig_emulator.signals import MEASURED
 from rig_emulator.yamlio import read_yaml, resolve_named
 
@@ -89,6 +94,8 @@ class Profile:
     description: str = ""
     instruments: Mapping[str, InstrumentSpec] = field(default_factory=dict)
     effects: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+    #: faults a server with this profile schedules (``FAULTS.yaml`` entries; none: none)
+    faults: tuple[Entry, ...] = ()
 
     def spec(self, signal: str) -> InstrumentSpec:
         return self.instruments.get(signal, InstrumentSpec())
@@ -99,7 +106,7 @@ def profile_from_mapping(data: Any, source: str = "<profile>") -> Profile:
     if not isinstance(data, Mapping):
         raise ProfileError(f"{source}: expected a mapping")
     for key in data:
-        if key not in ("name", "description", "instruments", "effects"):
+        if key not in ("name", "description", "instruments", "effects", "faults"):
             raise ProfileError(f"{source}: unknown key '{key}'")
     name = data.get("name")
     if not isinstance(name, str) or not name:
@@ -131,7 +138,11 @@ def profile_from_mapping(data: Any, source: str = "<profile>") -> Profile:
         effects = check_effects(data.get("effects"))
     except EffectError as exc:
         raise ProfileError(f"{source}: {exc}") from None
-    return Profile(name, str(data.get("description", "")), instruments, effects)
+    try:
+        faults = tuple(faults_from_list(data.get("faults"), source))
+    except FaultError as exc:
+        raise ProfileError(str(exc)) from None
+    return Profile(name, str(data.get("description", "")), instruments, effects, faults)
 
 
 def load_profile(name_or_path: str) -> Profile:

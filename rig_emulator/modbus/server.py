@@ -27,8 +27,10 @@ import socket
 import ssl
 import struct
 import threading
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 from pymodbus.constants import ExcCodes
 from pymodbus.simulator import DataType, SimData, SimDevice
@@ -36,7 +38,9 @@ from pymodbus.simulator import DataType, SimData, SimDevice
 from rig_emulator import __version__
 from rig_emulator.clock import LOCKSTEP, REALTIME, LatenessStats, Pacer, SimClock
 from rig_emulator.emulator import CommandError, Emulator, check_command
+from rig_emulator.faults import Entry
 from rig_emulator.modbus.conformance import DeviceIdentity
+from rig_emulator.modbus.fault_control import FAULT_COMMANDS, ServerFaults
 from rig_emulator.modbus.handler import (
     DEFAULT_IDLE_TIMEOUT_S,
     DEFAULT_MAX_CONNECTIONS,
@@ -146,9 +150,11 @@ class BenchServer:
         speed: simulated seconds per wall second in real-time mode.
         lockstep: start in lockstep mode (time moves only on ``lockstep_advance``).
         tick_hz: rate of the real-time tick and of the register updates.
-        allow_control: let clients write the clock commands (speed, mode, reset, advance) of
-            a real-time server; without it they get exception 01 (a lockstep server always
-            accepts them).
+        allow_control: let clients write the clock commands (speed, mode, reset, advance) and
+            the fault command block of a real-time server; without it they get exception 01
+            (a lockstep server always accepts them).
+        faults: faults to schedule (``FAULTS.yaml`` entries; the profile's come too).
+        fault_log: the JSONL journal of fault starts and ends (None: none).
         idle_timeout_s: close client connections silent this long (0: never).
         max_connections: client connections open at once (the next ones are closed).
         ssl_context: serve Modbus/TCP Security (TLS) on ``host:port`` instead of plain TCP
@@ -165,6 +171,8 @@ class BenchServer:
         lockstep: bool = False,
         tick_hz: float = 10.0,
         allow_control: bool = False,
+        faults: Iterable[Entry] = (),
+        fault_log: str | Path | None = None,
         idle_timeout_s: float = DEFAULT_IDLE_TIMEOUT_S,
         max_connections: int = DEFAULT_MAX_CONNECTIONS,
         ssl_context: ssl.SSLContext | None = None,
@@ -199,6 +207,10 @@ class BenchServer:
         self._published: dict[tuple[int, str], dict[int, list]] = {}
         self._write_plans: dict[tuple[int, str, int, int], _WritePlan] = {}
         self.on_tick: Callable[[], None] | None = None
+        #: fault injection (CONTRACT section 5): engine, gate, command and truth blocks
+        self.faults = ServerFaults(emulator, register_map, faults, fault_log)
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._tasks: set[asyncio.Task] = set()
 
     # ------------------------------------------------------------------ building
     def _devices(self) -> list[SimDevice]:
@@ -244,6 +256,8 @@ class BenchServer:
             raise OSError(
                 f"cannot listen on {self.host}:{self.port}: {_listen_error(self.host, self.port)}"
             ) from None
+        self.faults.attach(self._server)
+        self._loop = loop
         sock = self._server.transport.sockets[0] if self._server.transport else None
         if sock is not None:
             self.port = sock.getsockname()[1]
@@ -267,6 +281,7 @@ class BenchServer:
                 await self._tick_task
         if self._server is not None:
             await self._server.shutdown()
+        self.faults.close()
 
     def _compile_kernels(self) -> None:
         """Compile (or load) numba's kernels off the event loop: a cold cache takes tens of
@@ -374,7 +389,45 @@ class BenchServer:
         out["clock_mode"] = float(self.clock.mode)
         out["lockstep_advance_s"] = self.last_advance_s
         out["reset"] = 0.0
+        self.faults.values(out)
         return out
+
+    # ------------------------------------------------------------------ faults (Python API)
+    def inject(self, fault: Mapping[str, Any] | Entry) -> None:
+        """Set a fault (a dict as in ``FAULTS.yaml``, e.g. ``{"kind": "no_reply", "unit":
+        2, "for_s": 30}``); without ``at_s`` it starts now. Safe from any thread."""
+        self.faults.inject(fault)
+        self._republish()
+
+    def clear_faults(self) -> None:
+        """End every active fault and drop the scheduled ones."""
+        self.faults.engine.clear()
+        self._republish()
+
+    def truth(self, signal: str) -> float:
+        """The plant's true value of a measured signal (not the reading)."""
+        return self.faults.truth(signal)
+
+    def active_faults(self) -> list[dict[str, Any]]:
+        """The active faults (kind, unit or signal, parameter, since_s, until_s, source)."""
+        return self.faults.engine.active_faults()
+
+    def _republish(self) -> None:
+        """Publish the readings the faults changed, from this or another thread."""
+        loop = self._loop
+        if loop is None or loop.is_closed() or self._server is None:
+            return
+        try:
+            running = asyncio.get_running_loop()
+        except RuntimeError:
+            running = None
+        if running is loop:
+            task = loop.create_task(self.publish())
+        else:
+            loop.call_soon_threadsafe(lambda: loop.create_task(self.publish()))
+            return
+        self._tasks.add(task)
+        task.add_done_callback(self._tasks.discard)
 
     async def publish(self) -> None:
         """Encode every point and write the registers that changed since the last publish
@@ -495,7 +548,7 @@ class BenchServer:
     def _control_refused(self, new: dict[str, float]) -> bool:
         """Whether a write of clock commands must be refused (real time, no --allow-control);
         logged once per command name and server mode, not once per request."""
-        commands = sorted(k for k in new if k in CLOCK_COMMANDS)
+        commands = sorted(k for k in new if k in CLOCK_COMMANDS or k in FAULT_COMMANDS)
         if not commands or self.allow_control:
             return False
         if self.clock.mode == LOCKSTEP:
@@ -519,7 +572,18 @@ class BenchServer:
         return await self._apply_now(new)
 
     async def _apply_now(self, new: dict[str, float]) -> ExcCodes | None:
-        plant = {k: v for k, v in new.items() if k not in CLOCK_COMMANDS}
+        plant = {
+            k: v for k, v in new.items() if k not in CLOCK_COMMANDS and k not in FAULT_COMMANDS
+        }
+        fault_block = {k: v for k, v in new.items() if k in FAULT_COMMANDS}
+        if fault_block:
+            refused = self.faults.write(fault_block)
+            if refused is not None:
+                return refused
+            await self.publish()  # the readings the new fault changes now; the block (a
+            for key in [k for k in self._published if k[1] == "holding"]:  # trigger: 0)
+                del self._published[key]  # again once the client's registers are stored
+            self._republish()
         if (
             "lockstep_advance_s" in new
             and self.clock.mode != LOCKSTEP

@@ -58,6 +58,7 @@ def test_shipped_map_has_every_instrument_and_varied_encodings():
         "power_meter",
         "boiler_controller",
         "sim_control",
+        "truth",
     }
     points = [p for d in m.devices for p in d.points]
     assert {p.signal for p in points} >= set(MEASURED)  # every measured signal is published

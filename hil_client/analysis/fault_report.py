@@ -1,0 +1,177 @@
+"""What the client saw against what the server did: the fault report (CONTRACT section 5).
+
+Inputs: the server's fault journal (``--fault-log``: one line per fault start and end, in
+the server's simulated time), the client's Modbus events (``LOG.modbus_events.jsonl``,
+written by ``hil-client run``: timeouts, dropped replies, exceptions with their code, late
+replies, invalid readings, lost connections, each with the server time of its row) and the
+lab log itself.
+
+Each journalled fault is **detected** when the client saw its mark on its target within
+the fault's window [start, end + ``slack_s``] (server time):
+
+- ``no_reply``: a ``no_reply`` or ``timeout`` on the unit (0: on any instrument unit);
+- ``delay``: a ``late`` reply or a ``timeout`` on the unit;
+- ``exception``: an ``exception`` on the unit (``code_match`` says whether the code was
+  the journalled one);
+- ``disconnect``: a lost connection;
+- ``dropout``: an ``invalid`` reading of the signal (or its unit failing);
+- ``spike``, ``offset``, ``stuck``: found in the log column by the detectors below;
+- ``drift``: never from the readings alone (no reference): counted as missed unless the
+  reading leaves its instrument's plausible range (not checked here).
+
+Log detectors (robust scale ``s``: 1.4826 x the median absolute first difference of the
+column, at least its resolution): a spike is a row more than ``8 s`` (and 1 % of the
+level) away from both neighbours, which agree with each other; an offset a step of that
+size between consecutive rows whose new level holds for the next 5 rows; stuck at least
+10 consecutive equal values in a column that otherwise changes on most rows.
+
+Everything the client saw that no journalled fault explains is **false** (client events
+only: the detectors run inside fault windows).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+INSTRUMENT_UNITS_ANY = 0
+_COMM_MARKS = {
+    "no_reply": ("no_reply", "timeout"),
+    "delay": ("late", "timeout"),
+    "exception": ("exception",),
+    "disconnect": ("disconnect",),
+}
+
+
+def fault_windows(journal: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """One record per journalled fault: kind, target, start and end (server time)."""
+    faults: dict[int, dict[str, Any]] = {}
+    for event in journal:
+        fid = int(event["id"])
+        if event["event"] == "start":
+            faults[fid] = {
+                "id": fid,
+                "kind": event["kind"],
+                "unit": event.get("unit"),
+                "signal": event.get("signal"),
+                "code": event.get("code"),
+                "start_s": float(event["t_sim_s"]),
+                "end_s": None,
+                "source": event.get("source"),
+            }
+        elif fid in faults:
+            faults[fid]["end_s"] = float(event["t_sim_s"])
+    return list(faults.values())
+
+
+def _robust_scale(x: np.ndarray) -> float:
+    d = np.abs(np.diff(x[np.isfinite(x)]))
+    if d.size == 0:
+        return math.inf
+    nonzero = d[d > 0]
+    resolution = float(nonzero.min()) if nonzero.size else 0.0
+    return max(1.4826 * float(np.median(d)), resolution, 1e-9)
+
+
+def _log_detects(kind: str, x: np.ndarray, rows: np.ndarray) -> bool:
+    """Whether ``kind`` shows in the log column ``x`` at one of the row indices ``rows``."""
+    if rows.size == 0:
+        return False
+    scale = _robust_scale(x)
+    n = x.size
+    for i in rows:
+        if kind == "spike" and 0 < i < n - 1:
+            a, b, c = x[i - 1], x[i], x[i + 1]
+            level = max(abs(a), abs(c), 1.0)
+            jump = max(8 * scale, 0.01 * level)
+            if abs(b - a) > jump and abs(b - c) > jump and abs(a - c) < jump:
+                return True
+        elif kind == "offset" and i > 0 and i + 5 < n:
+            before, after = x[max(0, i - 5) : i], x[i : i + 5]
+            step = float(np.median(after) - np.median(before))
+            level = max(abs(float(np.median(before))), 1.0)
+            if abs(step) > max(8 * scale, 0.01 * level):
+                return True
+        elif (
+            kind == "stuck"
+            and i + 10 <= n
+            and np.all(x[i : i + 10] == x[i])
+            and np.mean(np.diff(x[np.isfinite(x)]) != 0) > 0.5  # it moves otherwise
+        ):
+            return True
+    return False
+
+
+def compare(
+    journal: Sequence[Mapping[str, Any]],
+    client_events: Sequence[Mapping[str, Any]],
+    log_columns: Mapping[str, np.ndarray] | None = None,
+    server_time: np.ndarray | None = None,
+    slack_s: float = 2.0,
+) -> dict[str, Any]:
+    """The report: every fault detected or missed, and the client's false alarms."""
+    faults = fault_windows(journal)
+    end_of_run = max(
+        [float(e.get("server_time_s", 0.0)) for e in client_events]
+        + ([float(server_time[-1])] if server_time is not None and server_time.size else [])
+        + [0.0]
+    )
+    explained: set[int] = set()
+    rows_out = []
+    for fault in faults:
+        start = fault["start_s"]
+        end = (fault["end_s"] if fault["end_s"] is not None else end_of_run) + slack_s
+        kind = fault["kind"]
+        detected, how, first = False, None, None
+        code_match = None
+        for index, event in enumerate(client_events):
+            t = float(event.get("server_time_s", math.nan))
+            if not start - 1e-9 <= t <= end:
+                continue
+            if kind in _COMM_MARKS:
+                unit_ok = kind == "disconnect" or fault["unit"] in (
+                    INSTRUMENT_UNITS_ANY,
+                    event.get("unit"),
+                )
+                if unit_ok and event["event"] in _COMM_MARKS[kind]:
+                    explained.add(index)
+                    if kind == "exception":
+                        code_match = code_match or event.get("code") == fault["code"]
+                    if not detected:
+                        detected, how, first = True, event["event"], t
+            elif kind == "dropout" and fault["signal"] in event.get("signals", ()):
+                explained.add(index)
+                if not detected:
+                    detected, how, first = True, event["event"], t
+        if (
+            not detected
+            and kind in ("spike", "offset", "stuck")
+            and log_columns is not None
+            and server_time is not None
+            and fault["signal"] in log_columns
+        ):
+            x = np.asarray(log_columns[fault["signal"]], dtype=float)
+            rows = np.flatnonzero((server_time >= start - 1e-9) & (server_time <= end))
+            if _log_detects(kind, x, rows):
+                detected, how, first = True, f"log: {kind}", float(server_time[rows[0]])
+        row = {**fault, "detected": detected, "how": how, "first_seen_s": first}
+        if kind == "exception":
+            row["code_match"] = bool(code_match)
+        rows_out.append(row)
+    false_events = [e for i, e in enumerate(client_events) if i not in explained]
+    by_kind: dict[str, dict[str, int]] = {}
+    for row in rows_out:
+        counts = by_kind.setdefault(row["kind"], {"detected": 0, "missed": 0})
+        counts["detected" if row["detected"] else "missed"] += 1
+    return {
+        "faults": rows_out,
+        "detected": sum(r["detected"] for r in rows_out),
+        "missed": sum(not r["detected"] for r in rows_out),
+        "false": len(false_events),
+        "false_events": false_events,
+        "by_kind": by_kind,
+        "slack_s": slack_s,
+    }

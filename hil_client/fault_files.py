@@ -1,0 +1,92 @@
+"""The client's side of fault injection on disk: its Modbus events and the fault report.
+
+``NAME.modbus_events.jsonl`` beside ``NAME.csv`` holds one JSON line per event the Modbus
+rig saw (:attr:`hil_client.rigs.modbus.ModbusRig.comm_events`); ``hil-client run
+--fault-report`` or ``hil-client fault-report`` compare them (and the log) with the
+server's fault journal (:mod:`hil_client.analysis.fault_report`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from hil_client.analysis.fault_report import compare
+from hil_client.analysis.logio import read_log
+
+
+def events_path(log_path: Path) -> Path:
+    """``NAME.modbus_events.jsonl`` beside ``NAME.csv``."""
+    log_path = Path(log_path)
+    return log_path.with_name(log_path.stem + ".modbus_events.jsonl")
+
+
+def write_events(log_path: Path, events: Sequence[dict[str, Any]]) -> Path:
+    path = events_path(log_path)
+    with path.open("w", encoding="utf-8") as fh:
+        for event in events:
+            fh.write(json.dumps(event, allow_nan=False) + "\n")
+    return path
+
+
+def read_jsonl(path: Path, what: str) -> list[dict[str, Any]]:
+    """The lines of a JSONL file; a bad line raises ValueError naming file and line."""
+    out = []
+    for number, line in enumerate(Path(path).read_text(encoding="utf-8").splitlines(), 1):
+        if not line.strip():
+            continue
+        try:
+            item = json.loads(line)
+        except json.JSONDecodeError:
+            raise ValueError(f"{path}: line {number} is not JSON ({what})") from None
+        if not isinstance(item, dict):
+            raise ValueError(f"{path}: line {number} is not a JSON object ({what})")
+        out.append(item)
+    return out
+
+
+def fault_report(log_path: Path, journal_path: Path, slack_s: float = 2.0) -> dict[str, Any]:
+    """Compare the run's events and log with the server's journal (ValueError if a file
+    is not what it should be)."""
+    journal = read_jsonl(journal_path, "the server's fault journal")
+    for number, event in enumerate(journal, 1):
+        missing = [k for k in ("event", "id", "t_sim_s", "kind") if k not in event]
+        if missing:
+            raise ValueError(f"{journal_path}: line {number} lacks '{missing[0]}'")
+    events_file = events_path(log_path)
+    events = read_jsonl(events_file, "Modbus events") if events_file.exists() else []
+    log = read_log(Path(log_path))
+    offset = log.meta.get("server_time_offset_s", 0.0)
+    offset = float(offset) if isinstance(offset, int | float) else 0.0
+    server_time = log.t - offset
+    report = compare(journal, events, log.columns, server_time, slack_s)
+    report["log"] = str(log_path)
+    report["journal"] = str(journal_path)
+    return report
+
+
+def write_report(report: dict[str, Any], out: Path) -> None:
+    def clean(value: Any) -> Any:
+        if isinstance(value, dict):
+            return {k: clean(v) for k, v in value.items()}
+        if isinstance(value, list):
+            return [clean(v) for v in value]
+        if isinstance(value, float) and not math.isfinite(value):
+            return None
+        return value
+
+    out.write_text(json.dumps(clean(report), indent=2, allow_nan=False) + "\n", encoding="utf-8")
+
+
+def summary(report: dict[str, Any]) -> str:
+    kinds = ", ".join(
+        f"{kind} {c['detected']}/{c['detected'] + c['missed']}"
+        for kind, c in sorted(report["by_kind"].items())
+    )
+    return (
+        f"faults: {report['detected']} detected, {report['missed']} missed, "
+        f"{report['false']} false ({kinds or 'none journalled'})"
+    )

@@ -1,0 +1,374 @@
+"""The fault schedule in simulated time, the communication decisions and the readings.
+
+:class:`FaultEngine` holds the faults set (from a file, a profile, Python or the simulation
+control unit), starts each at the first evaluation where the simulated time has reached its
+``at_s`` and ends it once ``for_s`` has passed since it started. It is evaluated whenever the
+readings are evaluated (:meth:`apply`, called by the emulator each time it publishes): in
+lockstep that is after every advance, so a fault starts exactly at the step where
+``t_sim >= at_s``; in real time at the next tick.
+
+- Communication faults are decided per request by :meth:`decide` (unit ID in, delay / drop
+  / exception out); a ``disconnect`` calls :attr:`on_disconnect` once.
+- Instrument faults change only the readings handed to :meth:`apply` (a dict the emulator
+  publishes); the plant, its state and the instruments' own random draws are never touched.
+
+Journal events (:mod:`rig_emulator.faults.journal`) go to :attr:`journal` when set.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+import time
+from collections.abc import Callable, Iterable, Mapping, MutableMapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from rig_emulator.faults.journal import FaultJournal
+from rig_emulator.faults.spec import (
+    NEVER_FAULTED,
+    PARAMETER,
+    SPIKE_FOR_S,
+    Entry,
+    FaultSpec,
+    RandomSpec,
+)
+
+_EPS_S = 1e-9
+
+
+@dataclass(frozen=True, slots=True)
+class CommDecision:
+    """What a faulty unit does with a request."""
+
+    delay_s: float = 0.0
+    drop: bool = False
+    exception_code: int | None = None
+
+
+@dataclass(slots=True)
+class ActiveFault:
+    """A fault that has started."""
+
+    id: int
+    spec: FaultSpec
+    source: str
+    start_s: float
+    end_s: float | None  # simulated time it ends; None: until cleared
+    held: float | None = None  # stuck: the frozen reading
+    served: float = math.nan  # instrument: the reading last served
+    requests: int = 0  # communication: requests answered (or not) by this fault
+
+    def as_dict(self) -> dict[str, Any]:
+        out = {"id": self.id, **self.spec.as_dict(), "source": self.source}
+        out["since_s"] = self.start_s
+        out["until_s"] = self.end_s
+        out.pop("at_s", None)
+        out.pop("for_s", None)
+        return out
+
+
+@dataclass(slots=True)
+class _RandomState:
+    spec: RandomSpec
+    rng: random.Random = field(init=False)
+    next_s: float = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.rng = random.Random(self.spec.seed)
+        self.next_s = self.spec.at_s + self._gap()
+
+    def _gap(self) -> float:
+        return self.rng.expovariate(self.spec.rate_per_h / 3600.0)
+
+    def draw(self, until_s: float) -> list[FaultSpec]:
+        """The faults due up to ``until_s`` (their ``at_s`` the drawn instant)."""
+        spec = self.spec
+        stop_s = math.inf if spec.for_s is None else spec.at_s + spec.for_s
+        drawn: list[FaultSpec] = []
+        while self.next_s <= until_s + _EPS_S and self.next_s < stop_s:
+            kind = self.rng.choice(spec.kinds)
+            at_s = self.next_s
+            self.next_s += self._gap()
+            if kind == "disconnect":
+                drawn.append(FaultSpec(kind, at_s, None, 0))
+                continue
+            for_s = SPIKE_FOR_S if kind == "spike" else spec.fault_for_s
+            if at_s + for_s <= until_s:
+                continue  # over before anyone could see it (a long lockstep advance)
+            if kind in ("delay", "no_reply", "exception"):
+                target: dict[str, Any] = {"unit": self.rng.choice(spec.units)}
+            elif kind == "offset" and "offset" not in spec.params:
+                target = {"signal": "balance_mass_kg"}  # the default offset: a refill
+            else:
+                target = {"signal": self.rng.choice(spec.signals)}
+            drawn.append(FaultSpec(kind, at_s, for_s, parameter=spec.parameter(kind), **target))
+        return drawn
+
+
+class FaultEngine:
+    """Faults in simulated time (see the module docstring).
+
+    Args:
+        entries: faults to schedule from the start (``source`` names where they came from).
+        journal: where start and end events go (None: nowhere).
+        plant: the plant's true values of the measured signals, for the journal.
+    """
+
+    def __init__(
+        self,
+        entries: Iterable[Entry] = (),
+        journal: FaultJournal | None = None,
+        plant: Callable[[], Mapping[str, float]] | None = None,
+        source: str = "file",
+    ) -> None:
+        self.journal = journal
+        self.plant = plant
+        #: closes every client connection; returns how many (set by the server)
+        self.on_disconnect: Callable[[str], int] | None = None
+        self.now_s = 0.0
+        self._initial = [(e, source) for e in entries]
+        self._next_id = 1
+        self._pending: list[tuple[FaultSpec, str]] = []
+        self._random: list[_RandomState] = []
+        self.active: dict[int, ActiveFault] = {}
+        self._by_unit: dict[int, list[ActiveFault]] = {}
+        self._decisions: dict[int, CommDecision] = {}
+        self._instrument: list[ActiveFault] = []
+        self._last_instrument: dict[str, float] = {}
+        self._arm(self._initial)
+
+    # ------------------------------------------------------------------ setting faults
+    def _arm(self, entries: Iterable[tuple[Entry, str]]) -> None:
+        for entry, source in entries:
+            if isinstance(entry, RandomSpec):
+                self._random.append(_RandomState(entry))
+            else:
+                self._pending.append((entry, source))
+
+    def add_initial(self, entries: Iterable[Entry], source: str) -> None:
+        """Schedule ``entries`` from the start, again after each reset of the plant."""
+        new = [(e, source) for e in entries]
+        self._initial += new
+        self._arm(new)
+
+    def add(self, entry: Entry, source: str = "python") -> None:
+        """Set a fault (or a random source). One without ``at_s``, or whose ``at_s`` has
+        passed, starts at once."""
+        self._arm([(entry, source)])
+        self._update(self.now_s, dict(self._last_instrument))
+
+    def clear(self, reason: str = "cleared") -> int:
+        """End every active fault and drop the scheduled and random ones; how many ended."""
+        n = len(self.active)
+        for fault in list(self.active.values()):
+            self._end(fault, reason)
+        self._pending.clear()
+        self._random.clear()
+        self._rebuild()
+        return n
+
+    def active_faults(self) -> list[dict[str, Any]]:
+        """The active faults, oldest first (for the dashboard and the API)."""
+        return [f.as_dict() for f in self.active.values()]
+
+    @property
+    def idle(self) -> bool:
+        return not (self.active or self._pending or self._random)
+
+    # ------------------------------------------------------------------ per request
+    def decide(self, unit_id: int) -> CommDecision | None:
+        """What a request to ``unit_id`` gets now (None: a normal answer)."""
+        if not self._decisions:
+            return None
+        decision = self._decisions.get(unit_id)
+        if decision is None and unit_id not in NEVER_FAULTED:
+            decision = self._decisions.get(0)
+        if decision is not None:
+            for fault in self._by_unit.get(unit_id, ()):
+                fault.requests += 1
+            if unit_id not in NEVER_FAULTED:
+                for fault in self._by_unit.get(0, ()):
+                    fault.requests += 1
+        return decision
+
+    # ------------------------------------------------------------------ per evaluation
+    def apply(self, readings: MutableMapping[str, float], t_sim_s: float) -> None:
+        """Start and end faults due at ``t_sim_s``, then change ``readings`` (instrument
+        readings by signal) as the active instrument faults say."""
+        if t_sim_s < self.now_s - _EPS_S:  # the plant was reset: the schedule starts again
+            self.clear("reset")
+            self._arm(self._initial)
+        self.now_s = t_sim_s
+        if self.idle:
+            self._last_instrument = dict(readings)
+            return
+        self._update(t_sim_s, readings)
+
+    def _update(self, t_sim_s: float, readings: MutableMapping[str, float] | None) -> None:
+        if readings is not None:
+            self._last_instrument = dict(readings)
+        instrument = self._last_instrument
+        ended = [
+            f for f in self.active.values() if f.end_s is not None and f.end_s <= t_sim_s + _EPS_S
+        ]
+        due = [(s, src) for s, src in self._pending if s.at_s is None or s.at_s <= t_sim_s + _EPS_S]
+        if due:
+            self._pending = [p for p in self._pending if p not in due]
+        for state in self._random:
+            due += [(s, "random") for s in state.draw(t_sim_s)]
+        for fault in ended:
+            del self.active[fault.id]
+        started = [self._start(spec, src, t_sim_s, instrument) for spec, src in due]
+        if ended or started:
+            self._rebuild()
+        if readings is not None and self._instrument:
+            self._transform(readings, t_sim_s)
+        for fault in ended:
+            self._journal("end", fault, t_sim_s, readings, reason="for_s elapsed")
+        for fault in started:
+            if fault.spec.kind == "disconnect":
+                continue  # journalled when it happened
+            self._journal("start", fault, t_sim_s, readings)
+
+    def _start(
+        self, spec: FaultSpec, source: str, t_sim_s: float, instrument: Mapping[str, float]
+    ) -> ActiveFault:
+        for_s = spec.for_s
+        if for_s is None and spec.kind == "spike":
+            for_s = SPIKE_FOR_S
+        fault = ActiveFault(
+            self._next_id, spec, source, t_sim_s, None if for_s is None else t_sim_s + for_s
+        )
+        self._next_id += 1
+        if spec.kind == "disconnect":
+            closed = 0
+            if self.on_disconnect is not None:
+                closed = self.on_disconnect(f"disconnect fault #{fault.id}")
+            self._journal("start", fault, t_sim_s, None, served={"connections_closed": closed})
+            self._journal("end", fault, t_sim_s, None, reason="once")
+            return fault
+        if spec.kind == "stuck":
+            fault.held = instrument.get(spec.signal, math.nan)
+        self.active[fault.id] = fault
+        return fault
+
+    def _end(self, fault: ActiveFault, reason: str) -> None:
+        self.active.pop(fault.id, None)
+        self._rebuild()
+        self._journal("end", fault, self.now_s, None, reason=reason)
+
+    def _rebuild(self) -> None:
+        """The per-unit decisions and the instrument faults, from the active faults."""
+        by_unit: dict[int, list[ActiveFault]] = {}
+        instrument: list[ActiveFault] = []
+        for fault in self.active.values():
+            if fault.spec.is_comm:
+                by_unit.setdefault(int(fault.spec.unit or 0), []).append(fault)
+            else:
+                instrument.append(fault)
+        decisions: dict[int, CommDecision] = {}
+        for unit, faults in by_unit.items():
+            if unit != 0 and 0 in by_unit:
+                faults = by_unit[0] + faults
+            decisions[unit] = _combine(faults)
+        self._by_unit = by_unit
+        self._decisions = decisions
+        self._instrument = instrument
+
+    def _transform(self, readings: MutableMapping[str, float], t_sim_s: float) -> None:
+        for fault in self._instrument:
+            spec = fault.spec
+            signal = str(spec.signal)
+            value = readings.get(signal, math.nan)
+            kind = spec.kind
+            if kind == "stuck":
+                if fault.held is None or math.isnan(fault.held):
+                    fault.held = value
+                value = fault.held
+            elif kind == "drift":
+                value += float(spec.parameter or 0.0) * (t_sim_s - fault.start_s) / 3600.0
+            elif kind == "spike":
+                value = float(spec.parameter or 0.0)
+            elif kind == "dropout":
+                value = math.nan
+            else:  # offset
+                value += float(spec.parameter or 0.0)
+            readings[signal] = value
+            fault.served = value
+
+    # ------------------------------------------------------------------ journal
+    def _journal(
+        self,
+        event: str,
+        fault: ActiveFault,
+        t_sim_s: float,
+        readings: Mapping[str, float] | None,
+        served: dict[str, Any] | None = None,
+        reason: str | None = None,
+    ) -> None:
+        if self.journal is None:
+            return
+        spec = fault.spec
+        line: dict[str, Any] = {
+            "event": event,
+            "id": fault.id,
+            "t_sim_s": t_sim_s,
+            "t_wall": time.time(),
+            "kind": spec.kind,
+            **({"unit": spec.unit} if spec.is_comm else {"signal": spec.signal}),
+            "source": fault.source,
+        }
+        name = PARAMETER[spec.kind]
+        if name is not None:
+            line[name] = spec.parameter
+        if served is None:
+            served = self._served(event, fault, readings)
+        line["served"] = served
+        if event == "end":
+            line["reason"] = reason
+            if spec.is_comm:
+                line["requests"] = fault.requests
+        self.journal.write(line)
+
+    def _served(
+        self, event: str, fault: ActiveFault, readings: Mapping[str, float] | None
+    ) -> dict[str, Any]:
+        spec = fault.spec
+        if spec.kind == "delay":
+            return {"delay_ms": spec.parameter} if event == "start" else {"delay_ms": 0}
+        if spec.kind == "no_reply":
+            return {"reply": "none"} if event == "start" else {"reply": "normal"}
+        if spec.kind == "exception":
+            code = int(spec.parameter or 0)
+            return {"exception_code": code} if event == "start" else {"exception_code": None}
+        signal = str(spec.signal)
+        truth = math.nan
+        if self.plant is not None:
+            truth = float(self.plant().get(signal, math.nan))
+        if readings is None:  # ended between evaluations: the instrument's own reading
+            reading = self._last_instrument.get(signal, math.nan) if event == "end" else math.nan
+        else:
+            reading = readings.get(signal, math.nan)
+        return {
+            "reading": reading,
+            "instrument": self._last_instrument.get(signal, math.nan),
+            "truth": truth,
+        }
+
+
+def _combine(faults: list[ActiveFault]) -> CommDecision:
+    """One decision from several communication faults on a unit: no reply wins, then the
+    newest exception; delays take the longest."""
+    delay_s = 0.0
+    drop = False
+    code: int | None = None
+    for fault in faults:
+        kind = fault.spec.kind
+        if kind == "no_reply":
+            drop = True
+        elif kind == "exception":
+            code = int(fault.spec.parameter or 0)
+        elif kind == "delay":
+            delay_s = max(delay_s, float(fault.spec.parameter or 0.0) / 1000.0)
+    return CommDecision(delay_s, drop, None if drop else code)

@@ -1,0 +1,163 @@
+"""Fault injection in the Modbus server: the gate, the command block and the truth block.
+
+:class:`ServerFaults` joins a :class:`~rig_emulator.faults.FaultEngine` to a
+:class:`~rig_emulator.modbus.server.BenchServer`:
+
+- its :meth:`gate` goes on the Modbus server's gates (after the TLS authorisation gate), so
+  communication faults act on every transport (TCP, TLS, RTU) before a request touches a
+  datastore; ``disconnect`` calls the server's ``close_all_connections``;
+- the engine is the emulator's reading hook, so instrument faults change the readings only;
+- :meth:`values` adds the command block and the active fault count to the published
+  values (the emulator adds the truth, ``true_NAME``), and turns a dropout (NaN) of
+  a signal published as an integer into the instrument's invalid code: the type's most
+  negative value if signed (0x8000, 0x80000000), its largest if unsigned (0xFFFF...);
+- :meth:`write` handles a client's write of the command block
+  (:mod:`rig_emulator.faults.wire`).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+from pymodbus.constants import ExcCodes
+
+from rig_emulator.emulator import Emulator
+from rig_emulator.faults import Entry, FaultEngine, FaultError, FaultJournal
+from rig_emulator.faults.wire import (
+    BLOCK_SIGNALS,
+    COMMAND_CLEAR,
+    COMMAND_SET,
+    fault_dict_to_spec,
+    spec_from_block,
+)
+from rig_emulator.registers import RegisterMap
+from rig_emulator.signals import MEASURED
+
+#: Command signals of the fault block (written by clients, never plant commands).
+FAULT_COMMANDS = BLOCK_SIGNALS
+_SIGNED = ("int16", "int32")
+_UNSIGNED = ("uint16", "uint32")
+
+try:  # the shared gate interface of rig_emulator/modbus/handler.py
+    from rig_emulator.modbus.handler import GateDecision
+except ImportError:  # pragma: no cover - a handler without gates: no communication faults
+    GateDecision = None  # type: ignore[assignment,misc]
+
+
+def invalid_values(register_map: RegisterMap) -> dict[str, float]:
+    """Per measured signal published as an integer: the value that encodes as its invalid
+    code (-inf saturates a signed type to its minimum, +inf an unsigned one to its maximum)."""
+    out: dict[str, float] = {}
+    for device in register_map.devices:
+        for point in device.points:
+            if point.signal in MEASURED and point.signal not in out:
+                if point.datatype in _SIGNED:
+                    out[point.signal] = -math.inf
+                elif point.datatype in _UNSIGNED:
+                    out[point.signal] = math.inf
+    return out
+
+
+class ServerFaults:
+    """The faults of one server (see the module docstring)."""
+
+    def __init__(
+        self,
+        emulator: Emulator,
+        register_map: RegisterMap,
+        entries: Iterable[Entry] = (),
+        journal_path: str | Path | None = None,
+    ) -> None:
+        self.emulator = emulator
+        journal = FaultJournal(journal_path) if journal_path is not None else None
+        self.engine = FaultEngine([], journal, plant=emulator.plant)
+        profile_faults = getattr(emulator.profile, "faults", ()) or ()
+        self.engine.add_initial(profile_faults, "profile")
+        self.engine.add_initial(entries, "file")
+        emulator.reading_hook = self.engine.apply
+        self.block: dict[str, float] = dict.fromkeys(BLOCK_SIGNALS, 0.0)
+        self._invalid = invalid_values(register_map)
+
+    # ------------------------------------------------------------------ wiring
+    def attach(self, modbus_server: Any) -> bool:
+        """Put the gate on ``modbus_server.gates`` and let ``disconnect`` close its
+        connections; False if that server has no gates (communication faults then act not)."""
+        gates = getattr(modbus_server, "gates", None)
+        close = getattr(modbus_server, "close_all_connections", None)
+        if close is not None:
+
+            def disconnect(reason: str) -> int:
+                """Close every connection once the request being answered is answered
+                (a disconnect starts while a lockstep advance is published: its reply
+                still goes out); returns how many connections are open now."""
+                open_now = len(getattr(modbus_server, "handlers", ()))
+                try:
+                    asyncio.get_running_loop().call_soon(close, reason)
+                except RuntimeError:  # no loop running: close at once
+                    return close(reason)
+                return open_now
+
+            self.engine.on_disconnect = disconnect
+        if gates is None or GateDecision is None:
+            return False
+        gates.append(self.gate)
+        return True
+
+    def gate(self, info: Any) -> Any:
+        """The fault-injection gate: a decision for a request to a faulty unit, else None."""
+        decision = self.engine.decide(info.unit_id)
+        if decision is None:
+            return None
+        return GateDecision(  # type: ignore[misc]
+            delay_s=decision.delay_s, drop=decision.drop, exception_code=decision.exception_code
+        )
+
+    def close(self) -> None:
+        if self.engine.journal is not None:
+            self.engine.journal.close()
+
+    # ------------------------------------------------------------------ values
+    def values(self, out: dict[str, float]) -> None:
+        """Add the block and the count to ``out``; invalid codes for dropouts."""
+        out.update(self.block)
+        out["active_fault_count"] = float(len(self.engine.active))
+        for signal, invalid in self._invalid.items():
+            value = out.get(signal)
+            if value is not None and math.isnan(value):
+                out[signal] = invalid
+
+    def truth(self, signal: str) -> float:
+        """The plant's true value of a measured signal."""
+        plant = self.emulator.plant()
+        if signal not in plant:
+            raise ValueError(f"'{signal}' is not a measured signal ({', '.join(MEASURED)})")
+        return float(plant[signal])
+
+    # ------------------------------------------------------------------ commands
+    def inject(self, fault: Mapping[str, Any] | Entry, source: str = "python") -> None:
+        """Set a fault given as a dict (as in ``FAULTS.yaml``) or a parsed entry."""
+        entry = fault if not isinstance(fault, Mapping) else fault_dict_to_spec(fault)
+        self.engine.add(entry, source)
+
+    def write(self, new: Mapping[str, float]) -> ExcCodes | None:
+        """A client's write to the command block: applied whole, or refused with 03 and
+        nothing changed."""
+        block = {**self.block, **new}
+        command = int(block["fault_command"])
+        try:
+            spec = spec_from_block(block) if command == COMMAND_SET else None
+        except FaultError:
+            return ExcCodes.ILLEGAL_VALUE
+        if command not in (0, COMMAND_SET, COMMAND_CLEAR):
+            return ExcCodes.ILLEGAL_VALUE
+        block["fault_command"] = 0.0
+        self.block = block
+        if spec is not None:
+            self.engine.add(spec, "modbus")
+        elif command == COMMAND_CLEAR:
+            self.engine.clear()
+        return None

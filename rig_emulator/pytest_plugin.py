@@ -1,0 +1,300 @@
+"""pytest plugin: a real emulator for the users' own test suites (CONTRACT section 5).
+
+Installed with the package (entry point ``pytest11``), it gives every test suite a fixture
+``rig_emulator`` (function scope) that starts ``rig-emulator serve --lockstep`` on a free
+port of 127.0.0.1 in a subprocess and yields a :class:`RigEmulator` with ``host``, ``port``,
+``advance(seconds)``, ``inject(fault)``, ``clear_faults()`` and ``truth(signal)`` (and
+``read(signal)``, ``write(signal, value)`` by name for set-up and checks). The server
+stops when the test ends, passed or failed. Options per test::
+
+    @pytest.mark.rig_emulator(boiler="windhager_12kw", profile="lab", seed=1, faults="F.yaml")
+    def test_my_logger_survives_a_silent_analyser(rig_emulator):
+        rig_emulator.inject({"kind": "no_reply", "unit": 2, "for_s": 30})
+        rig_emulator.advance(10)
+        ...
+
+Everything goes over the wire, as the test's own client would: ``advance`` writes the
+simulation control's ``lockstep_advance``, ``inject``/``clear_faults`` its fault command
+block, ``truth`` reads the truth unit (101).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Callable, Iterator, Mapping
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+DEFAULTS = {"boiler": "windhager_12kw", "profile": "clean", "seed": 0, "faults": None}
+START_TIMEOUT_S = 120.0  # the first start may compile numba's kernels
+_LISTENING = re.compile(r"serving .* on ([^\s:]+):(\d+) ")
+
+
+class RigEmulatorError(RuntimeError):
+    """The emulator did not start or refused a request."""
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line(
+        "markers",
+        "rig_emulator(boiler='windhager_12kw', profile='clean', seed=0, faults=None): "
+        "options of the rig_emulator fixture's server",
+    )
+
+
+class RigEmulator:
+    """A running lockstep emulator (a subprocess) and the calls a test needs.
+
+    Attributes:
+        host, port: where it listens (Modbus TCP).
+        journal: the fault journal it writes (JSONL, one line per fault start and end).
+        stderr_lines: what the server logged so far.
+    """
+
+    def __init__(
+        self,
+        boiler: str = "windhager_12kw",
+        profile: str = "clean",
+        seed: int = 0,
+        faults: str | os.PathLike | None = None,
+        workdir: str | os.PathLike | None = None,
+    ) -> None:
+        self._tmp = tempfile.TemporaryDirectory(prefix="rig_emulator_") if workdir is None else None
+        folder = Path(workdir if workdir is not None else self._tmp.name)  # type: ignore[union-attr]
+        self.journal = folder / "fault_journal.jsonl"
+        command = [
+            sys.executable,
+            "-m",
+            "rig_emulator.cli",
+            "serve",
+            "--boiler",
+            str(boiler),
+            "--profile",
+            str(profile),
+            "--seed",
+            str(int(seed)),
+            "--lockstep",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            "0",
+            "--fault-log",
+            str(self.journal),
+        ]
+        if faults is not None:
+            command += ["--faults", str(faults)]
+        self.stderr_lines: list[str] = []
+        self.process = subprocess.Popen(
+            command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
+        )
+        self.host, self.port = self._wait_listening()
+        self._drain = threading.Thread(target=self._read_stderr, daemon=True)
+        self._drain.start()
+        from rig_emulator.registers import load_map
+
+        self.map = load_map()
+        self._client = None
+
+    # ------------------------------------------------------------------ lifecycle
+    def _wait_listening(self) -> tuple[str, int]:
+        assert self.process.stderr is not None
+        deadline = time.monotonic() + START_TIMEOUT_S
+        while time.monotonic() < deadline:
+            line = self.process.stderr.readline()
+            if not line:
+                break
+            self.stderr_lines.append(line.rstrip("\n"))
+            match = _LISTENING.search(line)
+            if match:
+                return match.group(1), int(match.group(2))
+        self.stop()
+        raise RigEmulatorError(
+            "rig-emulator serve did not start: " + " | ".join(self.stderr_lines[-5:])
+        )
+
+    def _read_stderr(self) -> None:
+        assert self.process.stderr is not None
+        for line in self.process.stderr:
+            self.stderr_lines.append(line.rstrip("\n"))
+
+    def stop(self) -> None:
+        """Stop the server (SIGTERM, then SIGKILL after 10 s)."""
+        if self._client is not None:
+            with contextlib.suppress(Exception):
+                self._client.close()
+            self._client = None
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGTERM)
+            try:
+                self.process.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait(timeout=10)
+        if self._tmp is not None:
+            self._tmp.cleanup()
+            self._tmp = None
+
+    def __enter__(self) -> RigEmulator:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    # ------------------------------------------------------------------ the wire
+    @property
+    def client(self):
+        """A pymodbus client connected to the server (reconnected when needed)."""
+        from pymodbus.client import ModbusTcpClient
+
+        if self._client is None:
+            self._client = ModbusTcpClient(self.host, port=self.port, timeout=30, retries=0)
+        if not self._client.connected and not self._client.connect():
+            raise RigEmulatorError(f"cannot connect to {self.host}:{self.port}")
+        return self._client
+
+    def _call(self, request: Callable[[Any], Any]) -> Any:
+        """``request(client)``; once more on a new connection if the server closed this
+        one (a ``disconnect`` fault closes the fixture's connection too)."""
+        from pymodbus.exceptions import ConnectionException, ModbusIOException
+
+        try:
+            return request(self.client)
+        except (ConnectionException, ModbusIOException, OSError):
+            self._reconnect()
+            return request(self.client)
+
+    def _reconnect(self) -> None:
+        if self._client is not None:
+            with contextlib.suppress(Exception):
+                self._client.close()
+            self._client = None
+
+    def _write(self, signal_name: str | None, registers: list[int], address: int | None = None):
+        device, point = self.map.point(signal_name) if signal_name else (None, None)
+        unit = device.unit_id if device else self.map.point("fault_kind")[0].unit_id
+        start = point.address if point else int(address or 0)
+        reply = self._call(lambda c: c.write_registers(start, registers, device_id=unit))
+        if reply.isError():
+            raise RigEmulatorError(f"write at {unit}:{start} refused: {reply}")
+
+    def advance(self, seconds: float) -> None:
+        """Advance the simulation by ``seconds`` (1..86400, whole seconds on the wire: the
+        register is a uint32) and return once the new state is readable. A connection lost
+        meanwhile is settled by the lockstep counter: the advance happens exactly once."""
+        from pymodbus.exceptions import ConnectionException, ModbusIOException
+
+        from rig_emulator.registers import encode
+
+        device, point = self.map.point("lockstep_advance_s")
+        registers = encode(point, float(seconds))
+        before = self.read("lockstep_counter")
+        try:
+            reply = self.client.write_registers(point.address, registers, device_id=device.unit_id)
+        except (ConnectionException, ModbusIOException, OSError):
+            self._reconnect()
+            if self.read("lockstep_counter") != before:
+                return  # it was applied; only its reply was lost
+            reply = self.client.write_registers(point.address, registers, device_id=device.unit_id)
+        if reply.isError():
+            raise RigEmulatorError(f"advance by {seconds} s refused: {reply}")
+
+    def inject(self, fault: Mapping[str, Any]) -> None:
+        """Set a fault, a dict as in ``FAULTS.yaml`` (e.g. ``{"kind": "dropout", "signal":
+        "flue_gas_CO_ppm", "for_s": 60}``); without ``at_s`` it starts now."""
+        from rig_emulator.faults.wire import block_values, fault_dict_to_spec
+        from rig_emulator.registers import encode
+
+        values = block_values(fault_dict_to_spec(fault))
+        _, first = self.map.point("fault_kind")
+        registers: list[int] = []
+        for name in ("fault_kind", "fault_target", "fault_parameter", "fault_duration_s"):
+            registers += encode(self.map.point(name)[1], values[name])
+        registers += encode(self.map.point("fault_at_s")[1], values["fault_at_s"])
+        registers += encode(self.map.point("fault_command")[1], values["fault_command"])
+        self._write(None, registers, first.address)
+
+    def clear_faults(self) -> None:
+        """End every fault (active or scheduled)."""
+        from rig_emulator.faults.wire import COMMAND_CLEAR
+        from rig_emulator.registers import encode
+
+        _, point = self.map.point("fault_command")
+        self._write("fault_command", encode(point, float(COMMAND_CLEAR)))
+
+    def read(self, signal_name: str) -> float:
+        """A signal's published value (reading, status or command) by name."""
+        from rig_emulator.registers import decode
+
+        device, point = self.map.point(signal_name)
+        method = {
+            "input": "read_input_registers",
+            "holding": "read_holding_registers",
+            "discrete": "read_discrete_inputs",
+            "coil": "read_coils",
+        }[point.table]
+        reply = self._call(
+            lambda c: getattr(c, method)(point.address, count=point.width, device_id=device.unit_id)
+        )
+        if reply.isError():
+            raise RigEmulatorError(f"read of {signal_name} refused: {reply}")
+        words = reply.bits[:1] if point.table in ("coil", "discrete") else reply.registers
+        return decode(point, list(words))
+
+    def write(self, signal_name: str, value: float) -> None:
+        """Write a command (a setpoint, a switch) by signal name, e.g.
+        ``write("boiler_command", 1)``, as the map encodes it."""
+        from rig_emulator.registers import encode
+
+        device, point = self.map.point(signal_name)
+        if point.table == "coil":
+            reply = self._call(
+                lambda c: c.write_coil(point.address, value >= 0.5, device_id=device.unit_id)
+            )
+        else:
+            words = encode(point, float(value))
+            reply = self._call(
+                lambda c: c.write_registers(point.address, words, device_id=device.unit_id)
+            )
+        if reply.isError():
+            raise RigEmulatorError(f"write of {signal_name} = {value} refused: {reply}")
+
+    def truth(self, signal_name: str) -> float:
+        """The plant's true value of a measured signal (not the reading), from the truth
+        unit."""
+        from rig_emulator.signals import MEASURED
+
+        if signal_name not in MEASURED:
+            raise ValueError(f"'{signal_name}' is not a measured signal")
+        return self.read("true_" + signal_name)
+
+    def active_fault_count(self) -> int:
+        return int(self.read("active_fault_count"))
+
+
+@pytest.fixture
+def rig_emulator(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[RigEmulator]:
+    """A lockstep ``rig-emulator serve`` on a free port, stopped when the test ends."""
+    options = dict(DEFAULTS)
+    marker = request.node.get_closest_marker("rig_emulator")
+    if marker is not None:
+        unknown = set(marker.kwargs) - set(DEFAULTS)
+        if unknown or marker.args:
+            raise pytest.UsageError(
+                f"@pytest.mark.rig_emulator takes only {', '.join(DEFAULTS)} as keywords"
+            )
+        options.update(marker.kwargs)
+    emulator = RigEmulator(workdir=tmp_path, **options)
+    try:
+        yield emulator
+    finally:
+        emulator.stop()

@@ -1,0 +1,79 @@
+"""The fault report's matching and its log detectors, on synthetic data with known answers."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hil_client.analysis.fault_report import compare, fault_windows
+
+
+def _journal(*faults: dict) -> list[dict]:
+    events = []
+    for i, f in enumerate(faults, 1):
+        start = {"event": "start", "id": i, "t_sim_s": f["start"], **f["what"]}
+        events.append(start)
+        if f.get("end") is not None:
+            events.append({"event": "end", "id": i, "t_sim_s": f["end"], **f["what"]})
+    return events
+
+
+def test_windows_pair_starts_and_ends():
+    journal = _journal(
+        {"start": 10.0, "end": 20.0, "what": {"kind": "no_reply", "unit": 2}},
+        {"start": 15.0, "what": {"kind": "dropout", "signal": "x"}},
+    )
+    windows = fault_windows(journal)
+    assert [(w["kind"], w["start_s"], w["end_s"]) for w in windows] == [
+        ("no_reply", 10.0, 20.0),
+        ("dropout", 15.0, None),
+    ]
+
+
+def test_client_events_match_by_unit_kind_and_time():
+    journal = _journal(
+        {"start": 10.0, "end": 13.0, "what": {"kind": "no_reply", "unit": 2}},
+        {"start": 20.0, "end": 22.0, "what": {"kind": "exception", "unit": 5, "code": 6}},
+        {"start": 30.0, "end": 31.0, "what": {"kind": "delay", "unit": 4}},
+    )
+    events = [
+        {"event": "no_reply", "unit": 2, "server_time_s": 11.0},
+        {"event": "no_reply", "unit": 3, "server_time_s": 11.0},  # another unit: false
+        {"event": "exception", "unit": 5, "code": 4, "server_time_s": 21.0},  # wrong code
+        {"event": "timeout", "unit": 2, "server_time_s": 50.0},  # no fault then: false
+    ]
+    report = compare(journal, events)
+    rows = {r["kind"]: r for r in report["faults"]}
+    assert rows["no_reply"]["detected"] and rows["no_reply"]["first_seen_s"] == 11.0
+    assert rows["exception"]["detected"] and rows["exception"]["code_match"] is False
+    assert not rows["delay"]["detected"]
+    assert (report["detected"], report["missed"], report["false"]) == (2, 1, 2)
+
+
+def test_log_detectors_find_spike_offset_and_stuck_only_where_they_are():
+    rng = np.random.default_rng(0)
+    t = np.arange(200.0)
+    base = 60 + 0.05 * t + rng.normal(0, 0.02, t.size)
+    spiked = base.copy()
+    spiked[50] = 300.0
+    shifted = base.copy()
+    shifted[120:] += 15.0
+    stuck = base.copy()
+    stuck[150:170] = stuck[150]
+    columns = {"a": spiked, "b": shifted, "c": stuck, "d": base}
+    journal = _journal(
+        {"start": 50.0, "end": 51.0, "what": {"kind": "spike", "signal": "a"}},
+        {"start": 120.0, "what": {"kind": "offset", "signal": "b"}},
+        {"start": 150.0, "end": 170.0, "what": {"kind": "stuck", "signal": "c"}},
+        {"start": 60.0, "end": 61.0, "what": {"kind": "spike", "signal": "d"}},  # none there
+        {"start": 10.0, "what": {"kind": "drift", "signal": "d"}},
+    )
+    report = compare(journal, [], columns, t)
+    found = {(r["kind"], r["signal"]): r["detected"] for r in report["faults"]}
+    assert found == {
+        ("spike", "a"): True,
+        ("offset", "b"): True,
+        ("stuck", "c"): True,
+        ("spike", "d"): False,  # the detector does not see what is not there
+        ("drift", "d"): False,
+    }
+    assert report["false"] == 0

@@ -1,0 +1,192 @@
+"""hil-client against a faulty server, over real sockets: it survives every fault kind,
+leaves empty fields (never the last value), records what it saw, and the fault report
+matches it with the server's journal."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+from hil_client.cli import main as hil_client_main
+from hil_client.protocol.rig import RigCommand
+from hil_client.rigs.modbus import ModbusRig
+from rig_emulator.faults import faults_from_list, read_journal
+from rig_emulator.modbus import handler
+from tests.conftest import read_log
+
+needs_gates = pytest.mark.skipif(
+    not hasattr(handler, "GateDecision"),
+    reason="the server's gate interface (rig_emulator.modbus.handler.GateDecision) is absent",
+)
+ANALYSER = ("flue_gas_O2_pct", "flue_gas_CO2_pct", "flue_gas_CO_ppm")
+
+SHORT_PROTOCOL = """\
+name: short
+test: stationary
+acquisition_period_s: 1
+flow_spread_K: 15
+preheat: {temperature_C: 45, tolerance_K: 0.5, hold_s: 10, load_pct: 100, max_duration_s: 60}
+start_up: {return_setpoint_C: 55, t1_window_s: 30, t1_max_rise_K_min: 0.5, min_duration_s: 30,
+           max_duration_s: 60}
+test_sequence:
+  return_setpoint_C: 55
+  sequences:
+    - {name: stationary_100, load_pct: 100, duration: "00:02:00"}
+cooling_1: {load_pct: 20, return_setpoint_C: 55, until_forward_C: 55, max_duration_s: 60}
+cooling_2: {until_after_t2_s: 120}
+"""
+
+
+def _steps(srv, n: int, timeout_s: float = 2.0) -> tuple[ModbusRig, dict[float, dict]]:
+    rig = ModbusRig(f"modbus://127.0.0.1:{srv.port}", srv.map, timeout_s=timeout_s)
+    rig.apply(RigCommand(600.0, 55.0, True, True))
+    rows = {}
+    for _ in range(n):
+        rig.advance(1.0)
+        rows[rig.log_time_s] = rig.read()
+    rig.close()
+    return rig, rows
+
+
+def test_invalid_readings_are_empty_and_recorded(serve):
+    """A dropout of a float (NaN) and of a scaled int16 (its invalid code 0x8000)."""
+    faults = faults_from_list(
+        [
+            {"kind": "dropout", "signal": "flue_gas_CO_ppm", "at_s": 5, "for_s": 5},
+            {"kind": "dropout", "signal": "flue_gas_temp_C", "at_s": 5, "for_s": 5},
+        ]
+    )
+    srv = serve(faults=faults)
+    rig, rows = _steps(srv, 14)
+    for t, row in rows.items():
+        faulty = 5.0 <= t < 10.0
+        assert math.isnan(row["flue_gas_CO_ppm"]) == faulty, t
+        assert math.isnan(row["flue_gas_temp_C"]) == faulty, t
+        assert not math.isnan(row["flue_gas_O2_pct"])
+    invalid = [e for e in rig.comm_events if e["event"] == "invalid"]
+    assert sorted({e["server_time_s"] for e in invalid}) == [5.0, 6.0, 7.0, 8.0, 9.0]
+    assert {s for e in invalid for s in e["signals"]} == {"flue_gas_CO_ppm", "flue_gas_temp_C"}
+
+
+@needs_gates
+def test_every_communication_fault_is_survived_and_recorded(serve):
+    faults = faults_from_list(
+        [
+            {"kind": "no_reply", "unit": 2, "at_s": 3, "for_s": 3},
+            {"kind": "exception", "unit": 5, "code": 6, "at_s": 8, "for_s": 2},
+            {"kind": "delay", "unit": 4, "delay_ms": 400, "at_s": 12, "for_s": 1},
+            {"kind": "delay", "unit": 6, "delay_ms": 3000, "at_s": 15, "for_s": 1},
+            {"kind": "disconnect", "at_s": 18},
+            {"kind": "exception", "unit": 1, "code": 4, "at_s": 21, "for_s": 1},
+        ]
+    )
+    srv = serve(faults=faults)
+    rig, rows = _steps(srv, 25, timeout_s=1.0)
+    assert max(rows) == 25.0  # every step done, none lost
+    for t, row in rows.items():
+        silent = 3.0 <= t < 6.0
+        assert all(math.isnan(row[s]) == silent for s in ANALYSER), t  # empty, not the last
+        assert math.isnan(row["balance_mass_kg"]) == (8.0 <= t < 10.0), t
+        assert math.isnan(row["electric_power_W"]) == (t == 15.0), t
+        assert not math.isnan(row["flue_gas_temp_C"]), t  # a 0.4 s delay is only late
+    events = {(e["event"], e["unit"], e["server_time_s"]) for e in rig.comm_events}
+    assert {("no_reply", 2, t) for t in (3.0, 4.0, 5.0)} <= events
+    assert {("exception", 5, 8.0), ("exception", 5, 9.0)} <= events
+    assert ("late", 4, 12.0) in events and ("timeout", 6, 15.0) in events
+    assert any(e["event"] == "disconnect" for e in rig.comm_events)
+    assert ("exception", 1, 21.0) in events  # a refused setpoint write, sent again next step
+    codes = {e["code"] for e in rig.comm_events if e["event"] == "exception"}
+    assert codes == {6, 4}
+    assert [g["action"] for g in rig.gaps] == ["resumed"]  # the disconnect, settled
+
+
+def _run_with_report(serve, tmp_path, faults: list[dict]):
+    journal = tmp_path / "journal.jsonl"
+    srv = serve(faults=faults_from_list(faults), fault_log=journal, profile="lab", seed=1)
+    protocol = tmp_path / "short.yaml"
+    protocol.write_text(SHORT_PROTOCOL)
+    out = tmp_path / "log.csv"
+    report = tmp_path / "report.json"
+    code = hil_client_main(
+        [
+            "run",
+            str(protocol),
+            "--boiler",
+            "windhager_12kw",
+            "--rig",
+            f"modbus://127.0.0.1:{srv.port}",
+            "--out",
+            str(out),
+            "--fault-journal",
+            str(journal),
+            "--fault-report",
+            str(report),
+            "--quiet",
+        ]
+    )
+    assert code == 0
+    return out, json.loads(report.read_text()), read_journal(journal)
+
+
+def test_fault_report_detects_instrument_faults(serve, tmp_path):
+    faults = [
+        {"kind": "dropout", "signal": "flue_gas_CO_ppm", "at_s": 40, "for_s": 20},
+        {"kind": "spike", "signal": "flue_gas_temp_C", "value": 300.0, "at_s": 70},
+        {"kind": "offset", "signal": "balance_mass_kg", "value": 15.0, "at_s": 100},
+        {"kind": "drift", "signal": "water_in_temp_C", "rate_per_h": 1.0, "at_s": 10},
+    ]
+    out, report, journal = _run_with_report(serve, tmp_path, faults)
+    rows = {f["kind"]: f for f in report["faults"]}
+    assert rows["dropout"]["detected"] and rows["dropout"]["how"] == "invalid"
+    assert rows["spike"]["detected"] and rows["spike"]["how"] == "log: spike"
+    assert rows["offset"]["detected"] and rows["offset"]["how"] == "log: offset"
+    assert not rows["drift"]["detected"]  # 1 K/h: not visible in the readings alone
+    assert report["detected"] == 3 and report["missed"] == 1 and report["false"] == 0
+    _, columns = read_log(out)
+    co = columns["flue_gas_CO_ppm"]
+    assert co[39] is None and co[58] is None and co[38] is not None and co[60] is not None
+    assert {e["kind"] for e in journal} == {"dropout", "spike", "offset", "drift"}
+
+
+@needs_gates
+def test_fault_report_detects_communication_faults(serve, tmp_path):
+    faults = [
+        {"kind": "no_reply", "unit": 3, "at_s": 30, "for_s": 5},
+        {"kind": "exception", "unit": 2, "code": 11, "at_s": 50, "for_s": 3},
+        {"kind": "delay", "unit": 5, "delay_ms": 500, "at_s": 70, "for_s": 2},
+        {"kind": "disconnect", "at_s": 90},
+    ]
+    _, report, _ = _run_with_report(serve, tmp_path, faults)
+    assert {f["kind"]: f["detected"] for f in report["faults"]} == {
+        "no_reply": True,
+        "exception": True,
+        "delay": True,
+        "disconnect": True,
+    }
+    assert next(f for f in report["faults"] if f["kind"] == "exception")["code_match"]
+    assert report["false"] == 0, report["false_events"]
+
+
+def test_fault_report_options_are_checked(tmp_path, capsys):
+    code = hil_client_main(
+        [
+            "run",
+            "stationary",
+            "--boiler",
+            "windhager_12kw",
+            "--out",
+            str(tmp_path / "l.csv"),
+            "--fault-report",
+            str(tmp_path / "r.json"),
+        ]
+    )
+    assert code == 2 and "--fault-journal" in capsys.readouterr().err
+    bad = tmp_path / "j.jsonl"
+    bad.write_text("{not json\n")
+    log = tmp_path / "log.csv"
+    log.write_text("time_s,water_flow_kg_h\n0,1\n")
+    code = hil_client_main(["fault-report", str(log), "--journal", str(bad), "--out", "x.json"])
+    err = capsys.readouterr().err
+    assert code == 2 and "line 1 is not JSON" in err and err.count("\n") == 1

@@ -1,0 +1,162 @@
+"""The fault engine on a real emulator: readings change, the plant never does; the schedule
+is exact in simulated time; random faults are seeded; the journal says what was served."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from rig_emulator.emulator import Emulator
+from rig_emulator.faults import FaultEngine, FaultJournal, faults_from_list, read_journal
+from rig_emulator.instruments import load_profile
+
+INSTRUMENT_FAULTS = [
+    {"kind": "stuck", "signal": "flue_gas_temp_C", "at_s": 120, "for_s": 300},
+    {"kind": "drift", "signal": "water_out_temp_C", "rate_per_h": 36.0, "at_s": 60},
+    {"kind": "spike", "signal": "flue_gas_O2_pct", "value": 25.0, "at_s": 200},
+    {"kind": "dropout", "signal": "flue_gas_CO_ppm", "at_s": 150, "for_s": 40},
+    {"kind": "offset", "signal": "balance_mass_kg", "value": 15.0, "at_s": 250},
+]
+
+
+def _emulator(params, profile="lab") -> Emulator:
+    emu = Emulator(params, load_profile(profile), seed=3)
+    emu.set_commands(
+        {"water_flow_setpoint_kg_h": 600.0, "return_setpoint_C": 55.0, "boiler_command": 1}
+    )
+    return emu
+
+
+def _state(emu: Emulator) -> bytes:
+    b = emu.bench
+    return b.y.tobytes() + b.yb.tobytes() + b.s.tobytes() + np.array(emu._true).tobytes()
+
+
+def test_instrument_faults_never_touch_the_plant(params_12kw, tmp_path):
+    """Bit-identical plant trajectory (state, outputs, true values) with and without every
+    instrument fault; the instruments' own noise draws are the same too."""
+    plain = _emulator(params_12kw)
+    faulty = _emulator(params_12kw)
+    engine = FaultEngine(faults_from_list(INSTRUMENT_FAULTS), FaultJournal(tmp_path / "j.jsonl"))
+    engine.plant = faulty.plant
+    faulty.reading_hook = engine.apply
+    differed = set()
+    for _ in range(400):
+        plain.advance(1.0)
+        faulty.advance(1.0)
+        a, b = plain.values(), faulty.values()
+        assert _state(plain) == _state(faulty)
+        assert plain.readings == faulty.readings  # the instruments drew the same noise
+        assert {k: v for k, v in a.items() if k.startswith("true_")} == {
+            k: v for k, v in b.items() if k.startswith("true_")
+        }
+        differed |= {k for k in a if not (a[k] == b[k] or (math.isnan(a[k]) and math.isnan(b[k])))}
+    # ... while the readings (and the status the instruments report) did change
+    assert {f["signal"] for f in INSTRUMENT_FAULTS} <= differed
+    assert {"analyser_status", "balance_stable"} <= differed
+
+
+def test_each_kind_acts_on_the_reading_from_its_step(params_12kw):
+    emu = _emulator(params_12kw, "clean")
+    engine = FaultEngine(faults_from_list(INSTRUMENT_FAULTS))
+    emu.reading_hook = engine.apply
+    seen: dict[float, dict[str, float]] = {}
+    for _ in range(460):
+        emu.advance(1.0)
+        seen[emu.sim_time_s] = emu.values()
+    t = seen
+    # stuck from t = 120 for 300 s at the reading of t = 120
+    held = t[120.0]["true_flue_gas_temp_C"]
+    assert all(t[s]["flue_gas_temp_C"] == held for s in np.arange(120.0, 420.0))
+    assert t[420.0]["flue_gas_temp_C"] == t[420.0]["true_flue_gas_temp_C"] != held
+    # drift 36 K/h from t = 60: +1 K at t = 160
+    assert t[160.0]["water_out_temp_C"] - t[160.0]["true_water_out_temp_C"] == pytest.approx(1.0)
+    assert t[59.0]["water_out_temp_C"] == t[59.0]["true_water_out_temp_C"]
+    # spike: exactly one acquisition at 1 s steps
+    spiked = [s for s, v in t.items() if v["flue_gas_O2_pct"] == 25.0]
+    assert spiked == [200.0]
+    # dropout: NaN, the analyser not measuring (bit 0 off) and flagging it (bit 2)
+    assert math.isnan(t[150.0]["flue_gas_CO_ppm"]) and math.isnan(t[189.0]["flue_gas_CO_ppm"])
+    assert t[150.0]["analyser_status"] == 4.0 and t[149.0]["analyser_status"] == 1.0
+    assert t[190.0]["flue_gas_CO_ppm"] == t[190.0]["true_flue_gas_CO_ppm"]
+    assert t[190.0]["analyser_status"] == 1.0
+    # offset: a refill, +15 kg; the balance is not stable for 5 s after the jump
+    assert t[250.0]["balance_mass_kg"] - t[250.0]["true_balance_mass_kg"] == pytest.approx(15.0)
+    assert t[250.0]["balance_stable"] == 0.0
+
+
+def test_schedule_is_exact_in_simulated_time(tmp_path):
+    """Started at the first evaluation with t >= at_s, ended at the first with t >= end."""
+    path = tmp_path / "j.jsonl"
+    engine = FaultEngine(
+        faults_from_list(
+            [
+                {"kind": "no_reply", "unit": 2, "at_s": 25.0, "for_s": 10.0},
+                {"kind": "exception", "unit": 0, "code": 4, "at_s": 30.0},
+            ]
+        ),
+        FaultJournal(path),
+    )
+    decisions = {}
+    for t in np.arange(0.0, 60.0, 7.0):  # steps of 7 s: 21, 28, 35, 42 ...
+        engine.apply({}, float(t))
+        decisions[float(t)] = (engine.decide(2), engine.decide(5), engine.decide(100))
+    assert decisions[21.0] == (None, None, None)
+    assert decisions[28.0][0].drop and decisions[28.0][1] is None
+    assert decisions[35.0][0].drop  # started at 28, ends at 38
+    assert decisions[35.0][1].exception_code == 4 and decisions[35.0][2] is None
+    assert not decisions[42.0][0].drop and decisions[42.0][0].exception_code == 4
+    events = read_journal(path)
+    assert [(e["event"], e["kind"], e["t_sim_s"]) for e in events] == [
+        ("start", "no_reply", 28.0),
+        ("start", "exception", 35.0),
+        ("end", "no_reply", 42.0),
+    ]
+    assert events[1]["served"] == {"exception_code": 4}
+    assert events[2]["requests"] == 2  # decide(2) at 28 and 35
+
+
+def test_random_faults_are_seeded_and_at_the_rate():
+    spec = [{"kind": "random", "rate_per_h": 6, "kinds": ["no_reply", "dropout"], "seed": 11}]
+
+    def starts(seed_spec) -> list[tuple[float, str, object]]:
+        engine = FaultEngine(faults_from_list(seed_spec))
+        out = []
+        seen: set[int] = set()
+        for t in range(0, 20 * 3600, 10):
+            engine.apply({"flue_gas_CO_ppm": 1.0}, float(t))
+            for fault in engine.active.values():
+                if fault.id not in seen:
+                    seen.add(fault.id)
+                    out.append(
+                        (fault.start_s, fault.spec.kind, fault.spec.unit or fault.spec.signal)
+                    )
+        return out
+
+    first, again = starts(spec), starts(spec)
+    other = starts([{**spec[0], "seed": 12}])
+    assert first == again and first != other
+    # a Poisson count over 20 h at 6/h: 120 expected, sd 11; 5 sd either side
+    assert 65 <= len(first) <= 175
+    assert {k for _, k, _ in first} == {"no_reply", "dropout"}
+
+
+def test_reset_rearms_the_schedule_and_clear_ends_everything(tmp_path):
+    path = tmp_path / "j.jsonl"
+    engine = FaultEngine(
+        faults_from_list([{"kind": "dropout", "signal": "room_temp_C", "at_s": 5}]),
+        FaultJournal(path),
+    )
+    readings = {"room_temp_C": 20.0}
+    engine.apply(readings, 10.0)
+    assert math.isnan(readings["room_temp_C"])
+    readings = {"room_temp_C": 20.0}
+    engine.apply(readings, 0.0)  # the plant was reset
+    assert readings["room_temp_C"] == 20.0 and not engine.active
+    engine.apply(readings, 6.0)
+    assert len(engine.active) == 1
+    assert engine.clear() == 1 and engine.idle
+    reasons = [e.get("reason") for e in read_journal(path) if e["event"] == "end"]
+    assert reasons == ["reset", "cleared"]

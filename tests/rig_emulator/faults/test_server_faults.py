@@ -1,0 +1,158 @@
+"""Faults through the server, over real sockets: the command block of the simulation
+control (applied, refused whole with 03, refused with 01 on a real-time server without
+--allow-control), the truth unit, the Python API, the dashboard's active faults, and
+``serve --faults`` from the command line."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+import urllib.request
+
+from hil_client.demo import rig_emulator_serve
+from hil_client.wait_for_port import free_port, wait_for_port
+from rig_emulator.cli import main as rig_emulator_main
+from rig_emulator.faults import read_journal
+from rig_emulator.faults.wire import KIND_CODES, SIGNAL_CODES
+from rig_emulator.registers import encode
+from tests.modbus_helpers import ADVANCE, client, point, read_point, start_boiler, write
+
+
+def _block(srv, kind: str, target: int, parameter: float, duration: float, at_s: float = 0.0):
+    """The 11 registers of the command block, command 1 (set)."""
+    words = []
+    for name, value in (
+        ("fault_kind", KIND_CODES[kind]),
+        ("fault_target", target),
+        ("fault_parameter", parameter),
+        ("fault_duration", duration),
+        ("fault_at", at_s),
+        ("fault_command", 1),
+    ):
+        words += encode(point(srv, "sim_control", name)[1], value)
+    return words
+
+
+def test_command_block_sets_and_clears_faults(serve, tmp_path):
+    journal = tmp_path / "j.jsonl"
+    srv = serve(fault_log=journal)
+    c = client(srv.port)
+    start_boiler(c, srv, 600)
+    co = SIGNAL_CODES["flue_gas_CO_ppm"]
+    r = c.write_registers(10, _block(srv, "dropout", co, 0.0, 5.0), device_id=100)
+    assert not r.isError()
+    dev, count = point(srv, "sim_control", "active_fault_count")
+    assert read_point(c, dev, count) == 1.0
+    assert math.isnan(read_point(c, *point(srv, "flue_gas_analyser", "CO")))
+    assert read_point(c, *point(srv, "flue_gas_analyser", "status")) == 4.0
+    truth = read_point(c, *point(srv, "truth", "flue_gas_CO_ppm"))
+    assert truth == srv.values()["true_flue_gas_CO_ppm"] and truth > 0
+    assert read_point(c, *point(srv, "sim_control", "fault_command")) == 0.0  # a trigger
+    # a block that is no fault: refused whole (03), nothing set
+    for bad in (
+        _block(srv, "dropout", 99, 0.0, 5.0),  # no such signal
+        _block(srv, "exception", 5, 300.0, 5.0),  # no such exception code
+        _block(srv, "no_reply", 100, 0.0, 5.0),  # the simulation control
+    ):
+        r = c.write_registers(10, bad, device_id=100)
+        assert r.isError() and r.exception_code == 3
+    assert read_point(c, dev, count) == 1.0
+    assert read_point(c, *point(srv, "sim_control", "fault_kind")) == KIND_CODES["dropout"]
+    # clear: command 2
+    assert not c.write_registers(20, [2], device_id=100).isError()
+    assert read_point(c, dev, count) == 0.0
+    assert not math.isnan(read_point(c, *point(srv, "flue_gas_analyser", "CO")))
+    c.close()
+    kinds = [(e["event"], e["kind"], e["source"], e.get("reason")) for e in read_journal(journal)]
+    assert kinds == [("start", "dropout", "modbus", None), ("end", "dropout", "modbus", "cleared")]
+
+
+def test_fault_block_on_a_realtime_server_needs_allow_control(serve):
+    srv = serve(lockstep=False, speed=1.0)
+    c = client(srv.port)
+    co = SIGNAL_CODES["flue_gas_CO_ppm"]
+    r = c.write_registers(10, _block(srv, "dropout", co, 0.0, 5.0), device_id=100)
+    assert r.isError() and r.exception_code == 1
+    assert srv.server.active_faults() == []
+    c.close()
+    allowed = serve(lockstep=False, speed=1.0, allow_control=True)
+    c = client(allowed.port)
+    r = c.write_registers(10, _block(allowed, "dropout", co, 0.0, 5.0), device_id=100)
+    assert not r.isError() and len(allowed.server.active_faults()) == 1
+    c.close()
+
+
+def test_python_api_and_truth(serve):
+    srv = serve(profile="lab", seed=5)
+    c = client(srv.port)
+    start_boiler(c, srv, 900)
+    srv.call(_inject(srv.server, {"kind": "offset", "signal": "balance_mass_kg", "value": 15.0}))
+    assert not write(c, srv, *ADVANCE, 1).isError()
+    reading = read_point(c, *point(srv, "balance", "mass"))
+    truth = srv.server.truth("balance_mass_kg")
+    # +15 kg on top of the instrument's own error (accuracy 0.05 kg, noise, 0.02 kg steps)
+    assert abs(reading - truth - 15.0) < 0.2
+    assert srv.server.active_faults()[0]["kind"] == "offset"
+    srv.server.clear_faults()
+    assert srv.server.active_faults() == []
+    c.close()
+
+
+async def _inject(server, fault):
+    server.inject(fault)
+
+
+def test_dashboard_lists_active_faults(tmp_path):
+    faults = tmp_path / "faults.yaml"
+    faults.write_text("faults:\n  - {kind: no_reply, unit: 2, at_s: 0}\n")
+    http = free_port()
+    with rig_emulator_serve(
+        "windhager_12kw", "--lockstep", "--http", str(http), "--faults", str(faults)
+    ) as (port, _):
+        assert wait_for_port("127.0.0.1", http, 30.0)
+        c = client(port)
+        from rig_emulator.registers import load_map
+
+        register_map = load_map()
+        dev = register_map.device("sim_control")
+        p = next(q for q in dev.points if q.name == "lockstep_advance")
+        assert not c.write_registers(p.address, encode(p, 1), device_id=100).isError()
+        c.close()
+        with urllib.request.urlopen(f"http://127.0.0.1:{http}/api/state", timeout=10) as r:
+            state = json.loads(r.read())
+    assert [(f["kind"], f["unit"], f["source"]) for f in state["faults"]] == [
+        ("no_reply", 2, "file")
+    ]
+
+
+def test_serve_refuses_a_bad_faults_file(tmp_path, capsys):
+    bad = tmp_path / "faults.yaml"
+    bad.write_text("faults:\n  - {kind: delay, unit: 3}\n")
+    code = rig_emulator_main(["serve", "--boiler", "windhager_12kw", "--faults", str(bad)])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert "faults[0].delay_ms: missing" in err and str(bad) in err
+    code = rig_emulator_main(["serve", "--boiler", "windhager_12kw", "--faults", "nope.yaml"])
+    assert code == 2 and "nope.yaml" in capsys.readouterr().err
+    # and as a user sees it: a subprocess, one line, exit 2, no traceback
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "rig_emulator.cli",
+            "serve",
+            "--boiler",
+            "windhager_12kw",
+            "--faults",
+            str(bad),
+            "--port",
+            str(free_port()),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert proc.stderr.strip().count("\n") == 0

@@ -1,0 +1,95 @@
+"""FAULTS.yaml as data: every kind parses; every bad entry is one error naming entry and field."""
+
+from __future__ import annotations
+
+import pytest
+
+from rig_emulator.faults import FaultError, FaultSpec, RandomSpec, faults_from_list, load_faults
+from rig_emulator.instruments import ProfileError, load_profile, profile_from_mapping
+
+GOOD = [
+    {"kind": "delay", "unit": 1, "delay_ms": 800, "at_s": 10, "for_s": 5},
+    {"kind": "no_reply", "unit": 2, "at_s": 20},
+    {"kind": "exception", "unit": 0, "code": 11},
+    {"kind": "disconnect", "at_s": 30},
+    {"kind": "stuck", "signal": "flue_gas_temp_C", "at_s": 40, "for_s": 60},
+    {"kind": "drift", "signal": "water_out_temp_C", "rate_per_h": -2.5},
+    {"kind": "spike", "signal": "flue_gas_O2_pct", "value": 25},
+    {"kind": "dropout", "signal": "flue_gas_CO_ppm"},
+    {"kind": "offset", "signal": "balance_mass_kg", "value": 15.0},
+    {"kind": "random", "rate_per_h": 2, "kinds": ["no_reply", "spike"], "seed": 7},
+]
+
+
+def test_every_kind_parses_with_its_parameter():
+    entries = faults_from_list(GOOD, "f.yaml")
+    assert [e.kind for e in entries] == [g["kind"] for g in GOOD]
+    delay, no_reply, exc, disc, stuck, drift, spike, dropout, offset, rnd = entries
+    assert delay == FaultSpec("delay", 10.0, 5.0, 1, None, 800.0)
+    assert no_reply.unit == 2 and no_reply.for_s is None
+    assert exc.parameter == 11.0 and disc.unit == 0
+    assert stuck.signal == "flue_gas_temp_C" and drift.parameter == -2.5
+    assert spike.parameter == 25.0 and dropout.parameter is None and offset.parameter == 15.0
+    assert isinstance(rnd, RandomSpec) and rnd.seed == 7 and rnd.kinds == ("no_reply", "spike")
+    # the dict form round-trips
+    assert faults_from_list([e.as_dict() for e in entries[:9]]) == entries[:9]
+
+
+@pytest.mark.parametrize(
+    ("entry", "where"),
+    [
+        ({"kind": "lightning", "unit": 1}, "faults[0].kind"),
+        ({"kind": "delay", "unit": 1}, "faults[0].delay_ms"),
+        ({"kind": "delay", "unit": 1, "delay_ms": -5}, "faults[0].delay_ms"),
+        ({"kind": "exception", "unit": 1, "code": 0}, "faults[0].code"),
+        ({"kind": "exception", "unit": 1, "code": 4.5}, "faults[0].code"),
+        ({"kind": "no_reply", "unit": 100}, "faults[0].unit"),
+        ({"kind": "no_reply", "unit": 300}, "faults[0].unit"),
+        ({"kind": "no_reply"}, "faults[0].unit"),
+        ({"kind": "stuck", "signal": "nonsense"}, "faults[0].signal"),
+        ({"kind": "stuck"}, "faults[0].signal"),
+        ({"kind": "stuck", "signal": "room_temp_C", "unit": 1}, "faults[0].unit"),
+        ({"kind": "drift", "signal": "room_temp_C", "rate_per_h": "fast"}, "faults[0].rate_per_h"),
+        ({"kind": "spike", "signal": "room_temp_C", "value": float("nan")}, "faults[0].value"),
+        ({"kind": "no_reply", "unit": 1, "at_s": -1}, "faults[0].at_s"),
+        ({"kind": "no_reply", "unit": 1, "for_s": 0}, "faults[0].for_s"),
+        ({"kind": "random", "kinds": ["spike"]}, "faults[0].rate_per_h"),
+        ({"kind": "random", "rate_per_h": 1, "kinds": []}, "faults[0].kinds"),
+        ({"kind": "random", "rate_per_h": 1, "kinds": ["spike", "x"]}, "faults[0].kinds[1]"),
+        ({"kind": "random", "rate_per_h": 1, "kinds": ["spike"], "units": [100]}, "units[0]"),
+        (
+            {"kind": "random", "rate_per_h": 1, "kinds": ["delay"], "params": {"delay": {"x": 1}}},
+            "faults[0].params.delay",
+        ),
+        ("no_reply", "faults[0]"),
+    ],
+)
+def test_a_bad_entry_names_the_entry_and_field(entry, where):
+    with pytest.raises(FaultError) as err:
+        faults_from_list([GOOD[0], entry][1:], "f.yaml")
+    message = str(err.value)
+    assert message.startswith("f.yaml: ") and where in message, message
+    assert "\n" not in message
+
+
+def test_a_bad_file_is_named(tmp_path):
+    path = tmp_path / "faults.yaml"
+    path.write_text("faults: [{kind: no_reply, unit: 2}\n")
+    with pytest.raises(FaultError, match=r"faults.yaml: not valid YAML"):
+        load_faults(path)
+    path.write_text("fault: []\n")
+    with pytest.raises(FaultError, match=r"expected a mapping with a list 'faults:'"):
+        load_faults(path)
+    path.write_text("faults:\n  - {kind: no_reply, unit: 2}\n  - {kind: spike, signal: x}\n")
+    with pytest.raises(FaultError, match=r"faults\[1\]\.value|faults\[1\]\.signal"):
+        load_faults(path)
+
+
+def test_profiles_carry_faults():
+    faulty = load_profile("lab_faulty")
+    lab = load_profile("lab")
+    assert faulty.instruments == lab.instruments and faulty.effects == lab.effects
+    assert len(faulty.faults) == 1 and isinstance(faulty.faults[0], RandomSpec)
+    assert lab.faults == ()
+    with pytest.raises(ProfileError, match=r"p.yaml: faults\[0\].kind"):
+        profile_from_mapping({"name": "x", "faults": [{"kind": "hail"}]}, "p.yaml")

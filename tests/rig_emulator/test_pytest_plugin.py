@@ -1,0 +1,121 @@
+"""The pytest plugin, as a user's suite uses it: a real pytest subprocess that finds the
+plugin through the ``pytest11`` entry point of pyproject.toml (published to it as a
+distribution's metadata on its path, since the shared venv is not reinstalled here)."""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+USER_SUITE = """
+import math
+import pytest
+
+PORTS = []
+
+
+@pytest.mark.rig_emulator(profile="lab", seed=2)
+def test_api(rig_emulator):
+    PORTS.append(rig_emulator.port)
+    rig_emulator.advance(120)
+    assert rig_emulator.read("sim_time_s") == 120.0
+    true_room = rig_emulator.truth("room_temp_C")
+    rig_emulator.inject({"kind": "offset", "signal": "room_temp_C", "value": 5.0})
+    rig_emulator.advance(1)
+    assert rig_emulator.read("room_temp_C") - rig_emulator.truth("room_temp_C") > 4.0
+    assert abs(rig_emulator.truth("room_temp_C") - true_room) < 0.5
+    rig_emulator.inject({"kind": "dropout", "signal": "flue_gas_O2_pct", "for_s": 5})
+    rig_emulator.advance(1)
+    assert math.isnan(rig_emulator.read("flue_gas_O2_pct"))
+    assert rig_emulator.active_fault_count() == 2
+    rig_emulator.clear_faults()
+    assert rig_emulator.active_fault_count() == 0
+    with open(PORTS_FILE, "a") as fh:
+        fh.write(f"{rig_emulator.port} {rig_emulator.process.pid}\\n")
+
+
+def test_failing_test_still_stops_the_server(rig_emulator):
+    with open(PORTS_FILE, "a") as fh:
+        fh.write(f"{rig_emulator.port} {rig_emulator.process.pid}\\n")
+    assert rig_emulator.truth("water_flow_kg_h") == 12345.0  # fails on purpose
+"""
+
+
+def _entry_points() -> dict[str, str]:
+    return tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["entry-points"][
+        "pytest11"
+    ]
+
+
+def test_entry_point_is_declared():
+    assert _entry_points() == {"rig_emulator.pytest_plugin": "rig_emulator.pytest_plugin"}
+
+
+def _env_with_entry_point(tmp_path: Path) -> dict[str, str]:
+    """PYTHONPATH with this worktree and a distribution whose metadata carries the
+    pyproject's entry points (what ``pip install`` writes)."""
+    site = tmp_path / "site"
+    dist = site / "rig_plugin_probe-0.0.dist-info"
+    dist.mkdir(parents=True)
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: rig-plugin-probe\nVersion: 0.0\n")
+    lines = "".join(f"{name} = {target}\n" for name, target in _entry_points().items())
+    (dist / "entry_points.txt").write_text("[pytest11]\n" + lines)
+    return {**os.environ, "PYTHONPATH": f"{ROOT}{os.pathsep}{site}"}
+
+
+def test_user_suite_runs_and_servers_stop_even_on_failure(tmp_path):
+    ports = tmp_path / "ports.txt"
+    (tmp_path / "test_user.py").write_text(f"PORTS_FILE = {str(ports)!r}\n" + USER_SUITE)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pytest",
+            "-q",
+            "-p",
+            "rig_emulator.pytest_plugin",
+            "-p",
+            "no:cacheprovider",
+            "--strict-markers",
+            str(tmp_path / "test_user.py"),
+        ],
+        cwd=tmp_path,
+        env=_env_with_entry_point(tmp_path),
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert "1 failed, 1 passed" in proc.stdout, proc.stdout + proc.stderr
+    assert "12345" in proc.stdout  # the failure is the user's assertion, not the fixture's
+    started = [line.split() for line in ports.read_text().splitlines()]
+    assert len(started) == 2
+    for port, pid in started:
+        assert (
+            not Path(f"/proc/{pid}").exists() or "zombie" in Path(f"/proc/{pid}/status").read_text()
+        )
+        with pytest.raises(OSError), socket.create_connection(("127.0.0.1", int(port)), 1):
+            pass
+
+
+@pytest.mark.parametrize("also_p", [False, True])
+def test_marker_is_registered_once(tmp_path, also_p):
+    """Through the entry point, with or without ``-p rig_emulator.pytest_plugin`` on top."""
+    extra = ["-p", "rig_emulator.pytest_plugin"] if also_p else []
+    proc = subprocess.run(
+        [sys.executable, "-m", "pytest", "--markers", *extra],
+        env=_env_with_entry_point(tmp_path),
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=tmp_path,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.count("@pytest.mark.rig_emulator(boiler=") == 1
