@@ -20,6 +20,7 @@ import hashlib
 import json
 import math
 from collections.abc import Callable
+from operator import itemgetter
 
 import numpy as np
 
@@ -72,6 +73,10 @@ ANALYSER_SIGNALS = (
 
 _INDEX = {name: i for i, name in enumerate(MEASURED)}
 _TRUE_KEYS = tuple("true_" + name for name in MEASURED)  # the plant's values, published
+
+
+#: The measured signals by name -> a sequence in MEASURED order (C speed, once per step).
+_IN_MEASURED_ORDER = itemgetter(*MEASURED)
 
 
 class CommandError(ValueError):
@@ -258,8 +263,7 @@ class Emulator:
     # ------------------------------------------------------------------ values
     def _plant_values(self) -> list[float]:
         """True values of the measured signals, in :data:`MEASURED` order."""
-        values = self._plant_by_name()
-        return [values[name] for name in MEASURED]
+        return list(_IN_MEASURED_ORDER(self._plant_by_name()))
 
     def _plant_by_name(self) -> dict[str, float]:
         """True values of the measured signals by name, from the plant's named outputs."""

@@ -31,6 +31,7 @@ import math
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from operator import itemgetter
 
 from hil_client.protocol.definition import ProtocolDefinition
 from hil_client.protocol.rig import READING_KEYS, Rig, RigCommand, RigError
@@ -52,6 +53,12 @@ LOG_COLUMNS: tuple[str, ...] = (
 _START_MARK = {"start_up": "t0_s", "test": "t1_s", "cooling_1": "t2_s", "cooling_2": "t3_s"}
 
 PHASES = ("preheat", "start_up", "test", "cooling_1", "cooling_2")
+
+# A row from the step's own values and the readings, taken by name in LOG_COLUMNS' order
+# (operator.itemgetter: the per-row cost of a plain tuple)
+_HEAD = itemgetter(*LOG_COLUMNS[3 : LOG_COLUMNS.index("water_flow_setpoint_kg_h")])
+_TAIL = itemgetter(*LOG_COLUMNS[LOG_COLUMNS.index("water_flow_setpoint_kg_h") + 1 : -1])
+assert LOG_COLUMNS[:3] == ("time_s", "phase", "sequence") and LOG_COLUMNS[-1] == "rig_epoch"
 
 Row = tuple[object, ...]
 
@@ -200,14 +207,7 @@ def run_protocol(
         rows += 1
         setpoint = command.flow_setpoint_kg_h if command.pump_on else 0.0
         rig_epoch = getattr(rig, "epoch", 0)
-        step = {
-            "time_s": t,
-            "phase": phase,
-            "sequence": sequence,
-            "water_flow_setpoint_kg_h": setpoint,
-            "rig_epoch": rig_epoch,
-        }
-        row = tuple(step[c] if c in step else reading[c] for c in LOG_COLUMNS)
+        row = (t, phase, sequence, *_HEAD(reading), setpoint, *_TAIL(reading), rig_epoch)
         sink(row)
         if progress is not None:
             progress(row)
