@@ -11,7 +11,10 @@ Routes (GET unless said):
 - POST ``/api/control`` with ``{"signal": NAME, "value": X}``: only with
   ``--http-control``; the write takes the Modbus write path of
   :meth:`~rig_emulator.modbus.server.BenchServer.write_signal` (the same checks, the same
-  exception codes), so the page can do nothing a Modbus client could not.
+  exception codes), so the page can do nothing a Modbus client could not;
+- POST ``/api/faults`` with ``{"inject": {FAULT}}`` (an entry as in ``FAULTS.yaml``,
+  validated the same way) or ``{"clear": true}``: only with ``--http-control``, through
+  :meth:`~rig_emulator.modbus.server.BenchServer.inject` and ``clear_faults``.
 
 Every request is bounded (8 kB of headers, 4 kB of body, 10 s to arrive); a malformed one
 gets 400 and the connection closes. The work per push is one snapshot shared by all
@@ -32,6 +35,7 @@ from urllib.parse import parse_qs, urlsplit
 import numpy as np
 
 from rig_emulator.dashboard.state import CLOCK_MODES, Trend, units, with_derived
+from rig_emulator.faults import FaultError
 from rig_emulator.modbus.server import BenchServer
 
 log = logging.getLogger("rig_emulator.dashboard")
@@ -160,7 +164,9 @@ class Dashboard:
             await self._stream(writer)
         elif url.path == "/api/control" and method == "POST":
             await self._control(body, writer)
-        elif url.path in ("/", "/api/state", "/api/stream", "/api/control"):
+        elif url.path == "/api/faults" and method == "POST":
+            await self._faults(body, writer)
+        elif url.path in ("/", "/api/state", "/api/stream", "/api/control", "/api/faults"):
             await _respond(writer, 405, {"error": f"{method} not allowed on {url.path}"})
         else:
             await _respond(writer, 404, {"error": f"no such page: {url.path}"})
@@ -213,6 +219,32 @@ class Dashboard:
         log.info("dashboard control: %s = %r", signal, value)
         self._sample()
         await _respond(writer, 200, {"ok": True, "signal": signal, "value": value})
+
+
+    async def _faults(self, body: bytes, writer: asyncio.StreamWriter) -> None:
+        if not self.control:
+            await _respond(writer, 403, {"error": "controls are off (serve --http-control)"})
+            return
+        try:
+            request = json.loads(body or b"{}")
+        except (json.JSONDecodeError, UnicodeDecodeError):
+            raise BadRequest("the body is not JSON") from None
+        if not isinstance(request, dict) or not (
+            isinstance(request.get("inject"), dict) or request.get("clear") is True
+        ):
+            raise BadRequest('expected {"inject": {FAULT}} or {"clear": true}')
+        if request.get("clear") is True:
+            self.server.clear_faults()
+            log.info("dashboard control: faults cleared")
+        else:
+            try:
+                self.server.inject(request["inject"])
+            except FaultError as exc:
+                await _respond(writer, 400, {"error": str(exc)})
+                return
+            log.info("dashboard control: fault %s", request["inject"])
+        self._sample()
+        await _respond(writer, 200, {"ok": True, "faults": self.server.active_faults()})
 
 
 def _num(x: float) -> float | None:

@@ -46,8 +46,8 @@ def _get(http: int, path: str):
         return r.status, r.headers.get("Content-Type"), r.read()
 
 
-def _post(http: int, body: bytes) -> tuple[int, dict]:
-    req = urllib.request.Request(f"http://127.0.0.1:{http}/api/control", data=body, method="POST")
+def _post(http: int, body: bytes, path: str = "/api/control") -> tuple[int, dict]:
+    req = urllib.request.Request(f"http://127.0.0.1:{http}{path}", data=body, method="POST")
     try:
         with urllib.request.urlopen(req, timeout=10) as r:
             return r.status, json.loads(r.read())
@@ -222,3 +222,29 @@ def test_bad_dashboard_options_get_one_line(options, message, capsys):
     assert main(["serve", "--boiler", "windhager_12kw", *options]) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
+
+
+def test_faults_are_set_and_cleared_from_the_page_only_with_controls(dashboard):
+    """A fault set from the dashboard acts on the wire (the unit stops answering) and shows
+    in the state; a bad fault is refused with the reason; without --http-control: 403."""
+    _, http = dashboard()
+    status, body = _post(http, b'{"clear": true}', "/api/faults")
+    assert status == 403 and "--http-control" in body["error"]
+
+    port, http = dashboard("--http-control")
+    status, body = _post(http, b'{"inject": {"kind": "exception", "unit": 2, "code": 6}}',
+                         "/api/faults")  # fmt: skip
+    assert status == 200 and [f["kind"] for f in body["faults"]] == ["exception"]
+    c = client(port)
+    try:
+        r = c.read_input_registers(0, count=2, device_id=2)
+        assert r.isError() and r.exception_code == 6  # the analyser answers 06 now
+        _, _, raw = _get(http, "/api/state")
+        assert [f["kind"] for f in json.loads(raw)["faults"]] == ["exception"]
+        status, body = _post(http, b'{"inject": {"kind": "exception", "unit": 2}}', "/api/faults")
+        assert status == 400 and "code" in body["error"]  # the same validation as FAULTS.yaml
+        status, body = _post(http, b'{"clear": true}', "/api/faults")
+        assert status == 200 and body["faults"] == []
+        assert not c.read_input_registers(0, count=2, device_id=2).isError()
+    finally:
+        c.close()
