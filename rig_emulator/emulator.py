@@ -294,8 +294,13 @@ class Emulator:
         }
 
     def reading_by_name(self) -> dict[str, float]:
-        """Instrument readings of the measured signals by name."""
-        return dict(zip(MEASURED, self.readings, strict=True))
+        """Instrument readings of the measured signals by name (a new dict)."""
+        if self._stale:  # ideal instruments: the readings are the plant's values
+            by_name = self._plant_by_name()
+            self._true = self._readings = list(_IN_MEASURED_ORDER(by_name))
+            self._stale = False
+            return by_name
+        return dict(zip(MEASURED, self._readings, strict=True))
 
     @property
     def boiler_on(self) -> float:
