@@ -220,7 +220,6 @@ class Dashboard:
         self._sample()
         await _respond(writer, 200, {"ok": True, "signal": signal, "value": value})
 
-
     async def _faults(self, body: bytes, writer: asyncio.StreamWriter) -> None:
         if not self.control:
             await _respond(writer, 403, {"error": "controls are off (serve --http-control)"})
