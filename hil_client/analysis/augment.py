@@ -59,8 +59,8 @@ def pipe_sensor(t_boiler, flow_kg_h, room, dt, pipe_kg, tau_loss, tau_coupling):
 
 
 @njit(cache=True)
-def two_lump(q_hx_kW, flow_kg_h, t_in, room, ua_kW_K, dt, tm0, tw0, c_metal, c_water, g_kW_K):
-    """Metal and water temperatures of a body split into two lumps (``body_heat_diffusion``).
+def two_lump_water(q_hx_kW, flow_kg_h, t_in, room, ua_kW_K, dt, t0, c_metal, c_water, g_kW_K):
+    """Water temperature of a body split into metal and water (``body_heat_diffusion``).
 
     The exchanger's heat enters the metal (capacity ``c_metal`` [kJ/K]), which passes it to
     the water (``c_water``) through the conductance ``g_kW_K``; the water carries the flow
@@ -69,13 +69,11 @@ def two_lump(q_hx_kW, flow_kg_h, t_in, room, ua_kW_K, dt, tm0, tw0, c_metal, c_w
         C_m dT_m/dt = Q_hx - G (T_m - T_w)
         C_w dT_w/dt = G (T_m - T_w) - m_w cp_w (T_w - T_in) - UA (T_w - T_room)
 
-    Backward Euler per step (stable for any step), from ``tm0`` and ``tw0`` [C]. Returns
-    (water, metal) at the end of each step."""
+    Backward Euler per step (stable for any step). Both start at ``t0`` [C]."""
     cp = CP_WATER
-    water = np.empty_like(q_hx_kW)
-    metal = np.empty_like(q_hx_kW)
-    tm = tm0
-    tw = tw0
+    out = np.empty_like(q_hx_kW)
+    tm = t0
+    tw = t0
     for i in range(q_hx_kW.size):
         h = dt[i]
         a = max(flow_kg_h[i], 0.0) * cp / 3600.0 + ua_kW_K[i]
@@ -89,14 +87,5 @@ def two_lump(q_hx_kW, flow_kg_h, t_in, room, ua_kW_K, dt, tm0, tw0, c_metal, c_w
         det = a11 * a22 - g_kW_K * g_kW_K
         tm = (b1 * a22 + g_kW_K * b2) / det
         tw = (a11 * b2 + g_kW_K * b1) / det
-        water[i] = tw
-        metal[i] = tm
-    return water, metal
-
-
-def two_lump_water(q_hx_kW, flow_kg_h, t_in, room, ua_kW_K, dt, t0, c_metal, c_water, g_kW_K):
-    """Water temperature of :func:`two_lump` with metal and water both starting at ``t0``."""
-    water, _ = two_lump(
-        q_hx_kW, flow_kg_h, t_in, room, ua_kW_K, dt, t0, t0, c_metal, c_water, g_kW_K
-    )
-    return water
+        out[i] = tw
+    return out

@@ -51,7 +51,7 @@ from typing import Protocol
 
 import numpy as np
 
-from hil_client.analysis.augment import first_order_lag, pipe_sensor, two_lump
+from hil_client.analysis.augment import first_order_lag, pipe_sensor, two_lump_water
 from hil_client.analysis.balance import flue_gas_loss_per_kg
 from hil_client.analysis.evidence import BlockGain, Evidence, cross_validate
 from hil_client.analysis.firing import windows_after
@@ -325,63 +325,61 @@ def _pipe_predict(case: Case, theta: dict[str, float] | None) -> np.ndarray:
     return water
 
 
-def body_lumps(
-    case: Case, tau_body_s: float, rows: slice = slice(None), start: tuple | None = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """(water, metal) of a two-lump body (metal: the documented Ctherm) driven by the
-    replayed model's heat to the exchanger over ``rows``, from ``start`` = (metal, water)
-    [C] (default: both at the model's first temperature); ``tau_body_s`` = C_metal / G."""
+def body_water(case: Case, tau_body_s: float) -> np.ndarray:
+    """The water of a two-lump body (metal: the documented Ctherm) driven by the replayed
+    model's heat to the exchanger; ``tau_body_s`` = C_metal / G."""
     p = case.params
     c_metal = p.c_therm_kJ_K
-    c_water = p.capacity_kJ_K - c_metal
     ua = np.where(case.firing.burning, p.ua_amb_on_W_K, p.ua_amb_off_W_K) / 1000.0
-    t0 = float(case.model["t_boiler_C"][0])
-    tm0, tw0 = start if start is not None else (t0, t0)
-    return two_lump(
-        (case.model["q_hx_kW"] + case.model["q_el_ign_kW"])[rows],
-        case.flow[rows],
-        case.t_in[rows],
-        case.room[rows],
-        ua[rows],
-        case.dt[rows],
-        tm0,
-        tw0,
+    return two_lump_water(
+        case.model["q_hx_kW"] + case.model["q_el_ign_kW"],
+        case.flow,
+        case.t_in,
+        case.room,
+        ua,
+        case.dt,
+        float(case.model["t_boiler_C"][0]),
         c_metal,
-        c_water,
+        p.capacity_kJ_K - c_metal,
         c_metal / tau_body_s,
     )
 
 
 def _body_predict(case: Case, theta: dict[str, float] | None) -> np.ndarray:
     # the base: the same two lumps tied by a 1-s conductance, i.e. the one node
-    water, _ = body_lumps(case, theta["tau_body_s"] if theta else 1.0)
+    water = body_water(case, theta["tau_body_s"] if theta else 1.0)
     return first_order_lag(water, case.dt, SENSOR_TAU_S["boiler_water_temp_C"])
 
 
-def _after_stop_change(
-    case: Case, blocks: list, r: np.ndarray, early_s: float, late_s: float
-) -> list[float]:
-    """Per stop: the residual's mean over ``late_s`` at the end of its window less its mean
-    over ``early_s`` from the end of combustion (its anchor)."""
+def _per_stop(case: Case, blocks: list, r: np.ndarray, reference_s: float, over_s: float):
+    """Per stop (the blocks of one anchor, the end of combustion): the residual over
+    ``reference_s`` from the anchor, and over ``over_s`` at the end of its window (positive)
+    or from its anchor (negative), as (reference, rows) pairs of finite values."""
     t = case.t
     ends: dict[int, int] = {}
     for _, rows, anchor in blocks:
         ends[anchor] = max(ends.get(anchor, 0), int(rows[-1]) + 1)
     out = []
     for a, e in ends.items():
-        early = r[a : int(np.searchsorted(t, t[a] + early_s))]
-        late = r[int(np.searchsorted(t, t[e - 1] - late_s)) : e]
-        if np.isfinite(early).any() and np.isfinite(late).any():
-            out.append(float(np.nanmean(late) - np.nanmean(early)))
+        ref = r[a : int(np.searchsorted(t, t[a] + reference_s))]
+        if over_s > 0:
+            part = r[int(np.searchsorted(t, t[e - 1] - over_s)) : e]
+        else:
+            part = r[a : min(int(np.searchsorted(t, t[a] - over_s)), e)]
+        ref, part = ref[np.isfinite(ref)], part[np.isfinite(part)]
+        if len(ref) and len(part):
+            out.append((ref, part))
     return out
 
 
 def _flue_fingerprint(case: Case, blocks: list, r: np.ndarray) -> tuple[bool, str]:
     """Stored heat: the flue gas is hotter than the model's when combustion ends and falls
-    toward it afterwards (by :data:`FLUE_STORED_MIN_K` at least, in the median stop). A
-    flue gas that ends up *further above* the model's, or starts below it, is the probe's
-    own idle level (draught air, radiation to the duct), not storage."""
-    fall = [-x for x in _after_stop_change(case, blocks, r, STOP_REFERENCE_S, SUB_BLOCK_S)]
+    toward it afterwards (by :data:`FLUE_STORED_MIN_K` at least, in the median stop; the
+    mean of its last 5 min against its first minute). A flue gas that ends up *further
+    above* the model's, or starts below it, is the probe's own idle level (draught air,
+    radiation to the duct), not storage."""
+    pairs = _per_stop(case, blocks, r, STOP_REFERENCE_S, SUB_BLOCK_S)
+    fall = [float(np.mean(ref) - np.mean(late)) for ref, late in pairs]
     if not fall or float(np.median(fall)) < FLUE_STORED_MIN_K:
         got = f"{float(np.median(fall)):.1f} K" if fall else "no stop"
         return False, f"flue gas does not fall toward the model's after stops ({got})"
@@ -390,20 +388,11 @@ def _flue_fingerprint(case: Case, blocks: list, r: np.ndarray) -> tuple[bool, st
 
 def _body_fingerprint(case: Case, blocks: list, r: np.ndarray) -> tuple[bool, str]:
     """Stored heat: after combustion ends the metal still heats the water, so the water
-    runs warmer than the model's within the first 15 min (by :data:`BODY_STORED_MIN_K` at
-    least, in the median stop); water that cools faster than the model's is a mismatch of
-    level or of losses, not a body."""
-    # the rise is read at the peak of the first 15 min, where a body of 1-7 min shows
-    t = case.t
-    peaks = []
-    ends: dict[int, int] = {}
-    for _, rows, anchor in blocks:
-        ends[anchor] = max(ends.get(anchor, 0), int(rows[-1]) + 1)
-    for a, e in ends.items():
-        early = r[a : int(np.searchsorted(t, t[a] + STOP_REFERENCE_S))]
-        first = r[a : min(int(np.searchsorted(t, t[a] + 3 * SUB_BLOCK_S)), e)]
-        if np.isfinite(early).any() and np.isfinite(first).any():
-            peaks.append(float(np.nanmax(first) - np.nanmean(early)))
+    runs warmer than the model's within the first 15 min, where a body of 1-7 min shows (by
+    :data:`BODY_STORED_MIN_K` at least at its peak, in the median stop); water that cools
+    faster than the model's is a mismatch of level or of losses, not a body."""
+    pairs = _per_stop(case, blocks, r, STOP_REFERENCE_S, -3 * SUB_BLOCK_S)
+    peaks = [float(np.max(first) - np.mean(ref)) for ref, first in pairs]
     if not peaks or float(np.median(peaks)) < BODY_STORED_MIN_K:
         got = f"{float(np.median(peaks)):+.2f} K" if peaks else "no stop"
         return False, f"water not warmer than the model's after stops ({got})"
