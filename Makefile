@@ -29,8 +29,9 @@ tools:
 	  && (apt-get update -qq && apt-get install -y -qq chromium) >/dev/null 2>&1; } \
 	  || echo "note: chromium not installed; the dashboard's browser test will be skipped"
 
+# the suite runs on both cores, a test file per worker (module fixtures are built once)
 test: $(STAMP) tools
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
 bench: $(STAMP)
 	$(BIN)/python bench/run_bench.py
