@@ -72,19 +72,6 @@ class GateDecision:
 Gate = Callable[[RequestInfo], "GateDecision | None"]
 
 
-def run_now(coro: Coroutine[Any, Any, Any]) -> asyncio.Task | None:
-    """Run ``coro`` to completion at once; if it waits on a future, finish it as a task
-    (returned; None when it finished at once)."""
-    try:
-        future = coro.send(None)
-    except StopIteration:
-        return None
-    task = asyncio.get_running_loop().create_task(_resume(coro, future))
-    _PENDING.add(task)
-    task.add_done_callback(_PENDING.discard)
-    return task
-
-
 @types.coroutine
 def _resume(coro: Coroutine[Any, Any, Any], future: Any) -> Generator[Any, None, Any]:
     """Hand the futures ``coro`` waits on to the task running this; return its result."""
