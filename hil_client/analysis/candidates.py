@@ -27,9 +27,9 @@ mismatch the plant carried into the stop (its own set point, its modulation) is 
 counted; each window is cut into 5-min blocks for the cross-validation.
 ``ignition_delay`` (balance; around each start)
     Measured directly: the fuel the balance lost before the flue gas showed combustion
-    (the mass before the start less the back-extrapolated mass at the onset). Without the
-    effect it is what the auger feeds within the onset's detection time, well under two
-    balance steps (0.04 kg).
+    (the mass before the start less the mass at the onset, read from the readings before
+    it). Without the effect it is what the auger feeds within the onset's detection time,
+    well under two balance steps (0.04 kg).
 ``fuel_energy_bias`` (balance; test phase, 1-h blocks without starts or stops)
     Energy closure from the instruments: the fuel the measured heat to water, storage,
     loss to the room and flue-gas losses (from the measured flue-gas temperature and O2,
@@ -98,6 +98,8 @@ PRE_WINDOW_END_S = 720.0
 #: ... over at least this long and at most this long [s].
 PRE_WINDOW_MIN_S = 180.0
 PRE_WINDOW_MAX_S = 480.0
+#: The mass at the onset is read from the readings this long before it [s].
+ONSET_FIT_S = 90.0
 #: Systematic relative uncertainty of the energy closure: flow meter 0.5 %/sqrt(3), forward
 #: minus return after the isothermal check 0.1 K of about 15 K, loss to the room and the
 #: flue-gas stoichiometry about 0.5 % each.
@@ -487,19 +489,30 @@ FLUE = CurveCandidate(
 # ignition delay: fuel fed before the bed burns, measured at each start
 
 
+def _start_feed_rate_kg_h(case: Case) -> float:
+    """The balance's loss rate at the documented start-up power Pstart [kg/h]."""
+    fuel = case.params.fuel
+    return case.params.p_start_kW / fuel.lhv_dry_kJ_kg * fuel.balance_loss_per_kg_dry * 3600.0
+
+
 def _pre_feed(case: Case) -> list[tuple[float, float, float]]:
-    """(fuel lost before the onset of combustion [kg], its standard error [kg], feed rate
-    after the onset [kg/h]) per start that follows at least 15 min without burning.
+    """(fuel lost before the onset of combustion [kg], its standard error [kg], the feed
+    rate it is counted in [kg/h]) per start that follows at least 15 min without burning.
 
     The mass before is the mean reading from 20 min (or the last stop, or the record's
     start, whichever is later; at least 3 min of readings) to 12 min before the onset (a
-    pre-feed of up to 12 min fits in between); the mass at the onset
-    is the line through the readings of the 5 min after it, taken back to the onset. Each
-    has the standard error of its fit, at least that of the balance's 0.02-kg steps
-    (uniform rounding: 0.02 / sqrt(12) per reading)."""
+    pre-feed of up to 12 min fits in between); the mass at the onset is the line through
+    the readings of the :data:`ONSET_FIT_S` before it, read at the onset. Only readings
+    before the onset count: what the auger feeds once the bed burns (an ignition charge
+    landing on the flame, a fuel ramp) is the start-up's own, not fuel waiting for the bed
+    to light. Each mass has the standard error of its fit, at least that of the balance's
+    0.02-kg steps (uniform rounding: 0.02 / sqrt(12) per reading). The rate is the
+    documented start-up power's (Pstart at the nominal calorific value), so the evidence
+    reads as seconds of feed whatever the plant's own start-up does after the onset."""
     t = case.t
     mass = case.balance
     rounding = BALANCE_STEP_KG / math.sqrt(12.0)
+    rate_kg_h = _start_feed_rate_kg_h(case)
     out = []
     stops = case.firing.stops
     for i in case.firing.starts:
@@ -510,18 +523,18 @@ def _pre_feed(case: Case) -> list[tuple[float, float, float]]:
         if quiet_s < PRE_WINDOW_END_S + PRE_WINDOW_MIN_S:
             continue
         pre = (t >= ts - quiet_s) & (t <= ts - PRE_WINDOW_END_S) & ~np.isnan(mass)
-        post = (t >= ts) & (t <= ts + 300.0) & ~np.isnan(mass)
-        if pre.sum() < 5 or post.sum() < 10:
+        near = (t >= ts - ONSET_FIT_S) & (t <= ts) & ~np.isnan(mass)
+        if pre.sum() < 5 or near.sum() < 4:
             continue
         m0 = float(np.mean(mass[pre]))
         u0 = max(float(np.std(mass[pre])), rounding) / math.sqrt(pre.sum())
-        x = t[post] - ts
-        slope, intercept = np.polyfit(x, mass[post], 1)
-        resid = mass[post] - (intercept + slope * x)
+        x = t[near] - ts
+        slope, intercept = np.polyfit(x, mass[near], 1)
+        resid = mass[near] - (intercept + slope * x)
         s_res = max(float(np.std(resid, ddof=2)), rounding)
         sxx = float(np.sum((x - x.mean()) ** 2))
         u1 = s_res * math.sqrt(1.0 / len(x) + x.mean() ** 2 / sxx) if sxx > 0 else s_res
-        out.append((m0 - float(intercept), math.hypot(u0, u1), max(-slope * 3600.0, 0.0)))
+        out.append((m0 - float(intercept), math.hypot(u0, u1), rate_kg_h))
     return out
 
 

@@ -89,19 +89,20 @@ def make_cases(n: int, seed: int, reality: str) -> list[dict]:
         seen[answer] = k + 1
         per_effect = answers.count(answer)
         strength = (k + 0.5) / per_effect if answer != "none" else 0.0  # evenly, weak to strong
-        plant = plants[k % len(plants)]
-        forms = _forms(plant)
+        # the k-th case of an answer: plants alternate; every 2 (4) per plant cover both
+        # boilers (and both log pairs), each form meeting each boiler and each pair
+        n_plants = len(plants)
+        plant = plants[k % n_plants]
+        boiler_k, pair_k = (k // n_plants) % 2, (k // (2 * n_plants)) % 2
+        forms = _forms(plant)[answer] if answer != "none" else (None,)
         cases.append(
             {
                 "effect": answer,
                 "plant": plant,
-                "form": forms[answer][(k // len(plants)) % len(forms[answer])]
-                if answer != "none"
-                else None,
+                "form": forms[(k // n_plants + k // (2 * n_plants)) % len(forms)],
                 "strength": round(strength, 3),
-                # every four cases of an answer cover both boilers and both log pairs
-                "boiler": BOILERS[k % 2],
-                "pair": list(PAIRS[(k // 2) % 2]),
+                "boiler": BOILERS[boiler_k],
+                "pair": list(PAIRS[pair_k]),
                 "seed": int(rng.integers(1, 1_000_000)),
             }
         )

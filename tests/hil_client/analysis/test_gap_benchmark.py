@@ -1,0 +1,42 @@
+"""The blind benchmark's case design (the cases themselves are scored by
+``hil-client gap-benchmark``; these tests check only that its design covers what the issue
+asks for)."""
+
+from collections import Counter
+
+from hil_client.analysis.gap_benchmark import BOILERS, PAIRS, is_right, make_cases, score
+
+
+def test_every_plant_meets_both_boilers_and_both_log_pairs_for_every_effect():
+    cases = make_cases(48, 0, "independent")
+    effects = [c for c in cases if c["effect"] != "none"]
+    assert sum(c["effect"] == "none" for c in cases) == 8
+    for effect in {c["effect"] for c in effects}:
+        mine = [c for c in effects if c["effect"] == effect]
+        for plant in {c["plant"] for c in cases}:
+            theirs = [c for c in mine if c["plant"] == plant]
+            assert {c["boiler"] for c in theirs} == set(BOILERS), (effect, plant)
+            assert {tuple(c["pair"]) for c in theirs} == set(PAIRS), (effect, plant)
+            forms = Counter(c["form"] for c in theirs)
+            assert len(forms) >= 2, (effect, plant, forms)  # both forms of the plant
+            # no form is tied to one boiler
+            for form in forms:
+                assert len({c["boiler"] for c in theirs if c["form"] == form}) == 2
+
+
+def test_strengths_span_weak_to_strong_and_cases_are_reproducible():
+    a, b = make_cases(48, 3, "independent"), make_cases(48, 3, "independent")
+    assert a == b
+    strengths = sorted(c["strength"] for c in a if c["effect"] != "none")
+    assert strengths[0] < 0.1 and strengths[-1] > 0.9
+
+
+def test_an_effect_named_without_held_out_shrinkage_is_not_a_success():
+    cases = [{"case": 0, "effect": "flue_gas_lag"}, {"case": 1, "effect": "none"}]
+    unconfirmed = {"case": 0, "found": "flue_gas_lag", "confirmed": False, "confidence": 0.9}
+    right_none = {"case": 1, "found": "none", "confirmed": None, "confidence": 0.9}
+    assert not is_right("flue_gas_lag", unconfirmed)
+    base = {"shrink_pct": -5.0, "diagnosis_s": 1.0}
+    scores = score(cases, [unconfirmed | base, right_none | base | {"shrink_pct": None}])
+    assert scores["accuracy"] == 0.5 and scores["not_confirmed"] == 1
+    assert scores["negative_shrinks_on_right_effect"] == 1
