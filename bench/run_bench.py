@@ -6,7 +6,9 @@ Figures:
   several runs, rows kept in memory (what calibration and diagnosis loops do);
 - the same with the lab log written to a CSV file (what ``hil-client run`` does);
 - the bare compiled bench step, for reference;
-- peak resident memory of the process.
+- peak resident memory of the process;
+- the 13 % step of the clean 12 kW load cycle against the paper's Fig. 7 (Section 3.2.2):
+  cut-outs, cool-back to the restart, the water at t2 and the first cooling.
 """
 
 from __future__ import annotations
@@ -19,6 +21,12 @@ from pathlib import Path
 
 from hil_client.lablog import LabLogWriter
 from hil_client.protocol.definition import load_protocol
+from hil_client.protocol.low_load import (
+    PAPER_COOL_BACK_H,
+    PAPER_FIRST_COOLING_MIN,
+    PAPER_T_AT_T2_C,
+    low_load_sequence,
+)
 from hil_client.protocol.runner import run_protocol
 from hil_client.rigs.local import LocalRig
 from rig_emulator.bench import Bench
@@ -35,6 +43,24 @@ def _offline_run(params, protocol, sink) -> float:
     result = run_protocol(protocol, params.p_nom_kW, rig, sink)
     wall = time.perf_counter() - start
     return result.duration_s / wall
+
+
+def _fig7(params, protocol) -> None:
+    rows: list = []
+    result = run_protocol(
+        protocol, params.p_nom_kW, LocalRig(params, load_profile("clean")), rows.append
+    )
+    seq = low_load_sequence(rows, result.times)
+    print(
+        f"Fig. 7, clean {params.name} load cycle, 13 % step: {len(seq.stops_s)} cut-outs "
+        f"(paper 2), {len(seq.starts_s)} restart(s) (paper 1); back at 55 C "
+        f"{seq.cool_back_h:.2f} h after the first stop (paper {PAPER_COOL_BACK_H} h)"
+    )
+    print(
+        f"  water inside the boiler at t2: {seq.t_boiler_at_t2_C:.1f} C (paper "
+        f"{PAPER_T_AT_T2_C:.0f} C); first cooling t2..t3: {seq.first_cooling_min:.1f} min "
+        f"(paper about {PAPER_FIRST_COOLING_MIN:.0f} min); see docs/model.md"
+    )
 
 
 def main() -> int:
@@ -80,6 +106,7 @@ def main() -> int:
     )
     peak_mib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"peak resident memory: {peak_mib:.0f} MiB (rows of one whole test kept in memory)")
+    _fig7(params, protocol)
     return 0
 
 

@@ -223,6 +223,13 @@ class Emulator:
         """Advance by ``seconds`` of simulated time in sub-steps of at most ``max_step_s``."""
         if seconds <= 0:
             return
+        if seconds <= self.max_step_s and self.instruments.ideal:
+            # one step, readings computed when read: advance_steps(1, seconds), inlined
+            # (the per-row path of offline runs)
+            self.bench.step(seconds)
+            self.sim_time_s += seconds
+            self._stale = True
+            return
         n, dt = self.substeps(seconds)
         self.advance_steps(n, dt)
 
@@ -295,11 +302,8 @@ class Emulator:
 
     def reading_by_name(self) -> dict[str, float]:
         """Instrument readings of the measured signals by name (a new dict)."""
-        if self._stale:  # ideal instruments: the readings are the plant's values
-            by_name = self._plant_by_name()
-            self._true = self._readings = list(_IN_MEASURED_ORDER(by_name))
-            self._stale = False
-            return by_name
+        if self._stale:  # ideal instruments: the readings are the plant's values (the
+            return self._plant_by_name()  # lists are built when asked, see readings)
         return dict(zip(MEASURED, self._readings, strict=True))
 
     @property
@@ -322,7 +326,12 @@ class Emulator:
         what it did: an invalid (NaN) analyser reading clears the analyser's "measuring"
         bit and sets bit 2; an invalid or jumping balance is not "stable".
         """
-        out = self.reading_by_name()
+        if self._stale:  # ideal instruments: readings and truth are the plant's values
+            out = self._plant_by_name()
+            self._true = self._readings = list(_IN_MEASURED_ORDER(out))
+            self._stale = False
+        else:
+            out = dict(zip(MEASURED, self._readings, strict=True))
         true = dict(zip(_TRUE_KEYS, self._true, strict=True))
         if self.reading_hook is not None:
             self.reading_hook(out, self.sim_time_s)

@@ -13,7 +13,14 @@ assert set(READING_KEYS) <= {*MEASURED, "boiler_on"}
 
 
 class LocalRig:
-    """An :class:`~rig_emulator.emulator.Emulator` behind the rig interface."""
+    """An :class:`~rig_emulator.emulator.Emulator` behind the rig interface.
+
+    An in-process plant never breaks: its ``epoch`` stays 0 and it has no ``gaps``
+    (CONTRACT section 7; declared so the runner's per-row look-ups find them at once).
+    """
+
+    epoch = 0
+    restart_phase = False
 
     def __init__(
         self,
@@ -25,6 +32,9 @@ class LocalRig:
         self.emulator = Emulator(params, profile, seed, config)
         self._stepped = False
         self._last: tuple | None = None
+        self.gaps: list = []
+        self._emulator_advance = self.emulator.advance
+        self._reading_by_name = self.emulator.reading_by_name
 
     def apply(self, command: RigCommand) -> None:
         key = (
@@ -48,14 +58,14 @@ class LocalRig:
         )
 
     def advance(self, dt_s: float) -> float:
-        self.emulator.advance(dt_s)
+        self._emulator_advance(dt_s)
         self._stepped = True
         return dt_s
 
     def read(self) -> dict[str, float]:
         if not self._stepped:
             raise RuntimeError("read() before the first advance()")
-        out = self.emulator.reading_by_name()
+        out = self._reading_by_name()
         out["boiler_on"] = self.emulator.boiler_on
         return out
 

@@ -295,6 +295,9 @@ class Bench:
         self.bs = np.zeros(len(BENCH_STATE_FIELDS))
         self.bs[BS_T_RETURN] = t
         self.fs, self.ph = new_effect_state(t)
+        # the kernel's arrays, bound once (the step is called once per simulated second)
+        self._args = (self.c, self.s, self.bc, self.bs, self.u, self.y, self.yb)
+        self._fx_args = (self.fc, self.fs, self.ph)
         self.set_inputs(0.0, t, True, False, False)
         self.u[U_ROOM], self.u[U_PRESSURE], self.u[U_HUMIDITY] = self.config.room.at(0.0)
 
@@ -342,18 +345,6 @@ class Bench:
         if self._room_varies:
             u[U_ROOM], u[U_PRESSURE], u[U_HUMIDITY] = self.config.room.at(float(self.bs[BS_TIME]))
         if self._dynamic:
-            bench_step_effects(
-                self.c,
-                self.s,
-                self.bc,
-                self.bs,
-                u,
-                self.y,
-                self.yb,
-                dt_s,
-                self.fc,
-                self.fs,
-                self.ph,
-            )
+            bench_step_effects(*self._args, dt_s, *self._fx_args)
         else:
-            bench_step(self.c, self.s, self.bc, self.bs, u, self.y, self.yb, dt_s)
+            bench_step(*self._args, dt_s)
