@@ -325,6 +325,20 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
                     ),
                 }
                 for key, f in result.fitted.items()
+            }
+            | {  # what the logs could not give: the documentation value, and why
+                key: {
+                    "value": None,
+                    "standard_uncertainty": None,
+                    "expanded_uncertainty_k2": None,
+                    "method": None,
+                    "points": 0,
+                    "implausible": False,
+                    "kept": getattr(doc, key),
+                    "why": why,
+                }
+                for key, why in result.flags.items()
+                if key not in result.fitted
             },
             indent=2,
             allow_nan=False,

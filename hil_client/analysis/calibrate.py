@@ -4,9 +4,10 @@ From a stationary-test log and/or a load-cycle log plus the boiler's documentati
 
 - stationary intervals: the ``stationary_*`` sequences (or, without a ``sequence`` column,
   flow plateaus of at least 20 min in the test phase), without their first 10 min, and only
-  where the burner fired throughout and the boiler water held within 3 K (a slow approach
-  at the start is cut off; the 13 % step, below the modulation range, cycles and is left
-  out);
+  where the burner fired throughout and the boiler water held within 3 K between its 2.5th
+  and 97.5th percentiles (a slow approach at the start is cut off; the 13 % step, below
+  the modulation range, cycles and is left out); without any, the values below that need
+  them keep their documentation values and are flagged;
 - dTnom and dThx,wat (Eq. 8): linear regression of (T_fg - T_w,in) against
   (1 - m_w/m_w,nom) over the stationary intervals: the intercept is dTnom, the slope
   dThx,wat (Fig. 4). With a single load level only dTnom is fitted (dThx,wat kept);
@@ -36,7 +37,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from hil_client.analysis.logio import LabLog, LogError, fill_gaps
+from hil_client.analysis.logio import LabLog, fill_gaps
 from hil_client.analysis.phases import Phases
 from rig_emulator.model import constants as k
 from rig_emulator.model.fuel import stoichiometry
@@ -109,6 +110,18 @@ def _linfit(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float, float]:
     return float(coef[0]), float(coef[1]), math.sqrt(cov[0, 0]), math.sqrt(cov[1, 1])
 
 
+#: How closely the boiler water must hold over a stationary interval [K] ...
+HOLD_K = 3.0
+
+
+def _spread_K(tb: np.ndarray) -> float:
+    """... read between its 2.5th and 97.5th percentiles: a staged controller's swing and
+    the sensor's noise and quantisation are part of a steady state, a slow approach is
+    not."""
+    ok = tb[np.isfinite(tb)]
+    return float(np.percentile(ok, 97.5) - np.percentile(ok, 2.5)) if len(ok) else math.inf
+
+
 def stationary_intervals(log: LabLog, phases: Phases) -> list[Interval]:
     """Stationary intervals of the test phase (see the module docstring)."""
     t = log.t
@@ -148,10 +161,10 @@ def stationary_intervals(log: LabLog, phases: Phases) -> list[Interval]:
             continue  # the burner stopped: below the modulation range
         # the water must hold within 3 K: drop a slow approach at the start, if any
         tb = log["boiler_water_temp_C"][i0:i1]
-        while span(i0, i1) >= MIN_INTERVAL_S and np.nanmax(tb) - np.nanmin(tb) > 3.0:
+        while span(i0, i1) >= MIN_INTERVAL_S and _spread_K(tb) > HOLD_K:
             i0 = int(np.searchsorted(t, t[i0] + TRIM_S))
             tb = log["boiler_water_temp_C"][i0:i1]
-        if span(i0, i1) < MIN_INTERVAL_S or np.nanmax(tb) - np.nanmin(tb) > 3.0:
+        if span(i0, i1) < MIN_INTERVAL_S or _spread_K(tb) > HOLD_K:
             continue
         out.append(Interval(log, i0, i1, name))
     return out
@@ -242,15 +255,22 @@ def _plausible(doc: BoilerParams, fitted: dict[str, Fitted]) -> tuple[BoilerPara
     return params, flags
 
 
-def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibration:
-    """Calibrate from logs (each with its phases) starting from documentation values."""
-    fitted: dict[str, Fitted] = {}
-    intervals = [iv for log, ph in logs for iv in stationary_intervals(log, ph)]
-    if not intervals:
-        raise LogError(
-            "no stationary interval found in the logs (need a test phase with "
-            "steady firing of at least 30 min)"
-        )
+#: What only the stationary intervals can give (Eq. 8, Eq. 9, electric power).
+STATIONARY_KEYS = (
+    "dt_nom_K",
+    "dt_hx_wat_K",
+    "fac_a_lambda",
+    "fac_b_lambda_h_kg",
+    "p_el_max_W",
+    "p_el_min_W",
+)
+
+
+def _fit_stationary(
+    intervals: list[Interval], doc: BoilerParams, fitted: dict[str, Fitted]
+) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """Eq. 8 (Fig. 4), Eq. 9 (Fig. 5) and the electric power over the stationary intervals,
+    into ``fitted``; returns the data of Figs. 4 and 5."""
     m_nom = doc.nominal_flow_kg_h
     # --- Eq. 8: dTnom, dThx,wat (Fig. 4)
     x = np.array([1.0 - iv.mean("water_flow_kg_h") / m_nom for iv in intervals])
@@ -338,6 +358,20 @@ def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibrati
             fitted["p_el_max_W"] = Fitted(
                 float(np.mean(pel)), u_pel, "mean at nominal load", len(pel)
             )
+    return {"x": x, "y": y}, {"fuel": fuel[:, 0], "lambda": lam}
+
+
+def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibration:
+    """Calibrate from logs (each with its phases) starting from documentation values."""
+    fitted: dict[str, Fitted] = {}
+    intervals = [iv for log, ph in logs for iv in stationary_intervals(log, ph)]
+    if intervals:
+        fig4, fig5 = _fit_stationary(intervals, doc, fitted)
+    else:
+        fig4, fig5 = (
+            {"x": np.array([]), "y": np.array([])},
+            {"fuel": np.array([]), "lambda": np.array([])},
+        )
     # --- second cooling: UAamb,OFF (Eq. 13) and UAamb,ON (Eq. 14-16)
     cap = doc.capacity_kJ_K
     ua_off_values, ua_on_values, pel_off, starts = [], [], [], []
@@ -443,4 +477,10 @@ def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibrati
             len(vals),
         )
     params, flags = _plausible(doc, fitted)
-    return Calibration(params, fitted, {"x": x, "y": y}, {"fuel": fuel[:, 0], "lambda": lam}, flags)
+    if not intervals:
+        for key in STATIONARY_KEYS:
+            flags[key] = (
+                "no stationary interval (a test phase with steady firing of at least "
+                f"{MIN_INTERVAL_S / 60:.0f} min)"
+            )
+    return Calibration(params, fitted, fig4, fig5, flags)

@@ -16,8 +16,9 @@ section 4). The diagnosis is built to name an effect *through* that background g
    time within the calibration log), with an error model that respects autocorrelated
    residuals (:mod:`hil_client.analysis.evidence`). It is named only if the held-out
    evidence exceeds :data:`~hil_client.analysis.candidates.Z_MIN` standard errors, it
-   removes a real share of the residual where it acts, and its physical fingerprint holds.
-   Of several, the strongest evidence wins; with none, the answer is ``none``, and
+   removes a real share of the residual where it acts, and its physical fingerprint stands
+   beyond what a real boiler's background reaches without it. Of several, the one whose
+   fingerprint stands furthest beyond that floor wins; with none, the answer is ``none``, and
    ``unexplained_gap`` says whether a gap beyond the bench's resolution remains.
 5. *Confidence*: the share of :data:`BOOTSTRAP` block-bootstrap draws of the evidence
    (held-out blocks, starts and closure hours drawn again with replacement) that give the
@@ -104,8 +105,14 @@ def where(case: Case, pred: dict[str, np.ndarray]) -> list[dict]:
     ]
 
 
-def _answer(verdicts: dict[str, tuple[bool, float, str]]) -> str:
-    named = [(z, e) for e, (ok, z, _) in verdicts.items() if ok]
+def _answer(
+    verdicts: dict[str, tuple[bool, float, str]], assessments: dict[str, Assessment]
+) -> str:
+    """Of the named candidates, the one whose physical mark stands furthest beyond what a
+    real boiler's background reaches without it (:attr:`Assessment.margin`): evidence in
+    standard errors says *that* a candidate helps, not which of two helps more, and a
+    long record gives any of them a large figure."""
+    named = [(assessments[e].margin, e) for e, (ok, _, _) in verdicts.items() if ok]
     return max(named)[1] if named else "none"
 
 
@@ -122,7 +129,7 @@ def _confidence(assessments: dict[str, Assessment], answer: str) -> float:
             else:
                 units = a.units
             verdicts[effect] = a.decide(units)
-        votes[_answer(verdicts)] += 1
+        votes[_answer(verdicts, assessments)] += 1
     return votes[answer] / BOOTSTRAP
 
 
@@ -176,7 +183,7 @@ def diagnose(
     val = prepare(val_log, val_phases, params)
     assessments = {effect: cand.assess(cal) for effect, cand in CANDIDATES.items()}
     verdicts = {effect: a.verdict() for effect, a in assessments.items()}
-    effect = _answer(verdicts)
+    effect = _answer(verdicts, assessments)
     candidates = []
     for name, a in assessments.items():
         named, z, reason = verdicts[name]
@@ -186,6 +193,7 @@ def diagnose(
                 "effect": name,
                 "params": a.params,
                 "score": _finite(z),
+                "margin": _finite(a.margin),
                 "named": named,
                 "reason": reason,
                 "signal": a.signal,
@@ -222,7 +230,8 @@ def diagnose(
             "named when its held-out evidence (blocked cross-validation within the "
             "calibration log, AR(1) effective sample size) exceeds 3 standard errors, it "
             "removes at least 20 % of the residual where it acts, and its physical "
-            "fingerprint holds; the strongest such candidate wins"
+            "fingerprint stands beyond what the background reaches; of several, the one "
+            "whose fingerprint stands furthest beyond its floor wins"
         ),
         "where": where_val[:12],
         "where_calibration": where(cal, base_cal)[:12],

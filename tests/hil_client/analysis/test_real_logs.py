@@ -14,6 +14,7 @@ import pytest
 import yaml
 
 from hil_client.cli import main
+from rig_emulator.boilers import BOILER_DIR
 from rig_emulator.instruments.profile import PROFILE_DIR
 
 BOILER = "windhager_6kw"
@@ -192,3 +193,30 @@ def test_calibrate_finds_the_load_cycles_plateaus_at_any_sampling(logs, variant,
     fitted = json.loads(out.with_name("p.uncertainty.json").read_text())
     # the plateaus span flows from 13 % to 100 % load: the Fig. 4 slope is fitted from them
     assert fitted["dt_hx_wat_K"]["points"] >= 3
+
+
+def test_calibrate_without_a_stationary_interval_keeps_the_documented_values(logs, tmp_path):
+    """A boiler whose water never holds within 3 K during the test (here: a 3-K square wave
+    every 10 min added to the reading, as a staged controller's swing might look) gives no
+    stationary interval; calibrate still fits what the rest of the log gives, keeps the
+    documentation values of Eq. 8, Eq. 9 and the electric power, flags them, writes the
+    file and exits 0."""
+    header, rows = _read(logs["stationary"])
+    col, t_col = header.index("boiler_water_temp_C"), header.index("time_s")
+    for row in rows:
+        if row[col]:
+            swing = 3.0 if int(float(row[t_col]) // 600) % 2 else 0.0
+            row[col] = f"{float(row[col]) + swing:.2f}"
+    cal = tmp_path / "swing.csv"
+    _write(cal, header, rows)
+    out = tmp_path / "p.yaml"
+    assert main(["calibrate", str(cal), "--boiler", BOILER, "--out", str(out)]) == 0
+    fitted = json.loads(out.with_name("p.uncertainty.json").read_text())
+    doc = yaml.safe_load((BOILER_DIR / f"{BOILER}.yaml").read_text())
+    written = yaml.safe_load(out.read_text())
+    for key in ("dt_nom_K", "fac_a_lambda"):
+        assert fitted[key]["value"] is None and fitted[key]["kept"] == doc[key]
+        assert "no stationary interval" in fitted[key]["why"]
+        assert written[key] == doc[key]
+    # the second cooling is still fitted, and used
+    assert fitted["ua_amb_off_W_K"]["value"] == pytest.approx(written["ua_amb_off_W_K"])
