@@ -36,6 +36,9 @@ MIN_RUN_S = 90.0
 ONSET_RISE_K = 3.0
 ONSET_LOOKBACK_S = 180.0
 STOP_FALL_K = 10.0
+#: Least fuel a burn of the burner feeds [kg]: two steps of the balance (0.02 kg, Section
+#: 2.2).
+NO_FEED_KG = 0.04
 
 
 @dataclass(frozen=True, slots=True)
@@ -109,8 +112,53 @@ def observe_firing(log: LabLog) -> Firing:
         new_stops = np.array(refined, dtype=int)
         for i, j in zip(stops, new_stops, strict=True):
             burning[j:i] = False
-        stops = new_stops
+        starts, stops = _join_flicker(burning, t, starts, new_stops)
+    if log.has("balance_mass_kg"):
+        starts, stops = _drop_burnouts(burning, t, log["balance_mass_kg"], starts, stops)
     return Firing(burning, starts.astype(int), stops.astype(int), source)
+
+
+def _drop_burnouts(
+    burning: np.ndarray, t: np.ndarray, mass: np.ndarray, starts: np.ndarray, stops: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """A burn after a stop during which the balance loses less than
+    :data:`NO_FEED_KG` is the bed burning out (smouldering on the draught), not the burner
+    starting again: the burner feeds at least Pmin's fuel, tenths of a kilogram in the
+    minutes a burn lasts. It is not firing (the model's burner stays off); the burn at the
+    record's start and burns where the balance has too few readings are kept."""
+    keep_starts, keep_stops = [], []
+    for i in starts:
+        later = stops[stops > i]
+        end = int(later[0]) if len(later) else len(t)
+        readings = mass[i:end][np.isfinite(mass[i:end])]
+        after_a_stop = i > 0 and np.any(stops < i) and len(readings) >= 10
+        if after_a_stop and float(readings[:5].mean() - readings[-5:].mean()) < NO_FEED_KG:
+            burning[i:end] = False
+            continue
+        keep_starts.append(i)
+        if len(later):
+            keep_stops.append(end)
+    # a stop belongs to a kept burn (the record may start burning)
+    first_burn_stop = [int(j) for j in stops if not np.any(starts < j)]
+    keep_stops = sorted(set(keep_stops) | set(first_burn_stop))
+    return np.array(keep_starts, dtype=int), np.array(keep_stops, dtype=int)
+
+
+def _join_flicker(
+    burning: np.ndarray, t: np.ndarray, starts: np.ndarray, stops: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """A stop followed by a start within :data:`MIN_RUN_S` is one burn (a bed burning out
+    on the fan's air after the burner was switched off dips the flue gas and the O2 in
+    turn); ``burning`` is filled in between."""
+    keep_starts, keep_stops = list(starts), []
+    for j in stops:
+        later = [i for i in keep_starts if i > j]
+        if later and t[later[0]] - t[j] < MIN_RUN_S:
+            burning[j : later[0]] = True
+            keep_starts.remove(later[0])
+        else:
+            keep_stops.append(j)
+    return np.array(keep_starts, dtype=int), np.array(keep_stops, dtype=int)
 
 
 def windows_after(t: np.ndarray, rows: np.ndarray, length_s: float, end: int) -> list[np.ndarray]:
