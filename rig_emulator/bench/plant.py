@@ -32,16 +32,9 @@ from rig_emulator.bench.effects import MAX_BODY_NODES, EffectSettings
 from rig_emulator.model import boiler as bm
 from rig_emulator.model import constants as k
 from rig_emulator.model.layout import (
-    K_CAP,
     K_CO_START,
-    K_CO_TAU,
     K_LHV,
-    K_UA_OFF,
-    K_UA_ON,
-    MODULATING,
     S_SINCE_START,
-    S_T,
-    STARTUP,
     index_of,
 )
 from rig_emulator.model.params import BoilerParams
@@ -233,9 +226,72 @@ def body_chain(fc, fs, t_w0, q_in_kW, m_cp, water_in_C, ua, room_C, dt_s):
     return t_new, stored / dt_s
 
 
+@njit(cache=True, inline="always")
+def _flame_clock(c, s, fc, fs, row, started):
+    """``flame_clock``: a start resets the ignition timer; the flame's age is the bed's."""
+    if started:
+        fs[FS_IGN_TIMER] = 0.0
+    return fs[FS_SINCE_IGNITION] if fc[FC_IGN_ON] > 0.5 else s[S_SINCE_START]
+
+
+@njit(cache=True, inline="always")
+def _fuel_bed(c, s, fc, fs, row, firing, feed, firing_kW, co_start, dt_s):
+    """``fuel_bed``: fuel fed collects, burns once lit, burns out after a stop."""
+    if fc[FC_IGN_ON] < 0.5:
+        return bm.model_fuel_bed(c, s, fc, fs, row, firing, feed, firing_kW, co_start, dt_s)
+    m0 = fs[FS_BED]
+    f_s = feed / 3600.0  # [kg/s]
+    t_unlit = 0.0  # part of the step before the bed lights [s]
+    if fs[FS_LIT] < 0.5:
+        t_unlit = dt_s
+        if firing:
+            wait = max(fc[FC_IGN_DELAY] - fs[FS_IGN_TIMER], 0.0)
+            if wait < dt_s:  # the bed lights within this step
+                fs[FS_LIT] = 1.0
+                fs[FS_SINCE_IGNITION] = -wait
+                t_unlit = wait
+                co_start = c[K_CO_START]
+    if firing:
+        fs[FS_LAMBDA_FEED] = feed
+        fs[FS_IGN_TIMER] += dt_s
+    m1 = m0 + f_s * t_unlit
+    t_lit = dt_s - t_unlit
+    if fs[FS_LIT] > 0.5 and t_lit > 0.0:
+        tau = fc[FC_IGN_TAU]
+        m1 = f_s * tau + (m1 - f_s * tau) * math.exp(-t_lit / tau) if tau > 0.0 else 0.0
+        if not firing and m1 < BED_EMPTY_KG:
+            m1 = 0.0
+            fs[FS_LIT] = 0.0
+    fs[FS_BED] = m1
+    burn = (m0 + f_s * dt_s - m1) * 3600.0 / dt_s  # mean over the step [kg/h]
+    fs[FS_SINCE_IGNITION] += dt_s
+    return burn, burn * c[K_LHV] / 3600.0, fs[FS_LAMBDA_FEED], co_start, burn > 0.0
+
+
+@njit(cache=True, inline="always")
+def _heat_store(c, fc, fs, row, t0, q_in, m_cp, water_in_C, ua, room_C, dt_s):
+    """``heat_store``: the metal chain and the water node, or the model's one node."""
+    if fc[FC_BODY_ON] < 0.5:
+        return bm.model_heat_store(c, fc, fs, row, t0, q_in, m_cp, water_in_C, ua, room_C, dt_s)
+    t1, q_stored = body_chain(fc, fs, t0, q_in, m_cp, water_in_C, ua, room_C, dt_s)
+    return t1, t1, q_stored
+
+
+@njit(cache=True, inline="always")
+def _flue_gas(fc, fs, row, t_target_C, dt_s):
+    """``flue_gas``: flue-gas temperature [C], the target through the two-node lag if on."""
+    if fc[FC_FG_ON] < 0.5:
+        return t_target_C
+    fs[FS_FG1], fs[FS_FG2] = lag2(
+        fs[FS_FG1], fs[FS_FG2], t_target_C, fc[FC_FG_TAU1], fc[FC_FG_TAU2], dt_s
+    )
+    return fs[FS_FG2]
+
+
 @njit(cache=True)
 def plant_step(c, s, fc, fs, water_flow_kg_h, water_in_C, room_C, enabled, dt_s, y):
-    """The model's :func:`~rig_emulator.model.boiler.step` with the effects of ``fc``.
+    """The model's step skeleton (:func:`~rig_emulator.model.boiler.step_skeleton`) with
+    the effects' stages.
 
     Same arguments, state and outputs as the model, plus the effect constants ``fc`` and
     state ``fs`` (updated in place). Differences from the model (each only if its effect
@@ -246,112 +302,10 @@ def plant_step(c, s, fc, fs, water_flow_kg_h, water_in_C, room_C, enabled, dt_s,
     the balance (:class:`~rig_emulator.bench.bench.Bench`). Electric power follows the
     controller, as in the model (the fan's share during a burn-out is neglected).
     """
-    t0 = s[S_T]
-    mode, started = bm.update_mode(c, s, enabled)
-    if started:
-        fs[FS_IGN_TIMER] = 0.0
-    firing = mode == STARTUP or mode == MODULATING
-    m_cp = water_flow_kg_h * _CP_W_KWH
-    ign_on = fc[FC_IGN_ON] > 0.5
-
-    # start CO peak, decaying from the ignition (the start without the ignition effect)
-    since_ign = fs[FS_SINCE_IGNITION] if ign_on else s[S_SINCE_START]
-    co_start = c[K_CO_START] * math.exp(-since_ign / c[K_CO_TAU])
-
-    # --- what the controller commands: firing power (net basis) and the feed it implies;
-    # the model's rule with the horizon dt + FC_HORIZON instead of dt
-    q_ign = 0.0
-    firing_kW = 0.0
-    if firing:
-        q_ign = bm.igniter_kW(c, s)
-        horizon = dt_s + fc[FC_HORIZON]
-        firing_kW = bm.firing_power_kW(
-            c, s, mode, m_cp, water_flow_kg_h, water_in_C, room_C, q_ign, co_start, horizon
-        )
-    feed = firing_kW * 3600.0 / c[K_LHV]  # [kg/h dry, nominal energy]
-
-    # --- the bed: fuel fed collects, burns once lit, burns out after a stop
-    if ign_on:
-        m0 = fs[FS_BED]
-        f_s = feed / 3600.0  # [kg/s]
-        t_unlit = 0.0  # part of the step before the bed lights [s]
-        if fs[FS_LIT] < 0.5:
-            t_unlit = dt_s
-            if firing:
-                wait = max(fc[FC_IGN_DELAY] - fs[FS_IGN_TIMER], 0.0)
-                if wait < dt_s:  # the bed lights within this step
-                    fs[FS_LIT] = 1.0
-                    fs[FS_SINCE_IGNITION] = -wait
-                    t_unlit = wait
-                    co_start = c[K_CO_START]
-        if firing:
-            fs[FS_LAMBDA_FEED] = feed
-            fs[FS_IGN_TIMER] += dt_s
-        m1 = m0 + f_s * t_unlit
-        t_lit = dt_s - t_unlit
-        if fs[FS_LIT] > 0.5 and t_lit > 0.0:
-            tau = fc[FC_IGN_TAU]
-            m1 = f_s * tau + (m1 - f_s * tau) * math.exp(-t_lit / tau) if tau > 0.0 else 0.0
-            if not firing and m1 < BED_EMPTY_KG:
-                m1 = 0.0
-                fs[FS_LIT] = 0.0
-        fs[FS_BED] = m1
-        burn = (m0 + f_s * dt_s - m1) * 3600.0 / dt_s  # mean over the step [kg/h]
-        x_lambda = fs[FS_LAMBDA_FEED]
-        fs[FS_SINCE_IGNITION] += dt_s
-    else:
-        burn = feed
-        x_lambda = feed
-    burning = burn > 0.0
-    ua = c[K_UA_ON] if firing or burning else c[K_UA_OFF]  # the fan runs
-
-    if burning:
-        t_fg = _flue_gas_lag(
-            fc, fs, bm.flue_gas_temperature(c, water_in_C, water_flow_kg_h, burn), dt_s
-        )
-        lam = bm.excess_air(c, x_lambda)
-        if firing:
-            co = bm.co_stationary_ppm(c, burn * c[K_LHV] / 3600.0) + co_start
-        else:  # burn-out: the stop peak, as the model has it once the burner is off
-            co = bm.burnout_co_ppm(c, s)
-        q_hx = bm.combustion(c, burn, lam, t_fg, room_C, co, y)
-    else:
-        # idle, or the fan and igniter run before the bed lights: the analyser sees air
-        # and the decaying burn-out CO of the last stop, as in the model
-        q_hx = 0.0
-        lam = math.inf
-        co = bm.burnout_co_ppm(c, s)
-        bm.no_combustion(y)
-        t_fg = 0.0  # set below: the water temperature (lagged if the lag is on)
-    p_el = bm.electric_power_W(c, firing, firing_kW, q_ign)
-
-    q_in = q_hx + q_ign
-    if fc[FC_BODY_ON] > 0.5:
-        t1, q_stored = body_chain(fc, fs, t0, q_in, m_cp, water_in_C, ua, room_C, dt_s)
-        t_mean = t1
-    else:
-        cap = c[K_CAP]
-        t1, t_mean = bm.node_exact(t0, q_in, m_cp, water_in_C, ua, room_C, cap, dt_s)
-        q_stored = cap * (t1 - t0) / dt_s
-    if not burning:
-        t_fg = _flue_gas_lag(fc, fs, t1, dt_s)
-
-    fs[FS_TIME] += dt_s
-    bm.close_step(
-        s, y, dt_s, mode, firing_kW, feed, p_el, t1, t_mean, t_fg, lam, co, q_ign, m_cp,
-        water_in_C, ua, room_C, q_stored,
+    bm.step_skeleton(
+        c, s, fc, fs, (0, 0, 0, 0), water_flow_kg_h, water_in_C, room_C, enabled, dt_s, y,
+        fc[FC_HORIZON], _flame_clock, _fuel_bed, _flue_gas, _heat_store,
     )  # fmt: skip
-
-
-@njit(cache=True)
-def _flue_gas_lag(fc, fs, t_target_C, dt_s):
-    """Flue-gas temperature [C]: ``t_target_C`` through the two-node lag if it is on."""
-    if fc[FC_FG_ON] < 0.5:
-        return t_target_C
-    fs[FS_FG1], fs[FS_FG2] = lag2(
-        fs[FS_FG1], fs[FS_FG2], t_target_C, fc[FC_FG_TAU1], fc[FC_FG_TAU2], dt_s
-    )
-    return fs[FS_FG2]
 
 
 @njit(cache=True)
@@ -373,7 +327,8 @@ def pipe_sensor(fc, fs, ph, flow_kg_h, t_outlet_C, t_boiler_C, room_C, dt_s):
         return t_boiler_C
     rate = k_b + k_r
     t_c = (k_b * t_boiler_C + k_r * room_C) / rate if rate > 0.0 else t_boiler_C
-    now = fs[FS_TIME]  # the plant step has already advanced the time
+    fs[FS_TIME] += dt_s
+    now = fs[FS_TIME]  # the end of this step
     head = int(fs[FS_PIPE_HEAD])
     inc = flow_kg_h * dt_s / 3600.0
     if inc > 0.0:
