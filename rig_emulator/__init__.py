@@ -24,8 +24,8 @@ def _set_numba_cache_dir() -> None:
     root = Path(__file__).parent
     digest = hashlib.sha256()
     for sub in ("model", "bench", "instruments"):
-        for path in sorted((root / sub).glob("*.py")):
-            digest.update(path.name.encode())
+        for path in sorted((root / sub).rglob("*.py")):
+            digest.update(path.relative_to(root).as_posix().encode())
             digest.update(path.read_bytes())
     base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
     os.environ["NUMBA_CACHE_DIR"] = str(base / "rig-emulator" / "numba" / digest.hexdigest()[:16])

@@ -19,13 +19,14 @@ import dataclasses
 import hashlib
 import json
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from operator import itemgetter
 
 import numpy as np
 
 from rig_emulator.bench import Bench, BenchConfig
 from rig_emulator.bench.bench import (
+    N_BENCH_OUTPUTS,
     YB_BALANCE,
     YB_DRAUGHT,
     YB_FIRING_FLAG,
@@ -43,6 +44,7 @@ from rig_emulator.model.layout import (
     K_SET,
     K_VDRY0,
     K_VDRY1,
+    N_OUTPUTS,
     S_ELECTRIC,
     Y_CO,
     Y_CO2,
@@ -75,8 +77,39 @@ _INDEX = {name: i for i, name in enumerate(MEASURED)}
 _TRUE_KEYS = tuple("true_" + name for name in MEASURED)  # the plant's values, published
 
 
-#: The measured signals by name -> a sequence in MEASURED order (C speed, once per step).
-_IN_MEASURED_ORDER = itemgetter(*MEASURED)
+#: Where the plant's true value of each measured signal (and of ``boiler_on``) comes from:
+#: (``y``, index) an output of the boiler (layout ``Y_*``), (``yb``, index) one of the bench
+#: (``YB_*``), (``derived``, 0) NOx and (``derived``, 1) OGC (module docstring).
+PLANT_SOURCES: dict[str, tuple[str, int]] = {
+    "water_flow_kg_h": ("yb", YB_FLOW),
+    "water_in_temp_C": ("yb", YB_T_IN),
+    "water_out_temp_C": ("yb", YB_T_OUT),
+    "boiler_water_temp_C": ("y", Y_T_BOILER),
+    "room_temp_C": ("yb", YB_ROOM),
+    "ambient_pressure_hPa": ("yb", YB_PRESSURE),
+    "relative_humidity_pct": ("yb", YB_HUMIDITY),
+    "flue_gas_O2_pct": ("y", Y_O2),
+    "flue_gas_CO2_pct": ("y", Y_CO2),
+    "flue_gas_CO_ppm": ("y", Y_CO),
+    "flue_gas_NOx_ppm": ("derived", 0),
+    "flue_gas_SO2_ppm": ("y", Y_SO2),
+    "flue_gas_OGC_ppm": ("derived", 1),
+    "flue_gas_temp_C": ("y", Y_T_FG),
+    "flue_gas_velocity_m_s": ("yb", YB_VELOCITY),
+    "chimney_draught_Pa": ("yb", YB_DRAUGHT),
+    "balance_mass_kg": ("yb", YB_BALANCE),
+    "electric_power_W": ("y", Y_P_EL),
+    "boiler_on": ("yb", YB_FIRING_FLAG),
+}
+assert set(MEASURED) <= set(PLANT_SOURCES), set(MEASURED) - set(PLANT_SOURCES)
+# offsets of the parts in the list y + yb + derived that the getters gather from
+_SOURCE_OFFSET = {"y": 0, "yb": N_OUTPUTS, "derived": N_OUTPUTS + N_BENCH_OUTPUTS}
+
+
+def _one_tuple(position: int) -> Callable[[list], tuple]:
+    """itemgetter for one position, returning a 1-tuple like itemgetter of several."""
+    get = itemgetter(position)
+    return lambda values: (get(values),)
 
 
 class CommandError(ValueError):
@@ -156,6 +189,7 @@ class Emulator:
         self.identity = plant_identity(params, profile, seed, self.bench.config)
         fuel_n = params.fuel.n
         self._nox_per_v = 1e6 * NOX_CONVERSION * fuel_n / 14.007 * V_MOLAR_N
+        self._measured_plant_values = self.plant_values_getter(MEASURED)
         self.reset()
 
     def reset(self) -> None:
@@ -270,35 +304,45 @@ class Emulator:
     # ------------------------------------------------------------------ values
     def _plant_values(self) -> list[float]:
         """True values of the measured signals, in :data:`MEASURED` order."""
-        return list(_IN_MEASURED_ORDER(self._plant_by_name()))
+        return list(self._measured_plant_values())
 
     def _plant_by_name(self) -> dict[str, float]:
-        """True values of the measured signals by name, from the plant's named outputs."""
-        y = self.bench.y.tolist()
-        yb = self.bench.yb.tolist()
-        c = self.bench.c
-        lam = y[Y_LAMBDA]
-        nox = self._nox_per_v / (c[K_VDRY0] + c[K_VDRY1] * lam) if math.isfinite(lam) else 0.0
-        return {
-            "water_flow_kg_h": yb[YB_FLOW],
-            "water_in_temp_C": yb[YB_T_IN],
-            "water_out_temp_C": yb[YB_T_OUT],
-            "boiler_water_temp_C": y[Y_T_BOILER],
-            "room_temp_C": yb[YB_ROOM],
-            "ambient_pressure_hPa": yb[YB_PRESSURE],
-            "relative_humidity_pct": yb[YB_HUMIDITY],
-            "flue_gas_O2_pct": y[Y_O2],
-            "flue_gas_CO2_pct": y[Y_CO2],
-            "flue_gas_CO_ppm": y[Y_CO],
-            "flue_gas_NOx_ppm": nox,
-            "flue_gas_SO2_ppm": y[Y_SO2],
-            "flue_gas_OGC_ppm": OGC_PER_CO * y[Y_CO],
-            "flue_gas_temp_C": y[Y_T_FG],
-            "flue_gas_velocity_m_s": yb[YB_VELOCITY],
-            "chimney_draught_Pa": yb[YB_DRAUGHT],
-            "balance_mass_kg": yb[YB_BALANCE],
-            "electric_power_W": y[Y_P_EL],
-        }
+        """True values of the measured signals by name, from the plant's named outputs
+        (:data:`PLANT_SOURCES`)."""
+        return dict(zip(MEASURED, self._measured_plant_values(), strict=True))
+
+    def plant_values_getter(self, names: Sequence[str]) -> Callable[[], tuple[float, ...]]:
+        """A function giving the plant's true values of ``names`` (signals of
+        :data:`PLANT_SOURCES`), in that order, after the last step: one gather over the
+        plant's output lists, no dict (the per-row path of offline runs)."""
+        positions = [_SOURCE_OFFSET[PLANT_SOURCES[n][0]] + PLANT_SOURCES[n][1] for n in names]
+        gather = itemgetter(*positions) if len(positions) > 1 else _one_tuple(positions[0])
+        bench = self.bench
+        nox_per_v = self._nox_per_v
+        c = bench.c
+
+        def values() -> tuple[float, ...]:
+            y = bench.y.tolist()
+            lam = y[Y_LAMBDA]
+            nox = nox_per_v / (c[K_VDRY0] + c[K_VDRY1] * lam) if math.isfinite(lam) else 0.0
+            return gather(y + bench.yb.tolist() + [nox, OGC_PER_CO * y[Y_CO]])
+
+        return values
+
+    def reading_values_getter(self, names: Sequence[str]) -> Callable[[], tuple[float, ...]]:
+        """A function giving the readings of ``names`` (measured signals or ``boiler_on``)
+        in that order: :meth:`reading_by_name` and :attr:`boiler_on` without the dict."""
+        plant = self.plant_values_getter(names)
+        flag = len(MEASURED)
+        positions = [flag if n == "boiler_on" else _INDEX[n] for n in names]
+        gather = itemgetter(*positions) if len(positions) > 1 else _one_tuple(positions[0])
+
+        def values() -> tuple[float, ...]:
+            if self._stale:  # ideal instruments: the readings are the plant's values
+                return plant()
+            return gather([*self._readings, float(self.bench.yb[YB_FIRING_FLAG])])
+
+        return values
 
     def reading_by_name(self) -> dict[str, float]:
         """Instrument readings of the measured signals by name (a new dict)."""
@@ -327,8 +371,8 @@ class Emulator:
         bit and sets bit 2; an invalid or jumping balance is not "stable".
         """
         if self._stale:  # ideal instruments: readings and truth are the plant's values
-            out = self._plant_by_name()
-            self._true = self._readings = list(_IN_MEASURED_ORDER(out))
+            self._true = self._readings = self._plant_values()
+            out = dict(zip(MEASURED, self._readings, strict=True))
             self._stale = False
         else:
             out = dict(zip(MEASURED, self._readings, strict=True))

@@ -62,5 +62,8 @@ class Rig(Protocol):
     def read(self) -> Mapping[str, float]:
         """Read every instrument: a value for each of :data:`READING_KEYS` (NaN if missing)."""
 
+    # Optional: ``read_values() -> Sequence[float]``, the same readings in READING_KEYS
+    # order without the mapping (the runner uses it when a rig has it).
+
     def close(self) -> None:
         """Release the rig."""

@@ -54,11 +54,16 @@ _START_MARK = {"start_up": "t0_s", "test": "t1_s", "cooling_1": "t2_s", "cooling
 
 PHASES = ("preheat", "start_up", "test", "cooling_1", "cooling_2")
 
-# A row from the step's own values and the readings, taken by name in LOG_COLUMNS' order
-# (operator.itemgetter: the per-row cost of a plain tuple)
-_HEAD = itemgetter(*LOG_COLUMNS[3 : LOG_COLUMNS.index("water_flow_setpoint_kg_h")])
-_TAIL = itemgetter(*LOG_COLUMNS[LOG_COLUMNS.index("water_flow_setpoint_kg_h") + 1 : -1])
-assert LOG_COLUMNS[:3] == ("time_s", "phase", "sequence") and LOG_COLUMNS[-1] == "rig_epoch"
+# A row: the step's own values and the readings in READING_KEYS order, the flow setpoint
+# spliced in before boiler_on (LOG_COLUMNS' order, built the same way above)
+_SPLICE = READING_KEYS.index("boiler_on")
+# readings by name -> values in READING_KEYS order (operator.itemgetter: C speed)
+_IN_READING_ORDER = itemgetter(*READING_KEYS)
+# the readings the phase rules look at, by position in READING_KEYS
+_R_OUT = READING_KEYS.index("water_out_temp_C")
+_R_IN = READING_KEYS.index("water_in_temp_C")
+_R_FLUE = READING_KEYS.index("flue_gas_temp_C")
+_R_ON = _SPLICE
 
 Row = tuple[object, ...]
 
@@ -163,6 +168,15 @@ def run_protocol(
     first_load = sequences[0].load_start_pct
     t4_after = protocol.cooling_2_until_after_t2_s
     gaps: list = getattr(rig, "gaps", [])
+    # a rig may give its readings in READING_KEYS order at once (``read_values``); else
+    # they are taken from its mapping by name
+    read_values = getattr(rig, "read_values", None)
+    if read_values is None:
+        read = rig.read
+
+        def read_values() -> tuple:
+            return _IN_READING_ORDER(read())
+
     epoch = getattr(rig, "epoch", 0)
     restart_phase = bool(getattr(rig, "restart_phase", False))
 
@@ -203,11 +217,11 @@ def run_protocol(
             if on_phase is not None and len(gaps) != n_gaps:
                 on_phase(result)  # the break's gap reaches the meta file
             raise
-        reading = rig.read()
+        values = read_values()
         rows += 1
         setpoint = command.flow_setpoint_kg_h if command.pump_on else 0.0
         rig_epoch = getattr(rig, "epoch", 0)
-        row = (t, phase, sequence, *_HEAD(reading), setpoint, *_TAIL(reading), rig_epoch)
+        row = (t, phase, sequence, *values[:_SPLICE], setpoint, *values[_SPLICE:], rig_epoch)
         sink(row)
         if progress is not None:
             progress(row)
@@ -233,8 +247,8 @@ def run_protocol(
         elapsed_phase = t - phase_start
         if phase == "preheat":
             ok = (
-                abs(reading["water_out_temp_C"] - pre.temperature_C) <= pre.tolerance_K
-                and abs(reading["water_in_temp_C"] - pre.temperature_C) <= pre.tolerance_K
+                abs(values[_R_OUT] - pre.temperature_C) <= pre.tolerance_K
+                and abs(values[_R_IN] - pre.temperature_C) <= pre.tolerance_K
             )
             hold_since = (hold_since if hold_since is not None else t) if ok else None
             timed_out = elapsed_phase >= pre.max_duration_s
@@ -246,8 +260,8 @@ def run_protocol(
                 if on_phase is not None:
                     on_phase(result)
         elif phase == "start_up":
-            if reading["boiler_on"] >= 0.5:
-                slope.add(t, reading["flue_gas_temp_C"])
+            if values[_R_ON] >= 0.5:
+                slope.add(t, values[_R_FLUE])
             else:
                 slope.clear()
             rise_K_min = slope.slope() * 60.0 if slope.full() else math.inf
@@ -270,7 +284,7 @@ def run_protocol(
                     on_phase(result)
         elif phase == "cooling_1":
             timed_out = elapsed_phase >= c1.max_duration_s
-            if reading["water_out_temp_C"] <= c1.until_forward_C or timed_out:
+            if values[_R_OUT] <= c1.until_forward_C or timed_out:
                 if timed_out:
                     result.notes.append("t3: forward temperature rule not met, timed out")
                 phase, phase_start = "cooling_2", t

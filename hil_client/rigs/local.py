@@ -35,6 +35,7 @@ class LocalRig:
         self.gaps: list = []
         self._emulator_advance = self.emulator.advance
         self._reading_by_name = self.emulator.reading_by_name
+        self._reading_values = self.emulator.reading_values_getter(READING_KEYS)
 
     def apply(self, command: RigCommand) -> None:
         key = (
@@ -68,6 +69,12 @@ class LocalRig:
         out = self._reading_by_name()
         out["boiler_on"] = self.emulator.boiler_on
         return out
+
+    def read_values(self) -> tuple[float, ...]:
+        """:meth:`read` in READING_KEYS order, without the mapping (the runner's path)."""
+        if not self._stepped:
+            raise RuntimeError("read() before the first advance()")
+        return self._reading_values()
 
     def close(self) -> None:
         pass

@@ -13,7 +13,7 @@ Unmodelled effects (CONTRACT section 4; :mod:`rig_emulator.bench.effects`) are g
 bench as resolved settings or a profile's ``effects`` mapping. With none on, the bench steps
 the pure model (:func:`bench_step`); otherwise :func:`bench_step_effects`, which steps the
 plant of :mod:`rig_emulator.bench.plant`. The fuel-energy bias needs no kernel of its own:
-it scales what the balance loses per kg of fuel the model burns.
+it scales what the balance loses per kg of fuel the model burns (its ``balance`` stage).
 """
 
 from __future__ import annotations
@@ -28,10 +28,12 @@ from numba import njit
 from rig_emulator.bench.effects import EffectSettings, resolve_effects
 from rig_emulator.bench.loop import LoopConfig, condition_return, follow_flow
 from rig_emulator.bench.plant import (
-    FC_PIPE_ON,
+    balance_factor,
+    controller_horizon_s,
+    effect_state,
+    forward_sensor,
     new_effect_state,
     pack_effect_constants,
-    pipe_sensor,
     plant_step,
 )
 from rig_emulator.bench.room import RoomConditions
@@ -190,20 +192,19 @@ def bench_step(c, s, bc, bs, u, y, yb, dt_s):
 
 
 @njit(cache=True)
-def bench_step_effects(c, s, bc, bs, u, y, yb, dt_s, fc, fs, ph):
-    """:func:`bench_step` with the unmodelled effects of ``fc`` (state ``fs``, pipe
-    history ``ph``, see :mod:`rig_emulator.bench.plant`): the boiler is
-    :func:`~rig_emulator.bench.plant.plant_step` and the forward reading comes from the
-    sensor down the exit pipe when that effect is on."""
+def bench_step_effects(c, s, bc, bs, u, y, yb, dt_s, fc, fs, history, horizon_s):
+    """:func:`bench_step` with the unmodelled effects of ``fc`` (state ``fs``, history
+    ``history``, controller horizon ``horizon_s``; see :mod:`rig_emulator.bench.plant`): the
+    boiler is :func:`~rig_emulator.bench.plant.plant_step` and the forward reading comes
+    from the bench's ``forward_sensor`` stage."""
     room = u[U_ROOM]
     flow = follow_flow(bs[BS_FLOW], u[U_FLOW_SP], u[U_PUMP] > 0.5, dt_s, bc[BC_TAU_FLOW])
     t_in = bs[BS_T_RETURN]
-    plant_step(c, s, fc, fs, flow, t_in, room, u[U_BOILER_ON] > 0.5, dt_s, y)
+    plant_step(c, s, fc, fs, horizon_s, flow, t_in, room, u[U_BOILER_ON] > 0.5, dt_s, y)
     m_cp = flow * CP_WATER / 3600.0
     t_forward = t_in + y[Y_Q_WATER] / m_cp if m_cp > 0.0 else y[Y_T_OUT]
     _loop_and_outputs(s, bc, bs, u, y, yb, dt_s, flow, t_in, t_forward)
-    if fc[FC_PIPE_ON] > 0.5:
-        yb[YB_T_OUT] = pipe_sensor(fc, fs, ph, flow, t_forward, y[Y_T_OUT], room, dt_s)
+    yb[YB_T_OUT] = forward_sensor(fc, fs, history, flow, t_forward, y[Y_T_OUT], room, dt_s)
 
 
 @njit(cache=True)
@@ -254,9 +255,9 @@ class Bench:
     Attributes:
         c, s: boiler constants and state arrays; bc, bs: bench constants and state;
         u: inputs (set with :meth:`set_inputs`); y, yb: outputs of the last step;
-        effects: the resolved unmodelled effects; fc, fs, ph: their constants, state and
-        exit-pipe history (:mod:`rig_emulator.bench.plant`; unused when no dynamic effect
-        is on).
+        effects: the resolved unmodelled effects; fc, fs, history: their constants, state
+        and history (:mod:`rig_emulator.bench.plant`; unused when no effect with a compiled
+        stage is on).
 
     Args:
         params: the boiler; config: the bench;
@@ -277,11 +278,11 @@ class Bench:
         self.effects = effects
         self.c = bm.pack_constants(params)
         self.bc = pack_bench_constants(params, self.config, self.c)
-        if effects.fuel_relative_bias != 0.0:
-            # the fuel delivers (1 + b) times the nominal energy per kg: 1 / (1 + b) the mass
-            self.bc[BC_BALANCE_PER_KG] /= 1.0 + effects.fuel_relative_bias
+        # the effects' balance stages (the fuel-energy bias: 1 / (1 + b) the mass)
+        self.bc[BC_BALANCE_PER_KG] *= balance_factor(effects)
         self._dynamic = effects.dynamic
         self.fc = pack_effect_constants(effects, params)
+        self.horizon_s = controller_horizon_s(effects)
         self.u = np.zeros(N_INPUTS)
         self.y = np.zeros(N_OUTPUTS)
         self.yb = np.zeros(N_BENCH_OUTPUTS)
@@ -294,10 +295,10 @@ class Bench:
         self.s = bm.new_state(t)
         self.bs = np.zeros(len(BENCH_STATE_FIELDS))
         self.bs[BS_T_RETURN] = t
-        self.fs, self.ph = new_effect_state(t)
+        self.fs, self.history = new_effect_state(t)
         # the kernel's arrays, bound once (the step is called once per simulated second)
         self._args = (self.c, self.s, self.bc, self.bs, self.u, self.y, self.yb)
-        self._fx_args = (self.fc, self.fs, self.ph)
+        self._fx_args = (self.fc, self.fs, self.history, self.horizon_s)
         self.set_inputs(0.0, t, True, False, False)
         self.u[U_ROOM], self.u[U_PRESSURE], self.u[U_HUMIDITY] = self.config.room.at(0.0)
 
@@ -318,6 +319,10 @@ class Bench:
         yb[YB_BALANCE] = self.bc[BC_BALANCE0]
         yb[YB_VELOCITY] = self.bc[BC_IDLE_VELOCITY]
         yb[YB_DRAUGHT] = self.bc[BC_DRAUGHT]
+
+    def effect_state(self, name: str) -> dict[str, float]:
+        """The plant state of the effect ``name`` by field name (its module's ``state``)."""
+        return effect_state(self.fs, name)
 
     @property
     def time_s(self) -> float:

@@ -460,9 +460,122 @@ def close_step(
     y[Y_P_EL] = p_el
 
 
+# --- the step skeleton -------------------------------------------------------------------
+# One step is a fixed sequence of stages; the model's step is the skeleton with the neutral
+# stage at each of the named points below, the bench plant's step
+# (:func:`rig_emulator.bench.plant.plant_step`) the same skeleton with the unmodelled
+# effects' stages there. A hook gets the effect constants ``fc`` and state ``fs`` (2-D,
+# one row per effect) and ``row``, the row of the effect that owns the point.
+
+#: Named points of the skeleton where an effect may put its own stage, in step order.
+STAGE_POINTS = ("flame_clock", "fuel_bed", "flue_gas", "heat_store")
+P_FLAME_CLOCK, P_FUEL_BED, P_FLUE_GAS, P_HEAT_STORE = range(len(STAGE_POINTS))
+
+
+@njit(cache=True, inline="always")
+def model_flame_clock(c, s, fc, fs, row, started):
+    """``flame_clock``: time since the flame lit [s]; the model's flame lights at the start."""
+    return s[S_SINCE_START]
+
+
+@njit(cache=True, inline="always")
+def model_fuel_bed(c, s, fc, fs, row, firing, feed_kg_h, firing_kW, co_start, dt_s):
+    """``fuel_bed``: what burns of the fuel fed. The model burns the feed at once.
+
+    Returns (dry fuel burnt [kg/h], its firing power [kW, net], fuel flow that sets the
+    fan for Eq. 9 [kg/h], start CO peak [ppm], True if anything burns).
+    """
+    return feed_kg_h, firing_kW, feed_kg_h, co_start, firing
+
+
+@njit(cache=True, inline="always")
+def model_flue_gas(fc, fs, row, t_target_C, dt_s):
+    """``flue_gas``: flue-gas temperature [C] from its Eq. 8 (or idle) value; the model's
+    follows at once."""
+    return t_target_C
+
+
+@njit(cache=True, inline="always")
+def model_heat_store(c, fc, fs, row, t0_C, q_in_kW, m_cp, water_in_C, ua, room_C, dt_s):
+    """``heat_store``: the one node (Eq. 2, 7, 10) solved exactly over the step.
+
+    Returns (node temperature at the end [C], mean over the step [C], heat stored [kW]).
+    """
+    cap = c[K_CAP]
+    t1, t_mean = node_exact(t0_C, q_in_kW, m_cp, water_in_C, ua, room_C, cap, dt_s)
+    return t1, t_mean, cap * (t1 - t0_C) / dt_s
+
+
+@njit(cache=True, inline="always")
+def step_skeleton(
+    c, s, fc, fs, rows, water_flow_kg_h, water_in_C, room_C, enabled, dt_s, y, horizon_s,
+    flame_clock, fuel_bed, flue_gas, heat_store,
+):  # fmt: skip
+    """The step every boiler takes; :func:`step` documents the arguments.
+
+    Stages: controller (:func:`update_mode`, :func:`firing_power_kW` over ``dt_s +
+    horizon_s``), feed, ``fuel_bed``, combustion (Eq. 1, 3-6, 8, 9) with ``flue_gas``,
+    electric power, ``heat_store`` (Eq. 2, 7, 10), :func:`close_step`. ``rows`` maps each
+    point (``P_*``) to the row of ``fc``/``fs`` its stage reads; the hooks are the stage
+    functions of the points of :data:`STAGE_POINTS`. Inlined into its callers (numba IR),
+    so the hooks are resolved at compile time and the kernels stay cacheable.
+    """
+    t0 = s[S_T]
+    mode, started = update_mode(c, s, enabled)
+    firing = mode == STARTUP or mode == MODULATING
+    m_cp = water_flow_kg_h * _CP_W_KWH
+    since_flame = flame_clock(c, s, fc, fs, rows[P_FLAME_CLOCK], started)
+    co_start = c[K_CO_START] * math.exp(-since_flame / c[K_CO_TAU])
+
+    # what the controller commands: firing power (net basis) and the feed it implies
+    q_ign = 0.0
+    firing_kW = 0.0
+    if firing:
+        q_ign = igniter_kW(c, s)
+        firing_kW = firing_power_kW(
+            c, s, mode, m_cp, water_flow_kg_h, water_in_C, room_C, q_ign, co_start,
+            dt_s + horizon_s,
+        )  # fmt: skip
+    feed = firing_kW * 3600.0 / c[K_LHV]  # [kg/h dry]
+    burn, burn_kW, fan_feed, co_start, burning = fuel_bed(
+        c, s, fc, fs, rows[P_FUEL_BED], firing, feed, firing_kW, co_start, dt_s
+    )
+    ua = c[K_UA_ON] if firing or burning else c[K_UA_OFF]  # the fan runs
+
+    if burning:
+        t_fg = flue_gas(
+            fc, fs, rows[P_FLUE_GAS],
+            flue_gas_temperature(c, water_in_C, water_flow_kg_h, burn), dt_s,
+        )  # fmt: skip
+        lam = excess_air(c, fan_feed)
+        # while firing the start peak adds; in a burn-out the stop peak, as when off
+        co = co_stationary_ppm(c, burn_kW) + co_start if firing else burnout_co_ppm(c, s)
+        q_hx = combustion(c, burn, lam, t_fg, room_C, co, y)
+    else:
+        q_hx = 0.0
+        lam = math.inf
+        co = burnout_co_ppm(c, s)
+        no_combustion(y)
+        t_fg = 0.0  # set below: the probe sees draught air leaving at the node temperature
+    p_el = electric_power_W(c, firing, firing_kW, q_ign)
+
+    t1, t_mean, q_stored = heat_store(
+        c, fc, fs, rows[P_HEAT_STORE], t0, q_hx + q_ign, m_cp, water_in_C, ua, room_C, dt_s
+    )
+    if not burning:
+        t_fg = flue_gas(fc, fs, rows[P_FLUE_GAS], t1, dt_s)
+    close_step(
+        s, y, dt_s, mode, firing_kW, feed, p_el, t1, t_mean, t_fg, lam, co, q_ign, m_cp,
+        water_in_C, ua, room_C, q_stored,
+    )  # fmt: skip
+
+
 @njit(cache=True)
 def step(c, s, water_flow_kg_h, water_in_C, room_C, enabled, dt_s, y):
     """Advance the boiler by ``dt_s`` seconds with inputs held over the step.
+
+    The skeleton (:func:`step_skeleton`) with the model's stages at every point; they read
+    no effect arrays (None) and no rows.
 
     Args:
         c: constants (:func:`pack_constants`); s: state (layout ``S_*``), updated in place.
@@ -471,40 +584,10 @@ def step(c, s, water_flow_kg_h, water_in_C, room_C, enabled, dt_s, y):
         enabled: external on/off command of the bench; dt_s: step length [s].
         y: output array (layout ``Y_*``), filled in place.
     """
-    t0 = s[S_T]
-    mode = update_mode(c, s, enabled)[0]
-    firing = mode == STARTUP or mode == MODULATING
-    m_cp = water_flow_kg_h * _CP_W_KWH
-    cap = c[K_CAP]
-
-    if firing:
-        ua = c[K_UA_ON]
-        co_start = c[K_CO_START] * math.exp(-s[S_SINCE_START] / c[K_CO_TAU])
-        q_ign = igniter_kW(c, s)
-        firing_kW = firing_power_kW(
-            c, s, mode, m_cp, water_flow_kg_h, water_in_C, room_C, q_ign, co_start, dt_s
-        )
-        fuel = firing_kW * 3600.0 / c[K_LHV]
-        t_fg = flue_gas_temperature(c, water_in_C, water_flow_kg_h, fuel)
-        lam = excess_air(c, fuel)
-        co = co_stationary_ppm(c, firing_kW) + co_start
-        q_hx = combustion(c, fuel, lam, t_fg, room_C, co, y)
-    else:
-        ua = c[K_UA_OFF]
-        q_ign = firing_kW = fuel = q_hx = 0.0
-        lam = math.inf
-        co = burnout_co_ppm(c, s)
-        no_combustion(y)
-        t_fg = 0.0  # set below: the probe sees draught air leaving at the node temperature
-    p_el = electric_power_W(c, firing, firing_kW, q_ign)
-
-    t1, t_mean = node_exact(t0, q_hx + q_ign, m_cp, water_in_C, ua, room_C, cap, dt_s)
-    if not firing:
-        t_fg = t1
-    q_stored = cap * (t1 - t0) / dt_s
-    close_step(
-        s, y, dt_s, mode, firing_kW, fuel, p_el, t1, t_mean, t_fg, lam, co, q_ign, m_cp,
-        water_in_C, ua, room_C, q_stored,
+    step_skeleton(
+        c, s, None, None, (0, 0, 0, 0), water_flow_kg_h, water_in_C, room_C,
+        enabled, dt_s, y, 0.0, model_flame_clock, model_fuel_bed, model_flue_gas,
+        model_heat_store,
     )  # fmt: skip
 
 

@@ -26,7 +26,7 @@ from rig_emulator.bench import (
 )
 from rig_emulator.bench.bench import YB_BALANCE, YB_T_OUT
 from rig_emulator.bench.effects import SPECS, STRENGTH_LIMITS, EffectError, check_effects
-from rig_emulator.bench.plant import FS_BED, FS_METAL, lag2
+from rig_emulator.bench.effects.flue_gas_lag import lag2
 from rig_emulator.emulator import Emulator
 from rig_emulator.instruments import ProfileError, load_profile, profile_from_mapping
 from rig_emulator.model.boiler import balance_residual_kW
@@ -146,18 +146,19 @@ def test_plant_energy_balance_closes_every_step(params_12kw, name):
 def test_body_diffusion_conserves_energy_over_a_run(params_12kw):
     """Fuel in = losses + water + ambient + stored (metal and water nodes), to rounding."""
     bench = _bench(params_12kw, {"body_heat_diffusion": {"strength": 1.0}})
-    fc = bench.fc
-    n = bench.effects.body_nodes
-    c_metal = bench.effects.body_metal_share * params_12kw.capacity_kJ_K
+    body = bench.effects["body_heat_diffusion"]
+    n = int(body["nodes"])
+    c_metal = body["metal_share"] * params_12kw.capacity_kJ_K
 
     def content() -> float:  # heat in the nodes above 0 C [kJ]
-        metal = bench.fs[FS_METAL : FS_METAL + n].sum() * c_metal / n
+        state = bench.effect_state("body_heat_diffusion")
+        metal = sum(state[f"metal_{i}_C"] for i in range(n)) * c_metal / n
         return metal + (params_12kw.capacity_kJ_K - c_metal) * bench.s[0]
 
     e0 = content()
     run = drive(bench)
     y = run["y"]
-    assert fc[0] == 1.0  # the chain is on
+    assert "body_heat_diffusion" in bench.effects.active  # the chain is on
     fuel_in = np.sum(y[:, Y_Q_FUEL] + y[:, Y_Q_IGN])  # kJ over 1 s steps
     losses = np.sum(y[:, [Y_Q_ASH, Y_Q_SENS, Y_Q_LAT, Y_Q_CHEM]])
     water, ambient = np.sum(y[:, Y_Q_WATER]), np.sum(y[:, Y_Q_AMB])
@@ -175,7 +176,8 @@ def test_all_effects_conserve_fuel_and_energy(params_12kw):
     run = drive(bench, (*SCENARIO[:2], (300, 0.2, 55.0, True, False)))
     hhv = params_12kw.fuel.hhv_dry_kJ_kg
     burnt = np.sum(run["y"][:, Y_Q_FUEL]) / hhv
-    assert bench.s[S_FUEL] == pytest.approx(burnt + bench.fs[FS_BED], rel=1e-12)
+    bed = bench.effect_state("ignition_delay")["bed_kg"]
+    assert bench.s[S_FUEL] == pytest.approx(burnt + bed, rel=1e-12)
     assert np.max(np.abs(_energy_flows(run["y"]))) < 1e-9
 
 
@@ -204,11 +206,12 @@ def test_body_diffusion_water_lags_and_gets_less_heat_at_start_up(params_12kw, c
 def test_body_metal_gradient_in_steady_firing(params_12kw):
     bench = _bench(params_12kw, {"body_heat_diffusion": {"strength": 1.0}})
     drive(bench, (*SCENARIO[:1], (3600, 1.0, 55.0, True, True)))
-    fx = bench.effects
-    c_metal = fx.body_metal_share * params_12kw.capacity_kJ_K
+    body = bench.effects["body_heat_diffusion"]
+    c_metal = body["metal_share"] * params_12kw.capacity_kJ_K
     q_in = bench.y[Y_Q_WATER] + bench.y[Y_Q_AMB]  # steady: what reaches the water
-    expected = q_in * fx.body_time_constant_s / c_metal
-    assert bench.fs[FS_METAL] - bench.y[Y_T_BOILER] == pytest.approx(expected, rel=0.02)
+    expected = q_in * body["time_constant_s"] / c_metal
+    metal_0 = bench.effect_state("body_heat_diffusion")["metal_0_C"]
+    assert metal_0 - bench.y[Y_T_BOILER] == pytest.approx(expected, rel=0.02)
 
 
 def test_outlet_pipe_reads_below_the_boiler_once_circulation_stops(params_12kw, clean_run):
@@ -260,7 +263,7 @@ def test_ignition_delay_balance_drops_before_heat_is_released(params_12kw, clean
     bench = _bench(params_12kw, {"ignition_delay": {"strength": 1.0}})
     run = drive(bench)
     y, yb, t = run["y"], run["yb"], run["t"]
-    delay = bench.effects.ignition_delay_s
+    delay = bench.effects["ignition_delay"]["delay_s"]
     before = t < delay
     balance0 = BenchConfig().initial_balance_kg
     assert np.all(y[before, Y_Q_FUEL] == 0.0)
@@ -276,9 +279,10 @@ def test_ignition_delay_balance_drops_before_heat_is_released(params_12kw, clean
     assert after[0, Y_Q_FUEL] > 1.0
     burn_out = np.sum(y[stop:, Y_Q_FUEL]) / params_12kw.fuel.hhv_dry_kJ_kg
     assert burn_out == pytest.approx(
-        y[stop - 1, 5] / 3600 * bench.effects.burnout_time_constant_s, rel=0.05
+        y[stop - 1, 5] / 3600 * bench.effects["ignition_delay"]["burnout_time_constant_s"],
+        rel=0.05,
     )
-    assert bench.fs[FS_BED] == 0.0
+    assert bench.effect_state("ignition_delay")["bed_kg"] == 0.0
     assert np.sum(y[stop + 600 :, Y_Q_FUEL]) == 0.0
 
 
@@ -335,14 +339,16 @@ def test_strength_scales_parameters_and_explicit_values_override():
         }
     )
     lab = lab_parameters()
-    assert fx.body_time_constant_s == 2 * lab["body_heat_diffusion"]["time_constant_s"]
-    assert fx.body_metal_share == lab["body_heat_diffusion"]["metal_share"]  # shape
-    assert fx.pipe_volume_l == 1.0
-    assert fx.pipe_cooling_time_constant_s == 2 * 1800.0  # inverse: a weaker loss
-    assert fx.pipe_coupling_time_constant_s == 0.5 * 18000.0
-    assert fx.ignition_delay_s == lab["ignition_delay"]["delay_s"]  # strength 1 by default
-    assert fx.fuel_relative_bias == 0.05
-    assert not fx.flue_on
+    body, pipe = fx["body_heat_diffusion"], fx["outlet_sensor_pipe"]
+    assert body["time_constant_s"] == 2 * lab["body_heat_diffusion"]["time_constant_s"]
+    assert body["metal_share"] == lab["body_heat_diffusion"]["metal_share"]  # shape
+    assert pipe["volume_l"] == 1.0
+    assert pipe["cooling_time_constant_s"] == 2 * 1800.0  # inverse: a weaker loss
+    assert pipe["coupling_time_constant_s"] == 0.5 * 18000.0
+    # strength 1 by default
+    assert fx["ignition_delay"]["delay_s"] == lab["ignition_delay"]["delay_s"]
+    assert fx["fuel_energy_bias"]["relative_bias"] == 0.05
+    assert "flue_gas_lag" not in fx
     assert resolve_effects({"flue_gas_lag": {"strength": 0.0}}) == EffectSettings()
 
 
@@ -362,7 +368,8 @@ def test_effects_at_builds_a_profile_for_drawn_strengths(params_12kw):
     profile = profile_from_mapping({"name": "drawn", "effects": effects_at(drawn)})
     fx = Emulator(params_12kw, profile).bench.effects
     assert fx.active == EFFECT_NAMES
-    assert fx.fuel_relative_bias == pytest.approx(-0.08 * drawn["fuel_energy_bias"])
+    bias = fx["fuel_energy_bias"]["relative_bias"]
+    assert bias == pytest.approx(-0.08 * drawn["fuel_energy_bias"])
     with pytest.raises(EffectError, match=r"'effects\.nope'"):
         effects_at({"nope": 1.0})
 
