@@ -46,7 +46,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
@@ -159,6 +159,9 @@ class CurveCandidate:
     #: unaugmented model's residual: (case, blocks, residual) -> (mark over its floor,
     #: why not when below 1)
     fingerprint: Callable[[Case, list, np.ndarray], tuple[float, str]] | None = None
+    #: fitted parameters that must reach a floor for the effect to be named, with why:
+    #: below it the fit describes something else (a sensor's own lag)
+    floors: dict[str, tuple[float, str]] = field(default_factory=dict)
 
     def residual(self, case: Case, theta: dict[str, float] | None) -> np.ndarray:
         """Lab minus prediction, less the sensor's offset (and drift) fitted on the settled
@@ -223,6 +226,9 @@ class CurveCandidate:
         margin = (before - after) / ABS_MIN[self.signal] if ev.blocks else 0.0
         if self.fingerprint is not None and blocks:
             margin, why = self.fingerprint(case, blocks, self.residual(case, None))
+            for name, (floor, reason) in self.floors.items():
+                if theta.get(name, math.inf) < floor:
+                    margin, why = 0.0, f"{name} {theta[name]:.3g} < {floor:g}: {reason}"
             if margin < 1.0:
 
                 def decide(units, why=why):
@@ -290,17 +296,21 @@ def _low_flow_blocks(case: Case) -> list[tuple[str, np.ndarray, int]]:
 
 
 def _combustion_end(case: Case, stop: int, end: int) -> int:
-    """The first row after ``stop`` where the dry O2 is back at the air's (within
-    :data:`AIR_O2_MARGIN_PCT`): the bed has burnt out. At most :data:`BURNOUT_MAX_S` later;
-    ``stop`` itself without a usable O2 column."""
+    """The row after ``stop`` from which the dry O2 stays at the air's (within
+    :data:`AIR_O2_MARGIN_PCT`): the bed has burnt out for good (a bed smouldering on the
+    draught can take the O2 down again minutes after it first read air). At most
+    :data:`BURNOUT_MAX_S` later; ``stop`` itself without a usable O2 column."""
     o2 = case.log["flue_gas_O2_pct"]
     ok = np.isfinite(o2)
     if ok.sum() < 10 or float(np.ptp(o2[ok])) < 1.0:
         return stop
     t = case.t
     last = min(int(np.searchsorted(t, t[stop] + BURNOUT_MAX_S)), end)
-    air = np.flatnonzero(o2[stop:last] >= O2_AIR_PCT - AIR_O2_MARGIN_PCT)
-    return stop + int(air[0]) if len(air) else last
+    window = o2[stop:last]
+    burning = np.flatnonzero(np.isfinite(window) & (window < O2_AIR_PCT - AIR_O2_MARGIN_PCT))
+    if not len(burning):
+        return stop
+    return min(stop + int(burning[-1]) + 1, last)
 
 
 def _stop_blocks(case: Case) -> list[tuple[str, np.ndarray, int]]:
@@ -527,6 +537,7 @@ FLUE = CurveCandidate(
     nuisance_drift=False,
     anchor_s=-STOP_REFERENCE_S,
     fingerprint=_flue_fingerprint,
+    floors={"tau_fg_s": (PROBE_SETTLE_S / 3.0, "no slower than the duct probe itself")},
 )
 
 

@@ -22,7 +22,8 @@ section 4). The diagnosis is built to name an effect *through* that background g
    ``unexplained_gap`` says whether a gap beyond the bench's resolution remains.
 5. *Confidence*: the share of :data:`BOOTSTRAP` block-bootstrap draws of the evidence
    (held-out blocks, starts and closure hours drawn again with replacement) that give the
-   same answer: a verdict that rests on one block gets a low figure.
+   same answer: a verdict that rests on one block gets a low figure. A ``none`` is
+   discounted by how close the closest candidate came to its fingerprint's floor.
 6. *How far*: the chosen effect, parameters frozen, predicts the validation log, which is
    used for nothing else; RMSD before and after where the effect acts. A shrinkage of zero
    or less is reported as "not confirmed".
@@ -37,7 +38,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from hil_client.analysis.calibrate import calibrate
-from hil_client.analysis.candidates import CANDIDATES, Assessment
+from hil_client.analysis.candidates import CANDIDATES, Z_MIN, Assessment
 from hil_client.analysis.logio import LabLog
 from hil_client.analysis.metrics import autocorrelation, lag_at_peak, table4_metrics, theil_shares
 from hil_client.analysis.phases import Phases
@@ -116,8 +117,22 @@ def _answer(
     return max(named)[1] if named else "none"
 
 
+def _closest_miss(assessments: dict[str, Assessment], verdicts: dict) -> float:
+    """How close the closest candidate not named came to its fingerprint's floor (its
+    margin, 0-1) among those whose held-out evidence passed: 0 when none came near."""
+    near = [
+        a.margin
+        for e, a in assessments.items()
+        if not verdicts[e][0] and verdicts[e][1] >= Z_MIN and math.isfinite(a.margin)
+    ]
+    return min(max(max(near, default=0.0), 0.0), 1.0)
+
+
 def _confidence(assessments: dict[str, Assessment], answer: str) -> float:
-    """Share of block-bootstrap draws that give ``answer`` (see the module docstring)."""
+    """Share of block-bootstrap draws that give ``answer`` (see the module docstring); for
+    ``none`` discounted by the closest miss: a candidate that helps out of sample and shows
+    most of the mark its effect needs makes "nothing listed" a close call, however stable
+    the verdict is under resampling."""
     rng = np.random.default_rng(20150505)
     votes: Counter[str] = Counter()
     for _ in range(BOOTSTRAP):
@@ -130,7 +145,11 @@ def _confidence(assessments: dict[str, Assessment], answer: str) -> float:
                 units = a.units
             verdicts[effect] = a.decide(units)
         votes[_answer(verdicts, assessments)] += 1
-    return votes[answer] / BOOTSTRAP
+    share = votes[answer] / BOOTSTRAP
+    if answer == "none":
+        verdicts = {effect: a.verdict() for effect, a in assessments.items()}
+        share *= 1.0 - _closest_miss(assessments, verdicts)
+    return share
 
 
 def _finite(x: float) -> float | None:

@@ -52,8 +52,11 @@ class Line:
         termios.tcflush(self.fd, termios.TCIOFLUSH)
 
     def send(self, data: bytes) -> float:
+        """Write ``data``; returns the time just before the write (the server may see the
+        first byte before ``os.write`` returns, and starts its wire time from it)."""
+        started = time.monotonic()
         os.write(self.fd, data)
-        return time.monotonic()
+        return started
 
     def read(self, n: int, timeout_s: float = 2.0) -> bytes:
         """Up to ``n`` bytes, whatever came within ``timeout_s``."""
