@@ -44,6 +44,7 @@ blocks, starts, closure blocks) and a rule deciding from them whether it is name
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -79,6 +80,9 @@ AIR_O2_MARGIN_PCT = 0.5
 #: Longest burn-out waited for after a stop [s]: a bed left on the grate can smoulder on the
 #: draught for a quarter of an hour and more once the burner stops.
 BURNOUT_MAX_S = 1800.0
+#: Shortest stretch of air after a stop the stored heat is read from [s]: the probe's
+#: settling and a minute of reference, then what follows.
+AIR_PERIOD_MIN_S = 300.0
 #: The residual after a stop is taken relative to its mean over this long from the end of
 #: combustion [s].
 STOP_REFERENCE_S = 60.0
@@ -295,22 +299,28 @@ def _low_flow_blocks(case: Case) -> list[tuple[str, np.ndarray, int]]:
     return out
 
 
-def _combustion_end(case: Case, stop: int, end: int) -> int:
-    """The row after ``stop`` from which the dry O2 stays at the air's (within
-    :data:`AIR_O2_MARGIN_PCT`): the bed has burnt out for good (a bed smouldering on the
-    draught can take the O2 down again minutes after it first read air). At most
-    :data:`BURNOUT_MAX_S` later; ``stop`` itself without a usable O2 column."""
+def _air_periods(case: Case, stop: int, end: int) -> list[tuple[int, int]]:
+    """The runs of rows between ``stop`` and at most :data:`BURNOUT_MAX_S` later (and
+    ``end``) where the dry O2 reads the air's (within :data:`AIR_O2_MARGIN_PCT`): no
+    combustion; a bed smouldering on the draught can take the O2 down again minutes after it
+    first read air. The last run is extended to ``end``. Without a usable O2 column, the
+    whole stretch from ``stop``."""
     o2 = case.log["flue_gas_O2_pct"]
     ok = np.isfinite(o2)
     if ok.sum() < 10 or float(np.ptp(o2[ok])) < 1.0:
-        return stop
+        return [(stop, end)]
     t = case.t
     last = min(int(np.searchsorted(t, t[stop] + BURNOUT_MAX_S)), end)
     window = o2[stop:last]
-    burning = np.flatnonzero(np.isfinite(window) & (window < O2_AIR_PCT - AIR_O2_MARGIN_PCT))
-    if not len(burning):
-        return stop
-    return min(stop + int(burning[-1]) + 1, last)
+    air = ~(np.isfinite(window) & (window < O2_AIR_PCT - AIR_O2_MARGIN_PCT))
+    edges = np.flatnonzero(np.diff(air.astype(np.int8))) + 1
+    bounds = [0, *edges.tolist(), len(air)]
+    runs = [(stop + x, stop + y) for x, y in itertools.pairwise(bounds) if air[x]]
+    if not runs:
+        return [(last, end)] if last < end else []
+    if runs[-1][1] == last:
+        runs[-1] = (runs[-1][0], end)
+    return runs
 
 
 def _stop_blocks(case: Case) -> list[tuple[str, np.ndarray, int]]:
@@ -332,8 +342,14 @@ def _stop_blocks(case: Case) -> list[tuple[str, np.ndarray, int]]:
             continue
         later = edges[edges > i]
         end = int(later[0]) if len(later) else len(t)
-        anchor = _combustion_end(case, int(i), end)
-        for w in windows_after(t, np.array([anchor]), WINDOW_S, end):
+        # from the first lasting reading of air on, while it lasts (if combustion resumes
+        # sooner every time, from the end of combustion for good)
+        periods = _air_periods(case, int(i), end)
+        if not periods:
+            continue
+        long_enough = [(a, b) for a, b in periods if t[b - 1] - t[a] >= AIR_PERIOD_MIN_S]
+        anchor, stop_reading = long_enough[0] if long_enough else periods[-1]
+        for w in windows_after(t, np.array([anchor]), WINDOW_S, stop_reading):
             out += [("stop", piece, anchor) for piece in _split(w, t, SUB_BLOCK_S)]
     return out
 
