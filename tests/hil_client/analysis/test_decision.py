@@ -1,0 +1,76 @@
+"""How the diagnosis decides between candidates and how sure it says it is
+(hil_client.analysis.diagnose._answer, _confidence; candidates._air_periods): the rules on
+small, hand-made inputs whose right answer is known by construction."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+
+from hil_client.analysis.candidates import Assessment, _air_periods
+from hil_client.analysis.diagnose import _answer, _confidence
+from hil_client.analysis.logio import LabLog
+
+
+def _assessment(effect: str, named: bool, z: float, margin: float) -> Assessment:
+    return Assessment(
+        effect,
+        "signal",
+        "phase",
+        {},
+        [],
+        lambda units, named=named, z=z: (named, z, "named" if named else "below its floor"),
+        1.0,
+        0.5,
+        margin,
+    )
+
+
+def test_of_two_named_candidates_the_mark_furthest_beyond_its_floor_wins():
+    """A huge z (a long record) does not outrank a mark far beyond its floor: a bed
+    burning out after stops warms the water a little (body just past its floor) while the
+    pre-feed at every start is ten times its floor."""
+    assessments = {
+        "body_heat_diffusion": _assessment("body_heat_diffusion", True, 800.0, 1.2),
+        "ignition_delay": _assessment("ignition_delay", True, 40.0, 10.0),
+        "flue_gas_lag": _assessment("flue_gas_lag", False, 90.0, 30.0),  # not named
+    }
+    verdicts = {e: a.verdict() for e, a in assessments.items()}
+    assert _answer(verdicts, assessments) == "ignition_delay"
+    assert _answer({e: (False, 0.0, "") for e in verdicts}, assessments) == "none"
+
+
+def test_a_none_is_as_sure_as_the_closest_miss_allows():
+    """Nothing named, stable under resampling: confidence 0.9 when the closest candidate with
+    held-out evidence showed a tenth of its floor's mark, 0.2 when one reached 80 % of it; a
+    candidate without held-out evidence (z < 3) does not count, however large its mark."""
+    far = {
+        "body_heat_diffusion": _assessment("body_heat_diffusion", False, 50.0, 0.1),
+        "ignition_delay": _assessment("ignition_delay", False, 1.0, 0.95),
+    }
+    assert abs(_confidence(far, "none") - 0.9) < 1e-9
+    near = far | {"flue_gas_lag": _assessment("flue_gas_lag", False, 12.0, 0.8)}
+    assert abs(_confidence(near, "none") - 0.2) < 1e-9
+    named = {"flue_gas_lag": _assessment("flue_gas_lag", True, 12.0, 3.0)}
+    assert _confidence(named, "flue_gas_lag") == 1.0
+
+
+def _case(t, o2):
+    log = LabLog(Path("synthetic.csv"), {"time_s": t, "flue_gas_O2_pct": o2}, {})
+    return SimpleNamespace(log=log, t=t)
+
+
+def test_air_after_a_stop_is_read_in_its_runs_and_a_rekindling_bed_ends_one():
+    """After a stop at 1000 s the analyser reads air from 1100 s, the bed rekindles from
+    1500 s to 1900 s (O2 low again), then air for good."""
+    t = np.arange(0.0, 5000.0, 10.0)
+    o2 = np.full_like(t, 20.9)
+    o2[t < 1100.0] = 8.0
+    o2[(t >= 1500.0) & (t < 1900.0)] = 0.5
+    stop, end = int(np.searchsorted(t, 1000.0)), len(t)
+    runs = [(t[a], t[b - 1]) for a, b in _air_periods(_case(t, o2), stop, end)]
+    assert runs == [(1100.0, 1490.0), (1900.0, t[-1])]
+    no_analyser = _case(t, np.full_like(t, np.nan))
+    assert _air_periods(no_analyser, stop, end) == [(stop, end)]
