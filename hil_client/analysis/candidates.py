@@ -55,7 +55,7 @@ import numpy as np
 from hil_client.analysis.augment import first_order_lag, pipe_sensor, two_lump_water
 from hil_client.analysis.balance import flue_gas_loss_per_kg
 from hil_client.analysis.evidence import BlockGain, Evidence, cross_validate
-from hil_client.analysis.firing import windows_after
+from hil_client.analysis.firing import MIN_RUN_S, windows_after
 from hil_client.analysis.logio import fill_gaps
 from hil_client.analysis.replay import SENSOR_TAU_S, Case
 from rig_emulator.model import constants as k
@@ -303,7 +303,8 @@ def _air_periods(case: Case, stop: int, end: int) -> list[tuple[int, int]]:
     """The runs of rows between ``stop`` and at most :data:`BURNOUT_MAX_S` later (and
     ``end``) where the dry O2 reads the air's (within :data:`AIR_O2_MARGIN_PCT`): no
     combustion; a bed smouldering on the draught can take the O2 down again minutes after it
-    first read air. The last run is extended to ``end``. Without a usable O2 column, the
+    first read air (runs apart by less than a flicker of the analyser, :data:`MIN_RUN_S`, are
+    one). The last run is extended to ``end``. Without a usable O2 column, the
     whole stretch from ``stop``."""
     o2 = case.log["flue_gas_O2_pct"]
     ok = np.isfinite(o2)
@@ -315,7 +316,14 @@ def _air_periods(case: Case, stop: int, end: int) -> list[tuple[int, int]]:
     air = ~(np.isfinite(window) & (window < O2_AIR_PCT - AIR_O2_MARGIN_PCT))
     edges = np.flatnonzero(np.diff(air.astype(np.int8))) + 1
     bounds = [0, *edges.tolist(), len(air)]
-    runs = [(stop + x, stop + y) for x, y in itertools.pairwise(bounds) if air[x]]
+    runs: list[tuple[int, int]] = []
+    for x, y in itertools.pairwise(bounds):
+        if not air[x]:
+            continue
+        if runs and t[stop + x] - t[runs[-1][1] - 1] < MIN_RUN_S:  # a flicker, not a bed
+            runs[-1] = (runs[-1][0], stop + y)
+        else:
+            runs.append((stop + x, stop + y))
     if not runs:
         return [(last, end)] if last < end else []
     if runs[-1][1] == last:
