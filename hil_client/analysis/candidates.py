@@ -22,9 +22,11 @@ for the effect:
     The flue gas follows the model's with a first-order lag (exchanger and refractory
     storage): the slow fall after a stop, where no controller or start-up is involved.
 
-The responses after a stop are taken relative to the residual just before it, so a
-mismatch the plant carried into the stop (its own set point, its modulation) is not
-counted; each window is cut into 5-min blocks for the cross-validation.
+The responses after a stop are read while the analyser reads air (no combustion: a bed
+burning out or smouldering is ``ignition_delay``'s, not storage), the flue gas's relative to
+its level once the probe has settled, the water's relative to the steady burn just before
+the stop, so a mismatch the plant carried into the stop (its own set point, its modulation)
+is not counted; each window is cut into 5-min blocks for the cross-validation.
 ``ignition_delay`` (balance; around each start)
     Measured directly: the fuel the balance lost before the flue gas showed combustion
     (the mass before the start less the mass at the onset, read from the readings before
