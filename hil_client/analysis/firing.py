@@ -39,6 +39,9 @@ STOP_FALL_K = 10.0
 #: Least fuel a burn of the burner feeds [kg]: two steps of the balance (0.02 kg, Section
 #: 2.2).
 NO_FEED_KG = 0.04
+#: A rise of the balance this large between two readings is a refill [kg]: the burn's feed
+#: cannot be read across it.
+REFILL_KG = 0.5
 
 
 @dataclass(frozen=True, slots=True)
@@ -125,14 +128,17 @@ def _drop_burnouts(
     :data:`NO_FEED_KG` is the bed burning out (smouldering on the draught), not the burner
     starting again: the burner feeds at least Pmin's fuel, tenths of a kilogram in the
     minutes a burn lasts. It is not firing (the model's burner stays off); the burn at the
-    record's start and burns where the balance has too few readings are kept."""
+    record's start, burns where the balance has too few readings and burns across a refill
+    of the balance are kept."""
     keep_starts, keep_stops = [], []
     for i in starts:
         later = stops[stops > i]
         end = int(later[0]) if len(later) else len(t)
         readings = mass[i:end][np.isfinite(mass[i:end])]
         after_a_stop = i > 0 and np.any(stops < i) and len(readings) >= 10
-        if after_a_stop and float(readings[:5].mean() - readings[-5:].mean()) < NO_FEED_KG:
+        refilled = len(readings) > 1 and float(np.max(np.diff(readings))) > REFILL_KG
+        lost = float(readings[:5].mean() - readings[-5:].mean()) if len(readings) else 0.0
+        if after_a_stop and not refilled and lost < NO_FEED_KG:
             burning[i:end] = False
             continue
         keep_starts.append(i)

@@ -57,6 +57,8 @@ def test_a_bed_burning_out_without_feed_is_not_a_start():
     assert not firing.burning[smoulder].any()
     without_balance = observe_firing(_log(t, o2, t_fg))  # no balance: cannot tell, kept
     assert len(without_balance.starts) == 3
+    refilled = mass + np.where(t >= 4000.0, 10.0, 0.0)  # a refill during the smoulder
+    assert len(observe_firing(_with_balance(_log(t, o2, t_fg), refilled)).starts) == 3
 
 
 def test_a_stop_and_a_start_closer_than_a_run_are_one_burn():
