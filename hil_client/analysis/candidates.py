@@ -501,7 +501,7 @@ class PipeCandidate(CurveCandidate):
     def residual(self, case: Case, theta: dict[str, float] | None) -> np.ndarray:
         r = super().residual(case, theta)
         runs: dict[int, list[np.ndarray]] = {}
-        for _, rows, anchor in self.blocks(case):
+        for _, rows, anchor in case.memo(("blocks", self.effect), lambda: self.blocks(case)):
             runs.setdefault(anchor, []).append(rows)
         for pieces in runs.values():
             rows = np.concatenate(pieces)
@@ -685,8 +685,7 @@ class IgnitionCandidate:
     def prediction(self, case: Case, theta: dict[str, float]) -> dict[str, np.ndarray]:
         """The balance loses the pre-feed of every start on top of the model's fuel."""
         fuel = case.base_prediction()["fuel_cum_kg"].copy()
-        per_start = theta["delay_s"] * case.params.p_start_kW / case.params.fuel.lhv_dry_kJ_kg
-        per_start *= case.params.fuel.balance_loss_per_kg_dry
+        per_start = theta["delay_s"] * _start_feed_rate_kg_h(case) / 3600.0
         for i in case.firing.starts:
             fuel[i:] += per_start
         return {"fuel_cum_kg": fuel}

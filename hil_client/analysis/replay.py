@@ -64,10 +64,17 @@ class Case:
     balance: np.ndarray  # the balance's reading without refills, gaps kept [kg]
     settled: np.ndarray  # test-phase rows far from any start or stop, with flow
     _lag_cache: dict = field(default_factory=dict)
+    _memo: dict = field(default_factory=dict)
 
     @property
     def transitions(self) -> np.ndarray:
         return np.sort(np.concatenate([self.firing.starts, self.firing.stops]))
+
+    def memo(self, key: tuple, compute):
+        """What ``compute()`` gives for this log, computed once (the log does not change)."""
+        if key not in self._memo:
+            self._memo[key] = compute()
+        return self._memo[key]
 
     def lagged(self, x_name: str, x: np.ndarray, tau_s: float) -> np.ndarray:
         """``x`` through a first-order lag (cached by name and rounded tau)."""
