@@ -23,7 +23,7 @@ section 4). The diagnosis is built to name an effect *through* that background g
 5. *Confidence*: the share of :data:`BOOTSTRAP` block-bootstrap draws of the evidence
    (held-out blocks, starts and closure hours drawn again with replacement) that give the
    same answer: a verdict that rests on one block gets a low figure. A ``none`` is
-   discounted by how close the closest candidate came to its fingerprint's floor.
+   discounted by how close the closest candidate came to being named (its mark and its evidence).
 6. *How far*: the chosen effect, parameters frozen, predicts the validation log, which is
    used for nothing else; RMSD before and after where the effect acts. A shrinkage of zero
    or less is reported as "not confirmed".
@@ -118,21 +118,22 @@ def _answer(
 
 
 def _closest_miss(assessments: dict[str, Assessment], verdicts: dict) -> float:
-    """How close the closest candidate not named came to its fingerprint's floor (its
-    margin, 0-1) among those whose held-out evidence passed: 0 when none came near."""
+    """How close the closest candidate not named came to being named (0-1): the share of
+    its fingerprint's floor its mark reached (its margin) times the share of the needed
+    held-out evidence it reached; 0 when none came near on both."""
     near = [
-        a.margin
+        min(max(a.margin, 0.0), 1.0) * min(max(verdicts[e][1], 0.0) / Z_MIN, 1.0)
         for e, a in assessments.items()
-        if not verdicts[e][0] and verdicts[e][1] >= Z_MIN and math.isfinite(a.margin)
+        if not verdicts[e][0] and math.isfinite(a.margin) and math.isfinite(verdicts[e][1])
     ]
-    return min(max(max(near, default=0.0), 0.0), 1.0)
+    return max(near, default=0.0)
 
 
 def _confidence(assessments: dict[str, Assessment], answer: str) -> float:
     """Share of block-bootstrap draws that give ``answer`` (see the module docstring); for
-    ``none`` discounted by the closest miss: a candidate that helps out of sample and shows
-    most of the mark its effect needs makes "nothing listed" a close call, however stable
-    the verdict is under resampling."""
+    ``none`` discounted by the closest miss: a candidate that shows most of the mark its
+    effect needs and most of the held-out evidence makes "nothing listed" a close call,
+    however stable the verdict is under resampling."""
     rng = np.random.default_rng(20150505)
     votes: Counter[str] = Counter()
     for _ in range(BOOTSTRAP):

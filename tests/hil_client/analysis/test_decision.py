@@ -45,14 +45,17 @@ def test_of_two_named_candidates_the_mark_furthest_beyond_its_floor_wins():
 def test_a_none_is_as_sure_as_the_closest_miss_allows():
     """Nothing named, stable under resampling: confidence 0.9 when the closest candidate with
     held-out evidence showed a tenth of its floor's mark, 0.2 when one reached 80 % of it; a
-    candidate without held-out evidence (z < 3) does not count, however large its mark."""
+    candidate with a full mark but only half the evidence it needs (z 1.5 of 3) is half a
+    miss: 0.5."""
     far = {
         "body_heat_diffusion": _assessment("body_heat_diffusion", False, 50.0, 0.1),
-        "ignition_delay": _assessment("ignition_delay", False, 1.0, 0.95),
+        "ignition_delay": _assessment("ignition_delay", False, -1.0, 0.95),
     }
     assert abs(_confidence(far, "none") - 0.9) < 1e-9
     near = far | {"flue_gas_lag": _assessment("flue_gas_lag", False, 12.0, 0.8)}
     assert abs(_confidence(near, "none") - 0.2) < 1e-9
+    half = far | {"ignition_delay": _assessment("ignition_delay", False, 1.5, 2.0)}
+    assert abs(_confidence(half, "none") - 0.5) < 1e-9
     named = {"flue_gas_lag": _assessment("flue_gas_lag", True, 12.0, 3.0)}
     assert _confidence(named, "flue_gas_lag") == 1.0
 
