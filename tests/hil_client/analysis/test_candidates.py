@@ -1,0 +1,68 @@
+"""Single rules of the candidates (hil_client.analysis.candidates) on small hand-made
+inputs whose right answer is known by construction: what the balance's resolution allows
+an ignition pre-feed to claim, how much a closure at low load can say about the fuel,
+and which idle level the flue-gas store is read against."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from hil_client.analysis.candidates import (
+    BALANCE_STEP_KG,
+    Z_MIN,
+    _decide_ignition,
+    _flue_gas_idle_at_lab_water,
+    _pre_feed,
+    closure_u_rel,
+)
+from rig_emulator.boilers import load_boiler
+
+
+def _start_case(mass: np.ndarray, t: np.ndarray, starts: list[int]) -> SimpleNamespace:
+    firing = SimpleNamespace(starts=np.array(starts), stops=np.array([], dtype=int))
+    return SimpleNamespace(t=t, balance=mass, firing=firing, params=load_boiler("windhager_6kw"))
+
+
+def test_one_balance_step_at_one_start_is_not_evidence_of_a_pre_feed():
+    """A balance that reads 0.02 kg less from 5 min before the onset on (one step of its
+    resolution, Section 2.2: the true mass may have moved by anything from 0 to 0.04 kg)
+    is no evidence, however many readings before and after average it: they all round
+    the same way. Twenty starts each losing a sixth of a kilogram before the onset are."""
+    t = np.arange(0.0, 3600.0, 1.0)
+    onset = 2400
+    mass = np.where(t < t[onset] - 300.0, 286.08, 286.06)
+    units = _pre_feed(_start_case(mass, t, [onset]))
+    assert len(units) == 1
+    assert abs(units[0][0] - BALANCE_STEP_KG) < 1e-9
+    named, z, _ = _decide_ignition(units)
+    assert not named and z < Z_MIN
+    fed = np.where(t < t[onset] - 240.0, 286.08, 285.92)  # 0.16 kg, 4 min of Pstart feed
+    named, z, why = _decide_ignition(_pre_feed(_start_case(fed, t, [onset])) * 20)
+    assert named, why
+
+
+def test_a_closure_at_low_load_says_less_about_the_fuel():
+    """The same 0.1-K forward-return error weighs 0.7 % of the heat at a 15-K rise and
+    3.3 % at a 3-K rise (part load); an unchecked pair of sensors (0.4 K) four times more;
+    the storage and room-loss shares add their own uncertainty."""
+    full = closure_u_rel(15.0, 0.1, 0.02, 0.0)
+    low = closure_u_rel(3.0, 0.1, 0.02, 0.0)
+    assert full < 0.012 < 0.03 < low
+    assert closure_u_rel(15.0, 0.4, 0.02, 0.0) > 2.5 * full
+    assert closure_u_rel(15.0, 0.1, 0.02, 0.2) > full + 0.02
+
+
+def test_the_flue_gas_store_is_read_against_the_measured_water_when_idle():
+    """Where the model's flue gas equals its node (no combustion: draught air leaves at the
+    node's temperature) the idle level is the measured boiler water; elsewhere the
+    model's flue gas."""
+    node = np.array([70.0, 71.0, 72.0, 72.0])
+    t_fg = np.array([150.0, 140.0, 72.0, 72.0])
+    lab_water = np.array([69.0, 70.0, 75.0, 74.5])
+    case = SimpleNamespace(
+        model={"t_flue_gas_C": t_fg, "t_boiler_C": node},
+        lab={"boiler_water_temp_C": lab_water},
+    )
+    assert np.array_equal(_flue_gas_idle_at_lab_water(case), [150.0, 140.0, 75.0, 74.5])
