@@ -19,8 +19,12 @@ for the effect:
     used: there a real boiler's own start-up (purge, ignition, fuel ramp) differs from the
     model's, and an effect must not be named for absorbing that.
 ``flue_gas_lag`` (flue gas; the 30 min after each stop)
-    The flue gas follows the model's with a first-order lag (exchanger and refractory
-    storage): the slow fall after a stop, where no controller or start-up is involved.
+    A share of the model's flue gas passes through a first-order lag (exchanger and
+    refractory storage; the store's pace and how much of the gas's heat it holds are
+    fitted apart): the slow fall after a stop, where no controller or start-up is
+    involved. Without combustion the draught air leaves at the *measured* water's
+    temperature, so water that stays warmer than the model's (a body, the plant's own
+    losses) is not taken for a store.
 
 The responses after a stop are read while the analyser reads air (no combustion: a bed
 burning out or smouldering is ``ignition_delay``'s, not storage), the flue gas's relative to
@@ -38,7 +42,9 @@ is not counted; each window is cut into 5-min blocks for the cross-validation.
     Eq. 4-7) need at the nominal calorific value, against what the balance lost. The
     forward-return difference is checked at the isothermal end of the preheat, where the
     bench holds supply = return (Section 2.3), so a fixed sensor error does not pass for a
-    fuel bias.
+    fuel bias. Each hour carries its own systematic uncertainty (the sensors, the loss to
+    the room, the water's storage; :func:`closure_u_rel`) and weighs by it: an hour of a
+    load cycle whose heat is largely the water's warming says little about the fuel.
 
 Each candidate gives *units* of evidence that can be drawn again in a bootstrap (held-out
 blocks, starts, closure blocks) and a rule deciding from them whether it is named.
@@ -85,8 +91,10 @@ AIR_O2_MARGIN_PCT = 0.5
 #: draught for a quarter of an hour and more once the burner stops.
 BURNOUT_MAX_S = 1800.0
 #: Shortest stretch of air after a stop the stored heat is read from [s]: the probe's
-#: settling and a minute of reference, then what follows.
-AIR_PERIOD_MIN_S = 300.0
+#: settling (:data:`PROBE_SETTLE_S`), a minute of reference and a 5-min block to read the
+#: fall in; a shorter one (a bed rekindling minutes after the stop) leaves the reading to
+#: the next stretch.
+AIR_PERIOD_MIN_S = 450.0
 #: The residual after a stop is taken relative to its mean over this long from the end of
 #: combustion [s].
 STOP_REFERENCE_S = 60.0
