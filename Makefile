@@ -16,8 +16,9 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/python -m hil_client.demo $(DEMO_ARGS)
 
-# mbpoll and libmodbus (Debian) are Modbus clients the project did not write; their interop
-# tests are skipped where they cannot be installed (no root, no apt-get).
+# mbpoll and libmodbus (Debian) are Modbus clients the project did not write (socat joins
+# mbpoll to the RTU server's pty); their interop tests are skipped where they cannot be
+# installed (no root, no apt-get).
 tools:
 	@command -v mbpoll >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
 	  && (apt-get update -qq && apt-get install -y -qq mbpoll) >/dev/null 2>&1; } \
@@ -25,6 +26,9 @@ tools:
 	@test -f /usr/include/modbus/modbus.h || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
 	  && (apt-get update -qq && apt-get install -y -qq libmodbus-dev gcc) >/dev/null 2>&1; } \
 	  || echo "note: libmodbus-dev not installed; the libmodbus C client test will be skipped"
+	@command -v socat >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
+	  && (apt-get update -qq && apt-get install -y -qq socat) >/dev/null 2>&1; } \
+	  || echo "note: socat not installed; mbpoll's RTU test over a pty pair will be skipped"
 	@command -v chromium >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
 	  && (apt-get update -qq && apt-get install -y -qq chromium) >/dev/null 2>&1; } \
 	  || echo "note: chromium not installed; the dashboard's browser test will be skipped"
