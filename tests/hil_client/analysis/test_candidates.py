@@ -45,7 +45,7 @@ def test_one_balance_step_at_one_start_is_not_evidence_of_a_pre_feed():
 
 def test_a_closure_at_low_load_says_less_about_the_fuel():
     """The same 0.1-K forward-return error weighs 0.7 % of the heat at a 15-K rise and
-    3.3 % at a 3-K rise (part load); an unchecked pair of sensors (0.4 K) four times more;
+    3.3 % at a 3-K rise; an unchecked pair of sensors (0.4 K) four times more;
     the storage and room-loss shares add their own uncertainty."""
     full = closure_u_rel(15.0, 0.1, 0.02, 0.0)
     low = closure_u_rel(3.0, 0.1, 0.02, 0.0)
