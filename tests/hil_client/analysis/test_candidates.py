@@ -1,7 +1,7 @@
 """Single rules of the candidates (hil_client.analysis.candidates) on small hand-made
 inputs whose right answer is known by construction: what the balance's resolution allows
-an ignition pre-feed to claim, how much a closure at low load can say about the fuel,
-and which idle level the flue-gas store is read against."""
+an ignition pre-feed to claim, how much a closure at low load can say about the fuel, that
+a drifting closure is a sensor, and which idle level the flue-gas store is read against."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ import numpy as np
 from hil_client.analysis.candidates import (
     BALANCE_STEP_KG,
     Z_MIN,
+    _decide_bias,
     _decide_ignition,
     _flue_gas_idle_at_lab_water,
     _pre_feed,
@@ -52,6 +53,26 @@ def test_a_closure_at_low_load_says_less_about_the_fuel():
     assert full < 0.012 < 0.03 < low
     assert closure_u_rel(15.0, 0.4, 0.02, 0.0) > 2.5 * full
     assert closure_u_rel(15.0, 0.1, 0.02, 0.2) > full + 0.02
+
+
+def _hours(ratios: list[float], u_rel: float = 0.01) -> list[tuple]:
+    """Closure blocks, one per hour from 1.5 h after the sensors' check: (lost, needed,
+    uncertainty, hours since the check)."""
+    return [(1.3 * (1.0 + r), 1.3, u_rel, 1.5 + i) for i, r in enumerate(ratios)]
+
+
+def test_a_closure_that_drifts_through_the_test_is_a_sensor_not_the_fuel():
+    """Six hours at one load whose closure climbs from +3 % to +8 % (a sensor drifting
+    since its check at the end of the preheat) are read at the check: under 3 %, not a
+    fuel. The same hours scattered about +6 % without a trend are a fuel; so is a steady
+    +6 % with a slight drift, read back at the check."""
+    drifting = _hours([0.030, 0.041, 0.049, 0.058, 0.069, 0.080])
+    named, _, why = _decide_bias(drifting)
+    assert not named and "drifts" in why
+    scattered = _hours([0.062, 0.055, 0.066, 0.058, 0.064, 0.057])
+    assert _decide_bias(scattered)[0]
+    settling = _hours([0.062, 0.061, 0.059, 0.057, 0.053, 0.055])
+    assert _decide_bias(settling)[0]
 
 
 def test_the_flue_gas_store_is_read_against_the_measured_water_when_idle():
