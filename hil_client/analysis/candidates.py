@@ -99,12 +99,14 @@ AIR_PERIOD_MIN_S = 450.0
 #: combustion [s].
 STOP_REFERENCE_S = 60.0
 #: What stored heat must show after stops [K], beyond what a real boiler's background
-#: reaches without it: the flue gas falling toward the model's by 5 K (the lower edge of
-#: the paper's flue-gas figures, the diagnosis's GAP_FLOOR); the water rising above the
+#: reaches without it: the flue gas falling toward its idle level (the measured water's) by
+#: 3 K, twice a class-1 thermocouple's tolerance (1.5 K; with the idle level read at the
+#: model's node, the water's own mismatch moved it by up to 13 K and the floor was 5 K,
+#: the paper's lower flue-gas figure); the water rising above the
 #: model's, from the steady burn before the stop, by 2 K, the middle of Table 4's 1-3 K
 #: test-phase RMSD (a controller modulating down before its cut-out, the bed burning out,
 #: the sensor's well and stratification move it by 1-2 K without any body).
-FLUE_STORED_MIN_K = 5.0
+FLUE_STORED_MIN_K = 3.0
 BODY_STORED_MIN_K = 2.0
 #: The steady burn before a stop the water's residual is referred to [s].
 PRE_STOP_S = 90.0
