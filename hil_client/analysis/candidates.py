@@ -508,13 +508,13 @@ def _body_fingerprint(case: Case, blocks: list, r: np.ndarray) -> tuple[float, s
 
 
 def _flue_gas_idle_at_lab_water(case: Case) -> np.ndarray:
-    """The model's flue gas, where it burns; elsewhere the draught air leaves at the
-    *measured* boiler water's temperature (the model's: at its node's, Section 2.1). A
-    water that stays warmer than the model's after a stop (a body, the plant's own
-    losses) then does not pass for heat stored in the flue-gas path."""
-    t_fg, node = case.model["t_flue_gas_C"], case.model["t_boiler_C"]
-    idle = t_fg == node
-    return np.where(idle, case.lab["boiler_water_temp_C"], t_fg)
+    """The model's flue gas, where it burns; elsewhere (no combustion: its excess-air
+    ratio is infinite, model.layout) the draught air leaves at the *measured* boiler
+    water's temperature (the model's: at its node's, Section 2.1). A water that stays
+    warmer than the model's after a stop (a body, the plant's own losses) then does not
+    pass for heat stored in the flue-gas path."""
+    idle = ~np.isfinite(case.model["lambda"])
+    return np.where(idle, case.lab["boiler_water_temp_C"], case.model["t_flue_gas_C"])
 
 
 def _flue_predict(case: Case, theta: dict[str, float] | None) -> np.ndarray:
@@ -922,16 +922,17 @@ class BiasCandidate:
                 res1.append(lost - need * (1.0 + _bias(rest)))
         before = float(np.sqrt(np.mean(np.square(res0)))) if res0 else math.nan
         after = float(np.sqrt(np.mean(np.square(res1)))) if res1 else math.nan
+        bias = _bias(units)
         return Assessment(
             self.effect,
             self.signal,
             self.locus,
-            {"bias": _bias(units)},
+            {"bias": bias},
             units,
             _decide_bias,
             before,
             after,
-            abs(_bias(units)) / BIAS_MIN,
+            abs(bias) / BIAS_MIN,
         )
 
     def held_out(self, case: Case, theta: dict[str, float]) -> tuple[float, float]:

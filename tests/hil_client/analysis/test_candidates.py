@@ -76,14 +76,15 @@ def test_a_closure_that_drifts_through_the_test_is_a_sensor_not_the_fuel():
 
 
 def test_the_flue_gas_store_is_read_against_the_measured_water_when_idle():
-    """Where the model's flue gas equals its node (no combustion: draught air leaves at the
-    node's temperature) the idle level is the measured boiler water; elsewhere the
-    model's flue gas."""
-    node = np.array([70.0, 71.0, 72.0, 72.0])
-    t_fg = np.array([150.0, 140.0, 72.0, 72.0])
-    lab_water = np.array([69.0, 70.0, 75.0, 74.5])
+    """Where the model burns nothing (its excess-air ratio is infinite) the idle level is
+    the measured boiler water; where it burns, the model's flue gas, even where that
+    happens to equal its node (a flue gas at the water's temperature is still fire)."""
+    lam = np.array([1.8, 2.0, 2.2, np.inf, np.inf])
+    t_fg = np.array([150.0, 140.0, 72.0, 72.0, 71.0])
+    node = np.array([70.0, 71.0, 72.0, 72.0, 71.0])
+    lab_water = np.array([69.0, 70.0, 71.0, 75.0, 74.5])
     case = SimpleNamespace(
-        model={"t_flue_gas_C": t_fg, "t_boiler_C": node},
+        model={"t_flue_gas_C": t_fg, "t_boiler_C": node, "lambda": lam},
         lab={"boiler_water_temp_C": lab_water},
     )
-    assert np.array_equal(_flue_gas_idle_at_lab_water(case), [150.0, 140.0, 75.0, 74.5])
+    assert np.array_equal(_flue_gas_idle_at_lab_water(case), [150.0, 140.0, 72.0, 75.0, 74.5])
