@@ -23,8 +23,10 @@ for the effect:
     refractory storage; the store's pace and how much of the gas's heat it holds are
     fitted apart): the slow fall after a stop, where no controller or start-up is
     involved. Without combustion the draught air leaves at the *measured* water's
-    temperature, so water that stays warmer than the model's (a body, the plant's own
-    losses) is not taken for a store.
+    temperature less what the exchanger does not give it (as the log's own settled
+    stand-by shows), so water that stays warmer than the model's (a body, the plant's own
+    losses), or an idle flue gas settling below the water, is not taken for (nor hides) a
+    store.
 
 The responses after a stop are read while the analyser reads air (no combustion: a bed
 burning out or smouldering is ``ignition_delay``'s, not storage), the flue gas's relative to
@@ -507,14 +509,51 @@ def _body_fingerprint(case: Case, blocks: list, r: np.ndarray) -> tuple[float, s
     )
 
 
+#: The stand-by the draught air's exchanger share is read from: the second cooling, from
+#: this long after circulation stops [s] (the bed and any store long cold), on rows of air.
+STAND_BY_SETTLED_S = 1800.0
+#: Fewest such rows to read it from; with fewer the air is taken to leave at the water's.
+STAND_BY_MIN_ROWS = 30
+#: Plausible range of that share: a probe offset can put it a little above 1.
+STAND_BY_SHARE_RANGE = (0.5, 1.2)
+
+
+def stand_by_gas_share(case: Case) -> float:
+    """How close to the boiler water the draught air leaves the exchanger without
+    combustion: (T_fg - T_room) / (T_water - T_room), the median over the log's settled
+    second cooling on rows of air. An exchanger passing the draught at a finite rate warms
+    it only partway (0.8-1 on the bench's boilers), so the idle flue gas settles some
+    kelvin below the water; read from the lab's own stand-by, not assumed 1 (the model's
+    Section 2.1 idle level, the node's temperature). 1 where the log has no such stand-by."""
+    t, ph = case.t, case.phases
+    o2 = case.log["flue_gas_O2_pct"]
+    water, room = case.lab["boiler_water_temp_C"], case.room
+    rows = (
+        ph.mask("cooling_2", t)
+        & (t > ph.t3 + STAND_BY_SETTLED_S)
+        & np.isfinite(o2)
+        & (o2 >= O2_AIR_PCT - AIR_O2_MARGIN_PCT)
+        & (water - room > 10.0)
+    )
+    share = (case.lab["flue_gas_temp_C"][rows] - room[rows]) / (water[rows] - room[rows])
+    share = share[np.isfinite(share)]
+    if len(share) < STAND_BY_MIN_ROWS:
+        return 1.0
+    return float(np.clip(np.median(share), *STAND_BY_SHARE_RANGE))
+
+
 def _flue_gas_idle_at_lab_water(case: Case) -> np.ndarray:
     """The model's flue gas, where it burns; elsewhere (no combustion: its excess-air
     ratio is infinite, model.layout) the draught air leaves at the *measured* boiler
-    water's temperature (the model's: at its node's, Section 2.1). A water that stays
-    warmer than the model's after a stop (a body, the plant's own losses) then does not
-    pass for heat stored in the flue-gas path."""
+    water's temperature less what the exchanger does not give it
+    (:func:`stand_by_gas_share`; the model's: at its node's, Section 2.1). A water that
+    stays warmer than the model's after a stop (a body, the plant's own losses), or an
+    idle flue gas settling below the water, then does not pass for (or hide) heat stored
+    in the flue-gas path."""
     idle = ~np.isfinite(case.model["lambda"])
-    return np.where(idle, case.lab["boiler_water_temp_C"], case.model["t_flue_gas_C"])
+    share = case.memo(("stand_by_gas_share",), lambda: stand_by_gas_share(case))
+    air = case.room + share * (case.lab["boiler_water_temp_C"] - case.room)
+    return np.where(idle, air, case.model["t_flue_gas_C"])
 
 
 def _flue_predict(case: Case, theta: dict[str, float] | None) -> np.ndarray:

@@ -1,7 +1,9 @@
 """Single rules of the candidates (hil_client.analysis.candidates) on small hand-made
 inputs whose right answer is known by construction: what the balance's resolution allows
 an ignition pre-feed to claim, how much a closure at low load can say about the fuel, that
-a drifting closure is a sensor, and which idle level the flue-gas store is read against."""
+a drifting closure is a sensor, and which idle level the flue-gas store is read against
+(the measured water, less what the exchanger does not give the draught air, as the log's
+own stand-by shows)."""
 
 from __future__ import annotations
 
@@ -17,7 +19,9 @@ from hil_client.analysis.candidates import (
     _flue_gas_idle_at_lab_water,
     _pre_feed,
     closure_u_rel,
+    stand_by_gas_share,
 )
+from hil_client.analysis.phases import Phases
 from rig_emulator.boilers import load_boiler
 
 
@@ -75,16 +79,46 @@ def test_a_closure_that_drifts_through_the_test_is_a_sensor_not_the_fuel():
     assert _decide_bias(settling)[0]
 
 
+def _idle_case(lab_water, t_fg_lab, o2, room, lam=None, t_fg_model=None, t3=1000.0):
+    t = np.arange(len(lab_water)) * 10.0
+    return SimpleNamespace(
+        t=t,
+        phases=Phases(0.0, 10.0, 20.0, t3, t[-1], "test"),
+        log={"flue_gas_O2_pct": np.asarray(o2, dtype=float)},
+        lab={"boiler_water_temp_C": np.asarray(lab_water), "flue_gas_temp_C": t_fg_lab},
+        room=np.full(len(t), room),
+        model={"t_flue_gas_C": t_fg_model, "lambda": lam},
+        memo=lambda key, compute: compute(),
+    )
+
+
 def test_the_flue_gas_store_is_read_against_the_measured_water_when_idle():
     """Where the model burns nothing (its excess-air ratio is infinite) the idle level is
     the measured boiler water; where it burns, the model's flue gas, even where that
-    happens to equal its node (a flue gas at the water's temperature is still fire)."""
+    happens to equal its water (a flue gas at the water's temperature is still fire).
+    A log without a settled second cooling keeps the water's own level."""
     lam = np.array([1.8, 2.0, 2.2, np.inf, np.inf])
     t_fg = np.array([150.0, 140.0, 72.0, 72.0, 71.0])
-    node = np.array([70.0, 71.0, 72.0, 72.0, 71.0])
     lab_water = np.array([69.0, 70.0, 71.0, 75.0, 74.5])
-    case = SimpleNamespace(
-        model={"t_flue_gas_C": t_fg, "t_boiler_C": node, "lambda": lam},
-        lab={"boiler_water_temp_C": lab_water},
-    )
+    case = _idle_case(lab_water, t_fg, np.full(5, 20.9), 20.0, lam, t_fg, t3=1e9)
+    assert stand_by_gas_share(case) == 1.0
     assert np.array_equal(_flue_gas_idle_at_lab_water(case), [150.0, 140.0, 72.0, 75.0, 74.5])
+
+
+def test_the_idle_flue_gas_settles_where_the_lab_stand_by_shows_it():
+    """An exchanger that gives the draught air 85 % of the way from the room to the water
+    (a settled second cooling where the probe reads 20 + 0.85 (T_w - 20)) puts the idle
+    level there, not at the water: after a stop a gas that falls 7 K below the water is
+    that, not a store emptying. Rows still burning (O2 below air's) do not count."""
+    n = 600
+    t = np.arange(n) * 10.0
+    water = 70.0 - 20.0 * t / t[-1]
+    t_fg = 20.0 + 0.85 * (water - 20.0)
+    o2 = np.full(n, 20.9)
+    o2[300:320] = 12.0  # a smouldering bed: hot gas, not the draught's
+    t_fg[300:320] = 120.0
+    lam = np.full(n, np.inf)
+    case = _idle_case(water, t_fg, o2, 20.0, lam, np.full(n, 200.0), t3=100.0)
+    assert abs(stand_by_gas_share(case) - 0.85) < 1e-9
+    idle = _flue_gas_idle_at_lab_water(case)
+    assert np.allclose(idle[:300], 20.0 + 0.85 * (water[:300] - 20.0))
