@@ -478,11 +478,17 @@ def _flue_fingerprint(case: Case, blocks: list, r: np.ndarray) -> tuple[float, s
     """Stored heat: the flue gas is hotter than the model's when combustion ends and falls
     toward it afterwards (by :data:`FLUE_STORED_MIN_K` at least, in the median stop; the
     mean of its last 5 min against its first minute once the probe has settled,
-    :data:`PROBE_SETTLE_S`). A flue gas that ends up *further above* the model's, or starts
-    below it, is the probe's own idle level (draught air, radiation to the duct), not
-    storage."""
+    :data:`PROBE_SETTLE_S`), and by no more than it stood above the idle level at the
+    reference (what a store holds). A flue gas that ends up *further above* the model's,
+    or starts below it, is the probe's own idle level (draught air, radiation to the duct)
+    or a post-purge fan blowing cold air through, not storage."""
     pairs = _per_stop(case, blocks, r, STOP_REFERENCE_S, SUB_BLOCK_S, PROBE_SETTLE_S)
-    fall = [float(np.mean(ref) - np.mean(late)) for ref, late in pairs]
+    # a store releases what it holds above the idle level: no more than the gas shows
+    # above it at the reference (a gas already below it is a purge or the probe's own)
+    fall = [
+        min(float(np.mean(ref) - np.mean(late)), max(float(np.mean(ref)), 0.0))
+        for ref, late in pairs
+    ]
     if not fall:
         return 0.0, "no stop to read the flue gas's fall from"
     mark = float(np.median(fall)) / FLUE_STORED_MIN_K
@@ -518,6 +524,20 @@ STAND_BY_MIN_ROWS = 30
 STAND_BY_SHARE_RANGE = (0.5, 1.2)
 
 
+def _stand_by_rows(case: Case) -> np.ndarray:
+    """The settled second cooling's rows of air (:data:`STAND_BY_SETTLED_S`)."""
+    t, ph = case.t, case.phases
+    o2 = case.log["flue_gas_O2_pct"]
+    water, room = case.lab["boiler_water_temp_C"], case.room
+    return (
+        ph.mask("cooling_2", t)
+        & (t > ph.t3 + STAND_BY_SETTLED_S)
+        & np.isfinite(o2)
+        & (o2 >= O2_AIR_PCT - AIR_O2_MARGIN_PCT)
+        & (water - room > 10.0)
+    )
+
+
 def stand_by_gas_share(case: Case) -> float:
     """How close to the boiler water the draught air leaves the exchanger without
     combustion: (T_fg - T_room) / (T_water - T_room), the median over the log's settled
@@ -525,16 +545,8 @@ def stand_by_gas_share(case: Case) -> float:
     it only partway (0.8-1 on the bench's boilers), so the idle flue gas settles some
     kelvin below the water; read from the lab's own stand-by, not assumed 1 (the model's
     Section 2.1 idle level, the node's temperature). 1 where the log has no such stand-by."""
-    t, ph = case.t, case.phases
-    o2 = case.log["flue_gas_O2_pct"]
+    rows = _stand_by_rows(case)
     water, room = case.lab["boiler_water_temp_C"], case.room
-    rows = (
-        ph.mask("cooling_2", t)
-        & (t > ph.t3 + STAND_BY_SETTLED_S)
-        & np.isfinite(o2)
-        & (o2 >= O2_AIR_PCT - AIR_O2_MARGIN_PCT)
-        & (water - room > 10.0)
-    )
     share = (case.lab["flue_gas_temp_C"][rows] - room[rows]) / (water[rows] - room[rows])
     share = share[np.isfinite(share)]
     if len(share) < STAND_BY_MIN_ROWS:
@@ -556,15 +568,27 @@ def _flue_gas_idle_at_lab_water(case: Case) -> np.ndarray:
     return np.where(idle, air, case.model["t_flue_gas_C"])
 
 
+def _flue_gas_store_charge(case: Case) -> np.ndarray:
+    """What the store is charged with: the *measured* flue gas while it burns (the gas
+    that actually flowed past the store: at part load a real boiler's runs well above the
+    model's, whose charge would leave the store colder than the draught air after the
+    stop), the idle level (:func:`_flue_gas_idle_at_lab_water`) elsewhere."""
+    idle = ~np.isfinite(case.model["lambda"])
+    base = case.memo(("flue_gas_idle_at_lab_water",), lambda: _flue_gas_idle_at_lab_water(case))
+    return np.where(idle, base, case.lab["flue_gas_temp_C"])
+
+
 def _flue_predict(case: Case, theta: dict[str, float] | None) -> np.ndarray:
-    """The model's flue gas with a share of it through the store's first-order lag: the
-    store's time constant and how much of the gas's heat it holds are separate (one
-    parameter for both trades the fall's size against its pace and fits either end of it)."""
-    t_fg = case.memo(("flue_gas_idle_at_lab_water",), lambda: _flue_gas_idle_at_lab_water(case))
-    gas = t_fg
+    """The model's flue gas plus what a store releases: a share of the gas's heat passes
+    through the store's first-order lag, charged by the gas that flowed
+    (:func:`_flue_gas_store_charge`); the store's time constant and how much of the gas's
+    heat it holds are separate (one parameter for both trades the fall's size against its
+    pace and fits either end of it)."""
+    gas = case.memo(("flue_gas_idle_at_lab_water",), lambda: _flue_gas_idle_at_lab_water(case))
     if theta:
-        lagged = case.lagged("t_fg_lab_idle", t_fg, theta["tau_fg_s"])
-        gas = t_fg + theta["share"] * (lagged - t_fg)
+        charge = case.memo(("flue_gas_store_charge",), lambda: _flue_gas_store_charge(case))
+        lagged = case.lagged("flue_gas_store_charge", charge, theta["tau_fg_s"])
+        gas = gas + theta["share"] * (lagged - charge)
     return first_order_lag(gas, case.dt, SENSOR_TAU_S["flue_gas_temp_C"])
 
 

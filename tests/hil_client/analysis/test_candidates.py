@@ -11,12 +11,15 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from hil_client.analysis.augment import first_order_lag
 from hil_client.analysis.candidates import (
     BALANCE_STEP_KG,
     Z_MIN,
     _decide_bias,
     _decide_ignition,
+    _flue_fingerprint,
     _flue_gas_idle_at_lab_water,
+    _flue_predict,
     _pre_feed,
     closure_u_rel,
     stand_by_gas_share,
@@ -89,6 +92,8 @@ def _idle_case(lab_water, t_fg_lab, o2, room, lam=None, t_fg_model=None, t3=1000
         room=np.full(len(t), room),
         model={"t_flue_gas_C": t_fg_model, "lambda": lam},
         memo=lambda key, compute: compute(),
+        dt=np.full(len(t), 10.0),
+        lagged=lambda name, x, tau: first_order_lag(x, np.full(len(t), 10.0), tau),
     )
 
 
@@ -122,3 +127,40 @@ def test_the_idle_flue_gas_settles_where_the_lab_stand_by_shows_it():
     assert abs(stand_by_gas_share(case) - 0.85) < 1e-9
     idle = _flue_gas_idle_at_lab_water(case)
     assert np.allclose(idle[:300], 20.0 + 0.85 * (water[:300] - 20.0))
+
+
+def test_the_store_is_charged_by_the_gas_that_flowed():
+    """At part load a real boiler's flue gas runs well above the model's (100 C against
+    65 C here, below the draught air's idle level). A store charged by the model's gas
+    would leave it colder than the draught air after the stop and predict a *rise*;
+    charged by the measured gas, it releases heat above the idle level (70 C) and falls
+    toward it."""
+    n = 400
+    stop = 200
+    water = np.full(n, 70.0)
+    lab_gas = np.where(np.arange(n) < stop, 100.0, 70.0)
+    lam = np.where(np.arange(n) < stop, 3.0, np.inf)
+    model_gas = np.where(np.arange(n) < stop, 65.0, 70.0)
+    case = _idle_case(water, lab_gas, np.full(n, 20.9), 20.0, lam, model_gas, t3=1e9)
+    base = _flue_predict(case, None)
+    store = _flue_predict(case, {"tau_fg_s": 600.0, "share": 0.5})
+    after = slice(stop + 10, stop + 60)
+    assert np.allclose(base[after], 70.0, atol=0.01)
+    assert (store[after] > 70.0 + 1.0).all()
+    assert (np.diff(store[after]) < 0).all()
+
+
+def test_a_gas_below_the_idle_level_after_a_stop_is_no_store():
+    """The mark is the fall toward the idle level after a stop, and no more than the gas
+    stood above it at the reference: a gas 8 K above it falling to it is a store's; a
+    post-purge fan blowing cold air through, 20 K below it and falling to 40 K below,
+    is not, however far it falls."""
+    t = np.arange(0.0, 1800.0, 10.0)
+    blocks = [("stop", np.arange(0, len(t)), 0)]
+    case = SimpleNamespace(t=t)
+    store = 8.0 * np.exp(-t / 400.0)
+    mark, _ = _flue_fingerprint(case, blocks, store)
+    assert mark > 1.0
+    purge = -20.0 - 20.0 * (1.0 - np.exp(-t / 400.0))
+    mark, _ = _flue_fingerprint(case, blocks, purge)
+    assert mark == 0.0
