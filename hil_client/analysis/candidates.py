@@ -19,14 +19,14 @@ for the effect:
     used: there a real boiler's own start-up (purge, ignition, fuel ramp) differs from the
     model's, and an effect must not be named for absorbing that.
 ``flue_gas_lag`` (flue gas; the 30 min after each stop)
-    A share of the model's flue gas passes through a first-order lag (exchanger and
-    refractory storage; the store's pace and how much of the gas's heat it holds are
-    fitted apart): the slow fall after a stop, where no controller or start-up is
-    involved. Without combustion the draught air leaves at the *measured* water's
-    temperature less what the exchanger does not give it (as the log's own settled
-    stand-by shows), so water that stays warmer than the model's (a body, the plant's own
-    losses), or an idle flue gas settling below the water, is not taken for (nor hides) a
-    store.
+    A share of the flue gas's heat passes through a first-order lag (exchanger and
+    refractory storage, charged by the gas the lab measured while burning; the store's
+    pace and how much of the gas's heat it holds are fitted apart): the slow fall after a
+    stop, where no controller or start-up is involved. Without combustion the draught air
+    leaves at the *measured* water's temperature less what the exchanger does not give it
+    (as the log's own settled stand-by shows), so water that stays warmer than the model's
+    (a body, the plant's own losses), or an idle flue gas settling below the water, is not
+    taken for (nor hides) a store.
 
 The responses after a stop are read while the analyser reads air (no combustion: a bed
 burning out or smouldering is ``ignition_delay``'s, not storage), the flue gas's relative to
@@ -520,22 +520,11 @@ def _body_fingerprint(case: Case, blocks: list, r: np.ndarray) -> tuple[float, s
 STAND_BY_SETTLED_S = 1800.0
 #: Fewest such rows to read it from; with fewer the air is taken to leave at the water's.
 STAND_BY_MIN_ROWS = 30
+#: Least water-to-room difference the share is read at [K]: below it a class-1
+#: thermocouple's 1.5 K would move the share by over 15 %.
+STAND_BY_MIN_SPREAD_K = 10.0
 #: Plausible range of that share: a probe offset can put it a little above 1.
 STAND_BY_SHARE_RANGE = (0.5, 1.2)
-
-
-def _stand_by_rows(case: Case) -> np.ndarray:
-    """The settled second cooling's rows of air (:data:`STAND_BY_SETTLED_S`)."""
-    t, ph = case.t, case.phases
-    o2 = case.log["flue_gas_O2_pct"]
-    water, room = case.lab["boiler_water_temp_C"], case.room
-    return (
-        ph.mask("cooling_2", t)
-        & (t > ph.t3 + STAND_BY_SETTLED_S)
-        & np.isfinite(o2)
-        & (o2 >= O2_AIR_PCT - AIR_O2_MARGIN_PCT)
-        & (water - room > 10.0)
-    )
 
 
 def stand_by_gas_share(case: Case) -> float:
@@ -545,8 +534,16 @@ def stand_by_gas_share(case: Case) -> float:
     it only partway (0.8-1 on the bench's boilers), so the idle flue gas settles some
     kelvin below the water; read from the lab's own stand-by, not assumed 1 (the model's
     Section 2.1 idle level, the node's temperature). 1 where the log has no such stand-by."""
-    rows = _stand_by_rows(case)
+    t, ph = case.t, case.phases
+    o2 = case.log["flue_gas_O2_pct"]
     water, room = case.lab["boiler_water_temp_C"], case.room
+    rows = (
+        ph.mask("cooling_2", t)
+        & (t > ph.t3 + STAND_BY_SETTLED_S)
+        & np.isfinite(o2)
+        & (o2 >= O2_AIR_PCT - AIR_O2_MARGIN_PCT)
+        & (water - room > STAND_BY_MIN_SPREAD_K)
+    )
     share = (case.lab["flue_gas_temp_C"][rows] - room[rows]) / (water[rows] - room[rows])
     share = share[np.isfinite(share)]
     if len(share) < STAND_BY_MIN_ROWS:
