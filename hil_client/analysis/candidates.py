@@ -551,7 +551,7 @@ def stand_by_gas_share(case: Case) -> float:
     return float(np.clip(np.median(share), *STAND_BY_SHARE_RANGE))
 
 
-def _flue_gas_idle_at_lab_water(case: Case) -> np.ndarray:
+def _flue_gas_with_idle_air(case: Case) -> np.ndarray:
     """The model's flue gas, where it burns; elsewhere (no combustion: its excess-air
     ratio is infinite, model.layout) the draught air leaves at the *measured* boiler
     water's temperature less what the exchanger does not give it
@@ -569,9 +569,9 @@ def _flue_gas_store_charge(case: Case) -> np.ndarray:
     """What the store is charged with: the *measured* flue gas while it burns (the gas
     that actually flowed past the store: at part load a real boiler's runs well above the
     model's, whose charge would leave the store colder than the draught air after the
-    stop), the idle level (:func:`_flue_gas_idle_at_lab_water`) elsewhere."""
+    stop), the idle level (:func:`_flue_gas_with_idle_air`) elsewhere."""
     idle = ~np.isfinite(case.model["lambda"])
-    base = case.memo(("flue_gas_idle_at_lab_water",), lambda: _flue_gas_idle_at_lab_water(case))
+    base = case.memo(("flue_gas_with_idle_air",), lambda: _flue_gas_with_idle_air(case))
     return np.where(idle, base, case.lab["flue_gas_temp_C"])
 
 
@@ -581,7 +581,7 @@ def _flue_predict(case: Case, theta: dict[str, float] | None) -> np.ndarray:
     (:func:`_flue_gas_store_charge`); the store's time constant and how much of the gas's
     heat it holds are separate (one parameter for both trades the fall's size against its
     pace and fits either end of it)."""
-    gas = case.memo(("flue_gas_idle_at_lab_water",), lambda: _flue_gas_idle_at_lab_water(case))
+    gas = case.memo(("flue_gas_with_idle_air",), lambda: _flue_gas_with_idle_air(case))
     if theta:
         charge = case.memo(("flue_gas_store_charge",), lambda: _flue_gas_store_charge(case))
         lagged = case.lagged("flue_gas_store_charge", charge, theta["tau_fg_s"])

@@ -139,7 +139,17 @@ def refill(header, rows, rng):
     return header, rows
 
 
+def cut_short(header, rows, rng):
+    """The acquisition killed an hour after the test ends: no second cooling (the settled
+    stand-by the flue gas's idle level is read from), the file valid up to the cut."""
+    t = _column(header, rows, "time_s")
+    firing = np.flatnonzero(_column(header, rows, "flue_gas_O2_pct") < 19.0)
+    end = t[firing[-1]] + 3600.0 if len(firing) else t[-1]
+    return header, [r for r, ti in zip(rows, t, strict=True) if ti <= end]
+
+
 VARIANTS = (
+    cut_short,
     zero_flow,
     gaps,
     constant_columns,
