@@ -140,11 +140,12 @@ def refill(header, rows, rng):
 
 
 def cut_short(header, rows, rng):
-    """The acquisition killed an hour after the test ends: no second cooling (the settled
-    stand-by the flue gas's idle level is read from), the file valid up to the cut."""
+    """The acquisition killed 20 min after the circulation stopped: no settled second
+    cooling (the stand-by the flue gas's idle level is read from), the file valid up to
+    the cut."""
     t = _column(header, rows, "time_s")
-    firing = np.flatnonzero(_column(header, rows, "flue_gas_O2_pct") < 19.0)
-    end = t[firing[-1]] + 3600.0 if len(firing) else t[-1]
+    flowing = np.flatnonzero(_column(header, rows, "water_flow_kg_h") > 0.0)
+    end = t[flowing[-1]] + 1200.0 if len(flowing) else t[-1]
     return header, [r for r, ti in zip(rows, t, strict=True) if ti <= end]
 
 
