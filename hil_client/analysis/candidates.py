@@ -37,7 +37,9 @@ is not counted; each window is cut into 5-min blocks for the cross-validation.
     Measured directly: the fuel the balance lost before the flue gas showed combustion
     (the mass before the start less the mass at the onset, read from the readings before
     it). Without the effect it is what the auger feeds within the onset's detection time,
-    well under two balance steps (0.04 kg).
+    well under two balance steps (0.04 kg). Where the flue gas counts the flame's fuel (O2
+    consumed times the gas flow), also the fuel fed but not burnt five minutes into the
+    start: a bed that lights at once but burns slowly at first holds its fuel there.
 ``fuel_energy_bias`` (balance; test phase, 1-h blocks without starts or stops)
     Energy closure from the instruments: the fuel the measured heat to water, storage,
     loss to the room and flue-gas losses (from the measured flue-gas temperature and O2,
@@ -130,6 +132,25 @@ PRE_WINDOW_MIN_S = 180.0
 PRE_WINDOW_MAX_S = 480.0
 #: The mass at the onset is read from the readings this long before it [s].
 ONSET_FIT_S = 90.0
+#: The fuel still waiting in the bed is read again this long after the onset [s], as the
+#: mean over a window this wide around it [s]: a pellet bed burns what it is fed within
+#: tens of seconds (its burning time), so what is left five minutes in, beyond that, is
+#: fuel the bed has not lit yet (a bed that lights at once but burns slowly at first).
+HOLDUP_AT_S = 300.0
+HOLDUP_WINDOW_S = 120.0
+#: The flame's fuel is read from the flue gas (O2 consumed times the dry gas flow) only
+#: where air is left over: below this dry O2 [vol-%], part of the fuel leaves unburnt (CO,
+#: tar, soot) and the O2 no longer counts it.
+FUEL_READABLE_O2_PCT = 3.0
+#: Relative uncertainty of the flue gas's fuel scale, which the whole log's fed fuel sets:
+#: the bed's content at the record's ends, the gas's moisture varying with the load
+#: (Eq. 4-7: 1-2 % of the dry flow) and the analyser's zero (0.1 vol-% of O2 in 5-15).
+U_BURNT_SCALE_REL = 0.03
+#: The gas analyser's sample line delays O2 by 15-45 s; the log cannot tell by how much
+#: (the fan's steps and the O2 correlate by less than 0.1 on most logs), so the flame's
+#: fuel is read as if the delay were the longest [s]: the O2 is advanced by it, which
+#: counts fuel as burnt early and leaves the least in the bed that the log allows.
+ANALYSER_DELAY_MAX_S = 45.0
 #: Systematic uncertainties of the energy closure, per 1-h block and relative to the heat
 #: it accounts for: the flow meter (0.5 %, uniform); forward minus return, 0.1 K after the
 #: isothermal check at the end of the preheat, else two class-A Pt100s at 70-85 C (0.3 K
@@ -696,7 +717,12 @@ def _pre_feed(case: Case) -> list[tuple[float, float, float]]:
     hardly moves does not reduce: they all round the same way; only starts at different
     masses average it out. The rate is the documented start-up power's (Pstart at the
     nominal calorific value), so the evidence reads as seconds of feed whatever the
-    plant's own start-up does after the onset."""
+    plant's own start-up does after the onset.
+
+    Where the flue gas counts the flame's fuel, the fuel still in the bed
+    :data:`HOLDUP_AT_S` after the onset (:func:`_holdup`) is read as well, and the start
+    gives the larger of the two: a bed that lights at once but burns slowly at first
+    shows no pre-feed, only fuel that keeps waiting once it burns."""
     t = case.t
     mass = case.balance
     rounding = BALANCE_STEP_KG / math.sqrt(12.0)
@@ -723,8 +749,69 @@ def _pre_feed(case: Case) -> list[tuple[float, float, float]]:
         sxx = float(np.sum((x - x.mean()) ** 2))
         u1 = s_res * math.sqrt(1.0 / len(x) + x.mean() ** 2 / sxx) if sxx > 0 else s_res
         u1 = math.hypot(u1, rounding)
-        out.append((m0 - float(intercept), math.hypot(u0, u1), rate_kg_h))
+        pre_feed = (m0 - float(intercept), math.hypot(u0, u1), rate_kg_h)
+        held = _holdup(case, i, pre, m0, u0)
+        out.append(held if held is not None and held[0] > pre_feed[0] else pre_feed)
     return out
+
+
+def _burnt_kg(case: Case) -> tuple[np.ndarray, np.ndarray] | None:
+    """(fuel the flame burnt since the record's start as the balance counts it [kg], the
+    dry O2 per row, aligned) from the flue gas: the O2 consumed times the dry gas flow
+    (velocity at the duct's temperature, normalised), shifted back by the analyser's
+    delay, and scaled so that the whole log burns what the balance lost. None without a
+    usable velocity or with too little fed to scale by."""
+    log, t = case.log, case.t
+    if not log.has("flue_gas_velocity_m_s"):
+        return None
+    velocity = fill_gaps(log["flue_gas_velocity_m_s"], t)
+    o2 = fill_gaps(log["flue_gas_O2_pct"], t)
+    if np.isnan(velocity).any() or np.isnan(o2).any():
+        return None
+    o2 = np.interp(t + ANALYSER_DELAY_MAX_S, t, o2)
+    idle = ~case.firing.burning & (o2 > O2_AIR_PCT - AIR_O2_MARGIN_PCT)
+    if idle.sum() < 10:
+        return None
+    deficit = np.clip(float(np.median(o2[idle])) - o2, 0.0, None)
+    gas = fill_gaps(case.lab["flue_gas_temp_C"], t)
+    flow = deficit * velocity * 273.15 / (gas + 273.15)
+    burnt = np.concatenate(([0.0], np.cumsum(0.5 * (flow[1:] + flow[:-1]) * np.diff(t))))
+    mass = case.balance[~np.isnan(case.balance)]
+    fed = float(mass[0] - mass[-1]) if len(mass) else 0.0
+    if fed < 10.0 * BALANCE_STEP_KG or not burnt[-1] > 0.0:
+        return None
+    return burnt * fed / burnt[-1], o2
+
+
+def _holdup(
+    case: Case, start: int, pre: np.ndarray, m0: float, u0: float
+) -> tuple[float, float, float] | None:
+    """(fuel fed but not yet burnt :data:`HOLDUP_AT_S` after the onset of the start at row
+    ``start`` [kg], its standard error [kg], the start-up feed rate [kg/h]), counted from the
+    quiet balance before the start (rows ``pre``, mean mass ``m0`` +- ``u0``); None where
+    the flue gas does not count the flame's fuel (no velocity; air-starved rows)."""
+    read = case.memo(("burnt_kg",), lambda: _burnt_kg(case))
+    if read is None:
+        return None
+    burnt, o2 = read
+    t, mass = case.t, case.balance
+    ts = t[start]
+    flame = (t >= ts) & (t <= ts + HOLDUP_AT_S + HOLDUP_WINDOW_S / 2.0)
+    if float(np.min(o2[flame])) < FUEL_READABLE_O2_PCT:
+        return None
+    window = (np.abs(t - ts - HOLDUP_AT_S) <= HOLDUP_WINDOW_S / 2.0) & ~np.isnan(mass)
+    later = case.firing.stops[case.firing.stops > start]
+    if window.sum() < 5 or (len(later) and later[0] <= np.flatnonzero(window)[-1]):
+        return None
+    rounding = BALANCE_STEP_KG / math.sqrt(12.0)
+    x = t[window] - ts - HOLDUP_AT_S
+    slope, intercept = np.polyfit(x, mass[window], 1)
+    s_res = float(np.std(mass[window] - (intercept + slope * x), ddof=2))
+    u1 = math.hypot(s_res / math.sqrt(window.sum()), rounding)
+    burnt_since = float(np.interp(ts + HOLDUP_AT_S, t, burnt) - np.mean(burnt[pre]))
+    u_burnt = U_BURNT_SCALE_REL * burnt_since
+    held = m0 - float(intercept) - burnt_since
+    return held, math.sqrt(u0**2 + u1**2 + u_burnt**2), _start_feed_rate_kg_h(case)
 
 
 def _decide_ignition(units: Sequence[tuple[float, float, float]]) -> tuple[bool, float, str]:

@@ -7,6 +7,7 @@ own stand-by shows)."""
 
 from __future__ import annotations
 
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -25,10 +26,11 @@ from hil_client.analysis.candidates import (
     _flue_gas_with_idle_air,
     _flue_predict,
     _pre_feed,
+    _start_feed_rate_kg_h,
     closure_u_rel,
     stand_by_gas_share,
 )
-from hil_client.analysis.logio import read_log
+from hil_client.analysis.logio import LabLog, read_log
 from hil_client.analysis.phases import Phases, find_phases
 from hil_client.analysis.replay import prepare
 from rig_emulator.boilers import load_boiler
@@ -36,8 +38,17 @@ from rig_emulator.model.params import params_from_mapping
 
 
 def _start_case(mass: np.ndarray, t: np.ndarray, starts: list[int]) -> SimpleNamespace:
+    """A log of the balance alone around its starts (no flue-gas velocity: the flame's fuel
+    is not counted)."""
     firing = SimpleNamespace(starts=np.array(starts), stops=np.array([], dtype=int))
-    return SimpleNamespace(t=t, balance=mass, firing=firing, params=load_boiler("windhager_6kw"))
+    return SimpleNamespace(
+        t=t,
+        balance=mass,
+        firing=firing,
+        params=load_boiler("windhager_6kw"),
+        log=LabLog(Path("x.csv"), {"time_s": t}, {}),
+        memo=lambda key, compute: compute(),
+    )
 
 
 def test_one_balance_step_at_one_start_is_not_evidence_of_a_pre_feed():
@@ -56,6 +67,59 @@ def test_one_balance_step_at_one_start_is_not_evidence_of_a_pre_feed():
     fed = np.where(t < t[onset] - 240.0, 286.08, 285.92)  # 0.16 kg, 4 min of Pstart feed
     named, z, why = _decide_ignition(_pre_feed(_start_case(fed, t, [onset])) * 20)
     assert named, why
+
+
+def _slow_bed_case(o2_floor_pct: float) -> SimpleNamespace:
+    """A 6-kW start at Pstart whose bed lights at once but lets its fuel wait 150 s (a pure
+    lag of the feed) and burns out after the stop; the analyser sees the flame 30 s late,
+    its O2 falling from air to ``o2_floor_pct`` at full burn; velocity and flue gas
+    constant; the balance in 0.02-kg steps."""
+    t = np.arange(0.0, 6000.0, 2.0)
+    onset, stop, hold_s = 2400.0, 3600.0, 150.0
+    rate = _start_feed_rate_kg_h(SimpleNamespace(params=load_boiler("windhager_6kw"))) / 3600.0
+    fed = rate * np.clip(t - onset, 0.0, stop - onset)
+    burning = rate * ((t > onset + hold_s) & (t < stop + hold_s))  # [kg/s]
+    o2_true = 20.95 - (20.95 - o2_floor_pct) * burning / rate
+    o2 = np.interp(t - 30.0, t, o2_true)
+    mass = np.round((286.0 - fed) / BALANCE_STEP_KG) * BALANCE_STEP_KG
+    columns = {
+        "time_s": t,
+        "flue_gas_O2_pct": o2,
+        "flue_gas_velocity_m_s": np.full(len(t), 1.2),
+    }
+    i_on, i_off = int(np.searchsorted(t, onset)), int(np.searchsorted(t, stop + hold_s))
+    firing = SimpleNamespace(
+        starts=np.array([i_on]),
+        stops=np.array([i_off]),
+        burning=(t >= onset) & (t < stop + hold_s),
+    )
+    return SimpleNamespace(
+        t=t,
+        balance=mass,
+        firing=firing,
+        params=load_boiler("windhager_6kw"),
+        log=LabLog(Path("x.csv"), columns, {}),
+        lab={"flue_gas_temp_C": np.full(len(t), 110.0)},
+        memo=lambda key, compute: compute(),
+    )
+
+
+def test_fuel_that_waits_in_a_lit_bed_is_counted_where_the_flue_gas_counts_the_flame():
+    """A bed that lights at once shows no pre-feed before the onset, but 150 s of feed
+    still wait in it five minutes later, which the flue gas's O2 and velocity against the
+    balance read (the analyser's delay counted at its longest, 45 s, so 15 s of the 150
+    are credited to the flame: about 135 s). An
+    air-starved flame (O2 down to 1 %: fuel leaves unburnt as CO and tar) is not read
+    that way: its start gives the pre-feed alone."""
+    case = _slow_bed_case(o2_floor_pct=10.0)
+    [(held, se, rate)] = _pre_feed(case)
+    assert abs(held - 135.0 * rate / 3600.0) < 2.0 * se  # within its own two standard errors
+    named, _, why = _decide_ignition([(held, se, rate)])
+    assert named, why
+    starved = _slow_bed_case(o2_floor_pct=1.0)
+    [(pre_feed, _, _)] = _pre_feed(starved)
+    assert abs(pre_feed) <= BALANCE_STEP_KG
+    assert not _decide_ignition(_pre_feed(starved))[0]
 
 
 def test_a_closure_at_low_load_says_less_about_the_fuel():
