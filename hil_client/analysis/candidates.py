@@ -149,7 +149,8 @@ U_BURNT_SCALE_REL = 0.03
 #: The gas analyser's sample line delays O2 by 15-45 s; the log cannot tell by how much
 #: (the fan's steps and the O2 correlate by less than 0.1 on most logs), so the flame's
 #: fuel is read as if the delay were the longest [s]: the O2 is advanced by it, which
-#: counts fuel as burnt early and leaves the least in the bed that the log allows.
+#: counts fuel as burnt early and leaves the least in the bed that the log allows. Where
+#: the log itself shows a longer one (:func:`_analyser_delay_min_s`), that is taken.
 ANALYSER_DELAY_MAX_S = 45.0
 #: Systematic uncertainties of the energy closure, per 1-h block and relative to the heat
 #: it accounts for: the flow meter (0.5 %, uniform); forward minus return, 0.1 K after the
@@ -755,12 +756,30 @@ def _pre_feed(case: Case) -> list[tuple[float, float, float]]:
     return out
 
 
+def _analyser_delay_min_s(case: Case) -> float:
+    """Least delay of the analyser's sample line the log shows [s]: the median, over the
+    starts, of the time from the flue gas's onset (its probe answers within seconds) to the
+    first O2 reading below air's (less :data:`AIR_O2_MARGIN_PCT`); the flame was lit
+    before the onset, and the O2 takes a while to fall that far, so the true delay is
+    longer (on the first independent plant, 0-30 s against true 15-45 s)."""
+    t = case.t
+    o2 = fill_gaps(case.log["flue_gas_O2_pct"], t)
+    seen = []
+    for i in case.firing.starts:
+        fallen = np.flatnonzero(
+            (t >= t[i]) & (t <= t[i] + 120.0) & (o2 < O2_AIR_PCT - AIR_O2_MARGIN_PCT)
+        )
+        if len(fallen):
+            seen.append(t[fallen[0]] - t[i])
+    return float(np.median(seen)) if seen else 0.0
+
+
 def _burnt_kg(case: Case) -> tuple[np.ndarray, np.ndarray] | None:
     """(fuel the flame burnt since the record's start as the balance counts it [kg], the
     dry O2 per row, aligned) from the flue gas: the O2 consumed times the dry gas flow
     (velocity at the duct's temperature, normalised), shifted back by the analyser's
-    delay, and scaled so that the whole log burns what the balance lost. None without a
-    usable velocity or with too little fed to scale by."""
+    delay (:data:`ANALYSER_DELAY_MAX_S`), and scaled so that the whole log burns what the
+    balance lost. None without a usable velocity or with too little fed to scale by."""
     log, t = case.log, case.t
     if not log.has("flue_gas_velocity_m_s"):
         return None
@@ -768,7 +787,7 @@ def _burnt_kg(case: Case) -> tuple[np.ndarray, np.ndarray] | None:
     o2 = fill_gaps(log["flue_gas_O2_pct"], t)
     if np.isnan(velocity).any() or np.isnan(o2).any():
         return None
-    o2 = np.interp(t + ANALYSER_DELAY_MAX_S, t, o2)
+    o2 = np.interp(t + max(ANALYSER_DELAY_MAX_S, _analyser_delay_min_s(case)), t, o2)
     idle = ~case.firing.burning & (o2 > O2_AIR_PCT - AIR_O2_MARGIN_PCT)
     if idle.sum() < 10:
         return None

@@ -69,18 +69,20 @@ def test_one_balance_step_at_one_start_is_not_evidence_of_a_pre_feed():
     assert named, why
 
 
-def _slow_bed_case(o2_floor_pct: float) -> SimpleNamespace:
-    """A 6-kW start at Pstart whose bed lights at once but lets its fuel wait 150 s (a pure
-    lag of the feed) and burns out after the stop; the analyser sees the flame 30 s late,
-    its O2 falling from air to ``o2_floor_pct`` at full burn; velocity and flue gas
-    constant; the balance in 0.02-kg steps."""
+def _slow_bed_case(
+    o2_floor_pct: float, hold_s: float = 150.0, analyser_s: float = 30.0
+) -> SimpleNamespace:
+    """A 6-kW start at Pstart whose bed lights at once but lets its fuel wait ``hold_s`` (a
+    pure lag of the feed) and burns out after the stop; the analyser sees the flame
+    ``analyser_s`` late, its O2 falling from air to ``o2_floor_pct`` at full burn; velocity
+    and flue gas constant; the balance in 0.02-kg steps."""
     t = np.arange(0.0, 6000.0, 2.0)
-    onset, stop, hold_s = 2400.0, 3600.0, 150.0
+    onset, stop = 2400.0, 3600.0
     rate = _start_feed_rate_kg_h(SimpleNamespace(params=load_boiler("windhager_6kw"))) / 3600.0
     fed = rate * np.clip(t - onset, 0.0, stop - onset)
     burning = rate * ((t > onset + hold_s) & (t < stop + hold_s))  # [kg/s]
     o2_true = 20.95 - (20.95 - o2_floor_pct) * burning / rate
-    o2 = np.interp(t - 30.0, t, o2_true)
+    o2 = np.interp(t - analyser_s, t, o2_true)
     mass = np.round((286.0 - fed) / BALANCE_STEP_KG) * BALANCE_STEP_KG
     columns = {
         "time_s": t,
@@ -120,6 +122,17 @@ def test_fuel_that_waits_in_a_lit_bed_is_counted_where_the_flue_gas_counts_the_f
     [(pre_feed, _, _)] = _pre_feed(starved)
     assert abs(pre_feed) <= BALANCE_STEP_KG
     assert not _decide_ignition(_pre_feed(starved))[0]
+
+
+def test_a_slow_analyser_is_not_taken_for_a_slow_bed():
+    """A bed that burns what it is fed at once, seen through a 90-s sample line (twice the
+    longest the reading assumes): the O2 falls 90 s after the flue gas's onset, which sets
+    the delay, so no fuel is left waiting; read with the assumed 45 s, 45 s of feed would
+    have been."""
+    units = _pre_feed(_slow_bed_case(o2_floor_pct=10.0, hold_s=0.0, analyser_s=90.0))
+    [(held, se, rate)] = units
+    assert abs(held) < 2.0 * se, held / rate * 3600.0
+    assert not _decide_ignition(units)[0]
 
 
 def test_a_closure_at_low_load_says_less_about_the_fuel():
