@@ -238,7 +238,8 @@ class CurveCandidate:
             j = int(np.searchsorted(case.t, case.t[anchor] - self.anchor_s))
             return r[rows] - (float(np.mean(r[anchor:j])) if j > anchor else float(r[anchor]))
         j = int(np.searchsorted(case.t, case.t[anchor] - self.anchor_s))
-        return r[rows] - (float(np.mean(r[j:anchor])) if anchor > j else float(r[anchor]))
+        carried = float(np.mean(r[j:anchor])) if anchor > j else float(r[anchor])
+        return r[rows] - carried * carried_share(case, anchor)[rows]
 
     def fit(self, case: Case, blocks: list[tuple]) -> dict[str, float]:
         names = list(self.grid)
@@ -466,34 +467,52 @@ def _body_predict(case: Case, theta: dict[str, float] | None) -> np.ndarray:
     return first_order_lag(water, case.dt, SENSOR_TAU_S["boiler_water_temp_C"])
 
 
-def _per_stop(
-    case: Case,
-    blocks: list,
-    r: np.ndarray,
-    reference_s: float,
-    over_s: float,
-    reference_from_s: float = 0.0,
-):
-    """Per stop (the blocks of one anchor, the end of combustion): the residual over
-    ``reference_s`` from ``reference_from_s`` after the anchor, and over ``over_s`` at the
-    end of its window (positive) or from its anchor (negative), as (reference, rows) pairs
-    of finite values."""
-    t = case.t
+def _stop_ends(blocks: list) -> dict[int, int]:
+    """Each stop's anchor (the end of combustion) and the end of its last block."""
     ends: dict[int, int] = {}
     for _, rows, anchor in blocks:
         ends[anchor] = max(ends.get(anchor, 0), int(rows[-1]) + 1)
+    return ends
+
+
+def _per_stop(
+    case: Case, blocks: list, r: np.ndarray, reference_s: float, over_s: float, from_s: float
+):
+    """Per stop: the residual over ``reference_s`` from ``from_s`` after the anchor, and
+    over the last ``over_s`` of its window, as (reference, rows) pairs of finite values."""
+    t = case.t
     out = []
-    for a, e in ends.items():
-        t_ref = t[a] + reference_from_s
-        ref = r[int(np.searchsorted(t, t_ref)) : int(np.searchsorted(t, t_ref + reference_s))]
-        if over_s > 0:
-            part = r[int(np.searchsorted(t, t[e - 1] - over_s)) : e]
-        else:
-            part = r[a : min(int(np.searchsorted(t, t[a] - over_s)), e)]
+    for a, e in _stop_ends(blocks).items():
+        ref = r[
+            int(np.searchsorted(t, t[a] + from_s)) : int(
+                np.searchsorted(t, t[a] + from_s + reference_s)
+            )
+        ]
+        part = r[int(np.searchsorted(t, t[e - 1] - over_s)) : e]
         ref, part = ref[np.isfinite(ref)], part[np.isfinite(part)]
         if len(ref) and len(part):
             out.append((ref, part))
     return out
+
+
+def carried_share(case: Case, anchor: int) -> np.ndarray:
+    """Share of a mismatch of the water's temperature at row ``anchor`` left in each row
+    (1 up to the anchor): lab and model water follow the same measured flow, return and
+    room (the single node, Eq. 2), so their difference decays as
+    exp(-integral (m_w cp_w + UA) / C dt) when no heat enters either; a mismatch carried
+    into a stop is not a constant (with the bench's flow, C / (m_w cp_w) is 20-35 min, a
+    30-min window)."""
+
+    def compute() -> np.ndarray:
+        p = case.params
+        ua = np.where(case.firing.burning, p.ua_amb_on_W_K, p.ua_amb_off_W_K) / 1000.0
+        rate = (np.maximum(case.flow, 0.0) * k.CP_WATER / 3600.0 + ua) / p.capacity_kJ_K
+        lost = np.cumsum(np.nan_to_num(rate) * case.dt)
+        share = np.exp(-(lost - lost[anchor]))
+        share[: anchor + 1] = 1.0
+        return share
+
+    return case.memo(("carried_share", int(anchor)), compute)
 
 
 def _flue_fingerprint(case: Case, blocks: list, r: np.ndarray) -> tuple[float, str]:
@@ -526,8 +545,15 @@ def _body_fingerprint(case: Case, blocks: list, r: np.ndarray) -> tuple[float, s
     than it did in the steady burn before the stop (by :data:`BODY_STORED_MIN_K` at least
     at its peak, in the median stop); water that cools faster than the model's is a
     mismatch of level or of losses, not a body."""
-    pairs = _per_stop(case, blocks, r, PRE_STOP_S, -3 * SUB_BLOCK_S, -PRE_STOP_S)
-    peaks = [float(np.max(first) - np.mean(ref)) for ref, first in pairs]
+    t = case.t
+    peaks = []
+    for anchor, end in _stop_ends(blocks).items():
+        ref = r[int(np.searchsorted(t, t[anchor] - PRE_STOP_S)) : anchor]
+        first = np.arange(anchor, min(int(np.searchsorted(t, t[anchor] + 3 * SUB_BLOCK_S)), end))
+        ok = np.isfinite(r[first])
+        if len(ref) and ok.any() and np.isfinite(ref).any():
+            carried = float(np.nanmean(ref)) * carried_share(case, anchor)[first[ok]]
+            peaks.append(float(np.max(r[first[ok]] - carried)))
     if not peaks:
         return 0.0, "no stop to read the water's warming from"
     peak = float(np.median(peaks))

@@ -20,6 +20,7 @@ from hil_client.analysis.candidates import (
     BALANCE_STEP_KG,
     STAND_BY_SHARE_RANGE,
     Z_MIN,
+    _body_fingerprint,
     _decide_bias,
     _decide_ignition,
     _flue_fingerprint,
@@ -34,6 +35,7 @@ from hil_client.analysis.logio import LabLog, read_log
 from hil_client.analysis.phases import Phases, find_phases
 from hil_client.analysis.replay import prepare
 from rig_emulator.boilers import load_boiler
+from rig_emulator.model import constants as k
 from rig_emulator.model.params import params_from_mapping
 
 
@@ -248,6 +250,39 @@ def test_a_gas_below_the_idle_level_after_a_stop_is_no_store():
     purge = -20.0 - 20.0 * (1.0 - np.exp(-t / 400.0))
     mark, _ = _flue_fingerprint(case, blocks, purge)
     assert mark == 0.0
+
+
+def test_a_mismatch_the_flow_washes_out_after_a_stop_is_no_body():
+    """Lab water 5 K colder than the model's in the burn before a stop (a level mismatch)
+    decays after it as the flow and the losses exchange both waters with the same return:
+    exp(-(m_w cp_w + UA) t / C), here with a 20-min time constant, in the bench's 20-35
+    min. Read against a constant pre-stop offset it would seem to warm by 5 (1 - e^-0.75)
+    = 2.6 K in the first 15 min, above the 2-K mark of a body; read against the carried
+    share it does not warm at all. A body's own hump of about 3 K on top of it still
+    shows."""
+    params = load_boiler("windhager_6kw")
+    tau_s = 1200.0
+    ua_kW_K = params.ua_amb_off_W_K / 1000.0
+    flow_kg_h = (params.capacity_kJ_K / tau_s - ua_kW_K) * 3600.0 / k.CP_WATER
+    t = np.arange(0.0, 3600.0, 10.0)
+    stop = 180
+    case = SimpleNamespace(
+        t=t,
+        dt=np.full(len(t), 10.0),
+        flow=np.full(len(t), flow_kg_h),
+        firing=SimpleNamespace(burning=np.arange(len(t)) < stop),
+        params=params,
+        memo=lambda key, compute: compute(),
+    )
+    after = np.clip(t - t[stop], 0.0, None)
+    # while burning the loss is UA_on: the decay begins at the stop, so only UA_off counts
+    washed = -5.0 * np.exp(-after / tau_s)
+    blocks = [("stop", np.arange(stop, len(t)), stop)]
+    mark, why = _body_fingerprint(case, blocks, washed)
+    assert mark < 0.05, why  # 0.05: the rounding of the exponentials, nothing more
+    hump = 6.0 * (np.exp(-after / 400.0) - np.exp(-after / 100.0))  # peaks at 2.8 K
+    mark, _ = _body_fingerprint(case, blocks, washed + hump)
+    assert mark > 1.0
 
 
 @pytest.mark.parametrize("plant", ["hil_client.reality", "hil_client.reality2"])
