@@ -207,8 +207,9 @@ class CurveCandidate:
     blocks: Callable[[Case], list[tuple[str, np.ndarray, int]]]
     nuisance_drift: bool
     #: a block's residual is taken relative to its mean over this long before its anchor
-    #: [s] (the response to a start or stop, not the mismatch the plant carried into it);
-    #: negative: over this long from the anchor on
+    #: [s] (the response to a start or stop, not the mismatch the plant carried into it,
+    #: which the flow washes out of the water as :func:`carried_share` says; only the
+    #: water's signal is anchored before); negative: over this long from the anchor on
     anchor_s: float | None = None
     #: the physical mark the data must show for the effect to be named, read from the
     #: unaugmented model's residual: (case, blocks, residual) -> (mark over its floor,
@@ -230,7 +231,8 @@ class CurveCandidate:
         return r - float(np.mean(r[ref]))
 
     def block_residual(self, case: Case, r: np.ndarray, block: tuple) -> np.ndarray:
-        """The residual on one block, anchored before its transition when it has one."""
+        """The residual on one block, anchored at its transition when it has one: less the
+        mismatch carried into it as it decays (anchored before) or less the mean after it."""
         _, rows, anchor = block
         if self.anchor_s is None or anchor < 0:
             return r[rows]
@@ -238,7 +240,8 @@ class CurveCandidate:
             j = int(np.searchsorted(case.t, case.t[anchor] - self.anchor_s))
             return r[rows] - (float(np.mean(r[anchor:j])) if j > anchor else float(r[anchor]))
         j = int(np.searchsorted(case.t, case.t[anchor] - self.anchor_s))
-        carried = float(np.mean(r[j:anchor])) if anchor > j else float(r[anchor])
+        before = r[j:anchor][np.isfinite(r[j:anchor])]
+        carried = float(np.mean(before)) if len(before) else float(r[anchor])
         return r[rows] - carried * carried_share(case, anchor)[rows]
 
     def fit(self, case: Case, blocks: list[tuple]) -> dict[str, float]:
