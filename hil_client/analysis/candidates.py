@@ -67,7 +67,7 @@ import numpy as np
 from hil_client.analysis.augment import first_order_lag, pipe_sensor, two_lump_water
 from hil_client.analysis.balance import flue_gas_loss_per_kg
 from hil_client.analysis.evidence import BlockGain, Evidence, cross_validate
-from hil_client.analysis.firing import MIN_RUN_S, windows_after
+from hil_client.analysis.firing import MIN_RUN_S, ONSET_LOOKBACK_S, windows_after
 from hil_client.analysis.logio import fill_gaps
 from hil_client.analysis.replay import SENSOR_TAU_S, Case
 from rig_emulator.model import constants as k
@@ -146,12 +146,16 @@ FUEL_READABLE_O2_PCT = 3.0
 #: the bed's content at the record's ends, the gas's moisture varying with the load
 #: (Eq. 4-7: 1-2 % of the dry flow) and the analyser's zero (0.1 vol-% of O2 in 5-15).
 U_BURNT_SCALE_REL = 0.03
-#: The gas analyser's sample line delays O2 by 15-45 s; the log cannot tell by how much
-#: (the fan's steps and the O2 correlate by less than 0.1 on most logs), so the flame's
-#: fuel is read as if the delay were the longest [s]: the O2 is advanced by it, which
-#: counts fuel as burnt early and leaves the least in the bed that the log allows. Where
-#: the log itself shows a longer one (:func:`_analyser_delay_min_s`), that is taken.
-ANALYSER_DELAY_MAX_S = 45.0
+#: The gas analyser's sample line delays O2 by 15-45 s on the bench, more on a long heated
+#: line; the log cannot tell by how much (the fan's steps and the O2 correlate by less than
+#: 0.1 on most logs), only at least how much (:func:`_analyser_delay_min_s`: from the
+#: flue-gas probe's onset to the O2's fall), and that falls short of the line's delay by
+#: as much as the probe's onset trails the flame: this much at most [s] (the first hot
+#: gas warms the exchanger before the probe behind it rises 3 K; on the first independent
+#: plant the onset trailed the O2's departure by 10-40 s). The flame's fuel is read as if
+#: the delay were the longest the log allows, the least shown plus this: the O2 is advanced
+#: by it, which counts fuel as burnt early and leaves the least in the bed the log allows.
+ONSET_TRAIL_MAX_S = 45.0
 #: Systematic uncertainties of the energy closure, per 1-h block and relative to the heat
 #: it accounts for: the flow meter (0.5 %, uniform); forward minus return, 0.1 K after the
 #: isothermal check at the end of the preheat, else two class-A Pt100s at 70-85 C (0.3 K
@@ -790,25 +794,33 @@ def _analyser_delay_min_s(case: Case) -> float:
     starts, of the time from the flue gas's onset (its probe answers within seconds) to the
     first O2 reading below air's (less :data:`AIR_O2_MARGIN_PCT`); the flame was lit
     before the onset, and the O2 takes a while to fall that far, so the true delay is
-    longer (on the first independent plant, 0-30 s against true 15-45 s)."""
+    longer (on the first independent plant, 0-30 s against true 15-45 s). The search
+    reaches as far as the onset may lie before the O2's crossing (:data:`ONSET_LOOKBACK_S`),
+    so the delay of a line slower than that is still seen."""
     t = case.t
     o2 = fill_gaps(case.log["flue_gas_O2_pct"], t)
     seen = []
     for i in case.firing.starts:
         fallen = np.flatnonzero(
-            (t >= t[i]) & (t <= t[i] + 120.0) & (o2 < O2_AIR_PCT - AIR_O2_MARGIN_PCT)
+            (t >= t[i]) & (t <= t[i] + ONSET_LOOKBACK_S) & (o2 < O2_AIR_PCT - AIR_O2_MARGIN_PCT)
         )
         if len(fallen):
             seen.append(t[fallen[0]] - t[i])
     return float(np.median(seen)) if seen else 0.0
 
 
+def _analyser_delay_max_s(case: Case) -> float:
+    """The longest delay of the sample line the log allows [s] (:data:`ONSET_TRAIL_MAX_S`)."""
+    return _analyser_delay_min_s(case) + ONSET_TRAIL_MAX_S
+
+
 def _burnt_kg(case: Case) -> tuple[np.ndarray, np.ndarray] | None:
     """(fuel the flame burnt since the record's start as the balance counts it [kg], the
     dry O2 per row, aligned) from the flue gas: the O2 consumed times the dry gas flow
     (velocity at the duct's temperature, normalised), shifted back by the analyser's
-    delay (:data:`ANALYSER_DELAY_MAX_S`), and scaled so that the whole log burns what the
-    balance lost. None without a usable velocity or with too little fed to scale by."""
+    delay at its longest (:func:`_analyser_delay_max_s`), and scaled so that the whole log
+    burns what the balance lost. None without a usable velocity or with too little fed to
+    scale by."""
     log, t = case.log, case.t
     if not log.has("flue_gas_velocity_m_s"):
         return None
@@ -816,7 +828,7 @@ def _burnt_kg(case: Case) -> tuple[np.ndarray, np.ndarray] | None:
     o2 = fill_gaps(log["flue_gas_O2_pct"], t)
     if np.isnan(velocity).any() or np.isnan(o2).any():
         return None
-    o2 = np.interp(t + max(ANALYSER_DELAY_MAX_S, _analyser_delay_min_s(case)), t, o2)
+    o2 = np.interp(t + _analyser_delay_max_s(case), t, o2)
     idle = ~case.firing.burning & (o2 > O2_AIR_PCT - AIR_O2_MARGIN_PCT)
     if idle.sum() < 10:
         return None

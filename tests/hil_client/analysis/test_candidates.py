@@ -20,6 +20,7 @@ from hil_client.analysis.candidates import (
     BALANCE_STEP_KG,
     STAND_BY_SHARE_RANGE,
     Z_MIN,
+    _analyser_delay_max_s,
     _body_fingerprint,
     _decide_bias,
     _decide_ignition,
@@ -72,12 +73,13 @@ def test_one_balance_step_at_one_start_is_not_evidence_of_a_pre_feed():
 
 
 def _slow_bed_case(
-    o2_floor_pct: float, hold_s: float = 150.0, analyser_s: float = 30.0
+    o2_floor_pct: float, hold_s: float = 150.0, analyser_s: float = 30.0, trail_s: float = 0.0
 ) -> SimpleNamespace:
     """A 6-kW start at Pstart whose bed lights at once but lets its fuel wait ``hold_s`` (a
     pure lag of the feed) and burns out after the stop; the analyser sees the flame
-    ``analyser_s`` late, its O2 falling from air to ``o2_floor_pct`` at full burn; velocity
-    and flue gas constant; the balance in 0.02-kg steps."""
+    ``analyser_s`` late, its O2 falling from air to ``o2_floor_pct`` at full burn, and the
+    flue-gas probe's onset trails the first feed by ``trail_s``; velocity and flue gas
+    constant; the balance in 0.02-kg steps."""
     t = np.arange(0.0, 6000.0, 2.0)
     onset, stop = 2400.0, 3600.0
     rate = _start_feed_rate_kg_h(SimpleNamespace(params=load_boiler("windhager_6kw"))) / 3600.0
@@ -91,11 +93,12 @@ def _slow_bed_case(
         "flue_gas_O2_pct": o2,
         "flue_gas_velocity_m_s": np.full(len(t), 1.2),
     }
-    i_on, i_off = int(np.searchsorted(t, onset)), int(np.searchsorted(t, stop + hold_s))
+    i_on = int(np.searchsorted(t, onset + trail_s))
+    i_off = int(np.searchsorted(t, stop + hold_s))
     firing = SimpleNamespace(
         starts=np.array([i_on]),
         stops=np.array([i_off]),
-        burning=(t >= onset) & (t < stop + hold_s),
+        burning=(t >= onset + trail_s) & (t < stop + hold_s),
     )
     return SimpleNamespace(
         t=t,
@@ -111,10 +114,11 @@ def _slow_bed_case(
 def test_fuel_that_waits_in_a_lit_bed_is_counted_where_the_flue_gas_counts_the_flame():
     """A bed that lights at once shows no pre-feed before the onset, but 150 s of feed
     still wait in it five minutes later, which the flue gas's O2 and velocity against the
-    balance read (the analyser's delay counted at its longest, 45 s, so 15 s of the 150
-    are credited to the flame: about 135 s). An
-    air-starved flame (O2 down to 1 %: fuel leaves unburnt as CO and tar) is not read
-    that way: its start gives the pre-feed alone."""
+    balance read (the analyser's delay counted at the longest the log allows: its O2
+    falls no sooner than 180 s after the onset, which shows no delay, so 45 s; 15 s of
+    the 150 are credited to the flame: about 135 s). An air-starved flame (O2 down to
+    1 %: fuel leaves unburnt as CO and tar) is not read that way: its start gives the
+    pre-feed alone."""
     case = _slow_bed_case(o2_floor_pct=10.0)
     [(held, se, rate)] = _pre_feed(case)
     assert abs(held - 135.0 * rate / 3600.0) < 2.0 * se  # within its own two standard errors
@@ -128,13 +132,25 @@ def test_fuel_that_waits_in_a_lit_bed_is_counted_where_the_flue_gas_counts_the_f
 
 def test_a_slow_analyser_is_not_taken_for_a_slow_bed():
     """A bed that burns what it is fed at once, seen through a 90-s sample line (twice the
-    longest the reading assumes): the O2 falls 90 s after the flue gas's onset, which sets
-    the delay, so no fuel is left waiting; read with the assumed 45 s, 45 s of feed would
-    have been."""
+    longest of a usual line): the O2 falls 90 s after the flue gas's onset, which the
+    delay is read from (90 + 45 s at the longest), so no fuel is left waiting; read with a
+    usual line's 45 s, 45 s of feed would have been."""
     units = _pre_feed(_slow_bed_case(o2_floor_pct=10.0, hold_s=0.0, analyser_s=90.0))
     [(held, se, rate)] = units
     assert abs(held) < 2.0 * se, held / rate * 3600.0
     assert not _decide_ignition(units)[0]
+
+
+@pytest.mark.parametrize(
+    ("line_s", "trail_s"), [(15.0, 0.0), (30.0, 45.0), (45.0, 10.0), (90.0, 30.0), (150.0, 45.0)]
+)
+def test_the_o2_is_advanced_by_no_less_than_the_lines_delay(line_s, trail_s):
+    """Whatever the sample line (15-150 s) and however far the probe's onset trails the
+    first feed (up to 45 s, where the O2 may fall before the onset), the flame's fuel is
+    read with the O2 advanced by at least the line's delay: read any later, fuel the flame
+    burnt is left in the bed (with a 90-s line and a 30-s trail, the log shows 60 s)."""
+    case = _slow_bed_case(o2_floor_pct=10.0, hold_s=0.0, analyser_s=line_s, trail_s=trail_s)
+    assert _analyser_delay_max_s(case) >= line_s
 
 
 def test_a_closure_at_low_load_says_less_about_the_fuel():
