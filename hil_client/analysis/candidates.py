@@ -337,6 +337,17 @@ def _split(rows: np.ndarray, t: np.ndarray, length_s: float) -> list[np.ndarray]
     return [p for p in out if len(p) >= 10]
 
 
+#: Below this share of the test's flow the forward sensor no longer reads the boiler water
+#: within a sensor's lag (the exit pipe's transport and losses take over).
+LOW_FLOW_SHARE = 0.3
+
+
+def _test_flow_kg_h(case: Case) -> float:
+    """The water flow of the test phase (its median) [kg/h]."""
+    test = case.phases.mask("test", case.t)
+    return float(np.median(case.flow[test])) if test.any() else float(np.max(case.flow))
+
+
 def _low_flow_blocks(case: Case) -> list[tuple[str, np.ndarray, int]]:
     """Runs of low flow or none, in 1-h blocks anchored :data:`PIPE_SETTLE_S` into their run.
 
@@ -345,10 +356,9 @@ def _low_flow_blocks(case: Case) -> list[tuple[str, np.ndarray, int]]:
     changing; a pipe's mark is what follows: the forward reading falling away toward the
     room as the stagnant water cools, or trailing the boiler water by its transport delay."""
     t = case.t
-    test = case.phases.mask("test", t)
-    nominal = float(np.median(case.flow[test])) if test.any() else float(np.max(case.flow))
+    nominal = _test_flow_kg_h(case)
     after_start = t > case.phases.t0
-    low = np.flatnonzero(after_start & (case.flow < 0.3 * nominal))
+    low = np.flatnonzero(after_start & (case.flow < LOW_FLOW_SHARE * nominal))
     out = []
     for run in _split(low, t, math.inf):
         anchor = int(run[0]) + int(np.searchsorted(t[run], t[run[0]] + PIPE_SETTLE_S))
@@ -546,27 +556,66 @@ def _flue_fingerprint(case: Case, blocks: list, r: np.ndarray) -> tuple[float, s
     )
 
 
-def _body_fingerprint(case: Case, blocks: list, r: np.ndarray) -> tuple[float, str]:
-    """Stored heat: after the flame goes out the metal still heats the water, so the water
-    runs warmer than the model's within the first 15 min, where a body of 1-7 min shows,
-    than it did in the steady burn before the stop (by :data:`BODY_STORED_MIN_K` at least
-    at its peak, in the median stop); water that cools faster than the model's is a
-    mismatch of level or of losses, not a body."""
+def _warming_after_stops(case: Case, blocks: list, r: np.ndarray) -> dict[int, float]:
+    """Per stop (its anchor row): the peak of the residual ``r`` within the first 15 min
+    above the mismatch carried into the stop (its mean over :data:`PRE_STOP_S` before,
+    decaying as :func:`carried_share` says)."""
     t = case.t
-    peaks = []
+    peaks = {}
     for anchor, end in _stop_ends(blocks).items():
         ref = r[int(np.searchsorted(t, t[anchor] - PRE_STOP_S)) : anchor]
         first = np.arange(anchor, min(int(np.searchsorted(t, t[anchor] + 3 * SUB_BLOCK_S)), end))
         ok = np.isfinite(r[first])
         if len(ref) and ok.any() and np.isfinite(ref).any():
             carried = float(np.nanmean(ref)) * carried_share(case, anchor)[first[ok]]
-            peaks.append(float(np.max(r[first[ok]] - carried)))
+            peaks[anchor] = float(np.max(r[first[ok]] - carried))
+    return peaks
+
+
+def _forward_residual(case: Case) -> np.ndarray:
+    """The forward temperature less the one-node model's (as :data:`BODY` reads the
+    boiler water: its forward sensor's lag, less the mean on the settled rows)."""
+    water = body_water(case, 1.0)
+    r = case.lab["water_out_temp_C"] - first_order_lag(
+        water, case.dt, SENSOR_TAU_S["water_out_temp_C"]
+    )
+    return r - float(np.mean(r[case.settled]))
+
+
+def _body_fingerprint(case: Case, blocks: list, r: np.ndarray) -> tuple[float, str]:
+    """Stored heat: after the flame goes out the metal still heats the water, so the water
+    runs warmer than the model's within the first 15 min, where a body of 1-7 min shows,
+    than it did in the steady burn before the stop (by :data:`BODY_STORED_MIN_K` at least
+    at its peak, in the median stop); water that cools faster than the model's is a
+    mismatch of level or of losses, not a body. The heat is the water's, so the forward
+    sensor, which the flow passes from the same water, shows it too: a stop after which
+    the water keeps flowing reads the lesser warming of the two (a slow boiler-water probe
+    that keeps rising after the stop while it catches up with the water is not a body, and
+    the forward does not show it); at low flow the forward reads the exit pipe, not the
+    water, and the boiler water's warming stands alone."""
+    return _body_mark(case, blocks, r, _forward_residual(case))
+
+
+def _body_mark(
+    case: Case, blocks: list, r_water: np.ndarray, r_forward: np.ndarray
+) -> tuple[float, str]:
+    """:func:`_body_fingerprint` from the boiler water's and the forward's residuals."""
+    water = _warming_after_stops(case, blocks, r_water)
+    forward = _warming_after_stops(case, blocks, r_forward)
+    t, low = case.t, LOW_FLOW_SHARE * _test_flow_kg_h(case)
+
+    def flowing(anchor: int) -> bool:  # the forward reads the water only while it flows
+        first = slice(anchor, int(np.searchsorted(t, t[anchor] + 3 * SUB_BLOCK_S)))
+        return bool(np.all(case.flow[first] >= low))
+
+    peaks = [min(w, forward[a]) if a in forward and flowing(a) else w for a, w in water.items()]
     if not peaks:
         return 0.0, "no stop to read the water's warming from"
     peak = float(np.median(peaks))
     return (
         peak / BODY_STORED_MIN_K,
-        f"water not warmer than the model's after stops ({peak:+.2f} K)",
+        f"water not warmer than the model's after stops ({peak:+.2f} K, the lesser of the"
+        " boiler water and the forward)",
     )
 
 
@@ -961,7 +1010,10 @@ def _forward_return_offset(case: Case) -> float | None:
     if pre.sum() < 10 or np.isnan(measured).sum() > 0.5 * len(measured):
         return None
     water = case.lab["boiler_water_temp_C"]
-    warming = np.gradient(first_order_lag(water, case.dt, 30.0), t)[pre]  # [K/s], smoothed
+    # the water's warming read from the forward sensor (the single node's outlet, Eq. 2):
+    # its offset does not change a rate, and a boiler-water probe may sit in a slow sleeve
+    forward = case.lab["water_out_temp_C"]
+    warming = np.gradient(first_order_lag(forward, case.dt, 30.0), t)[pre]  # [K/s], smoothed
     p = case.params
     taken = p.ua_amb_off_W_K / 1000.0 * (water[pre] - case.room[pre]) + p.capacity_kJ_K * warming
     expected = -taken / (case.flow[pre] * k.CP_WATER / 3600.0)

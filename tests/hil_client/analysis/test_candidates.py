@@ -21,7 +21,7 @@ from hil_client.analysis.candidates import (
     STAND_BY_SHARE_RANGE,
     Z_MIN,
     _analyser_delay_max_s,
-    _body_fingerprint,
+    _body_mark,
     _decide_bias,
     _decide_ignition,
     _flue_fingerprint,
@@ -287,6 +287,7 @@ def test_a_mismatch_the_flow_washes_out_after_a_stop_is_no_body():
         dt=np.full(len(t), 10.0),
         flow=np.full(len(t), flow_kg_h),
         firing=SimpleNamespace(burning=np.arange(len(t)) < stop),
+        phases=SimpleNamespace(mask=lambda name, t: np.arange(len(t)) < stop),
         params=params,
         memo=lambda key, compute: compute(),
     )
@@ -294,11 +295,46 @@ def test_a_mismatch_the_flow_washes_out_after_a_stop_is_no_body():
     # while burning the loss is UA_on: the decay begins at the stop, so only UA_off counts
     washed = -5.0 * np.exp(-after / tau_s)
     blocks = [("stop", np.arange(stop, len(t)), stop)]
-    mark, why = _body_fingerprint(case, blocks, washed)
+    mark, why = _body_mark(case, blocks, washed, washed)
     assert mark < 0.05, why  # 0.05: the rounding of the exponentials, nothing more
     hump = 6.0 * (np.exp(-after / 400.0) - np.exp(-after / 100.0))  # peaks at 2.8 K
-    mark, _ = _body_fingerprint(case, blocks, washed + hump)
+    mark, _ = _body_mark(case, blocks, washed + hump, washed + hump)
     assert mark > 1.0
+
+
+def test_warming_the_forward_does_not_share_is_the_probe_not_the_body():
+    """The body's heat is the water's, so the forward sensor, in the same water, shows its
+    warming after a stop as the boiler-water probe does. A probe in a slow sleeve (90 s)
+    reads 3 K low while the water of the 12-kW boiler rises at 2 K/min (a start at low
+    flow, 150 kg/h), and after the stop it catches up: read alone, over 2 K of warming,
+    the body's mark; the fast forward sensor (5 s) lags by a quarter of a kelvin and shows
+    none of it. The same 2.8-K hump in both is a body."""
+    t = np.arange(0.0, 3600.0, 10.0)
+    stop = 180
+    case = SimpleNamespace(
+        t=t,
+        dt=np.full(len(t), 10.0),
+        flow=np.full(len(t), 150.0),
+        firing=SimpleNamespace(burning=np.arange(len(t)) < stop),
+        phases=SimpleNamespace(mask=lambda name, t: np.arange(len(t)) < stop),
+        params=load_boiler("windhager_12kw"),
+        memo=lambda key, compute: compute(),
+    )
+    blocks = [("stop", np.arange(stop, len(t)), stop)]
+    after = np.clip(t - t[stop], 0.0, None)
+    slow_probe = -3.0 * np.exp(-after / 90.0)
+    forward = -0.25 * np.exp(-after / 5.0)
+    alone, _ = _body_mark(case, blocks, slow_probe, slow_probe)
+    assert alone > 1.0  # what reading the boiler water alone would name
+    mark, why = _body_mark(case, blocks, slow_probe, forward)
+    assert mark < 0.5, why
+    hump = 6.0 * (np.exp(-after / 400.0) - np.exp(-after / 100.0))
+    assert _body_mark(case, blocks, hump, hump + 0.1)[0] > 1.0
+    # the circulation stops with the burner: the forward sensor sits in still water in the
+    # exit pipe, cooling toward the room, and says nothing of the boiler water's warming
+    case.flow = np.where(np.arange(len(t)) < stop, 150.0, 0.0)
+    pipe_cooling = -0.5 * after / 60.0
+    assert _body_mark(case, blocks, hump, pipe_cooling)[0] > 1.0
 
 
 @pytest.mark.parametrize("plant", ["hil_client.reality", "hil_client.reality2"])
