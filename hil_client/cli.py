@@ -215,10 +215,18 @@ def _build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _read_log(path: Path) -> LabLog:
+    """A lab log, with a warning line for what was tolerated on reading it."""
+    log = read_log(path)
+    for note in log.notes:
+        print(f"hil-client: warning: {note}", file=sys.stderr)
+    return log
+
+
 def _logs_with_phases(paths: Sequence[Path]) -> list[tuple[LabLog, Phases]]:
     """Each lab log with its phases; a bad log is bad input."""
     with bad_input(LogError):
-        return [(log, find_phases(log)) for log in map(read_log, paths)]
+        return [(log, find_phases(log)) for log in map(_read_log, paths)]
 
 
 def _check_out_dir(out: Path) -> None:
@@ -377,7 +385,7 @@ def _json_nulls(value: Any) -> Any:
 
 def _cmd_balance(args: argparse.Namespace) -> int:
     with bad_input(LogError):
-        log = read_log(args.log)
+        log = _read_log(args.log)
         params = _boiler_for(log, args.boiler)
         phases = find_phases(log)
     for name, column in log.columns.items():

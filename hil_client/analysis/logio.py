@@ -6,7 +6,9 @@ Rules (each refusal is a :class:`LogError` naming the file, column, row or value
 - a number column may have empty fields (missing values, e.g. a Modbus outage): they are
   NaN, and analyses skip or interpolate them as they document; a field that is neither empty
   nor a number is refused;
-- ``phase``/``sequence`` are text; other unknown columns are kept as numbers if they parse.
+- ``phase``/``sequence`` are text; other unknown columns are kept as numbers if they parse;
+- a row of the wrong width is refused, except a last row cut short without a line end (an
+  acquisition killed while writing it): it is left out and named in :attr:`LabLog.notes`.
 
 The optional ``NAME.meta.json`` beside the log is read when present.
 """
@@ -48,6 +50,8 @@ class LabLog:
     columns: dict[str, np.ndarray]
     text: dict[str, list[str]]
     meta: dict[str, Any] = field(default_factory=dict)
+    #: what was tolerated on reading (a last row cut short), one line each, for the user
+    notes: list[str] = field(default_factory=list)
 
     @property
     def t(self) -> np.ndarray:
@@ -86,18 +90,29 @@ def read_log(path: str | Path, required: tuple[str, ...] = REQUIRED) -> LabLog:
             dup = next(h for h in header if header.count(h) > 1)
             raise LogError(f"{path}: column '{dup}' appears twice")
         raw: list[list[str]] = []
+        odd: tuple[int, int] | None = None  # (line, fields) of a row of the wrong width
         try:
             for row in reader:
                 if not row:
                     continue
+                if odd is not None:
+                    break  # a row follows the odd one: refused below
                 if len(row) != len(header):
-                    raise LogError(
-                        f"{path}: row {reader.line_num} has {len(row)} fields, header has "
-                        f"{len(header)}"
-                    )
+                    odd = (reader.line_num, len(row))
+                    continue
                 raw.append(row)
         except csv.Error as exc:
             raise LogError(f"{path}: line {reader.line_num}: {exc}") from None
+    notes: list[str] = []
+    if odd is not None:
+        line, fields = odd
+        if fields < len(header) and reader.line_num == line and _ends_unterminated(path):
+            notes.append(
+                f"{path}: the last row (line {line}) is cut short ({fields} of {len(header)} "
+                "fields, no line end: the acquisition stopped while writing it); ignored"
+            )
+        else:
+            raise LogError(f"{path}: row {line} has {fields} fields, header has {len(header)}")
     if not raw:
         raise LogError(f"{path}: no data rows")
     columns: dict[str, np.ndarray] = {}
@@ -132,7 +147,17 @@ def read_log(path: str | Path, required: tuple[str, ...] = REQUIRED) -> LabLog:
             raise LogError(f"{meta_file}: not valid JSON ({exc})") from None
         if not isinstance(meta, dict):
             raise LogError(f"{meta_file}: expected a JSON object")
-    return LabLog(path, columns, text, meta)
+    return LabLog(path, columns, text, meta, notes)
+
+
+def _ends_unterminated(path: Path) -> bool:
+    """Whether the file's last byte is not a line end (a write cut off mid-row)."""
+    with path.open("rb") as fh:
+        fh.seek(0, 2)
+        if fh.tell() == 0:
+            return False
+        fh.seek(-1, 2)
+        return fh.read(1) not in (b"\n", b"\r")
 
 
 def _is_number(text: str) -> bool:

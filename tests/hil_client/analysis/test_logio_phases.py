@@ -30,6 +30,9 @@ def _write(tmp_path, text: str):
         ),
         (HEADER + "\n1,1,1,1,1,x,1,1,1\n", "column 'flue_gas_temp_C' row 2: 'x' is not a number"),
         (HEADER + "\n1,1,1,1\n", "row 2 has 4 fields"),
+        # a short row with rows after it is no cut-off write: refused wherever it is
+        (HEADER + "\n1,1,1,1\n2,1,1,1,1,1,1,1,1", "row 2 has 4 fields"),
+        (HEADER + "\n1,1,1,1,1,1,1,1,1\n2,1,1,1,1,1,1,1,1,9", "row 3 has 10 fields"),
         (HEADER + "\n", "no data rows"),
         ("", "empty file"),
         (HEADER + "\n,1,1,1,1,1,1,1,1\n", "column 'time_s' row 2 is empty"),
@@ -39,6 +42,21 @@ def test_bad_logs_are_refused_naming_what_is_wrong(tmp_path, text, message):
     with pytest.raises(LogError) as info:
         read_log(_write(tmp_path, text))
     assert message in str(info.value) and "\n" not in str(info.value)
+
+
+def test_a_last_row_cut_short_by_a_killed_acquisition_is_left_out_and_named(tmp_path, capsys):
+    """A logger killed mid-write leaves its last row short and without a line end (its
+    last field may be a number cut in two, 1.2 of 1.25): the row is left out, every
+    complete row is kept, and the user is told in one line."""
+    from hil_client.cli import _read_log
+
+    full = "\n".join(f"{i},1,1,1,1,1,1,1,1" for i in range(1, 4))
+    path = _write(tmp_path, HEADER + "\n" + full + "\n4,1,1,1.2")
+    log = _read_log(path)
+    assert log["time_s"].tolist() == [1.0, 2.0, 3.0]
+    assert len(log.notes) == 1 and "line 5" in log.notes[0] and "4 of 9" in log.notes[0]
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "warning" in err and "cut short" in err
 
 
 def test_empty_fields_are_missing_values_and_can_be_filled(tmp_path):
