@@ -58,7 +58,7 @@ def fault_report(log_path: Path, journal_path: Path, slack_s: float = 2.0) -> di
             raise ValueError(f"{journal_path}: line {number} lacks '{missing[0]}'")
     events_file = events_path(log_path)
     events = read_jsonl(events_file, "Modbus events") if events_file.exists() else []
-    log = read_log(Path(log_path))
+    log = read_log(Path(log_path), as_read=True)
     offset = log.meta.get("server_time_offset_s", 0.0)
     offset = float(offset) if isinstance(offset, int | float) else 0.0
     server_time = log.t - offset

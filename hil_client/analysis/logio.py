@@ -5,7 +5,8 @@ Rules (each refusal is a :class:`LogError` naming the file, column, row or value
 - ``time_s`` must be present in every row and strictly increasing;
 - a number column may have empty fields (missing values, e.g. a Modbus outage): they are
   NaN, and analyses skip or interpolate them as they document; a field that is neither empty
-  nor a number is refused;
+  nor a finite number is refused; a reading outside what its instrument can read
+  (:data:`PLAUSIBLE_RANGES`, an error code such as -999) is missing, named in the notes;
 - ``phase``/``sequence`` are text; other unknown columns are kept as numbers if they parse;
 - a row of the wrong width is refused, except a last row cut short without a line end (an
   acquisition killed while writing it): it is left out and named in :attr:`LabLog.notes`.
@@ -38,6 +39,29 @@ REQUIRED = (
 )
 
 
+#: What a reading of a lab instrument can physically be, by the unit its column's name ends
+#: in [that unit]; beyond it, a reading is an instrument's error code (-999, 9999, 1e30)
+#: and counts as missing. The flue gas of a small boiler stays below 1,000 C; a balance,
+#: flow or power meter reads a few hundred of its units.
+PLAUSIBLE_RANGES = {
+    "_temp_C": (-60.0, 1500.0),
+    "_pct": (-5.0, 105.0),
+    "_ppm": (-1000.0, 1e6),
+    "_kg_h": (-1e5, 1e5),
+    "_kg": (-1e5, 1e5),
+    "_m_s": (-100.0, 100.0),
+    "_hPa": (300.0, 1300.0),
+    "_Pa": (-1e5, 1e5),
+    "_W": (-1e6, 1e6),
+}
+
+
+def _plausible_range(name: str) -> tuple[float, float] | None:
+    if name == "time_s":
+        return None
+    return next((r for unit, r in PLAUSIBLE_RANGES.items() if name.endswith(unit)), None)
+
+
 class LogError(ValueError):
     """A lab log cannot be analysed; the message names the file and what is wrong."""
 
@@ -67,8 +91,12 @@ class LabLog:
         return len(self.columns["time_s"])
 
 
-def read_log(path: str | Path, required: tuple[str, ...] = REQUIRED) -> LabLog:
-    """Read and validate a lab log (see the module docstring)."""
+def read_log(
+    path: str | Path, required: tuple[str, ...] = REQUIRED, *, as_read: bool = False
+) -> LabLog:
+    """Read and validate a lab log (see the module docstring); ``as_read`` keeps every
+    reading as the log has it (no finiteness or range check: a fault report compares
+    injected values, error codes included, with what was logged)."""
     path = Path(path)
     try:
         fh = path.open(newline="", encoding="utf-8")
@@ -103,7 +131,7 @@ def read_log(path: str | Path, required: tuple[str, ...] = REQUIRED) -> LabLog:
                 raw.append(row)
         except csv.Error as exc:
             raise LogError(f"{path}: line {reader.line_num}: {exc}") from None
-    notes: list[str] = []
+    notes: list[str] = []  # what was tolerated, one line each
     if odd is not None:
         line, fields = odd
         if fields < len(header) and reader.line_num == line and _ends_unterminated(path):
@@ -127,6 +155,23 @@ def read_log(path: str | Path, required: tuple[str, ...] = REQUIRED) -> LabLog:
         except ValueError:
             i, v = next((i, v) for i, v in enumerate(values) if v.strip() and not _is_number(v))
             raise LogError(f"{path}: column '{name}' row {i + 2}: '{v}' is not a number") from None
+        if as_read:
+            columns[name] = out
+            continue
+        if np.isinf(out).any():
+            i = int(np.flatnonzero(np.isinf(out))[0])
+            raise LogError(f"{path}: column '{name}' row {i + 2}: '{values[i]}' is not finite")
+        bounds = _plausible_range(name)
+        if bounds is not None:
+            wild = (out < bounds[0]) | (out > bounds[1])
+            if wild.any():
+                i = int(np.flatnonzero(wild)[0])
+                notes.append(
+                    f"{path}: column '{name}': {int(wild.sum())} reading(s) outside "
+                    f"{bounds[0]:g}..{bounds[1]:g} (first row {i + 2}: '{values[i]}'), "
+                    "taken as missing (an instrument's error code)"
+                )
+                out[wild] = np.nan
         columns[name] = out
     t = columns["time_s"]
     if np.isnan(t).any():

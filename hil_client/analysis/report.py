@@ -112,7 +112,9 @@ def diagnosis_report(result: dict, figures: list[Path], cal: str, val: str) -> s
         "|---|---|---:|---|---|---|---|",
     ]
     for c in result["candidates"]:
-        params = ", ".join(f"{k} = {v:.3g}" for k, v in c["params"].items())
+        params = ", ".join(
+            f"{k} = {'-' if v is None else format(v, '.3g')}" for k, v in c["params"].items()
+        )
         lines.append(
             f"| {c['effect']} | {params} | {_f(c['score'], 1)} | {c['reason']} | "
             f"{c['signal']} / {c['phase']} | {_f(c['calibration_rmsd_before'])} / "

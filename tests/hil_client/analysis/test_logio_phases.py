@@ -36,6 +36,7 @@ def _write(tmp_path, text: str):
         (HEADER + "\n", "no data rows"),
         ("", "empty file"),
         (HEADER + "\n,1,1,1,1,1,1,1,1\n", "column 'time_s' row 2 is empty"),
+        (HEADER + "\n1,1,inf,1,1,1,1,1,1\n", "column 'water_in_temp_C' row 2: 'inf' is not finite"),
     ],
 )
 def test_bad_logs_are_refused_naming_what_is_wrong(tmp_path, text, message):
@@ -57,6 +58,19 @@ def test_a_last_row_cut_short_by_a_killed_acquisition_is_left_out_and_named(tmp_
     assert len(log.notes) == 1 and "line 5" in log.notes[0] and "4 of 9" in log.notes[0]
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "warning" in err and "cut short" in err
+
+
+def test_an_instruments_error_code_is_a_missing_reading_and_named(tmp_path):
+    """-999 from a thermocouple amplifier or 1e30 from a logger's overflow is no
+    temperature: read as one it would swamp every figure; it is missing, and the user is
+    told which column and row. A fault report reads the log as it is."""
+    rows = ["1,1,1,1,1,-999,1,1,1", "2,1,1,1,1,1e30,1,1,1", "3,1,1,1,1,1500,1,1,1"]
+    path = _write(tmp_path, HEADER + "\n" + "\n".join(rows) + "\n")
+    log = read_log(path)
+    assert np.isnan(log["flue_gas_temp_C"][:2]).all() and log["flue_gas_temp_C"][2] == 1500.0
+    assert len(log.notes) == 1
+    assert "'flue_gas_temp_C': 2 reading(s)" in log.notes[0] and "row 2: '-999'" in log.notes[0]
+    assert read_log(path, as_read=True)["flue_gas_temp_C"][1] == 1e30
 
 
 def test_empty_fields_are_missing_values_and_can_be_filled(tmp_path):

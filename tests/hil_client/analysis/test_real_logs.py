@@ -149,7 +149,27 @@ def cut_short(header, rows, rng):
     return header, [r for r, ti in zip(rows, t, strict=True) if ti <= end]
 
 
+def analyser_off(header, rows, rng):
+    """The gas analyser not connected: the O2 column is there, every field empty."""
+    _set(header, rows, "flue_gas_O2_pct", np.full(len(rows), np.nan))
+    return header, rows
+
+
+def error_codes(header, rows, rng):
+    """A thermocouple amplifier logs -999 for 2 % of the flue-gas readings, the boiler
+    probe's transmitter 9999 once: error codes, not temperatures."""
+    fg = _column(header, rows, "flue_gas_temp_C")
+    fg[rng.random(len(fg)) < 0.02] = -999.0
+    water = _column(header, rows, "boiler_water_temp_C")
+    water[len(water) // 2] = 9999.0
+    _set(header, rows, "flue_gas_temp_C", fg)
+    _set(header, rows, "boiler_water_temp_C", water)
+    return header, rows
+
+
 VARIANTS = (
+    analyser_off,
+    error_codes,
     cut_short,
     zero_flow,
     gaps,
