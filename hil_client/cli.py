@@ -211,6 +211,12 @@ def _build_parser() -> argparse.ArgumentParser:
     gap.add_argument("--seed", type=int, default=0, help="seed of the case generator [0]")
     gap.add_argument("--out", required=True, type=Path, help="output directory")
     gap.add_argument("--workers", type=int, default=2, help="parallel processes [2]")
+    gap.add_argument(
+        "--plant",
+        action="append",
+        metavar="NAME",
+        help="only this independent plant (reality, reality2, reality3; repeatable) [every one]",
+    )
     return parser
 
 
@@ -261,9 +267,22 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
 def _cmd_gap_benchmark(args: argparse.Namespace) -> int:
     if args.cases < 1 or args.workers < 1:
         raise UsageError("--cases and --workers must be at least 1")
-    from hil_client.analysis.gap_benchmark import run_benchmark
+    from hil_client.analysis.gap_benchmark import (
+        HELD_OUT_PLANTS,
+        INDEPENDENT_PLANTS,
+        run_benchmark,
+    )
 
-    run_benchmark(args.cases, args.seed, args.out, args.workers, args.reality)
+    plants = None
+    if args.plant:
+        if args.reality != "independent":
+            raise UsageError("--plant chooses among the independent plants (--reality independent)")
+        known = {p.rsplit(".", 1)[-1]: p for p in INDEPENDENT_PLANTS + HELD_OUT_PLANTS}
+        unknown = [p for p in args.plant if p not in known]
+        if unknown:
+            raise UsageError(f"--plant: unknown plant '{unknown[0]}'; known: {', '.join(known)}")
+        plants = [known[p] for p in args.plant]
+    run_benchmark(args.cases, args.seed, args.out, args.workers, args.reality, plants)
     return 0
 
 

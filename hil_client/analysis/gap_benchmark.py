@@ -33,6 +33,7 @@ import multiprocessing as mp
 import statistics
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -60,12 +61,17 @@ DROPPED_COLUMNS = ("phase", "sequence")
 #: The independently written plants (each a package with the API of
 #: :mod:`hil_client.reality`); the cases alternate between those present.
 INDEPENDENT_PLANTS = ("hil_client.reality", "hil_client.reality2")
+#: Independently written plants kept out of the default rotation: a check of how the
+#: diagnosis does on a plant nobody tuned it against (``--plant reality3``). Measure on
+#: them; a rule changed to score on them makes them one more development plant.
+HELD_OUT_PLANTS = ("hil_client.reality3",)
 
 
-def independent_plants() -> list[str]:
-    """The independent plants that are installed."""
+def independent_plants(names: Sequence[str] | None = None) -> list[str]:
+    """The independent plants that are installed (of ``names``, default all of
+    :data:`INDEPENDENT_PLANTS`)."""
     found = []
-    for name in INDEPENDENT_PLANTS:
+    for name in names or INDEPENDENT_PLANTS:
         try:
             importlib.import_module(name)
         except ImportError:
@@ -74,12 +80,13 @@ def independent_plants() -> list[str]:
     return found
 
 
-def make_cases(n: int, seed: int, reality: str) -> list[dict]:
-    """The cases' truth (see the module docstring)."""
+def make_cases(n: int, seed: int, reality: str, plants: Sequence[str] | None = None) -> list[dict]:
+    """The cases' truth (see the module docstring); ``plants``: the independent plants
+    the cases alternate between (default: every one installed)."""
     rng = np.random.default_rng(seed)
     n_none = max(1, round(n / 6)) if n >= 6 else (1 if n > 1 else 0)
     answers = ["none"] * n_none + [EFFECTS[i % len(EFFECTS)] for i in range(n - n_none)]
-    plants = independent_plants() if reality == "independent" else ["emulator"]
+    plants = independent_plants(plants) if reality == "independent" else ["emulator"]
     if not plants:
         raise RuntimeError("no independent plant is installed (hil_client.reality)")
     seen: dict[str, int] = {}
@@ -312,11 +319,13 @@ def score(cases: list[dict], results: list[dict]) -> dict:
     }
 
 
-def run_benchmark(n: int, seed: int, out: Path, workers: int, reality: str) -> dict:
+def run_benchmark(
+    n: int, seed: int, out: Path, workers: int, reality: str, plants: Sequence[str] | None = None
+) -> dict:
     """Generate, diagnose and score ``n`` cases; prints progress and writes scores.json."""
     out.mkdir(parents=True, exist_ok=True)
     (out / "sealed").mkdir(exist_ok=True)
-    cases = make_cases(n, seed, reality)
+    cases = make_cases(n, seed, reality, plants)
     (out / "sealed" / "truth.json").write_text(json.dumps(cases, indent=2) + "\n")
     started = time.monotonic()
     results = []

@@ -4,11 +4,23 @@ asks for)."""
 
 from collections import Counter
 
-from hil_client.analysis.gap_benchmark import BOILERS, PAIRS, is_right, make_cases, score
+import pytest
+
+from hil_client.analysis.gap_benchmark import (
+    BOILERS,
+    HELD_OUT_PLANTS,
+    PAIRS,
+    is_right,
+    make_cases,
+    score,
+)
+from hil_client.cli import main
 
 
-def test_every_plant_meets_both_boilers_and_both_log_pairs_for_every_effect():
-    cases = make_cases(48, 0, "independent")
+@pytest.mark.parametrize("plants", [None, HELD_OUT_PLANTS], ids=["default", "held_out"])
+def test_every_plant_meets_both_boilers_and_both_log_pairs_for_every_effect(plants):
+    cases = make_cases(48, 0, "independent", plants)
+    assert {c["plant"] for c in cases} >= set(plants or ())
     effects = [c for c in cases if c["effect"] != "none"]
     assert sum(c["effect"] == "none" for c in cases) == 8
     for effect in {c["effect"] for c in effects}:
@@ -40,3 +52,10 @@ def test_an_effect_named_without_held_out_shrinkage_is_not_a_success():
     scores = score(cases, [unconfirmed | base, right_none | base | {"shrink_pct": None}])
     assert scores["accuracy"] == 0.5 and scores["not_confirmed"] == 1
     assert scores["negative_shrinks_on_right_effect"] == 1
+
+
+def test_an_unknown_plant_is_named_in_one_line(tmp_path, capsys):
+    code = main(["gap-benchmark", "--plant", "reality9", "--out", str(tmp_path / "gap")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "reality9" in err and "reality3" in err
+    assert not (tmp_path / "gap").exists()
