@@ -191,6 +191,9 @@ class Assessment:
     #: how far the effect's physical mark stands beyond the floor a real boiler's
     #: background reaches without it (1: at the floor); ranks the named candidates
     margin: float = 0.0
+    #: the separate events (stops, starts, low-flow periods) the evidence was read in;
+    #: 0 where it is not read event by event (the closure's hours)
+    events: int = 0
 
     def verdict(self) -> tuple[bool, float, str]:
         return self.decide(self.units)
@@ -308,6 +311,7 @@ class CurveCandidate:
             before,
             after,
             float(margin) if math.isfinite(margin) else 0.0,
+            len({anchor for _, _, anchor in blocks}),
         )
 
     def prediction(self, case: Case, theta: dict[str, float]) -> dict[str, np.ndarray]:
@@ -980,6 +984,7 @@ class IgnitionCandidate:
             before,
             after,
             delay / PRE_FEED_MIN_S,
+            len(units),
         )
 
     def held_out(self, case: Case, theta: dict[str, float]) -> tuple[float, float]:

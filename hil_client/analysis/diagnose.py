@@ -22,8 +22,11 @@ section 4). The diagnosis is built to name an effect *through* that background g
    ``unexplained_gap`` says whether a gap beyond the bench's resolution remains.
 5. *Confidence*: the share of :data:`BOOTSTRAP` block-bootstrap draws of the evidence
    (held-out blocks, starts and closure hours drawn again with replacement) that give the
-   same answer: a verdict that rests on one block gets a low figure. A ``none`` is
-   discounted by how close the closest candidate came to being named (its mark and its evidence).
+   same answer: a verdict that rests on one block gets a low figure; an effect read in n
+   separate stops or starts gets at most (n + 1) / (n + 2) (one stop cannot show that it
+   was typical). A ``none`` is discounted by how close the closest candidate came to being
+   named (its mark and its evidence), and is at most 1 / (1 + k) where the log gives k
+   candidates no evidence at all (absence of evidence is not evidence of absence).
 6. *How far*: the chosen effect, parameters frozen, predicts the validation log, which is
    used for nothing else; RMSD before and after where the effect acts. A shrinkage of zero
    or less is reported as "not confirmed".
@@ -129,11 +132,22 @@ def _closest_miss(assessments: dict[str, Assessment], verdicts: dict) -> float:
     return max(near, default=0.0)
 
 
+def carried_to_next_event(events: int) -> float:
+    """How likely an effect read in each of ``events`` separate events (stops, starts) also
+    shows in the next one, another log's: Laplace's rule of succession, (n + 1) / (n + 2),
+    the posterior mean of a share with a uniform prior after n of n. Resampling blocks
+    within one stop cannot say whether that stop was typical; 1 for evidence not read
+    event by event."""
+    return (events + 1.0) / (events + 2.0) if events > 0 else 1.0
+
+
 def _confidence(assessments: dict[str, Assessment], answer: str) -> float:
-    """Share of block-bootstrap draws that give ``answer`` (see the module docstring); for
-    ``none`` discounted by the closest miss: a candidate that shows most of the mark its
-    effect needs and most of the held-out evidence makes "nothing listed" a close call,
-    however stable the verdict is under resampling."""
+    """Share of block-bootstrap draws that give ``answer`` (see the module docstring), for
+    an effect read event by event at most :func:`carried_to_next_event` of its events
+    (one stop: 0.67, three: 0.8); for ``none`` discounted by the closest miss (a candidate
+    that shows most of the mark its effect needs and most of the held-out evidence makes
+    "nothing listed" a close call, however stable the verdict is under resampling) and at
+    most 1 / (1 + k) with k candidates the log could not test."""
     rng = np.random.default_rng(20150505)
     votes: Counter[str] = Counter()
     for _ in range(BOOTSTRAP):
@@ -147,10 +161,14 @@ def _confidence(assessments: dict[str, Assessment], answer: str) -> float:
             verdicts[effect] = a.decide(units)
         votes[_answer(verdicts, assessments)] += 1
     share = votes[answer] / BOOTSTRAP
-    if answer == "none":
-        verdicts = {effect: a.verdict() for effect, a in assessments.items()}
-        share *= 1.0 - _closest_miss(assessments, verdicts)
-    return share
+    if answer != "none":
+        return min(share, carried_to_next_event(assessments[answer].events))
+    verdicts = {effect: a.verdict() for effect, a in assessments.items()}
+    share *= 1.0 - _closest_miss(assessments, verdicts)
+    # a candidate the log gives no evidence for or against (no start after a quiet balance,
+    # no settled stop) is as likely as "nothing listed" (a uniform prior over the answers)
+    untested = sum(not a.units for a in assessments.values())
+    return min(share, 1.0 / (1.0 + untested))
 
 
 def _finite(x: float) -> float | None:
@@ -219,6 +237,7 @@ def diagnose(
                 "signal": a.signal,
                 "phase": a.locus,
                 "evidence_units": len(a.units),
+                "evidence_events": a.events,
                 "calibration_rmsd_before": _finite(a.rmsd_before),
                 "calibration_rmsd_after": _finite(a.rmsd_after),
                 "validation_rmsd_before": _finite(val_before),

@@ -14,17 +14,20 @@ from hil_client.analysis.diagnose import _answer, _confidence
 from hil_client.analysis.logio import LabLog
 
 
-def _assessment(effect: str, named: bool, z: float, margin: float) -> Assessment:
+def _assessment(
+    effect: str, named: bool, z: float, margin: float, units: int = 4, events: int = 0
+) -> Assessment:
     return Assessment(
         effect,
         "signal",
         "phase",
         {},
-        [],
+        ["held-out block"] * units,
         lambda units, named=named, z=z: (named, z, "named" if named else "below its floor"),
         1.0,
         0.5,
         margin,
+        events,
     )
 
 
@@ -58,6 +61,34 @@ def test_a_none_is_as_sure_as_the_closest_miss_allows():
     assert abs(_confidence(half, "none") - 0.5) < 1e-9
     named = {"flue_gas_lag": _assessment("flue_gas_lag", True, 12.0, 3.0)}
     assert _confidence(named, "flue_gas_lag") == 1.0
+
+
+def test_an_effect_read_in_one_stop_is_not_sure_it_was_a_typical_one():
+    """A store read in the six 5-min blocks after the stationary test's one stop is named
+    by every bootstrap draw of those blocks, yet whether the next stop (the held-out log's)
+    shows it rests on that one stop: Laplace's (n + 1) / (n + 2), 2/3 for one stop, 4/5 for
+    three; evidence not read event by event (events 0) keeps its bootstrap share."""
+    one_stop = {"flue_gas_lag": _assessment("flue_gas_lag", True, 40.0, 3.0, 6, events=1)}
+    assert abs(_confidence(one_stop, "flue_gas_lag") - 2.0 / 3.0) < 1e-9
+    three = {"flue_gas_lag": _assessment("flue_gas_lag", True, 40.0, 3.0, 18, events=3)}
+    assert abs(_confidence(three, "flue_gas_lag") - 0.8) < 1e-9
+    hours = {"fuel_energy_bias": _assessment("fuel_energy_bias", True, 9.0, 2.0, 6)}
+    assert _confidence(hours, "fuel_energy_bias") == 1.0
+
+
+def test_a_none_is_not_sure_of_an_effect_the_log_could_not_test():
+    """A load cycle without a start after a quiet balance says nothing of an ignition delay:
+    "nothing listed" and "an ignition delay" are then equally likely, at most 0.5, however
+    clearly the others were ruled out; two untested, at most a third."""
+    ruled_out = {
+        "body_heat_diffusion": _assessment("body_heat_diffusion", False, 0.5, 0.0),
+        "flue_gas_lag": _assessment("flue_gas_lag", False, 0.1, 0.0),
+    }
+    assert _confidence(ruled_out, "none") == 1.0
+    no_start = ruled_out | {"ignition_delay": _assessment("ignition_delay", False, 0.0, 0.0, 0)}
+    assert abs(_confidence(no_start, "none") - 0.5) < 1e-9
+    no_hour = no_start | {"fuel_energy_bias": _assessment("fuel_energy_bias", False, 0.0, 0.0, 0)}
+    assert abs(_confidence(no_hour, "none") - 1.0 / 3.0) < 1e-9
 
 
 def _case(t, o2):
