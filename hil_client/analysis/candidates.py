@@ -191,8 +191,8 @@ class Assessment:
     #: how far the effect's physical mark stands beyond the floor a real boiler's
     #: background reaches without it (1: at the floor); ranks the named candidates
     margin: float = 0.0
-    #: the separate events (stops, starts, low-flow periods) the evidence was read in;
-    #: 0 where it is not read event by event (the closure's hours)
+    #: the separate events (stops, starts, low-flow periods, the closure's loads) the
+    #: evidence was read in; 0 where it is not read event by event
     events: int = 0
 
     def verdict(self) -> tuple[bool, float, str]:
@@ -1040,10 +1040,11 @@ def closure_u_rel(rise_K: float, u_dt_K: float, room_share: float, stored_share:
     )
 
 
-def _closure_blocks(case: Case) -> list[tuple[float, float, float, float]]:
+def _closure_blocks(case: Case) -> list[tuple[float, float, float, float, float]]:
     """(fuel the balance lost, fuel the measured energy needs [kg], the relative systematic
     uncertainty of the need, hours since the forward-return check at the end of the
-    preheat) per 1-h block of the test phase without a start or stop."""
+    preheat, the heat it accounts for per second [kW]) per 1-h block of the test phase
+    without a start or stop."""
     t, p = case.t, case.params
     log = case.log
     offset = _forward_return_offset(case)
@@ -1090,8 +1091,25 @@ def _closure_blocks(case: Case) -> list[tuple[float, float, float, float]]:
             stored / q_total,
         )
         hours = (float(np.mean(t[block])) - case.phases.t0) / 3600.0
-        out.append((float(lost), need_dry * per_kg, u_rel, hours))
+        out.append((float(lost), need_dry * per_kg, u_rel, hours, q_total / duration))
     return out
+
+
+#: Closure blocks whose heat output differs by this share of the largest block's or more
+#: stand at different loads (Table 2's stages are 100, 48, 30 and 13 %; a stationary
+#: test's hours differ by a few per cent).
+LOAD_LEVEL_SHARE = 0.15
+
+
+def _load_levels(units: Sequence[tuple]) -> int:
+    """How many separate loads the closure blocks stand at: a fuel's calorific value is
+    the same at every load, a loss the model lacks (unburnt carbon growing with the burn
+    rate, the exchanger's losses) is not, so one load is one event."""
+    heat_kW = sorted(u[4] for u in units)
+    if not heat_kW:
+        return 0
+    step = LOAD_LEVEL_SHARE * heat_kW[-1]
+    return 1 + sum(b - a >= step for a, b in itertools.pairwise(heat_kW))
 
 
 def _weights(units: Sequence[tuple]) -> np.ndarray:
@@ -1197,6 +1215,7 @@ class BiasCandidate:
             before,
             after,
             abs(bias) / BIAS_MIN,
+            _load_levels(units),
         )
 
     def held_out(self, case: Case, theta: dict[str, float]) -> tuple[float, float]:

@@ -27,6 +27,7 @@ from hil_client.analysis.candidates import (
     _flue_fingerprint,
     _flue_gas_with_idle_air,
     _flue_predict,
+    _load_levels,
     _pre_feed,
     _start_feed_rate_kg_h,
     closure_u_rel,
@@ -374,3 +375,17 @@ def test_the_stand_by_share_is_the_independent_plants_own(plant, tmp_path):
         by_water = np.median(np.abs(lab - case.lab["boiler_water_temp_C"][idle]))
         assert by_share <= by_water + 0.05, (share, by_share, by_water)
     assert abs(shares[0] - shares[1]) < 0.02, shares
+
+
+def test_a_stationary_test_reads_the_closure_at_one_load_and_a_load_cycle_at_several():
+    """A fuel's calorific value is the same at every load, a loss the model lacks (unburnt
+    carbon growing with the burn rate) is not: the closure's events are its loads. Six
+    hours of a 12-kW stationary test (within 4 %) are one; the load cycle's hours at 100,
+    48, 30 and 13 % (Table 2) are four, however many hours each holds."""
+
+    def at(kW):
+        return [(1.0, 1.0, 0.02, 1.5 + i, q) for i, q in enumerate(kW)]
+
+    assert _load_levels(at([12.1, 11.9, 12.3, 11.8, 12.0, 12.2])) == 1
+    assert _load_levels(at([12.0, 5.8, 5.7, 3.6, 1.6, 1.5, 11.9])) == 4
+    assert _load_levels([]) == 0
