@@ -46,6 +46,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/fuzz_modbus.py
 	$(BIN)/python bench/reality_gap.py 20
 	$(BIN)/python bench/reality2_gap.py --cases 20
+	$(BIN)/python bench/reality2_gap.py --cases 20 --plant reality3
 	$(BIN)/python bench/bench_transports.py
 
 lint: $(STAMP)

@@ -1,4 +1,5 @@
-"""Background gap of the second independent plant (hil_client.reality2) against Type 869.
+"""Background gap of an independent plant (hil_client.reality2, or ``--plant reality3``,
+the held-out one) against Type 869.
 
 For N random backgrounds (both boilers alternating), this plant writes a stationary and a
 load-cycle log with no listed effect. The project's model is calibrated on one log with the
@@ -11,12 +12,13 @@ sequence: T RMSD 1.36-2.63 K, Q RMSD 0.30-0.67 kW over its four runs; the brief'
 1-3 K and 0.3-0.7 kW). Also the time to simulate one log. Figures are printed, never asserted.
 
     PYTHONPATH=. .venv/bin/python bench/reality2_gap.py [--cases 20] [--seed 7]
-        [--phase-from signals]
+        [--phase-from signals] [--plant reality3]
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import statistics
 import sys
 import tempfile
@@ -30,7 +32,6 @@ from hil_client.analysis.calibrate import calibrate
 from hil_client.analysis.logio import read_log
 from hil_client.analysis.phases import find_phases
 from hil_client.analysis.validate import compare, validation_metrics
-from hil_client.reality2 import draw_background, simulate_log, write_log_csv
 from rig_emulator.boilers import BOILER_DIR
 from rig_emulator.model.params import params_from_mapping
 
@@ -39,16 +40,16 @@ T_BAND_K = (1.0, 3.0)  # Table 4, test sequence, rounded out (brief)
 Q_BAND_KW = (0.3, 0.7)
 
 
-def one_case(k: int, seed: int, workdir: Path, prefer_signals: bool) -> list[dict]:
+def one_case(k: int, seed: int, workdir: Path, prefer_signals: bool, plant) -> list[dict]:
     """Both directions of one background: the test-phase RMSDs of the validated log."""
     boiler_name = BOILERS[k % 2]
     boiler = yaml.safe_load((BOILER_DIR / f"{boiler_name}.yaml").read_text())
     rng = np.random.default_rng([seed, k])
-    background = draw_background(rng, boiler)
+    background = plant.draw_background(rng, boiler)
     logs, sim_s = {}, []
     for test in ("stationary", "load_cycle"):
         started = time.perf_counter()
-        columns, _ = simulate_log(
+        columns, _ = plant.simulate_log(
             boiler,
             test,
             background=background,
@@ -61,7 +62,7 @@ def one_case(k: int, seed: int, workdir: Path, prefer_signals: bool) -> list[dic
         )
         sim_s.append(time.perf_counter() - started)
         path = workdir / f"case{k:02d}_{test}.csv"
-        write_log_csv(columns, path)
+        plant.write_log_csv(columns, path)
         log = read_log(path)
         logs[test] = (log, find_phases(log, prefer_signals=prefer_signals))
     doc = params_from_mapping(boiler, boiler_name)
@@ -101,11 +102,13 @@ def main(argv: list[str] | None = None) -> int:
         default="column",
         help="phase bounds from the phase column or found from the signals",
     )
+    parser.add_argument("--plant", choices=("reality2", "reality3"), default="reality2")
     args = parser.parse_args(argv)
+    plant = importlib.import_module(f"hil_client.{args.plant}")
     rows: list[dict] = []
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(args.cases):
-            for r in one_case(k, args.seed, Path(tmp), args.phase_from == "signals"):
+            for r in one_case(k, args.seed, Path(tmp), args.phase_from == "signals", plant):
                 rows.append(r)
                 print(
                     f"case {r['case']:2d} {r['boiler']:<15} cal {r['calibration']:<10} -> "
