@@ -24,9 +24,10 @@ section 4). The diagnosis is built to name an effect *through* that background g
    (held-out blocks, starts and closure hours drawn again with replacement) that give the
    same answer: a verdict that rests on one block gets a low figure; an effect read in n
    separate events (stops, starts, standstills, the closure's loads) gets at most
-   (n + 1) / (n + 2) (one stop cannot show that it was typical). A ``none`` is discounted by how close the closest candidate came to being
-   named (its mark and its evidence), and is at most 1 / (1 + k) where the log gives k
-   candidates no evidence at all (absence of evidence is not evidence of absence).
+   (n + 1) / (n + 2) (one stop cannot show that it was typical). A ``none`` is discounted
+   by how close the closest candidate came to being named (its mark and its evidence), and
+   is at most 1 / (1 + k) where the log gives k candidates no evidence at all (absence of
+   evidence is not evidence of absence).
 6. *How far*: the chosen effect, parameters frozen, predicts the validation log, which is
    used for nothing else; RMSD before and after where the effect acts. A shrinkage of zero
    or less is reported as "not confirmed".
