@@ -215,7 +215,8 @@ def _build_parser() -> argparse.ArgumentParser:
         "--plant",
         action="append",
         metavar="NAME",
-        help="only this independent plant (reality, reality2, reality3; repeatable) [every one]",
+        help="only this independent plant: reality, reality2, or the held-out reality3 and "
+        "reality4 (repeatable) [reality and reality2]",
     )
     return parser
 

@@ -2,13 +2,18 @@
 ``hil-client gap-benchmark``; these tests check only that its design covers what the issue
 asks for)."""
 
+import subprocess
+import sys
+import textwrap
 from collections import Counter
+from pathlib import Path
 
 import pytest
 
 from hil_client.analysis.gap_benchmark import (
     BOILERS,
     HELD_OUT_PLANTS,
+    INDEPENDENT_PLANTS,
     PAIRS,
     is_right,
     make_cases,
@@ -59,3 +64,33 @@ def test_an_unknown_plant_is_named_in_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "reality9" in err and "reality3" in err
     assert not (tmp_path / "gap").exists()
+
+
+@pytest.mark.parametrize("plant", HELD_OUT_PLANTS)
+def test_a_held_out_plant_imports_nothing_of_the_project_or_the_other_plants(plant):
+    """A held-out plant stays independent: simulating every effect loads no module of the
+    emulator's model, bench or instruments, of the analysis, or of any other plant."""
+    others = [p for p in INDEPENDENT_PLANTS + HELD_OUT_PLANTS if p != plant]
+    boiler = Path(__file__).parents[3] / "rig_emulator" / "boilers" / "windhager_6kw.yaml"
+    code = textwrap.dedent(
+        f"""
+        import sys, yaml, numpy as np
+        from pathlib import Path
+        import {plant} as plant
+        boiler = yaml.safe_load(Path({str(boiler)!r}).read_text())
+        bg = plant.draw_background(np.random.default_rng(1), boiler)
+        for effect, forms in plant.EFFECT_FORMS.items():
+            plant.simulate_log(boiler, "load_cycle", background=bg, effect=effect,
+                               form=forms[-1], strength=0.5, seed=1, sample_s=10.0, jitter=True)
+        banned = ("rig_emulator.model", "rig_emulator.bench", "rig_emulator.instruments",
+                  "hil_client.analysis")
+        others = {others!r}
+        bad = [m for m in sys.modules if m.startswith(banned)
+               or any(m == o or m.startswith(o + ".") for o in others)]
+        print("BAD", bad)
+        """
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=600, check=True
+    )
+    assert "BAD []" in out.stdout, out.stdout + out.stderr
