@@ -5,8 +5,9 @@ Rules (each refusal is a :class:`LogError` naming the file, column, row or value
 - ``time_s`` must be present in every row and strictly increasing;
 - a number column may have empty fields (missing values, e.g. a Modbus outage): they are
   NaN, and analyses skip or interpolate them as they document; a field that is neither empty
-  nor a finite number is refused; a reading outside what its instrument can read
-  (:data:`PLAUSIBLE_RANGES`, an error code such as -999) is missing, named in the notes;
+  nor a number is refused; an infinite reading, or one outside what its instrument can read
+  (:data:`PLAUSIBLE_RANGES`, an error code such as -999), is missing, named in the notes
+  (in ``time_s`` it is refused);
 - ``phase``/``sequence`` are text; other unknown columns are kept as numbers if they parse;
 - a row of the wrong width is refused, except a last row cut short without a line end (an
   acquisition killed while writing it): it is left out and named in :attr:`LabLog.notes`.
@@ -18,6 +19,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -40,9 +42,9 @@ REQUIRED = (
 
 
 #: What a reading of a lab instrument can physically be, by the unit its column's name ends
-#: in [that unit]; beyond it, a reading is an instrument's error code (-999, 9999, 1e30)
-#: and counts as missing. The flue gas of a small boiler stays below 1,000 C; a balance,
-#: flow or power meter reads a few hundred of its units.
+#: in [that unit]; beyond it (or infinite), a reading is an instrument's error code (-999,
+#: 9999, 1e30, inf) and counts as missing. The flue gas of a small boiler stays below
+#: 1,000 C; a balance, flow or power meter reads a few hundred of its units.
 PLAUSIBLE_RANGES = {
     "_temp_C": (-60.0, 1500.0),
     "_pct": (-5.0, 105.0),
@@ -56,10 +58,11 @@ PLAUSIBLE_RANGES = {
 }
 
 
-def _plausible_range(name: str) -> tuple[float, float] | None:
-    if name == "time_s":
-        return None
-    return next((r for unit, r in PLAUSIBLE_RANGES.items() if name.endswith(unit)), None)
+def _plausible_range(name: str) -> tuple[float, float]:
+    """What column ``name`` can read (any finite number for a unit not listed)."""
+    return next(
+        (r for unit, r in PLAUSIBLE_RANGES.items() if name.endswith(unit)), (-math.inf, math.inf)
+    )
 
 
 class LogError(ValueError):
@@ -158,20 +161,18 @@ def read_log(
         if as_read:
             columns[name] = out
             continue
-        if np.isinf(out).any():
-            i = int(np.flatnonzero(np.isinf(out))[0])
-            raise LogError(f"{path}: column '{name}' row {i + 2}: '{values[i]}' is not finite")
-        bounds = _plausible_range(name)
-        if bounds is not None:
-            wild = (out < bounds[0]) | (out > bounds[1])
-            if wild.any():
-                i = int(np.flatnonzero(wild)[0])
-                notes.append(
-                    f"{path}: column '{name}': {int(wild.sum())} reading(s) outside "
-                    f"{bounds[0]:g}..{bounds[1]:g} (first row {i + 2}: '{values[i]}'), "
-                    "taken as missing (an instrument's error code)"
-                )
-                out[wild] = np.nan
+        low, high = _plausible_range(name)
+        wild = np.isinf(out) | (out < low) | (out > high)
+        if wild.any():
+            i = int(np.flatnonzero(wild)[0])
+            if name == "time_s":
+                raise LogError(f"{path}: column 'time_s' row {i + 2}: '{values[i]}' is not finite")
+            beyond = f"outside {low:g}..{high:g}" if math.isfinite(high) else "not finite"
+            notes.append(
+                f"{path}: column '{name}': {int(wild.sum())} reading(s) {beyond} (first row "
+                f"{i + 2}: '{values[i]}'), taken as missing (an instrument's error code)"
+            )
+            out[wild] = np.nan
         columns[name] = out
     t = columns["time_s"]
     if np.isnan(t).any():

@@ -36,7 +36,7 @@ def _write(tmp_path, text: str):
         (HEADER + "\n", "no data rows"),
         ("", "empty file"),
         (HEADER + "\n,1,1,1,1,1,1,1,1\n", "column 'time_s' row 2 is empty"),
-        (HEADER + "\n1,1,inf,1,1,1,1,1,1\n", "column 'water_in_temp_C' row 2: 'inf' is not finite"),
+        (HEADER + "\n1,1,1,1,1,1,1,1,1\ninf,1,1,1,1,1,1,1,1\n", "'time_s' row 3: 'inf' is not"),
     ],
 )
 def test_bad_logs_are_refused_naming_what_is_wrong(tmp_path, text, message):
@@ -71,6 +71,10 @@ def test_an_instruments_error_code_is_a_missing_reading_and_named(tmp_path):
     assert len(log.notes) == 1
     assert "'flue_gas_temp_C': 2 reading(s)" in log.notes[0] and "row 2: '-999'" in log.notes[0]
     assert read_log(path, as_read=True)["flue_gas_temp_C"][1] == 1e30
+    # an infinite reading is the same, in a column of any unit (here one with none)
+    path = _write(tmp_path, HEADER + ",boiler_on\n" + "\n".join(r + ",inf" for r in rows))
+    log = read_log(path)
+    assert np.isnan(log["boiler_on"]).all() and "3 reading(s) not finite" in log.notes[-1]
 
 
 def test_empty_fields_are_missing_values_and_can_be_filled(tmp_path):
