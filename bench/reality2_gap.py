@@ -1,5 +1,5 @@
-"""Background gap of an independent plant (hil_client.reality2, or ``--plant reality3`` or
-``reality4``, the held-out ones) against Type 869.
+"""Background gap of an independent plant (hil_client.reality2, or ``--plant reality3``,
+``reality4`` or ``reality5``, the held-out ones) against Type 869.
 
 For N random backgrounds (both boilers alternating), this plant writes a stationary and a
 load-cycle log with no listed effect. The project's model is calibrated on one log with the
@@ -12,7 +12,7 @@ sequence: T RMSD 1.36-2.63 K, Q RMSD 0.30-0.67 kW over its four runs; the brief'
 1-3 K and 0.3-0.7 kW). Also the time to simulate one log. Figures are printed, never asserted.
 
     PYTHONPATH=. .venv/bin/python bench/reality2_gap.py [--cases 20] [--seed 7]
-        [--phase-from signals] [--plant reality3|reality4]
+        [--phase-from signals] [--plant reality3|reality4|reality5]
 """
 
 from __future__ import annotations
@@ -102,7 +102,9 @@ def main(argv: list[str] | None = None) -> int:
         default="column",
         help="phase bounds from the phase column or found from the signals",
     )
-    parser.add_argument("--plant", choices=("reality2", "reality3", "reality4"), default="reality2")
+    parser.add_argument(
+        "--plant", choices=("reality2", "reality3", "reality4", "reality5"), default="reality2"
+    )
     args = parser.parse_args(argv)
     plant = importlib.import_module(f"hil_client.{args.plant}")
     rows: list[dict] = []

@@ -62,9 +62,14 @@ DROPPED_COLUMNS = ("phase", "sequence")
 #: :mod:`hil_client.reality`); the cases alternate between those present.
 INDEPENDENT_PLANTS = ("hil_client.reality", "hil_client.reality2")
 #: Independently written plants kept out of the default rotation: a check of how the
-#: diagnosis does on a plant nobody tuned it against (``--plant reality3``, ``reality4``).
+#: diagnosis does on a plant nobody tuned it against (``--plant reality3``, ``reality4``,
+#: ``reality5``).
 #: Measure on them; a rule changed to score on them makes them development plants.
-HELD_OUT_PLANTS = ("hil_client.reality3", "hil_client.reality4")
+HELD_OUT_PLANTS = (
+    "hil_client.reality3",
+    "hil_client.reality4",
+    "hil_client.reality5",
+)
 
 
 def independent_plants(names: Sequence[str] | None = None) -> list[str]:

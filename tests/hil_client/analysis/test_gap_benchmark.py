@@ -22,7 +22,11 @@ from hil_client.analysis.gap_benchmark import (
 from hil_client.cli import main
 
 
-@pytest.mark.parametrize("plants", [None, HELD_OUT_PLANTS], ids=["default", "held_out"])
+@pytest.mark.parametrize(
+    "plants",
+    [None, *((p,) for p in HELD_OUT_PLANTS)],
+    ids=["default", *(p.rsplit(".", 1)[1] for p in HELD_OUT_PLANTS)],
+)
 def test_every_plant_meets_both_boilers_and_both_log_pairs_for_every_effect(plants):
     cases = make_cases(48, 0, "independent", plants)
     assert {c["plant"] for c in cases} >= set(plants or ())
