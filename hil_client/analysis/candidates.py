@@ -127,8 +127,10 @@ BALANCE_STEP_KG = 0.02  # the balance's resolution (Section 2.2)
 PRE_FEED_MIN_S = 40.0
 #: The balance before a start is read until this long before the onset [s] ...
 PRE_WINDOW_END_S = 720.0
-#: ... over at least this long and at most this long [s].
-PRE_WINDOW_MIN_S = 180.0
+#: ... over at least this long and at most this long [s]: a log that begins a few minutes
+#: before its first start still reads it (fewer readings only widen the mass's standard
+#: error, which the evidence carries).
+PRE_WINDOW_MIN_S = 60.0
 PRE_WINDOW_MAX_S = 480.0
 #: The mass at the onset is read from the readings this long before it [s].
 ONSET_FIT_S = 90.0

@@ -18,7 +18,9 @@ section 4). The diagnosis is built to name an effect *through* that background g
    evidence exceeds :data:`~hil_client.analysis.candidates.Z_MIN` standard errors, it
    removes a real share of the residual where it acts, and its physical fingerprint stands
    beyond what a real boiler's background reaches without it. Of several, the one whose
-   fingerprint stands furthest beyond that floor wins; with none, the answer is ``none``, and
+   fingerprint stands furthest beyond that floor wins (an ignition delay only where no
+   other is named: every start-up leaves some pre-feed, :data:`YIELDING`); with none, the
+   answer is ``none``, and
    ``unexplained_gap`` says whether a gap beyond the bench's resolution remains.
 5. *Confidence*: the share of :data:`BOOTSTRAP` block-bootstrap draws of the evidence
    (held-out blocks, starts and closure hours drawn again with replacement) that give the
@@ -110,15 +112,26 @@ def where(case: Case, pred: dict[str, np.ndarray]) -> list[dict]:
     ]
 
 
+#: Effects that yield to any other named candidate: fuel the balance loses before the
+#: flame is a mark every real start-up leaves to some degree (the ignition charge a burner
+#: drops on the grate and lights in its own time, 10 s to 4 min of feed by design), so how
+#: far it stands beyond a fixed floor says more about the burner's start-up program than
+#: about an unmodelled effect; a body, pipe, flue-gas or fuel mark beyond its floor as well
+#: is the better answer.
+YIELDING = ("ignition_delay",)
+
+
 def _answer(
     verdicts: dict[str, tuple[bool, float, str]], assessments: dict[str, Assessment]
 ) -> str:
     """Of the named candidates, the one whose physical mark stands furthest beyond what a
-    real boiler's background reaches without it (:attr:`Assessment.margin`): evidence in
-    standard errors says *that* a candidate helps, not which of two helps more, and a
-    long record gives any of them a large figure."""
+    real boiler's background reaches without it (:attr:`Assessment.margin`), those in
+    :data:`YIELDING` only when no other is named: evidence in standard errors says *that*
+    a candidate helps, not which of two helps more, and a long record gives any of them a
+    large figure."""
     named = [(assessments[e].margin, e) for e, (ok, _, _) in verdicts.items() if ok]
-    return max(named)[1] if named else "none"
+    firm = [(margin, e) for margin, e in named if e not in YIELDING]
+    return max(firm or named)[1] if named else "none"
 
 
 def _closest_miss(assessments: dict[str, Assessment], verdicts: dict) -> float:

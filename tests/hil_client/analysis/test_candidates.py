@@ -73,6 +73,20 @@ def test_one_balance_step_at_one_start_is_not_evidence_of_a_pre_feed():
     assert named, why
 
 
+def test_a_log_that_begins_minutes_before_its_first_start_still_reads_the_pre_feed():
+    """A logger started 13.5 min before the first onset (the auger may feed for up to 12 of
+    them) leaves 1.5 min of quiet balance: the start is read, with the wider standard error
+    of fewer readings; 12.5 min leaves half a minute, too little to read a mass from."""
+    onset_s = 810.0
+    t = np.arange(0.0, onset_s + 1800.0, 5.0)
+    mass = np.where(t < onset_s - 240.0, 286.08, 285.92)  # 0.16 kg fed from 4 min before
+    onset = int(np.searchsorted(t, onset_s))
+    [(pre_feed, se, _)] = _pre_feed(_start_case(mass, t, [onset]))
+    assert abs(pre_feed - 0.16) < 1e-9 and se > 0.0
+    late = t >= 60.0
+    assert _pre_feed(_start_case(mass[late], t[late] - 60.0, [onset - 12])) == []
+
+
 def _slow_bed_case(
     o2_floor_pct: float, hold_s: float = 150.0, analyser_s: float = 30.0, trail_s: float = 0.0
 ) -> SimpleNamespace:

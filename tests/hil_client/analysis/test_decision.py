@@ -32,17 +32,32 @@ def _assessment(
 
 
 def test_of_two_named_candidates_the_mark_furthest_beyond_its_floor_wins():
-    """A huge z (a long record) does not outrank a mark far beyond its floor: a bed
-    burning out after stops warms the water a little (body just past its floor) while the
-    pre-feed at every start is ten times its floor."""
+    """A huge z (a long record) does not outrank a mark far beyond its floor: water that
+    warms a little after stops (body just past its floor) against a flue gas that falls
+    ten times its floor's worth."""
     assessments = {
         "body_heat_diffusion": _assessment("body_heat_diffusion", True, 800.0, 1.2),
-        "ignition_delay": _assessment("ignition_delay", True, 40.0, 10.0),
-        "flue_gas_lag": _assessment("flue_gas_lag", False, 90.0, 30.0),  # not named
+        "flue_gas_lag": _assessment("flue_gas_lag", True, 40.0, 10.0),
+        "outlet_sensor_pipe": _assessment("outlet_sensor_pipe", False, 90.0, 30.0),
     }
     verdicts = {e: a.verdict() for e, a in assessments.items()}
-    assert _answer(verdicts, assessments) == "ignition_delay"
+    assert _answer(verdicts, assessments) == "flue_gas_lag"
     assert _answer({e: (False, 0.0, "") for e in verdicts}, assessments) == "none"
+
+
+def test_a_pre_feed_yields_to_any_other_named_mark():
+    """Every start-up loses some fuel before the flame (the ignition charge a burner lights
+    in its own time), so a pre-feed far beyond its floor does not outrank a store just past
+    its own; alone, it is the answer."""
+    assessments = {
+        "flue_gas_lag": _assessment("flue_gas_lag", True, 12.0, 1.1),
+        "ignition_delay": _assessment("ignition_delay", True, 40.0, 5.0),
+        "body_heat_diffusion": _assessment("body_heat_diffusion", False, 30.0, 9.0),
+    }
+    verdicts = {e: a.verdict() for e, a in assessments.items()}
+    assert _answer(verdicts, assessments) == "flue_gas_lag"
+    alone = verdicts | {"flue_gas_lag": (False, 2.0, "below its floor")}
+    assert _answer(alone, assessments) == "ignition_delay"
 
 
 def test_a_none_is_as_sure_as_the_closest_miss_allows():
