@@ -20,8 +20,8 @@ section 4). The diagnosis is built to name an effect *through* that background g
    beyond what a real boiler's background reaches without it. Of several, the one whose
    fingerprint stands furthest beyond that floor wins (an ignition delay only where no
    other is named: every start-up leaves some pre-feed, :data:`YIELDING`); with none, the
-   answer is ``none``, and
-   ``unexplained_gap`` says whether a gap beyond the bench's resolution remains.
+   answer is ``none``, and ``unexplained_gap`` says whether a gap beyond the bench's
+   resolution remains.
 5. *Confidence*: the share of :data:`BOOTSTRAP` block-bootstrap draws of the evidence
    (held-out blocks, starts and closure hours drawn again with replacement) that give the
    same answer: a verdict that rests on one block gets a low figure; an effect read in n
@@ -114,10 +114,10 @@ def where(case: Case, pred: dict[str, np.ndarray]) -> list[dict]:
 
 #: Effects that yield to any other named candidate: fuel the balance loses before the
 #: flame is a mark every real start-up leaves to some degree (the ignition charge a burner
-#: drops on the grate and lights in its own time, 10 s to 4 min of feed by design), so how
-#: far it stands beyond a fixed floor says more about the burner's start-up program than
-#: about an unmodelled effect; a body, pipe, flue-gas or fuel mark beyond its floor as well
-#: is the better answer.
+#: drops on the grate and lights in its own time: 5 s to 4 min of feed on the five
+#: independently written plants), so how far it stands beyond a fixed floor says more about
+#: the burner's start-up program than about an unmodelled effect; a body, pipe, flue-gas or
+#: fuel mark beyond its floor as well is the better answer.
 YIELDING = ("ignition_delay",)
 
 

@@ -62,9 +62,10 @@ DROPPED_COLUMNS = ("phase", "sequence")
 #: :mod:`hil_client.reality`); the cases alternate between those present.
 INDEPENDENT_PLANTS = ("hil_client.reality", "hil_client.reality2")
 #: Independently written plants kept out of the default rotation: a check of how the
-#: diagnosis does on a plant nobody tuned it against (``--plant reality3``, ``reality4``,
-#: ``reality5``).
-#: Measure on them; a rule changed to score on them makes them development plants.
+#: diagnosis does on plants it was not written beside (``--plant reality3``, ``reality4``,
+#: ``reality5``). One rule was made after looking at them (``diagnose.YIELDING``); measure a
+#: new rule on a plant nobody has looked at: a rule changed to score on these makes them
+#: development plants.
 HELD_OUT_PLANTS = (
     "hil_client.reality3",
     "hil_client.reality4",
