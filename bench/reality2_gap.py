@@ -1,5 +1,5 @@
-"""Background gap of an independent plant (hil_client.reality2, or ``--plant reality3``,
-``reality4`` or ``reality5``, the held-out ones) against Type 869.
+"""Background gap of an independent plant (hil_client.reality2, or ``--plant NAME``: any of
+``gap_benchmark.plants_by_name()``, e.g. the held-out reality3-5) against Type 869.
 
 For N random backgrounds (both boilers alternating), this plant writes a stationary and a
 load-cycle log with no listed effect. The project's model is calibrated on one log with the
@@ -12,7 +12,7 @@ sequence: T RMSD 1.36-2.63 K, Q RMSD 0.30-0.67 kW over its four runs; the brief'
 1-3 K and 0.3-0.7 kW). Also the time to simulate one log. Figures are printed, never asserted.
 
     PYTHONPATH=. .venv/bin/python bench/reality2_gap.py [--cases 20] [--seed 7]
-        [--phase-from signals] [--plant reality3|reality4|reality5]
+        [--phase-from signals] [--plant reality3|reality4|reality5|...]
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ import numpy as np
 import yaml
 
 from hil_client.analysis.calibrate import calibrate
+from hil_client.analysis.gap_benchmark import plants_by_name
 from hil_client.analysis.logio import read_log
 from hil_client.analysis.phases import find_phases
 from hil_client.analysis.validate import compare, validation_metrics
@@ -102,11 +103,10 @@ def main(argv: list[str] | None = None) -> int:
         default="column",
         help="phase bounds from the phase column or found from the signals",
     )
-    parser.add_argument(
-        "--plant", choices=("reality2", "reality3", "reality4", "reality5"), default="reality2"
-    )
+    plants = plants_by_name()
+    parser.add_argument("--plant", choices=sorted(plants), default="reality2")
     args = parser.parse_args(argv)
-    plant = importlib.import_module(f"hil_client.{args.plant}")
+    plant = importlib.import_module(plants[args.plant])
     rows: list[dict] = []
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(args.cases):

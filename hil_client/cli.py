@@ -269,8 +269,7 @@ def _cmd_gap_benchmark(args: argparse.Namespace) -> int:
     if args.cases < 1 or args.workers < 1:
         raise UsageError("--cases and --workers must be at least 1")
     from hil_client.analysis.gap_benchmark import (
-        HELD_OUT_PLANTS,
-        INDEPENDENT_PLANTS,
+        plants_by_name,
         run_benchmark,
     )
 
@@ -278,7 +277,7 @@ def _cmd_gap_benchmark(args: argparse.Namespace) -> int:
     if args.plant:
         if args.reality != "independent":
             raise UsageError("--plant chooses among the independent plants (--reality independent)")
-        known = {p.rsplit(".", 1)[-1]: p for p in INDEPENDENT_PLANTS + HELD_OUT_PLANTS}
+        known = plants_by_name()
         unknown = [p for p in args.plant if p not in known]
         if unknown:
             raise UsageError(f"--plant: unknown plant '{unknown[0]}'; known: {', '.join(known)}")

@@ -73,6 +73,12 @@ HELD_OUT_PLANTS = (
 )
 
 
+def plants_by_name() -> dict[str, str]:
+    """Every independently written plant, development and held out, by its short name
+    (``reality3``) -> its module."""
+    return {p.rsplit(".", 1)[-1]: p for p in INDEPENDENT_PLANTS + HELD_OUT_PLANTS}
+
+
 def independent_plants(names: Sequence[str] | None = None) -> list[str]:
     """The independent plants that are installed (of ``names``, default all of
     :data:`INDEPENDENT_PLANTS`)."""
