@@ -215,8 +215,8 @@ def _build_parser() -> argparse.ArgumentParser:
         "--plant",
         action="append",
         metavar="NAME",
-        help="only this independent plant: reality, reality2, or the held-out reality3, "
-        "reality4 and reality5 (repeatable) [reality and reality2]",
+        help="only this independent plant: reality, reality2, or the held-out reality3 to "
+        "reality6 (repeatable) [reality and reality2]",
     )
     return parser
 

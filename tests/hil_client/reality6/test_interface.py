@@ -1,0 +1,176 @@
+"""Interface of hil_client.reality6: names, columns, determinism, errors, CSV, sampling."""
+
+from __future__ import annotations
+
+import csv
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from hil_client.reality6 import EFFECT_FORMS, draw_background, simulate_log, write_log_csv
+
+from .conftest import background, boiler, log
+
+COLUMNS = (
+    "time_s",
+    "phase",
+    "sequence",
+    "water_flow_kg_h",
+    "water_in_temp_C",
+    "water_out_temp_C",
+    "boiler_water_temp_C",
+    "flue_gas_temp_C",
+    "flue_gas_O2_pct",
+    "flue_gas_CO2_pct",
+    "flue_gas_CO_ppm",
+    "flue_gas_velocity_m_s",
+    "chimney_draught_Pa",
+    "balance_mass_kg",
+    "room_temp_C",
+    "ambient_pressure_hPa",
+    "relative_humidity_pct",
+    "electric_power_W",
+    "water_flow_setpoint_kg_h",
+    "boiler_on",
+)
+TAKEN = set(
+    """dead_time mixed_volume distributed_wall two_lump two_lump_split bed_ramp hhv_bias moisture
+    first_order second_order second_order_store refractory_radiation delayed_wall tank_cascade
+    dead_time_wall plug_flow bed_ignition_temperature random_start_delay regenerative_refractory
+    wet_batch fines_unburnt radiant_hot_steel chamber_jacket_pocket thermowell_bracket
+    laminar_pipe_transit failed_first_ignition critical_pile_mass turbulator_store
+    air_recuperator ash_rich_blend load_unburnt_carbon limescale_layer cast_iron_section
+    clamp_on_sensor long_riser clogged_igniter cold_retort soot_fouled_hx ceramic_afterburner
+    resin_softwood worn_auger_co burner_flange_path flow_dependent_film thermosiphon_exchange
+    stem_conduction ash_crust_grate char_shrinking_core flue_collector_mass bimetal_bypass
+    torrefied_blend calcite_additive""".split()  # noqa: SIM905 (the brief's list, verbatim)
+)
+
+
+def test_effect_forms_are_new_snake_case_names():
+    assert set(EFFECT_FORMS) == {
+        "body_heat_diffusion",
+        "outlet_sensor_pipe",
+        "ignition_delay",
+        "flue_gas_lag",
+        "fuel_energy_bias",
+    }
+    all_forms = [f for forms in EFFECT_FORMS.values() for f in forms]
+    assert len(all_forms) == len(set(all_forms))
+    for forms in EFFECT_FORMS.values():
+        assert len(forms) >= 2
+        for f in forms:
+            assert re.fullmatch(r"[a-z][a-z0-9]*(_[a-z0-9]+)*", f)
+            assert f not in TAKEN
+
+
+def test_draw_background_floats_and_deterministic():
+    b = boiler("windhager_12kw")
+    a = draw_background(np.random.default_rng(3), b)
+    c = draw_background(np.random.default_rng(3), b)
+    d = draw_background(np.random.default_rng(4), b)
+    assert a == c
+    assert a != d
+    assert all(type(v) is float for v in a.values())
+
+
+def test_columns_and_meta():
+    cols, meta = log("windhager_6kw", "load_cycle", sample_s=2.0)
+    assert tuple(cols) == COLUMNS
+    n = len(cols["time_s"])
+    assert all(len(v) == n for v in cols.values())
+    assert np.all(np.diff(cols["time_s"]) == 2.0)
+    assert set(np.unique(cols["boiler_on"])) <= {0, 1}
+    assert set(cols["phase"]) == {"preheat", "start_up", "test", "cooling_1", "cooling_2"}
+    assert "stationary_13" in set(cols["sequence"])
+    for k in ("effect", "form", "strength", "background", "t0_s", "t1_s", "t2_s", "t3_s", "t4_s"):
+        assert k in meta
+    assert meta["effect"] == "none"
+    assert 0 < meta["t0_s"] < meta["t1_s"] < meta["t2_s"] <= meta["t3_s"] < meta["t4_s"]
+    assert meta["t4_s"] - meta["t2_s"] == pytest.approx(28_800, abs=1)
+    assert meta["t2_s"] - meta["t1_s"] == pytest.approx(28_800, abs=1)
+    # the balance falls as the auger feeds, on a 0.02 kg grid
+    bal = cols["balance_mass_kg"]
+    assert bal[0] - bal[-1] > 2.0
+    assert np.allclose(np.round(bal / 0.02) * 0.02, bal)
+    # the analyser has a few calibration gaps, the temperatures none
+    assert 0 < np.isnan(cols["flue_gas_O2_pct"]).sum() < 0.05 * n
+    assert not np.isnan(cols["water_out_temp_C"]).any()
+
+
+def test_same_seed_same_log_different_seed_different_log():
+    a, ma = log("windhager_12kw", "stationary", effect="flue_gas_lag", strength=0.5, seed=11)
+    b, mb = log("windhager_12kw", "stationary", effect="flue_gas_lag", strength=0.5, seed=11)
+    c, _ = log("windhager_12kw", "stationary", effect="flue_gas_lag", strength=0.5, seed=12)
+    for k in a:
+        np.testing.assert_array_equal(a[k], b[k])
+    assert ma == mb
+    assert not np.array_equal(a["water_out_temp_C"], c["water_out_temp_C"])
+    assert ma["form"] == EFFECT_FORMS["flue_gas_lag"][0]
+
+
+@pytest.mark.parametrize(
+    "kw",
+    [
+        {"test": "stationary_x"},
+        {"effect": "bogus"},
+        {"effect": "flue_gas_lag", "form": "dead_leg_tee_pocket"},
+        {"effect": "flue_gas_lag", "strength": 1.5},
+        {"effect": "flue_gas_lag", "strength": -0.1},
+        {"sample_s": 0.0},
+        {"sample_s": -1.0},
+    ],
+)
+def test_bad_arguments_raise_value_error(kw):
+    args = {"test": "stationary", "effect": None, "form": None, "strength": 0.0, "sample_s": 1.0}
+    args.update(kw)
+    test = args.pop("test")
+    with pytest.raises(ValueError):
+        simulate_log(
+            boiler("windhager_6kw"), test, background=background("windhager_6kw", 0), seed=1, **args
+        )
+
+
+def test_none_and_zero_strength_equal_no_effect():
+    a, _ = log("windhager_6kw", "stationary", effect=None)
+    b, _ = log("windhager_6kw", "stationary", effect="none")
+    c, _ = log("windhager_6kw", "stationary", effect="ignition_delay", strength=0.0)
+    for k in a:
+        np.testing.assert_array_equal(a[k], b[k])
+        np.testing.assert_array_equal(a[k], c[k])
+
+
+def test_jitter_and_sampling(tmp_path):
+    cols, _ = log("windhager_6kw", "stationary", sample_s=5.0, jitter=True)
+    t = cols["time_s"]
+    assert np.all(np.diff(t) > 0)
+    dts = np.diff(t)
+    assert dts.std() > 0.01  # irregular
+    assert (dts > 7.5).sum() > 0  # a few dropped rows
+    regular, _ = log("windhager_6kw", "stationary", sample_s=5.0)
+    assert 0.98 * len(regular["time_s"]) < len(t) < len(regular["time_s"])
+    path = tmp_path / "log.csv"
+    write_log_csv(cols, path)
+    with path.open() as fh:
+        rows = list(csv.reader(fh))
+    assert rows[0][0] == "time_s"
+    assert rows[0] == list(COLUMNS)
+    assert len(rows) == len(t) + 1
+    i_o2 = rows[0].index("flue_gas_O2_pct")
+    n_empty = sum(1 for r in rows[1:] if r[i_o2] == "")
+    assert n_empty == int(np.isnan(cols["flue_gas_O2_pct"]).sum()) > 0
+
+
+def test_import_loads_no_other_project_module():
+    code = (
+        "import sys, hil_client.reality6 as r; "
+        "bad = [m for m in sys.modules if m.startswith('rig_emulator') "
+        "or m.startswith('hil_client.analysis') "
+        "or (m.startswith('hil_client.reality') and not m.startswith('hil_client.reality6'))]; "
+        "print(bad); sys.exit(1 if bad else 0)"
+    )
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert res.returncode == 0, res.stdout + res.stderr
