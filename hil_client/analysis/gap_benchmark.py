@@ -111,13 +111,12 @@ def make_cases(n: int, seed: int, reality: str, plants: Sequence[str] | None = N
         strength = (k + 0.5) / per_effect if answer != "none" else 0.0  # evenly, weak to strong
         # the k-th case of an answer: plants alternate; every 2 (4) per plant cover both
         # boilers (and both log pairs), each form meeting each boiler and each pair
-        n_plants = len(plants)
-        plant = plants[k % n_plants]
-        boiler_k, pair_k = (k // n_plants) % 2, (k // (2 * n_plants)) % 2
+        plant = plants[k % len(plants)]
+        j = k // len(plants)  # the plant's j-th case of this answer
+        boiler_k, pair_k = j % 2, (j // 2) % 2
         forms = _forms(plant)[answer] if answer != "none" else (None,)
-        # the plant's j-th case: two forms alternate so that each meets both boilers and
-        # both pairs; a third and fourth take over from the fifth case on (j // 4)
-        j = k // n_plants
+        # two forms alternate so that each meets both boilers and both pairs; from the
+        # plant's fifth case on (j // 4) a third and fourth form take their turns
         cases.append(
             {
                 "effect": answer,
