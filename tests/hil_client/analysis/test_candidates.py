@@ -22,6 +22,7 @@ from hil_client.analysis.candidates import (
     Z_MIN,
     _analyser_delay_max_s,
     _body_mark,
+    _closure_estimate,
     _decide_bias,
     _decide_ignition,
     _flue_fingerprint,
@@ -179,10 +180,17 @@ def test_a_closure_at_low_load_says_less_about_the_fuel():
     assert closure_u_rel(15.0, 0.1, 0.02, 0.2) > full + 0.02
 
 
-def _hours(ratios: list[float], u_rel: float = 0.01) -> list[tuple]:
+def _hours(
+    ratios: list[float], u_rel: float = 0.01, load_change: list[float] | None = None
+) -> list[tuple]:
     """Closure blocks, one per hour from 1.5 h after the sensors' check: (lost, needed,
-    uncertainty, hours since the check)."""
-    return [(1.3 * (1.0 + r), 1.3, u_rel, 1.5 + i) for i, r in enumerate(ratios)]
+    uncertainty, hours since the check, heat rate [kW], the heat rate's change over the
+    hour over the hour's heat [1/s]; none by default)."""
+    changes = load_change or [0.0] * len(ratios)
+    return [
+        (1.3 * (1.0 + r), 1.3, u_rel, 1.5 + i, 6.0, c)
+        for i, (r, c) in enumerate(zip(ratios, changes, strict=True))
+    ]
 
 
 def test_a_closure_that_drifts_through_the_test_is_a_sensor_not_the_fuel():
@@ -197,6 +205,38 @@ def test_a_closure_that_drifts_through_the_test_is_a_sensor_not_the_fuel():
     assert _decide_bias(scattered)[0]
     settling = _hours([0.062, 0.061, 0.059, 0.057, 0.053, 0.055])
     assert _decide_bias(settling)[0]
+
+
+#: A load cycle's hours (6-kW boiler, Table 2): the heat rate's change from each hour's
+#: start to its end over the hour's heat [1/s]: the end of the 100 -> 48 % gradient, the
+#: 39 % hold, 39 -> 63 %, 63 -> 30 %, then the 13 % holds.
+LOAD_CYCLE_CHANGES = [-1.3 / 11300.0, 0.0, 1.5 / 11200.0, -2.0 / 8600.0, 0.0, 0.0, 0.0]
+
+
+@pytest.mark.parametrize("fuel", [0.0, 0.07])
+@pytest.mark.parametrize("lag_s", [0.0, 240.0])
+def test_a_closure_is_read_at_no_change_of_load(fuel, lag_s):
+    """A bed and metal that hold back the fuel of ``lag_s`` seconds of the load (the
+    development plants' load cycles: some 200-250 s) make an hour whose load falls lose
+    less fuel than its heat needs, one whose load rises more (here -3 % to +3 %). The
+    closure is read at no change of load: a fuel that delivers 7 % less is named at 7 %,
+    the right fuel is not named; without the lag, the same."""
+    ratios = [fuel + lag_s * c + 0.004 * (-1) ** i for i, c in enumerate(LOAD_CYCLE_CHANGES)]
+    hours = _hours(ratios, u_rel=0.02, load_change=LOAD_CYCLE_CHANGES)
+    bias, se, _ = _closure_estimate(hours)
+    # the hours' mean would read 0.7 % low with the lag, their scatter 1.1 % (std / sqrt 7);
+    # read at no change of load, only the +-0.4 % added is left (std / sqrt 7: 0.16 %)
+    assert bias == pytest.approx(fuel, abs=0.003)
+    assert se < 0.003
+    assert _decide_bias(hours)[0] == (fuel > 0.0)
+
+
+def test_heat_before_its_fuel_is_not_read_as_a_lag():
+    """Hours whose closure *falls* as the load rises would need the heat to come before
+    its fuel: no lag is fitted, and the closure is the hours' mean."""
+    ratios = [0.05 - 200.0 * c for c in LOAD_CYCLE_CHANGES]
+    bias, _, _ = _closure_estimate(_hours(ratios, u_rel=0.02, load_change=LOAD_CYCLE_CHANGES))
+    assert bias == pytest.approx(float(np.mean(ratios)), abs=1e-9)
 
 
 def _idle_case(lab_water, t_fg_lab, o2, room, lam=None, t_fg_model=None, t3=1000.0):
@@ -398,7 +438,7 @@ def test_a_stationary_test_reads_the_closure_at_one_load_and_a_load_cycle_at_sev
     48, 30 and 13 % (Table 2) are four, however many hours each holds."""
 
     def at(kW):
-        return [(1.0, 1.0, 0.02, 1.5 + i, q) for i, q in enumerate(kW)]
+        return [(1.0, 1.0, 0.02, 1.5 + i, q, 0.0) for i, q in enumerate(kW)]
 
     assert _load_levels(at([12.1, 11.9, 12.3, 11.8, 12.0, 12.2])) == 1
     assert _load_levels(at([12.0, 5.8, 5.7, 3.6, 1.6, 1.5, 11.9])) == 4
