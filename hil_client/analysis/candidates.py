@@ -186,6 +186,13 @@ INVENTORY_LAG_S = 300.0
 #: The lag is fitted where it could move the blocks' closures apart by this much [-]:
 #: beyond the scatter of a steady test's hours (0.5-1 %).
 LOAD_CHANGE_SPREAD = 0.02
+#: The longest such lag the closure is read through [s]: a pellet bed burns on for a few
+#: minutes after the auger stops. A longer one is heat the body stores and gives back
+#: slowly (a body effect, which the one node's storage term misses), not fuel waiting in
+#: the bed, and a line through the hours does not describe it: the hours' scatter then
+#: stays in the closure's error. On the development plants' load cycles the fit reads
+#: 140-280 s without a body effect and 440-1130 s with a slow heat path in the body.
+LAG_MAX_S = 360.0
 #: The heat rate at a block's ends is read over this long [s].
 BLOCK_END_S = 300.0
 BIAS_MIN = 0.03  # the calorific value of a lab analysis is known to about 2-3 %
@@ -1174,8 +1181,9 @@ def _closure_estimate(units: Sequence[tuple]) -> tuple[float, float, float]:
     change times the time the fuel takes to reach the water (:data:`INVENTORY_LAG_S`,
     unknown; a load cycle's hours are nearly all such). Where the blocks' load changes
     spread enough to tell, that time is fitted beside the closure (a line through the
-    blocks against the change; a negative time, heat before its fuel, is not taken), and
-    the closure is read at no change of load.
+    blocks against the change), and the closure is read at no change of load; a negative
+    time (heat before its fuel) or one longer than a bed holds fuel (:data:`LAG_MAX_S`)
+    is not taken.
 
     A fuel's calorific value does not drift within a test; a sensor does (a flow meter or
     a Pt100 warming up, fouling). Where the closure drifts beyond :data:`Z_MIN` standard
@@ -1193,7 +1201,7 @@ def _closure_estimate(units: Sequence[tuple]) -> tuple[float, float, float]:
     held = np.array([u[5] for u in units])
     if np.ptp(held) * INVENTORY_LAG_S >= LOAD_CHANGE_SPREAD:
         fit = _wls([*columns, held], ratios, w)
-        if fit is not None and fit[0][1] > 0.0:
+        if fit is not None and 0.0 < fit[0][1] <= LAG_MAX_S:
             columns.append(held)
             mean, se = float(fit[0][0]), math.sqrt(float(fit[1][0, 0]))
     hours = np.array([u[3] for u in units])
