@@ -22,7 +22,6 @@ RHO_SO2 = 2.927
 RHO_N2 = 1.2506
 RHO_O2 = 1.429
 RHO_H2O = 0.804
-RHO_AIR = 1.293
 RHO_CO = 1.250
 #: latent heat of water at 25 C [kJ/kg] (digest: dH_vap,w; HHV basis, so it is a loss, Eq. 5)
 DH_VAP = 2442.0
@@ -82,19 +81,3 @@ def fuel_from_boiler(boiler: dict) -> Fuel:
         ash=float(f["ash"]),
         moisture=float(f["moisture"]),
     )
-
-
-def gas_composition(fuel: Fuel, md: float, v_air: float) -> tuple[float, float, float, float]:
-    """Dry flue gas from md [kg/h dry fuel burnt] and v_air [m3N/h air].
-
-    Returns (V_dry [m3N/h], V_H2O [m3N/h], O2 [vol-% dry], CO2 [vol-% dry]).
-    """
-    v_co2 = 1.866 * fuel.c * md
-    v_so2 = 0.7 * fuel.s * md
-    v_n2 = 0.79 * v_air + 0.8 * fuel.n * md
-    v_o2 = max(0.21 * v_air - 0.21 * fuel.air_min * md, 0.0)
-    v_dry = v_co2 + v_so2 + v_n2 + v_o2
-    v_h2o = fuel.v_h2o * md
-    if v_dry <= 0.0:
-        return 0.0, v_h2o, 20.95, 0.04
-    return v_dry, v_h2o, 100.0 * v_o2 / v_dry, 100.0 * v_co2 / v_dry
