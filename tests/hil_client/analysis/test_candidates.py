@@ -28,6 +28,7 @@ from hil_client.analysis.candidates import (
     _flue_fingerprint,
     _flue_gas_with_idle_air,
     _flue_predict,
+    _heat_rate_at,
     _load_levels,
     _pre_feed,
     _start_feed_rate_kg_h,
@@ -229,6 +230,33 @@ def test_a_closure_is_read_at_no_change_of_load(fuel, lag_s):
     assert bias == pytest.approx(fuel, abs=0.003)
     assert se < 0.003
     assert _decide_bias(hours)[0] == (fuel > 0.0)
+
+
+def test_a_change_of_load_counts_the_heat_the_water_stores():
+    """At 13 % load the 6-kW boiler's water warms by some 10 K in an hour (its stationary_13
+    hold): the heat to water rises from 1.0 to 1.4 kW while the flame's stays put, since
+    the water stores less as it nears its set point. The flame's heat (to the water and the
+    room, plus the storage, 80 kJ/K) shows no change of load; a real step of the firing
+    from 2.0 to 1.0 kW, at a steady water, shows the whole -1 kW."""
+    t = np.arange(0.0, 3600.0, 10.0)
+    flame_kW = 1.5
+    stored_kW = 0.5 * np.exp(-t / 1800.0)  # the water's warming, C dT/dt
+    capacity = 80.0
+    water = 70.0 + np.concatenate(([0.0], np.cumsum(stored_kW[:-1] * 10.0))) / capacity
+    warming = SimpleNamespace(
+        t=t, lab={"boiler_water_temp_C": water}, params=SimpleNamespace(capacity_kJ_K=capacity)
+    )
+    q_kW = flame_kW - stored_kW
+    change = _heat_rate_at(warming, q_kW, len(t) - 1, -1) - _heat_rate_at(warming, q_kW, 0, +1)
+    assert q_kW[-1] - q_kW[0] > 0.35  # the heat to water alone would read a rising load
+    # the storage read from the water's end points over 300 s: its curvature, 1 % of 0.5 kW
+    assert change == pytest.approx(0.0, abs=0.02)
+    steady = SimpleNamespace(
+        t=t, lab={"boiler_water_temp_C": np.full(len(t), 70.0)}, params=warming.params
+    )
+    step = np.where(t < 1800.0, 2.0, 1.0)
+    change = _heat_rate_at(steady, step, len(t) - 1, -1) - _heat_rate_at(steady, step, 0, +1)
+    assert change == pytest.approx(-1.0)
 
 
 def test_heat_before_its_fuel_is_not_read_as_a_lag():
