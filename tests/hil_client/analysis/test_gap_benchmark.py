@@ -2,6 +2,7 @@
 ``hil-client gap-benchmark``; these tests check only that its design covers what the issue
 asks for)."""
 
+import importlib
 import subprocess
 import sys
 import textwrap
@@ -12,6 +13,7 @@ import pytest
 
 from hil_client.analysis.gap_benchmark import (
     BOILERS,
+    EFFECTS,
     HELD_OUT_PLANTS,
     INDEPENDENT_PLANTS,
     PAIRS,
@@ -68,6 +70,21 @@ def test_an_unknown_plant_is_named_in_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "reality9" in err and "reality3" in err
     assert not (tmp_path / "gap").exists()
+
+
+def test_every_plant_builds_its_effects_in_forms_of_its_own():
+    """No two independently written plants share a form name (each form is one writer's own
+    idea of the effect; the emulator's is ``lab``), and every plant gives every listed
+    effect at least two forms."""
+    seen: dict[str, str] = {}
+    for name in INDEPENDENT_PLANTS + HELD_OUT_PLANTS:
+        plant = importlib.import_module(name)
+        assert set(plant.EFFECT_FORMS) == set(EFFECTS), name
+        for forms in plant.EFFECT_FORMS.values():
+            assert len(forms) >= 2, name
+            for form in forms:
+                assert form not in seen, f"{form} of {name} is {seen.get(form)}'s too"
+                seen[form] = name
 
 
 @pytest.mark.parametrize("plant", HELD_OUT_PLANTS)
