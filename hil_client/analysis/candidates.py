@@ -175,24 +175,19 @@ U_DT_OFFSET_RETURN = 0.16
 U_ROOM_LOSS_REL = 0.3
 U_STOICHIOMETRY_REL = 0.005
 U_CAPACITY_REL = 0.2
-#: How long the fuel the balance loses may take to reach the water as heat [s], for
-#: judging whether the blocks' load changes matter: the bed burns what the auger drops
-#: over minutes (a pellet burner's burn-out after the auger stops) and the metal passes
-#: the flame's heat on with its own lag; neither is in the one node. On the development
-#: plants a 63 -> 30 % gradient hour of the load cycle read 5-6 % low and the 39 -> 63 %
-#: hour 1-3 % high against their steady hours, with or without a fuel effect: some
-#: 200-250 s of the load's change.
-INVENTORY_LAG_S = 300.0
+#: The longest time the fuel the balance loses is taken to wait before it reaches the water
+#: as heat [s] (the closure is read through it, :func:`_closure_estimate`): a pellet bed
+#: burns on for a few minutes after the auger stops. On the development plants a
+#: 63 -> 30 % gradient hour of the load cycle read 5-6 % low and the 39 -> 63 % hour 1-3 %
+#: high against their steady hours, with or without a fuel effect; their load cycles fit
+#: 140-280 s without a body effect. A longer lag (440-1130 s with a slow heat path in the
+#: body) is heat the body stores and gives back slowly, which the one node's storage term
+#: misses, not fuel waiting in the bed, and a line through the hours does not describe it:
+#: the hours' scatter then stays in the closure's error.
+LAG_MAX_S = 360.0
 #: The lag is fitted where it could move the blocks' closures apart by this much [-]:
 #: beyond the scatter of a steady test's hours (0.5-1 %).
 LOAD_CHANGE_SPREAD = 0.02
-#: The longest such lag the closure is read through [s]: a pellet bed burns on for a few
-#: minutes after the auger stops. A longer one is heat the body stores and gives back
-#: slowly (a body effect, which the one node's storage term misses), not fuel waiting in
-#: the bed, and a line through the hours does not describe it: the hours' scatter then
-#: stays in the closure's error. On the development plants' load cycles the fit reads
-#: 140-280 s without a body effect and 440-1130 s with a slow heat path in the body.
-LAG_MAX_S = 360.0
 #: The heat rate at a block's ends is read over this long [s].
 BLOCK_END_S = 300.0
 BIAS_MIN = 0.03  # the calorific value of a lab analysis is known to about 2-3 %
@@ -1066,10 +1061,12 @@ def _heat_rate_at(case: Case, q_kW: np.ndarray, row: int, side: int) -> float:
     """The heat the flame gives [kW] (``q_kW``, to the water and the room, plus what the
     water stores) over the :data:`BLOCK_END_S` after (``side`` +1) or before (-1) ``row``."""
     t, water = case.t, case.lab["boiler_water_temp_C"]
-    near = (side * (t - t[row]) >= 0.0) & (np.abs(t - t[row]) <= BLOCK_END_S)
-    rows = np.flatnonzero(near)
-    warming = (water[rows[-1]] - water[rows[0]]) / max(t[rows[-1]] - t[rows[0]], 1.0)
-    return float(np.nanmean(q_kW[rows])) + case.params.capacity_kJ_K * float(warming)
+    if side > 0:
+        lo, hi = row, int(np.searchsorted(t, t[row] + BLOCK_END_S, side="right"))
+    else:
+        lo, hi = int(np.searchsorted(t, t[row] - BLOCK_END_S)), row + 1
+    warming = (water[hi - 1] - water[lo]) / max(t[hi - 1] - t[lo], 1.0)
+    return float(np.nanmean(q_kW[lo:hi])) + case.params.capacity_kJ_K * float(warming)
 
 
 def _closure_blocks(case: Case) -> list[tuple[float, float, float, float, float, float]]:
@@ -1178,10 +1175,10 @@ def _closure_estimate(units: Sequence[tuple]) -> tuple[float, float, float]:
 
     The fuel that the bed and the metal hold back grows with the load: an hour whose load
     rises loses more fuel than its heat needs, one whose load falls less, by the load's
-    change times the time the fuel takes to reach the water (:data:`INVENTORY_LAG_S`,
-    unknown; a load cycle's hours are nearly all such). Where the blocks' load changes
-    spread enough to tell, that time is fitted beside the closure (a line through the
-    blocks against the change), and the closure is read at no change of load; a negative
+    change times the time the fuel takes to reach the water (unknown; a load cycle's hours
+    are nearly all such). Where the blocks' load changes spread enough to tell, that time
+    is fitted beside the closure (a line through the blocks against the change), and the
+    closure is read at no change of load; a negative
     time (heat before its fuel) or one longer than a bed holds fuel (:data:`LAG_MAX_S`)
     is not taken.
 
@@ -1199,7 +1196,7 @@ def _closure_estimate(units: Sequence[tuple]) -> tuple[float, float, float]:
         return mean, se, 0.0
     columns = [np.ones(n)]
     held = np.array([u[5] for u in units])
-    if np.ptp(held) * INVENTORY_LAG_S >= LOAD_CHANGE_SPREAD:
+    if np.ptp(held) * LAG_MAX_S >= LOAD_CHANGE_SPREAD:
         fit = _wls([*columns, held], ratios, w)
         if fit is not None and 0.0 < fit[0][1] <= LAG_MAX_S:
             columns.append(held)
