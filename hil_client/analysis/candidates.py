@@ -1178,9 +1178,8 @@ def _closure_estimate(units: Sequence[tuple]) -> tuple[float, float, float]:
     change times the time the fuel takes to reach the water (unknown; a load cycle's hours
     are nearly all such). Where the blocks' load changes spread enough to tell, that time
     is fitted beside the closure (a line through the blocks against the change), and the
-    closure is read at no change of load; a negative
-    time (heat before its fuel) or one longer than a bed holds fuel (:data:`LAG_MAX_S`)
-    is not taken.
+    closure is read at no change of load; a negative time (heat before its fuel) or one
+    longer than a bed holds fuel (:data:`LAG_MAX_S`) is not taken.
 
     A fuel's calorific value does not drift within a test; a sensor does (a flow meter or
     a Pt100 warming up, fouling). Where the closure drifts beyond :data:`Z_MIN` standard
