@@ -29,7 +29,9 @@ section 4). The diagnosis is built to name an effect *through* that background g
    (n + 1) / (n + 2) (one stop cannot show that it was typical). A ``none`` is discounted
    by how close the closest candidate came to being named (its mark and its evidence), and
    is at most 1 / (1 + k) where the log gives k candidates no evidence at all (absence of
-   evidence is not evidence of absence).
+   evidence is not evidence of absence), and at most (n + 1) / (n + 2) where the least
+   tested candidate was read in n events (a weak store the one stop did not show may show
+   in the next).
 6. *How far*: the chosen effect, parameters frozen, predicts the validation log, which is
    used for nothing else; RMSD before and after where the effect acts. A shrinkage of zero
    or less is reported as "not confirmed".
@@ -162,8 +164,11 @@ def _confidence(assessments: dict[str, Assessment], answer: str) -> float:
     an effect read event by event at most :func:`carried_to_next_event` of its events
     (one stop: 0.67, three: 0.8); for ``none`` discounted by the closest miss (a candidate
     that shows most of the mark its effect needs and most of the held-out evidence makes
-    "nothing listed" a close call, however stable the verdict is under resampling) and at
-    most 1 / (1 + k) with k candidates the log could not test."""
+    "nothing listed" a close call, however stable the verdict is under resampling), at
+    most 1 / (1 + k) with k candidates the log could not test, and at most what
+    :func:`carried_to_next_event` gives the events the least tested candidate was read in
+    (a mark absent from one stop is as uncertain to stay absent as one present in one stop
+    is to show again)."""
     rng = np.random.default_rng(20150505)
     votes: Counter[str] = Counter()
     for _ in range(BOOTSTRAP):
@@ -184,7 +189,11 @@ def _confidence(assessments: dict[str, Assessment], answer: str) -> float:
     # a candidate the log gives no evidence for or against (no start after a quiet balance,
     # no settled stop) is as likely as "nothing listed" (a uniform prior over the answers)
     untested = sum(not a.units for a in assessments.values())
-    return min(share, 1.0 / (1.0 + untested))
+    # a mark absent from n events is no surer to stay absent in the next than one present
+    # in n is to show again: the least tested candidate's n limits "nothing listed"
+    events = [a.events for a in assessments.values() if a.units and a.events > 0]
+    seen_in = carried_to_next_event(min(events)) if events else 1.0
+    return min(share, 1.0 / (1.0 + untested), seen_in)
 
 
 def _finite(x: float) -> float | None:

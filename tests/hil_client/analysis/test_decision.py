@@ -91,6 +91,22 @@ def test_an_effect_read_in_one_stop_is_not_sure_it_was_a_typical_one():
     assert _confidence(hours, "fuel_energy_bias") == 1.0
 
 
+def test_a_none_read_in_one_stop_is_not_sure_the_next_stop_shows_nothing_either():
+    """The mirror of the rule above: a weak store the stationary test's one stop did not
+    show may show in the next, so "nothing listed" read in one stop is at most 2/3 however
+    stable under resampling, in three stops at most 4/5; the least tested candidate sets
+    the bound (the closure's three loads do not vouch for the one stop)."""
+    one_stop = {
+        "body_heat_diffusion": _assessment("body_heat_diffusion", False, 0.5, 0.0, 6, events=1),
+        "fuel_energy_bias": _assessment("fuel_energy_bias", False, 0.2, 0.0, 6, events=3),
+    }
+    assert abs(_confidence(one_stop, "none") - 2.0 / 3.0) < 1e-9
+    three = one_stop | {
+        "body_heat_diffusion": _assessment("body_heat_diffusion", False, 0.5, 0.0, 18, events=3)
+    }
+    assert abs(_confidence(three, "none") - 0.8) < 1e-9
+
+
 def test_a_none_is_not_sure_of_an_effect_the_log_could_not_test():
     """A load cycle without a start after a quiet balance says nothing of an ignition delay:
     "nothing listed" and "an ignition delay" are then equally likely, at most 0.5, however
