@@ -43,6 +43,8 @@ def test_lag_at_peak_finds_a_known_delay():
     model = signal[200:3800]
     lab = signal[80:3680]  # the lab shows what the model did 120 s earlier
     assert lag_at_peak(model, lab, 1.0) == pytest.approx(120.0)
+    assert lag_at_peak(lab, model, 1.0) == pytest.approx(-120.0)  # the lab ahead
+    assert lag_at_peak(model[::10], lab[::10], 10.0) == pytest.approx(120.0)  # 10-s rows
 
 
 def test_autocorrelation_of_noise_and_of_structure():
