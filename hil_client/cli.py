@@ -7,6 +7,7 @@ other failure.
 from __future__ import annotations
 
 import argparse
+import filecmp
 import json
 import math
 import sys
@@ -221,18 +222,29 @@ def _build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _read_log(path: Path) -> LabLog:
-    """A lab log, with a warning line for what was tolerated on reading it."""
-    log = read_log(path)
-    for note in log.notes:
-        print(f"hil-client: warning: {note}", file=sys.stderr)
-    return log
+def _warn_tolerated(logs: Sequence[LabLog]) -> None:
+    """A warning line for what was tolerated on reading each log; only once the logs are
+    taken, so that a log refused later gets its one error line alone."""
+    for log in logs:
+        for note in log.notes:
+            print(f"hil-client: warning: {note}", file=sys.stderr)
 
 
 def _logs_with_phases(paths: Sequence[Path]) -> list[tuple[LabLog, Phases]]:
     """Each lab log with its phases; a bad log is bad input."""
     with bad_input(LogError):
-        return [(log, find_phases(log)) for log in map(_read_log, paths)]
+        logs = [read_log(path) for path in paths]
+        found = [(log, find_phases(log)) for log in logs]
+    _warn_tolerated(logs)
+    return found
+
+
+def _same_log(a: Path, b: Path) -> bool:
+    """Whether two paths hold the same log (the same file, or the same bytes)."""
+    try:
+        return a.resolve() == b.resolve() or filecmp.cmp(a, b, shallow=False)
+    except OSError:  # a missing file is reported when it is read
+        return False
 
 
 def _check_out_dir(out: Path) -> None:
@@ -242,6 +254,11 @@ def _check_out_dir(out: Path) -> None:
 
 def _cmd_diagnose(args: argparse.Namespace) -> int:
     doc = boiler_arg(args.boiler)
+    if _same_log(args.calibration, args.validation):
+        raise UsageError(
+            "--validation: the same log as --calibration; the held-out log must be another"
+            " (CONTRACT section 4: nothing is fitted or selected on it)"
+        )
     cal, val = _logs_with_phases([args.calibration, args.validation])
     _check_out_dir(args.out)
     with bad_input(LogError):
@@ -403,9 +420,10 @@ def _json_nulls(value: Any) -> Any:
 
 def _cmd_balance(args: argparse.Namespace) -> int:
     with bad_input(LogError):
-        log = _read_log(args.log)
+        log = read_log(args.log)
         params = _boiler_for(log, args.boiler)
         phases = find_phases(log)
+    _warn_tolerated([log])
     rows = energy_balance(log, params, phases)
     out = output_file(args.out or args.log.with_name(args.log.stem + ".balance.json"))
     # strict JSON: a figure a phase does not define (NaN, e.g. no fuel burnt) is null

@@ -212,8 +212,13 @@ class Assessment:
     #: evidence was read in; 0 where it is not read event by event
     events: int = 0
 
-    def verdict(self) -> tuple[bool, float, str]:
-        return self.decide(self.units)
+    def verdict(self, units: Sequence | None = None) -> tuple[bool, float, str]:
+        """(named?, z, why) on ``units`` (default: the log's own); evidence that is not a
+        number (a signal the log lacks entirely) names nothing."""
+        named, z, why = self.decide(self.units if units is None else units)
+        if named and math.isnan(z):
+            return False, z, "its evidence is not a number (a signal it needs is missing)"
+        return named, z, why
 
 
 # --------------------------------------------------------------------------------------
@@ -1102,7 +1107,9 @@ def _closure_blocks(case: Case) -> list[tuple[float, float, float, float, float,
         if ((edges >= block[0]) & (edges <= block[-1])).any():
             continue
         ok = block[~np.isnan(mass[block])]
-        if len(ok) < 30 or (usable[block] <= 0).any():
+        # no flue-gas loss without the O2 (a blank analyser), no fuel from a balance that
+        # does not move in half an hour of firing (stuck, or a constant logged in its place)
+        if len(ok) < 30 or not np.all(usable[block] > 0) or np.ptp(mass[ok]) < BALANCE_STEP_KG:
             continue
         slope, _ = np.polyfit(t[ok], mass[ok], 1)
         duration = t[block[-1]] - t[block[0]]

@@ -179,7 +179,7 @@ def _confidence(assessments: dict[str, Assessment], answer: str) -> float:
                 units = [a.units[i] for i in idx]
             else:
                 units = a.units
-            verdicts[effect] = a.decide(units)
+            verdicts[effect] = a.verdict(units)
         votes[_answer(verdicts, assessments)] += 1
     share = votes[answer] / BOOTSTRAP
     if answer != "none":

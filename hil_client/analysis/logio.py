@@ -102,7 +102,7 @@ def read_log(
     injected values, error codes included, with what was logged)."""
     path = Path(path)
     try:
-        fh = path.open(newline="", encoding="utf-8")
+        fh = path.open(newline="", encoding="utf-8-sig")  # a spreadsheet's byte-order mark
     except OSError as exc:
         raise LogError(f"{path}: cannot read ({exc.strerror})") from None
     with fh:

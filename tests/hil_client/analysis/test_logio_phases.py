@@ -49,15 +49,24 @@ def test_a_last_row_cut_short_by_a_killed_acquisition_is_left_out_and_named(tmp_
     """A logger killed mid-write leaves its last row short and without a line end (its
     last field may be a number cut in two, 1.2 of 1.25): the row is left out, every
     complete row is kept, and the user is told in one line."""
-    from hil_client.cli import _read_log
+    from hil_client.cli import _warn_tolerated
 
     full = "\n".join(f"{i},1,1,1,1,1,1,1,1" for i in range(1, 4))
     path = _write(tmp_path, HEADER + "\n" + full + "\n4,1,1,1.2")
-    log = _read_log(path)
+    log = read_log(path)
+    _warn_tolerated([log])
     assert log["time_s"].tolist() == [1.0, 2.0, 3.0]
     assert len(log.notes) == 1 and "line 5" in log.notes[0] and "4 of 9" in log.notes[0]
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "warning" in err and "cut short" in err
+
+
+def test_a_spreadsheets_byte_order_mark_is_not_part_of_the_first_name(tmp_path):
+    """A CSV saved by a spreadsheet starts with a UTF-8 byte-order mark: its first column
+    is still ``time_s`` (it was once refused as missing)."""
+    full = "\n".join(f"{i},1,1,1,1,1,1,1,1" for i in range(1, 4))
+    path = _write(tmp_path, "\ufeff" + HEADER + "\n" + full + "\n")
+    assert read_log(path)["time_s"].tolist() == [1.0, 2.0, 3.0]
 
 
 def test_an_instruments_error_code_is_a_missing_reading_and_named(tmp_path):

@@ -167,7 +167,22 @@ def error_codes(header, rows, rng):
     return header, rows
 
 
+def stuck_balance(header, rows, rng):
+    """The balance's reading frozen for the whole record (a load cell stuck, or its
+    channel logging a constant): no fuel can be read from it."""
+    mass = _column(header, rows, "balance_mass_kg")
+    _set(header, rows, "balance_mass_kg", np.full(len(rows), mass[0]))
+    return header, rows
+
+
+def byte_order_mark(header, rows, rng):
+    """Saved by a spreadsheet: a UTF-8 byte-order mark before the first column's name."""
+    return ["\ufeff" + header[0], *header[1:]], rows
+
+
 VARIANTS = (
+    stuck_balance,
+    byte_order_mark,
     analyser_off,
     error_codes,
     cut_short,
@@ -199,10 +214,11 @@ def test_diagnose_and_calibrate_take_real_logs(logs, variant, tmp_path, capsys):
         assert not (tmp_path / "d").exists()
     else:
         result = json.loads((tmp_path / "d" / "diagnosis.json").read_text())
-        # never silently wrong: the plant's effect, or no verdict (all eight give the
-        # effect here)
+        # never silently wrong: the plant's effect, or no verdict
         assert result["effect"] in ("outlet_sensor_pipe", "none")
         assert 0.0 <= result["confidence"] <= 1.0
+        # nothing named on evidence that is not a number (a signal the log lacks)
+        assert not [c["effect"] for c in result["candidates"] if c["named"] and c["score"] is None]
         assert isinstance(result["unexplained_gap"], bool)
     code = main(["calibrate", str(cal), "--boiler", BOILER, "--out", str(tmp_path / "p.yaml")])
     err = capsys.readouterr().err
@@ -211,6 +227,46 @@ def test_diagnose_and_calibrate_take_real_logs(logs, variant, tmp_path, capsys):
         assert err.count("\n") == 1 and "Traceback" not in err, err
     else:
         assert (tmp_path / "p.yaml").exists()
+
+
+def test_a_calibration_log_without_its_analyser_names_no_fuel_on_nan(logs, tmp_path, capsys):
+    """The analyser disconnected for the calibration log only: the closure has no flue-gas
+    loss to count, so the fuel is not read (an empty O2 column once named the fuel on a
+    closure that was not a number)."""
+    cal = tmp_path / "cal.csv"
+    _write(cal, *analyser_off(*_read(logs["stationary"]), None))
+    argv = ["--calibration", str(cal), "--validation", str(logs["load_cycle"])]
+    assert main(["diagnose", *argv, "--boiler", BOILER, "--out", str(tmp_path / "d")]) == 0
+    result = json.loads((tmp_path / "d" / "diagnosis.json").read_text())
+    fuel = next(c for c in result["candidates"] if c["effect"] == "fuel_energy_bias")
+    assert not fuel["named"] and fuel["evidence_units"] == 0
+
+
+def test_a_log_cut_mid_line_before_its_cooling_gets_one_line(logs, tmp_path, capsys):
+    """The acquisition killed in the test phase while writing a row: the half row is
+    tolerated, the missing coolings are not; the user reads one line, the error, not a
+    warning about the half row before it."""
+    text = logs["stationary"].read_text()
+    cal = tmp_path / "cal.csv"
+    cal.write_text(text[: int(0.4 * len(text))].rsplit("\n", 1)[0] + "\n12345.6,7")
+    capsys.readouterr()
+    argv = ["--calibration", str(cal), "--validation", str(logs["load_cycle"])]
+    code = main(["diagnose", *argv, "--boiler", BOILER, "--out", str(tmp_path / "d")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "t3" in err, err
+
+
+def test_the_held_out_log_must_be_another_log(logs, tmp_path, capsys):
+    """The calibration log given again as the held-out one (by another path: a copy)
+    would report a shrinkage on the data it was fitted on: one line, exit 2."""
+    copy = tmp_path / "copy.csv"
+    copy.write_bytes(logs["stationary"].read_bytes())
+    capsys.readouterr()
+    argv = ["--calibration", str(logs["stationary"]), "--validation", str(copy)]
+    code = main(["diagnose", *argv, "--boiler", BOILER, "--out", str(tmp_path / "d")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "same log" in err, err
+    assert not (tmp_path / "d").exists()
 
 
 @pytest.mark.parametrize("variant", (every_10_s, irregular), ids=lambda v: v.__name__)
