@@ -21,7 +21,6 @@ from hil_client.analysis.candidates import (
     STAND_BY_SHARE_RANGE,
     Z_MIN,
     _analyser_delay_max_s,
-    _bias_gap,
     _body_mark,
     _closure_estimate,
     _decide_bias,
@@ -231,20 +230,6 @@ def test_a_closure_is_read_at_no_change_of_load(fuel, lag_s):
     assert bias == pytest.approx(fuel, abs=0.003)
     assert se < 0.003
     assert _decide_bias(hours)[0] == (fuel > 0.0)
-
-
-@pytest.mark.parametrize("fuel", [0.0, 0.05])
-def test_the_held_out_fuel_gap_is_the_whole_tests_not_the_hours(fuel):
-    """A held-out load cycle whose hours hold back the fuel of 240 s of each change of load
-    (-3 % to +3 % an hour) and whose last hour returns to the load the test began at: over
-    the whole test the holdback is repaid, so without a fuel effect there is no gap (hour by
-    hour, 0.03 kg), and a fuel that delivers 5 % less leaves none once it is added."""
-    changes = [*LOAD_CYCLE_CHANGES[:4], 1.8 / 9000.0]
-    changes[-1] = -sum(changes[:-1])  # back to where it began
-    hours = _hours([fuel + 240.0 * c for c in changes], load_change=changes)
-    before, after = _bias_gap(hours, fuel)
-    assert before == pytest.approx(fuel * 1.3 * len(hours), abs=1e-9)
-    assert after == pytest.approx(0.0, abs=1e-9)
 
 
 def test_a_change_of_load_counts_the_heat_the_water_stores():
