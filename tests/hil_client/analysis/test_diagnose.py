@@ -184,9 +184,10 @@ def test_one_case_end_to_end_through_modbus(serve, tmp_path):
 
 
 def test_diagnose_refuses_bad_input(tmp_path, capsys):
-    bad = tmp_path / "bad.csv"
+    bad, other = tmp_path / "bad.csv", tmp_path / "other.csv"
     bad.write_text("time_s,water_flow_kg_h\n1,2\n")
-    assert _diagnose(bad, bad, "windhager_12kw", tmp_path / "d") == 2
+    other.write_text("time_s,water_flow_kg_h\n1,3\n")
+    assert _diagnose(bad, other, "windhager_12kw", tmp_path / "d") == 2
     err = capsys.readouterr().err
     assert "missing required column" in err and err.count("\n") == 1
     assert not (tmp_path / "d").exists()
