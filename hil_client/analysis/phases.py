@@ -7,7 +7,9 @@ Taken, in this order of preference, from the ``phase`` column, the meta file, or
 - t1: after t0, the least-squares rise of the flue-gas temperature over 5 min first falls
   below 0.5 K/min (at least 5 min after t0): the rule the runner applies;
 - t3: circulation stops: the flow setpoint's last non-zero row, or, without that column,
-  the last row before which the flow falls below 5 % of its maximum for good;
+  the last row before which the flow falls below 5 % of its maximum for good; a record
+  cut short while the water still circulates ends its first cooling with its last row
+  (named in the log's notes: no second cooling);
 - t2: the first cooling is the constant-flow segment ending at t3; t2 is where the flow
   (setpoint) last changed by more than 5 % before it;
 - t4: the end of the record.
@@ -122,9 +124,15 @@ def _from_signals(log: LabLog) -> Phases:
     else:
         flow = fill_gaps(log["water_flow_kg_h"], t)
         running = np.flatnonzero(flow > 0.05 * np.nanmax(flow))
-    if not len(running) or running[-1] >= len(t) - 2:
-        raise LogError(f"{path}: cannot find t3: the circulation never stops")
+    if not len(running):
+        raise LogError(f"{path}: cannot find t3: the water never circulates")
     i3 = int(running[-1])
+    if i3 >= len(t) - 2:  # the record ends before the circulation stops: no second cooling
+        i3 = len(t) - 1
+        log.notes.append(
+            "the record ends before the circulation stops (acquisition cut short?): no"
+            " second cooling, and its last constant-flow stretch is read as the first"
+        )
     t3 = float(t[i3])
     # the first cooling: constant flow back from t3 (skip the lag at its end)
     level = np.median(flow[max(i3 - 120, 0) : max(i3 - 30, 1)])

@@ -125,3 +125,23 @@ def test_phases_from_signals_match_the_runner(run_log, protocol, tmp_path):
     for key, value in from_column.as_dict().items():
         # the flow meter's 10 s lag and the burner seen through the flue gas: within 1 min
         assert found.as_dict()[key] == pytest.approx(value, abs=60), key
+
+
+def test_a_record_cut_in_its_first_cooling_ends_that_cooling_and_says_so(run_log, tmp_path):
+    """An acquisition killed 10 min before the circulation stops (a real lab's CSV, no
+    phase or setpoint column): t0 to t2 as in the whole record, the first cooling ends
+    with the last row, and the log's notes say that no second cooling was recorded."""
+    rec = run_log("stationary", "windhager_12kw")
+    log = read_log(rec.path)
+    keep = [c for c in log.columns if c not in ("phase", "sequence", "water_flow_setpoint_kg_h")]
+    rows = log.t <= rec.meta["t3_s"] - 600.0
+    cut = tmp_path / "cut.csv"
+    data = np.column_stack([log[c][rows] for c in keep])
+    np.savetxt(cut, data, delimiter=",", header=",".join(keep), comments="", fmt="%.6f")
+    short = read_log(cut)
+    found = find_phases(short)
+    for key in ("t0_s", "t1_s", "t2_s"):
+        # as from the whole record without these columns: within the flow meter's lag
+        assert found.as_dict()[key] == pytest.approx(rec.meta[key], abs=60), key
+    assert found.t3 == found.t4 == pytest.approx(short.t[-1])
+    assert any("no second cooling" in note for note in short.notes)
