@@ -211,6 +211,9 @@ class Assessment:
     #: the separate events (stops, starts, low-flow periods, the closure's loads) the
     #: evidence was read in; 0 where it is not read event by event
     events: int = 0
+    #: the verdict of the held-out evidence alone, the physical mark aside (units ->
+    #: named?); None: :attr:`decide` has no mark of its own to set aside
+    evidence: Callable[[Sequence], bool] | None = None
 
     def verdict(self, units: Sequence | None = None) -> tuple[bool, float, str]:
         """(named?, z, why) on ``units`` (default: the log's own); evidence that is not a
@@ -219,6 +222,14 @@ class Assessment:
         if named and math.isnan(z):
             return False, z, "its evidence is not a number (a signal it needs is missing)"
         return named, z, why
+
+    def evidence_named(self) -> bool:
+        """Whether the held-out evidence alone would name it, however far its mark stands
+        from its floor: with :attr:`margin` >= 1 this tells *what* stopped a candidate
+        (too little evidence, too small a mark, or both)."""
+        if self.evidence is None:
+            return self.verdict()[0]
+        return bool(self.evidence(self.units))
 
 
 # --------------------------------------------------------------------------------------
@@ -299,6 +310,11 @@ class CurveCandidate:
             return False, z, f"removes {before - after:.2g} < {ABS_MIN[self.signal]:g} RMSD"
         return True, z, "named"
 
+    def evidence(self, units: Sequence[BlockGain]) -> bool:
+        """The held-out evidence alone (:meth:`decide` before the fingerprint)."""
+        named, z, _ = self.decide(units)
+        return named and not math.isnan(z)
+
     def assess(self, case: Case) -> Assessment:
         blocks = self.blocks(case)
         ev, _ = cross_validate(
@@ -334,6 +350,7 @@ class CurveCandidate:
             after,
             float(margin) if math.isfinite(margin) else 0.0,
             len({anchor for _, _, anchor in blocks}),
+            self.evidence,
         )
 
     def prediction(self, case: Case, theta: dict[str, float]) -> dict[str, np.ndarray]:
@@ -949,13 +966,23 @@ def _holdup(
     return held, math.sqrt(u0**2 + u1**2 + u_burnt**2), _start_feed_rate_kg_h(case)
 
 
+def _ignition_z(units: Sequence[tuple[float, float, float]]) -> float:
+    """The mean pre-feed of the starts in standard errors (0 without a start)."""
+    if not units:
+        return 0.0
+    se = math.sqrt(sum(u[1] ** 2 for u in units)) / len(units)
+    return float(np.mean([u[0] for u in units])) / se
+
+
+def _ignition_evidence(units: Sequence[tuple[float, float, float]]) -> bool:
+    return bool(units) and _ignition_z(units) >= Z_MIN
+
+
 def _decide_ignition(units: Sequence[tuple[float, float, float]]) -> tuple[bool, float, str]:
     if not units:
         return False, 0.0, "no start after a quiet balance"
-    pre = np.array([u[0] for u in units])
-    se = math.sqrt(sum(u[1] ** 2 for u in units)) / len(units)
-    mean = float(pre.mean())
-    z = mean / se
+    mean = float(np.mean([u[0] for u in units]))
+    z = _ignition_z(units)
     delay = _delay_s(units)
     if delay < PRE_FEED_MIN_S:
         return False, z, f"pre-feed {mean:.3f} kg, {delay:.0f} s < {PRE_FEED_MIN_S:g} s of feed"
@@ -1007,6 +1034,7 @@ class IgnitionCandidate:
             after,
             delay / PRE_FEED_MIN_S,
             len(units),
+            _ignition_evidence,
         )
 
     def held_out(self, case: Case, theta: dict[str, float]) -> tuple[float, float]:
@@ -1235,11 +1263,23 @@ def _closure_u_sys(units: Sequence[tuple]) -> float:
     return float(np.sum(w * np.array([u[2] for u in units])) / np.sum(w))
 
 
+def _bias_z(units: Sequence[tuple]) -> float:
+    """The pooled closure's departure from zero in standard errors (0 without an hour)."""
+    if not units:
+        return 0.0
+    bias, se, _ = _closure_estimate(units)
+    return abs(bias) / math.hypot(se, _closure_u_sys(units))
+
+
+def _bias_evidence(units: Sequence[tuple]) -> bool:
+    return bool(units) and _bias_z(units) >= Z_MIN
+
+
 def _decide_bias(units: Sequence[tuple]) -> tuple[bool, float, str]:
     if not units:
         return False, 0.0, "no steady firing hour in the test phase"
-    bias, se, drift = _closure_estimate(units)
-    z = abs(bias) / math.hypot(se, _closure_u_sys(units))
+    bias, _, drift = _closure_estimate(units)
+    z = _bias_z(units)
     if abs(bias) < BIAS_MIN:
         why = f"closure off by {bias:+.1%}, within +-{BIAS_MIN:.0%}"
         if drift:
@@ -1288,6 +1328,7 @@ class BiasCandidate:
             after,
             abs(bias) / BIAS_MIN,
             _load_levels(units),
+            _bias_evidence,
         )
 
     def held_out(self, case: Case, theta: dict[str, float]) -> tuple[float, float]:

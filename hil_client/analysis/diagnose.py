@@ -258,6 +258,10 @@ def diagnose(
                 "score": _finite(z),
                 "margin": _finite(a.margin),
                 "named": named,
+                # what stops a candidate, one test at a time: the held-out evidence alone,
+                # and its physical mark against the floor the background reaches
+                "evidence_named": a.evidence_named(),
+                "mark_named": a.margin >= 1.0,
                 "reason": reason,
                 "signal": a.signal,
                 "phase": a.locus,

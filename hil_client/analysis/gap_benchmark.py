@@ -20,7 +20,9 @@ reads; logs have no meta files and no phase columns.
 Scoring: a case counts as right when the answer is the truth and, for an effect, its
 held-out shrinkage is positive ("not confirmed" otherwise). ``scores.json`` adds the
 confusion matrix, false alarms on ``none``, the median held-out shrinkage of the right
-answers, and the reliability table of the confidence.
+answers, the reliability table of the confidence, and why each miss missed
+(:func:`miss_reason`: outranked, or short of held-out evidence, of a mark beyond its floor,
+or of both).
 """
 
 from __future__ import annotations
@@ -253,6 +255,7 @@ def _run_case(job: tuple[dict, str]) -> dict:
         error = str(exc)
     diagnosed = time.monotonic() - started
     shrink = result.get("shrinkage") or {}
+    true = next((c for c in result.get("candidates", []) if c["effect"] == truth["effect"]), None)
     return {
         "case": truth["case"],
         "found": result.get("effect", "error"),
@@ -263,6 +266,10 @@ def _run_case(job: tuple[dict, str]) -> dict:
         "confirmed": shrink.get("confirmed"),
         "gap_signal": shrink.get("signal"),
         "gap_phase": shrink.get("phase"),
+        # what the true effect's candidate passed: named, its evidence alone, its mark alone
+        "true_candidate": None
+        if true is None
+        else {k: true[k] for k in ("named", "evidence_named", "mark_named", "reason")},
         "emulation_s": round(emulated, 2),
         "diagnosis_s": round(diagnosed, 2),
     }
@@ -273,6 +280,31 @@ def is_right(truth: str, result: dict) -> bool:
     if result["found"] != truth:
         return False
     return truth == "none" or bool(result.get("confirmed"))
+
+
+def miss_reason(truth: str, result: dict) -> str:
+    """Why a case was not right, in the terms of the diagnosis's tests: for ``none`` the
+    effect named instead; for an effect, whether its candidate was named but not
+    confirmed, named but outranked, or what it fell short of (its held-out evidence, its
+    physical mark against its floor, or both)."""
+    found = result["found"]
+    if is_right(truth, result):
+        return "right"
+    if found == "error":
+        return "error"
+    if truth == "none":
+        return f"false alarm: {found}"
+    if found == truth:
+        return "named, not confirmed on held-out data"
+    cand = result.get("true_candidate") or {}
+    if cand.get("named"):
+        return f"named, outranked by {found}"
+    evidence, mark = cand.get("evidence_named"), cand.get("mark_named")
+    if evidence and not mark:
+        return "evidence enough, mark below its floor"
+    if mark and not evidence:
+        return "mark beyond its floor, evidence short"
+    return "neither evidence nor mark"
 
 
 def reliability(cases: list[dict], results: list[dict]) -> list[dict]:
@@ -313,6 +345,12 @@ def score(cases: list[dict], results: list[dict]) -> dict:
         ]
         per_effect[effect] = statistics.median(values) if values else None
     confident = [r for r in results if (r["confidence"] or 0.0) >= 0.8]
+    misses: dict[str, dict[str, int]] = {}
+    for r in results:
+        why = miss_reason(truth[r["case"]], r)
+        if why != "right":
+            row = misses.setdefault(truth[r["case"]], {})
+            row[why] = row.get(why, 0) + 1
     return {
         "cases": len(results),
         "accuracy": len(right) / len(results) if results else 0.0,
@@ -330,6 +368,7 @@ def score(cases: list[dict], results: list[dict]) -> dict:
         ),
         "reliability": reliability(cases, results),
         "confusion": confusion,
+        "misses": misses,
         "errors": sum(r["found"] == "error" for r in results),
         "max_diagnosis_s": max(r["diagnosis_s"] for r in results) if results else None,
         "median_diagnosis_s": statistics.median(r["diagnosis_s"] for r in results),
@@ -413,12 +452,18 @@ def _report(scores: dict, cases: list[dict], figure: str) -> str:
             f"| {r['confidence_from']:.2f}-{r['confidence_to']:.2f} | {r['answers']} | "
             f"{r['right']} | {share} |"
         )
+    lines += ["", "## Why the misses missed", ""]
+    lines += [
+        f"- {effect}: " + "; ".join(f"{why} {n}" for why, n in sorted(row.items()))
+        for effect, row in scores["misses"].items()
+    ] or ["none missed"]
     lines += [
         "",
         "## Cases",
         "",
-        "| case | truth | form | strength | boiler | calibration | found | confidence | shrink |",
-        "|---:|---|---|---:|---|---|---|---:|---:|",
+        "| case | truth | form | strength | boiler | calibration | found | confidence | shrink "
+        "| why missed |",
+        "|---:|---|---|---:|---|---|---|---:|---:|---|",
     ]
     truth = {c["case"]: c for c in cases}
     for r in scores["results"]:
@@ -427,7 +472,8 @@ def _report(scores: dict, cases: list[dict], figure: str) -> str:
         conf = "-" if r["confidence"] is None else f"{r['confidence']:.2f}"
         lines.append(
             f"| {r['case']} | {c['effect']} | {c['form'] or '-'} | {c['strength']:.2f} | "
-            f"{c['boiler']} | {c['pair'][0]} | {r['found']} | {conf} | {shrink} |"
+            f"{c['boiler']} | {c['pair'][0]} | {r['found']} | {conf} | {shrink} | "
+            f"{miss_reason(c['effect'], r).replace('right', '-')} |"
         )
     return "\n".join(lines) + "\n"
 
@@ -452,6 +498,9 @@ def _print_scores(scores: dict, n: int, wall: float) -> None:
     for t in ANSWERS:
         row = scores["confusion"][t]
         print(f"  {t:<20}" + " ".join(f"{row[a]:>8}" for a in (*ANSWERS, "error")))
+    print("why the misses missed (truth: reason count):")
+    for effect, row in scores["misses"].items():
+        print(f"  {effect}: " + "; ".join(f"{why} {n}" for why, n in sorted(row.items())))
     print(
         f"time: diagnosis median {scores['median_diagnosis_s']:.1f} s, max "
         f"{scores['max_diagnosis_s']:.1f} s; {wall:.0f} s for {n} cases; written "

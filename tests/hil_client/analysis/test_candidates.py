@@ -18,17 +18,21 @@ from hil_client.analysis.augment import first_order_lag
 from hil_client.analysis.calibrate import calibrate
 from hil_client.analysis.candidates import (
     BALANCE_STEP_KG,
+    PRE_FEED_MIN_S,
     STAND_BY_SHARE_RANGE,
     Z_MIN,
     _analyser_delay_max_s,
+    _bias_evidence,
     _body_mark,
     _closure_estimate,
     _decide_bias,
     _decide_ignition,
+    _delay_s,
     _flue_fingerprint,
     _flue_gas_with_idle_air,
     _flue_predict,
     _heat_rate_at,
+    _ignition_evidence,
     _load_levels,
     _pre_feed,
     _start_feed_rate_kg_h,
@@ -73,6 +77,32 @@ def test_one_balance_step_at_one_start_is_not_evidence_of_a_pre_feed():
     fed = np.where(t < t[onset] - 240.0, 286.08, 285.92)  # 0.16 kg, 4 min of Pstart feed
     named, z, why = _decide_ignition(_pre_feed(_start_case(fed, t, [onset])) * 20)
     assert named, why
+
+
+def test_the_pre_feeds_evidence_and_its_floor_are_told_apart():
+    """Twenty starts each losing 10 g before the flame at 3 kg/h of feed (12 s: a burner's
+    own charge) are strong evidence of a pre-feed that stays below its floor; one start
+    that loses 0.2 kg +- 0.2 kg (240 s of feed at 3 kg/h) is beyond the floor on too little
+    evidence. Neither is named; the assessment tells which test stopped it."""
+    many_small = [(0.010, 0.001, 3.0)] * 20
+    named, z, why = _decide_ignition(many_small)
+    assert not named and z > 10 * Z_MIN and "s of feed" in why
+    assert _ignition_evidence(many_small)
+    one_large = [(0.2, 0.2, 3.0)]
+    assert not _decide_ignition(one_large)[0] and not _ignition_evidence(one_large)
+    assert _delay_s(one_large) > PRE_FEED_MIN_S
+    assert not _ignition_evidence([])
+
+
+def test_the_closures_evidence_and_its_floor_are_told_apart():
+    """Six hours 1 % +- 0.1 % off are strong evidence of a closure within the 3 % a lab's
+    calorific value is known to; six hours 6 % off with 10 % uncertainty are beyond it on
+    too little evidence."""
+    small = _hours([0.010, 0.011, 0.009, 0.010, 0.011, 0.009], u_rel=0.001)
+    assert not _decide_bias(small)[0] and _bias_evidence(small)
+    vague = _hours([0.062, 0.055, 0.066, 0.058, 0.064, 0.057], u_rel=0.10)
+    assert not _decide_bias(vague)[0] and not _bias_evidence(vague)
+    assert _bias_evidence(_hours([0.062, 0.055, 0.066, 0.058, 0.064, 0.057]))
 
 
 def test_a_log_that_begins_minutes_before_its_first_start_still_reads_the_pre_feed():

@@ -3,7 +3,9 @@ CSV without phase columns or meta files, bad input."""
 
 from __future__ import annotations
 
+import importlib.util
 import json
+from pathlib import Path
 
 import pytest
 import yaml
@@ -65,6 +67,28 @@ def test_small_benchmark_is_blind_and_scored(small_benchmark):
     # miss in six is allowed here, and a right effect always shrinks the held-out gap
     assert round((1.0 - scores["accuracy"]) * 6) <= 1
     assert scores["negative_shrinks_on_right_effect"] == 0
+    # each candidate says which test stopped it: named means both its evidence and its mark
+    for case in (out / "cases").iterdir():
+        for c in json.loads((case / "diagnosis" / "diagnosis.json").read_text())["candidates"]:
+            assert isinstance(c["evidence_named"], bool) and isinstance(c["mark_named"], bool)
+            assert not c["named"] or (c["evidence_named"] and c["mark_named"])
+    missed = sum(sum(row.values()) for row in scores["misses"].values())
+    assert missed == round((1.0 - scores["accuracy"]) * 6) and "Why the misses" in report
+
+
+def test_the_floor_study_re_decides_every_case_as_the_diagnosis_did(small_benchmark, capsys):
+    """bench/gap_floors.py re-decides the cases from diagnosis.json alone: with the floors
+    as they are it must give every case the diagnosis's own answer, else the file does not
+    carry what the decision used; a directory that is no benchmark's is one line, exit 2."""
+    path = Path(__file__).parents[3] / "bench" / "gap_floors.py"
+    spec = importlib.util.spec_from_file_location("gap_floors", path)
+    gap_floors = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(gap_floors)
+    out, _ = small_benchmark
+    assert gap_floors.main([str(out)]) == 0
+    assert "re-decided as diagnosed: 6 of 6" in capsys.readouterr().out
+    assert gap_floors.main([str(out / "cases")]) == 2
+    assert capsys.readouterr().err.count("\n") == 1
 
 
 def test_diagnosis_works_on_a_real_labs_csv(small_benchmark, tmp_path):

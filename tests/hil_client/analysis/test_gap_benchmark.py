@@ -19,6 +19,7 @@ from hil_client.analysis.gap_benchmark import (
     PAIRS,
     is_right,
     make_cases,
+    miss_reason,
     score,
 )
 from hil_client.cli import main
@@ -63,6 +64,60 @@ def test_an_effect_named_without_held_out_shrinkage_is_not_a_success():
     scores = score(cases, [unconfirmed | base, right_none | base | {"shrink_pct": None}])
     assert scores["accuracy"] == 0.5 and scores["not_confirmed"] == 1
     assert scores["negative_shrinks_on_right_effect"] == 1
+
+
+def test_each_miss_says_which_of_the_diagnosis_tests_stopped_the_true_effect():
+    """The breakdown of the misses reads what the true effect's candidate passed: named
+    and outranked, its evidence without its mark, its mark without its evidence, neither;
+    a ``none`` missed names the false alarm."""
+
+    def result(case, found, named, evidence, mark, confirmed=None):
+        cand = {"named": named, "evidence_named": evidence, "mark_named": mark, "reason": ""}
+        return {
+            "case": case,
+            "found": found,
+            "confirmed": confirmed,
+            "confidence": 0.6,
+            "shrink_pct": None,
+            "diagnosis_s": 1.0,
+            "true_candidate": cand,
+        }
+
+    results = [
+        result(0, "flue_gas_lag", True, True, True, confirmed=True),
+        result(1, "ignition_delay", True, True, True),
+        result(2, "none", False, True, False),
+        result(3, "none", False, False, True),
+        result(4, "none", False, False, False),
+        result(5, "flue_gas_lag", True, True, True, confirmed=False),
+        result(6, "ignition_delay", False, False, False),
+        result(7, "error", False, False, False) | {"true_candidate": None},
+    ]
+    truths = [
+        "flue_gas_lag",
+        "body_heat_diffusion",
+        "flue_gas_lag",
+        "fuel_energy_bias",
+        "outlet_sensor_pipe",
+        "flue_gas_lag",
+        "none",
+        "none",
+    ]
+    cases = [{"case": i, "effect": t} for i, t in enumerate(truths)]
+    reasons = [miss_reason(t, r) for t, r in zip(truths, results, strict=True)]
+    assert reasons == [
+        "right",
+        "named, outranked by ignition_delay",
+        "evidence enough, mark below its floor",
+        "mark beyond its floor, evidence short",
+        "neither evidence nor mark",
+        "named, not confirmed on held-out data",
+        "false alarm: ignition_delay",
+        "error",
+    ]
+    misses = score(cases, results)["misses"]
+    assert "flue_gas_lag" in misses and sum(misses["flue_gas_lag"].values()) == 2
+    assert misses["none"] == {"false alarm: ignition_delay": 1, "error": 1}
 
 
 def test_an_unknown_plant_is_named_in_one_line(tmp_path, capsys):
