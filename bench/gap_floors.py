@@ -104,12 +104,14 @@ def main(argv: list[str] | None = None) -> int:
     where = np.array([c["plant"] for c in cases])
     accuracy = {p: hits[where == p].mean(axis=0) for p in plants}
     print(f"{'left out':<10} {'current':>8} {'chosen':>8}  factors chosen on the others")
+    # of factors that score alike, the ones nearest the floors as they are
+    distance = np.array([sum(abs(np.log(v)) for v in f.values()) for f in combos])
     left_out = []
     for p in plants:
         others = [q for q in plants if q != p]
         if not others:
             break
-        best = int(np.argmax(np.mean([accuracy[q] for q in others], axis=0)))
+        best = int(np.lexsort((distance, -np.mean([accuracy[q] for q in others], axis=0)))[0])
         left_out.append((accuracy[p][current], accuracy[p][best]))
         factors = " ".join(f"{e.split('_')[0]} {v:g}" for e, v in combos[best].items())
         print(f"{p:<10} {accuracy[p][current]:>8.0%} {accuracy[p][best]:>8.0%}  {factors}")

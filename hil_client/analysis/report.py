@@ -107,16 +107,19 @@ def diagnosis_report(result: dict, figures: list[Path], cal: str, val: str) -> s
     lines += [
         "## Candidates (tested out of sample on the calibration log)",
         "",
-        "| effect | parameters | evidence (SE) | verdict | where it acts | cal. RMSD held out "
-        "before / after | val. RMSD before / after |",
-        "|---|---|---:|---|---|---|---|",
+        "| effect | parameters | evidence (SE) | evidence alone names it | mark over its floor "
+        "| verdict | where it acts | cal. RMSD held out before / after | val. RMSD before / "
+        "after |",
+        "|---|---|---:|---|---:|---|---|---|---|",
     ]
     for c in result["candidates"]:
         params = ", ".join(
             f"{k} = {'-' if v is None else format(v, '.3g')}" for k, v in c["params"].items()
         )
         lines.append(
-            f"| {c['effect']} | {params} | {_f(c['score'], 1)} | {c['reason']} | "
+            f"| {c['effect']} | {params} | {_f(c['score'], 1)} | "
+            f"{'yes' if c.get('evidence_named') else 'no'} | {_f(c.get('margin'))} | "
+            f"{c['reason']} | "
             f"{c['signal']} / {c['phase']} | {_f(c['calibration_rmsd_before'])} / "
             f"{_f(c['calibration_rmsd_after'])} | {_f(c['validation_rmsd_before'])} / "
             f"{_f(c['validation_rmsd_after'])} |"
