@@ -1263,11 +1263,12 @@ def _closure_u_sys(units: Sequence[tuple]) -> float:
     return float(np.sum(w * np.array([u[2] for u in units])) / np.sum(w))
 
 
-def _bias_z(units: Sequence[tuple]) -> float:
-    """The pooled closure's departure from zero in standard errors (0 without an hour)."""
+def _bias_z(units: Sequence[tuple], estimate: tuple | None = None) -> float:
+    """The pooled closure's departure from zero in standard errors (0 without an hour);
+    ``estimate``: :func:`_closure_estimate` of ``units``, where already computed."""
     if not units:
         return 0.0
-    bias, se, _ = _closure_estimate(units)
+    bias, se, _ = estimate or _closure_estimate(units)
     return abs(bias) / math.hypot(se, _closure_u_sys(units))
 
 
@@ -1278,8 +1279,9 @@ def _bias_evidence(units: Sequence[tuple]) -> bool:
 def _decide_bias(units: Sequence[tuple]) -> tuple[bool, float, str]:
     if not units:
         return False, 0.0, "no steady firing hour in the test phase"
-    bias, _, drift = _closure_estimate(units)
-    z = _bias_z(units)
+    estimate = _closure_estimate(units)
+    bias, _, drift = estimate
+    z = _bias_z(units, estimate)
     if abs(bias) < BIAS_MIN:
         why = f"closure off by {bias:+.1%}, within +-{BIAS_MIN:.0%}"
         if drift:
