@@ -124,6 +124,30 @@ def where(case: Case, pred: dict[str, np.ndarray]) -> list[dict]:
 YIELDING = ("ignition_delay",)
 
 
+#: The most feed before the flame a normal start-up read without any listed effect [s]:
+#: the `none` cases of the eight independent plants (``gap-benchmark --seed 0`` on each,
+#: 2026-11-25) read 0-259 s; a burner that drops its ignition charge on the grate and
+#: lights it in its own time has an ignition delay that Type 869 lacks, and a normal one.
+NORMAL_CHARGE_MAX_S = 260.0
+
+
+def caveats(effect: str, params: dict[str, float]) -> list[str]:
+    """What the answer cannot tell apart, in words for the report: an ignition delay no
+    longer than a normal start-up's charge may be the burner's normal ignition sequence
+    rather than a fault or a change (the diagnosis has no reference for what this burner
+    does normally)."""
+    delay = params.get("delay_s", math.nan)
+    if effect == "ignition_delay" and delay <= NORMAL_CHARGE_MAX_S:
+        return [
+            f"The fuel fed before the flame ({delay:.0f} s of feed per start) is within what "
+            f"burners' normal start-ups drop as an ignition charge (up to "
+            f"{NORMAL_CHARGE_MAX_S:.0f} s on the eight independently written plants this "
+            "diagnosis was tested on): Type 869 lacks it either way, but compare it with "
+            "this burner's start-up program before reading it as a fault."
+        ]
+    return []
+
+
 def _answer(
     verdicts: dict[str, tuple[bool, float, str]], assessments: dict[str, Assessment]
 ) -> str:
@@ -305,6 +329,7 @@ def diagnose(
         "where_calibration": where(cal, base_cal)[:12],
         "candidates": candidates,
         "shrinkage": shrinkage,
+        "caveats": caveats(effect, assessments[effect].params) if effect != "none" else [],
         "firing": {"calibration": cal.firing.source, "validation": val.firing.source},
         "calibrated": {key: f.value for key, f in calibration.fitted.items()},
         "calibration_flags": dict(getattr(calibration, "flags", {})),

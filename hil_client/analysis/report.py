@@ -99,6 +99,8 @@ def diagnosis_report(result: dict, figures: list[Path], cal: str, val: str) -> s
             + f" ({verdict} on held-out data).",
             "",
         ]
+    for caveat in result.get("caveats", []):
+        lines += [f"*Caveat:* {caveat}", ""]
     flags = result.get("calibration_flags") or {}
     if flags:
         lines += ["Calibration values kept at their documentation value:", ""]

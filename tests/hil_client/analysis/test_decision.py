@@ -10,8 +10,9 @@ from types import SimpleNamespace
 import numpy as np
 
 from hil_client.analysis.candidates import Assessment, _air_periods
-from hil_client.analysis.diagnose import _answer, _confidence
+from hil_client.analysis.diagnose import NORMAL_CHARGE_MAX_S, _answer, _confidence, caveats
 from hil_client.analysis.logio import LabLog
+from hil_client.analysis.report import diagnosis_report
 
 
 def _assessment(
@@ -139,3 +140,25 @@ def test_air_after_a_stop_is_read_in_its_runs_and_a_rekindling_bed_ends_one():
     assert runs == [(1100.0, 1490.0), (1900.0, t[-1])]
     no_analyser = _case(t, np.full_like(t, np.nan))
     assert _air_periods(no_analyser, stop, end) == [(stop, end)]
+
+
+def test_an_ignition_delay_as_short_as_a_normal_charge_carries_a_caveat():
+    """A pre-feed within what the eight plants' normal start-ups read (0-259 s of feed) may
+    be the burner's normal ignition charge: the answer says so in words, and the report
+    shows it; a longer one, or another effect, carries none."""
+    short = caveats("ignition_delay", {"delay_s": 150.0})
+    assert len(short) == 1 and "150 s of feed" in short[0]
+    assert caveats("ignition_delay", {"delay_s": NORMAL_CHARGE_MAX_S + 100.0}) == []
+    assert caveats("flue_gas_lag", {"tau_s": 150.0}) == []
+    result = {
+        "effect": "ignition_delay",
+        "confidence": 0.6,
+        "rule": "rule",
+        "caveats": short,
+        "candidates": [],
+        "where": [],
+        "shrinkage": None,
+    }
+    report = diagnosis_report(result, [], "cal.csv", "val.csv")
+    assert "*Caveat:*" in report and "150 s of feed" in report
+    assert "*Caveat:*" not in diagnosis_report(result | {"caveats": []}, [], "c", "v")
