@@ -162,3 +162,26 @@ def test_an_ignition_delay_as_short_as_a_normal_charge_carries_a_caveat():
     report = diagnosis_report(result, [], "cal.csv", "val.csv")
     assert "*Caveat:*" in report and "150 s of feed" in report
     assert "*Caveat:*" not in diagnosis_report(result | {"caveats": []}, [], "c", "v")
+
+
+def test_an_answer_that_may_be_the_plants_normal_start_is_at_most_even_odds():
+    """Every bootstrap draw and twenty starts name an ignition delay of 150 s of feed: as
+    long as a normal start-up's charge, so it is one of two explanations the data cannot
+    tell apart (0.5 at most); the same evidence for a 400-s delay is not held back."""
+
+    def ignition(delay_s: float) -> Assessment:
+        return Assessment(
+            "ignition_delay",
+            "fuel_cum_kg",
+            "start_up",
+            {"delay_s": delay_s},
+            ["start"] * 20,
+            lambda units: (True, 10.0, "named"),
+            0.05,
+            0.01,
+            delay_s / 40.0,
+            20,
+        )
+
+    assert _confidence({"ignition_delay": ignition(150.0)}, "ignition_delay") == 0.5
+    assert _confidence({"ignition_delay": ignition(400.0)}, "ignition_delay") > 0.9
