@@ -30,7 +30,7 @@ from hil_client.analysis.augment import EFFECTS
 from hil_client.analysis.diagnose import _answer
 
 #: Factors on each candidate's floor (1: as the diagnosis has it); the pre-feed's floor
-#: (40 s of feed) is spread wider, since the plants' normal starts read 0-240 s.
+#: (40 s of feed) is spread wider, since the plants' normal starts read 0-259 s.
 FACTORS = {
     "body_heat_diffusion": (0.75, 1.0, 1.25, 1.5, 2.0, 3.0),
     "outlet_sensor_pipe": (0.75, 1.0, 1.25, 1.5, 2.0, 3.0),
