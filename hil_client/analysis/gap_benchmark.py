@@ -367,6 +367,17 @@ def score(cases: list[dict], results: list[dict]) -> dict:
             else None
         ),
         "reliability": reliability(cases, results),
+        # the mean squared gap between the confidence and being right (0: perfect; a
+        # constant 0.5 scores 0.25): how far the confidence means what it says
+        "brier_score": (
+            statistics.fmean(
+                (r["confidence"] - is_right(truth[r["case"]], r)) ** 2
+                for r in results
+                if r["confidence"] is not None
+            )
+            if any(r["confidence"] is not None for r in results)
+            else None
+        ),
         "confusion": confusion,
         "misses": misses,
         "errors": sum(r["found"] == "error" for r in results),
@@ -443,6 +454,10 @@ def _report(scores: dict, cases: list[dict], figure: str) -> str:
         "",
         "## Reliability of the confidence",
         "",
+        "Brier score (the mean squared gap between the confidence and being right; 0 is "
+        "perfect, a constant 0.5 scores 0.25): "
+        + ("-" if scores["brier_score"] is None else f"{scores['brier_score']:.3f}"),
+        "",
         "| confidence | answers | right | share right |",
         "|---|---:|---:|---:|",
     ]
@@ -486,7 +501,11 @@ def _print_scores(scores: dict, n: int, wall: float) -> None:
     )
     med = scores["median_validation_shrink_pct"]
     print(f"median held-out shrinkage of right answers: {'-' if med is None else f'{med:.0f} %'}")
-    print("confidence reliability (bin: right / answers):")
+    brier = scores["brier_score"]
+    print(
+        "confidence reliability (bin: right / answers; Brier score "
+        f"{'-' if brier is None else f'{brier:.3f}'}):"
+    )
     for row in scores["reliability"]:
         share = "-" if row["share_right"] is None else f"{row['share_right']:.0%}"
         print(

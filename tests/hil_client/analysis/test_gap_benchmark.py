@@ -64,6 +64,8 @@ def test_an_effect_named_without_held_out_shrinkage_is_not_a_success():
     scores = score(cases, [unconfirmed | base, right_none | base | {"shrink_pct": None}])
     assert scores["accuracy"] == 0.5 and scores["not_confirmed"] == 1
     assert scores["negative_shrinks_on_right_effect"] == 1
+    # 0.9 on a miss and 0.9 on a right answer: (0.81 + 0.01) / 2
+    assert scores["brier_score"] == pytest.approx(0.41)
 
 
 def test_each_miss_says_which_of_the_diagnosis_tests_stopped_the_true_effect():
