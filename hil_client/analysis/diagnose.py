@@ -191,8 +191,8 @@ def _confidence(assessments: dict[str, Assessment], answer: str) -> float:
     an effect read event by event at most :func:`carried_to_next_event` of its events
     (one stop: 0.67, three: 0.8), and at most 0.5 where a caveat says it may be the plant's
     normal behaviour (:func:`caveats`: two explanations the data cannot tell apart, the
-    uniform prior's even odds; over the six held-out plants' seed-0 runs 24 of 88 such ignition
-    answers were right); for ``none`` discounted by the closest miss (a candidate
+    uniform prior's even odds; over the six held-out plants' seed-0 runs 24 of 88 such
+    ignition answers were right); for ``none`` discounted by the closest miss (a candidate
     that shows most of the mark its effect needs and most of the held-out evidence makes
     "nothing listed" a close call, however stable the verdict is under resampling), at
     most 1 / (1 + k) with k candidates the log could not test, and at most what
