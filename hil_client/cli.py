@@ -199,7 +199,8 @@ def _build_parser() -> argparse.ArgumentParser:
         description="Generate cases (one effect or none, strengths from barely detectable "
         "to strong, both boilers, both log pairs), write the stationary test and the load "
         "cycle with the chosen reality, keep the truth sealed, diagnose blind and score. "
-        "Writes scores.json (with the confidence's reliability table).",
+        "Writes scores.json (with the confidence's reliability table and Brier score, and why "
+        "each miss missed).",
     )
     gap.add_argument("--cases", type=int, default=48, help="number of cases [48]")
     gap.add_argument(
@@ -278,6 +279,8 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         )
     elif s:
         print(f"where it acts: {s['signal']} ({s['phase']}); not measurable on the validation log")
+    for caveat in result.content.get("caveats", []):
+        print(f"caveat: {caveat}")
     print(f"written: {args.out / 'diagnosis.json'}, {args.out / 'report.md'}")
     return 0
 

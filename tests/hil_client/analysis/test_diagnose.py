@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 import yaml
 
+from hil_client.analysis.diagnose import NORMAL_CHARGE_MAX_S
 from hil_client.analysis.gap_benchmark import ANSWERS, run_benchmark
 from hil_client.cli import main
 from hil_client.protocol.definition import DEFINITION_DIR
@@ -89,6 +90,35 @@ def test_the_floor_study_re_decides_every_case_as_the_diagnosis_did(small_benchm
     assert "re-decided as diagnosed: 6 of 6" in capsys.readouterr().out
     assert gap_floors.main([str(out / "cases")]) == 2
     assert capsys.readouterr().err.count("\n") == 1
+
+
+def test_an_ignition_delay_as_short_as_a_normal_charge_is_caveated(small_benchmark, capsys):
+    """On every case: caveats exactly where the answer is an ignition delay within a normal
+    start-up's charge, and then a confidence of at most 0.5; the command line prints them."""
+    out, _ = small_benchmark
+    caveated = []
+    for case in sorted((out / "cases").iterdir()):
+        diagnosis = json.loads((case / "diagnosis" / "diagnosis.json").read_text())
+        ignition = next(c for c in diagnosis["candidates"] if c["effect"] == "ignition_delay")
+        expected = (
+            diagnosis["effect"] == "ignition_delay"
+            and ignition["params"]["delay_s"] <= NORMAL_CHARGE_MAX_S
+        )
+        assert bool(diagnosis["caveats"]) == expected
+        if expected:
+            assert diagnosis["confidence"] <= 0.5
+            caveated.append(case)
+    # the emulator's ignition delays (45-180 s) all lie within a normal charge
+    assert caveated, "the small benchmark's ignition case was not answered as one"
+    case = caveated[0]
+    truth = {c["case"]: c for c in json.loads((out / "sealed" / "truth.json").read_text())}
+    cal, val = truth[int(case.name.split("_")[1])]["pair"]
+    capsys.readouterr()
+    assert (
+        _diagnose(case / f"{cal}.csv", case / f"{val}.csv", case / "boiler.yaml", case / "again")
+        == 0
+    )
+    assert "caveat: The fuel fed before the flame" in capsys.readouterr().out
 
 
 def test_diagnosis_works_on_a_real_labs_csv(small_benchmark, tmp_path):
