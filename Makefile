@@ -52,6 +52,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/reality2_gap.py --cases 20 --plant reality6
 	$(BIN)/python bench/reality2_gap.py --cases 20 --plant reality7
 	$(BIN)/python bench/reality2_gap.py --cases 20 --plant reality8
+	$(BIN)/python bench/reality2_gap.py --cases 20 --plant reality9
 	$(BIN)/python bench/bench_transports.py
 
 lint: $(STAMP)

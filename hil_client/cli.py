@@ -218,7 +218,7 @@ def _build_parser() -> argparse.ArgumentParser:
         action="append",
         metavar="NAME",
         help="only this independent plant: reality, reality2, or the held-out reality3 to "
-        "reality8 (repeatable) [reality and reality2]",
+        "reality9 (repeatable) [reality and reality2]",
     )
     return parser
 
