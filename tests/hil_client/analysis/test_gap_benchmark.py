@@ -9,20 +9,27 @@ import textwrap
 from collections import Counter
 from pathlib import Path
 
+import numpy as np
 import pytest
+import yaml
 
 from hil_client.analysis.gap_benchmark import (
     BOILERS,
+    DROPPED_COLUMNS,
     EFFECTS,
     HELD_OUT_PLANTS,
     INDEPENDENT_PLANTS,
     PAIRS,
+    _write_csv_without,
     is_right,
     make_cases,
     miss_reason,
     score,
 )
+from hil_client.analysis.logio import REQUIRED, read_log
+from hil_client.analysis.phases import find_phases
 from hil_client.cli import main
+from rig_emulator.boilers import BOILER_DIR
 
 
 @pytest.mark.parametrize(
@@ -142,6 +149,29 @@ def test_every_plant_builds_its_effects_in_forms_of_its_own():
             for form in forms:
                 assert form not in seen, f"{form} of {name} is {seen.get(form)}'s too"
                 seen[form] = name
+
+
+@pytest.mark.parametrize("plant", [*INDEPENDENT_PLANTS, *HELD_OUT_PLANTS])
+def test_the_projects_reader_reads_every_plants_log_as_the_benchmark_writes_it(plant, tmp_path):
+    """Each plant's load cycle, written as the benchmark writes it (phase columns dropped,
+    10-s jittered sampling), is read by the project's own reader with every required
+    column unchanged (NaN gaps included), and its phases are found from the signals."""
+    module = importlib.import_module(plant)
+    boiler = yaml.safe_load((BOILER_DIR / "windhager_12kw.yaml").read_text())
+    background = module.draw_background(np.random.default_rng(5), boiler)
+    columns, _ = module.simulate_log(
+        boiler, "load_cycle", background=background, effect=None, form=None,
+        strength=0.0, seed=5, sample_s=10.0, jitter=True,
+    )  # fmt: skip
+    path = tmp_path / "load_cycle.csv"
+    _write_csv_without(columns, path, module.write_log_csv)
+    read = read_log(path)
+    assert not any(read.has(name) for name in DROPPED_COLUMNS)
+    for name in REQUIRED:
+        # half a unit of the 6th significant digit, the coarsest any plant writes (%.6g)
+        np.testing.assert_allclose(read[name], columns[name], rtol=5e-6, atol=1e-6)
+    phases = find_phases(read)
+    assert read.t[0] < phases.t0 < phases.t1 < phases.t2 < phases.t3 <= read.t[-1]
 
 
 @pytest.mark.parametrize("plant", HELD_OUT_PLANTS)

@@ -8,7 +8,6 @@ import re
 import numpy as np
 import pytest
 
-from hil_client.analysis.logio import REQUIRED, read_log
 from hil_client.protocol.runner import LOG_COLUMNS
 from hil_client.reality6 import EFFECT_FORMS, draw_background, simulate_log, write_log_csv
 
@@ -130,15 +129,3 @@ def test_jitter_and_sampling(tmp_path):
     i_o2 = rows[0].index("flue_gas_O2_pct")
     n_empty = sum(1 for r in rows[1:] if r[i_o2] == "")
     assert n_empty == int(np.isnan(cols["flue_gas_O2_pct"]).sum()) > 0
-
-
-def test_the_projects_reader_reads_the_plants_csv(tmp_path):
-    """The lab log as the benchmark writes it (phase columns dropped) is read by the
-    project's own reader, every required column present and the values unchanged."""
-    cols, _ = log("windhager_12kw", "load_cycle", sample_s=10.0, jitter=True)
-    kept = {k: v for k, v in cols.items() if k not in ("phase", "sequence")}
-    path = tmp_path / "log.csv"
-    write_log_csv(kept, path)
-    read = read_log(path)
-    for name in REQUIRED:
-        np.testing.assert_allclose(read[name], kept[name], rtol=1e-6, atol=1e-6)

@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hil_client.analysis.logio import REQUIRED, read_log
 from hil_client.protocol.runner import LOG_COLUMNS
 from hil_client.reality7 import EFFECT_FORMS, draw_background, simulate_log, write_log_csv
 
@@ -159,21 +158,3 @@ def test_write_log_csv_roundtrip(log12: tuple[dict, dict], tmp_path: Path) -> No
         else:
             assert float(cell) == pytest.approx(v, abs=1e-9)
     assert rows[1][1] == "preheat"
-
-
-def test_the_projects_reader_reads_the_plants_csv(
-    boiler12: dict, background12: dict, tmp_path: Path
-) -> None:
-    """The lab log as the benchmark writes it (phase columns dropped, 10-s jittered
-    sampling) is read by the project's own reader, every required column present and the
-    values unchanged (NaN gaps included)."""
-    cols, _ = simulate_log(
-        boiler12, "load_cycle", background=background12, effect=None, form=None,
-        strength=0.0, seed=5, sample_s=10.0, jitter=True,
-    )  # fmt: skip
-    kept = {k: v for k, v in cols.items() if k not in ("phase", "sequence")}
-    path = tmp_path / "log.csv"
-    write_log_csv(kept, path)
-    read = read_log(path)
-    for name in REQUIRED:
-        np.testing.assert_allclose(read[name], kept[name], rtol=1e-6, atol=1e-6)

@@ -9,7 +9,6 @@ import time
 import numpy as np
 import pytest
 
-from hil_client.analysis.logio import REQUIRED, read_log
 from hil_client.protocol.runner import LOG_COLUMNS
 from hil_client.reality8 import COLUMNS, draw_background, simulate_log, write_log_csv
 
@@ -134,16 +133,3 @@ def test_one_log_is_fast() -> None:
     _log(test="load_cycle", case=9, seed=9)
     # brief: well under 2 s per log after compilation (typically ~0.2 s)
     assert time.perf_counter() - t < 2.0
-
-
-def test_the_projects_reader_reads_the_plants_csv(tmp_path) -> None:
-    """The lab log as the benchmark writes it (phase columns dropped, 10-s jittered
-    sampling) is read by the project's own reader, every required column present and the
-    values unchanged (NaN gaps included)."""
-    cols, _ = _log(sample_s=10.0, jitter=True)
-    kept = {k: v for k, v in cols.items() if k not in ("phase", "sequence")}
-    path = tmp_path / "log.csv"
-    write_log_csv(kept, path)
-    read = read_log(path)
-    for name in REQUIRED:
-        np.testing.assert_allclose(read[name], kept[name], rtol=1e-6, atol=1e-6)
