@@ -279,7 +279,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         )
     elif s:
         print(f"where it acts: {s['signal']} ({s['phase']}); not measurable on the validation log")
-    for caveat in result.content.get("caveats", []):
+    for caveat in result.caveats:
         print(f"caveat: {caveat}")
     print(f"written: {args.out / 'diagnosis.json'}, {args.out / 'report.md'}")
     return 0
