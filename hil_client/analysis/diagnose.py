@@ -48,7 +48,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from hil_client.analysis.calibrate import calibrate
-from hil_client.analysis.candidates import CANDIDATES, Z_MIN, Assessment
+from hil_client.analysis.candidates import CANDIDATES
+from hil_client.analysis.candidates.base import Z_MIN, Assessment
 from hil_client.analysis.logio import LabLog
 from hil_client.analysis.metrics import autocorrelation, lag_at_peak, table4_metrics, theil_shares
 from hil_client.analysis.phases import Phases

@@ -1,5 +1,5 @@
 """How the diagnosis decides between candidates and how sure it says it is
-(hil_client.analysis.diagnose._answer, _confidence; candidates._air_periods): the rules on
+(hil_client.analysis.diagnose._answer, _confidence; candidates.windows.air_periods): the rules on
 small, hand-made inputs whose right answer is known by construction."""
 
 from __future__ import annotations
@@ -9,7 +9,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from hil_client.analysis.candidates import Assessment, _air_periods
+from hil_client.analysis.candidates.base import Assessment
+from hil_client.analysis.candidates.windows import air_periods
 from hil_client.analysis.diagnose import NORMAL_CHARGE_MAX_S, _answer, _confidence, caveats
 from hil_client.analysis.logio import LabLog
 from hil_client.analysis.report import diagnosis_report
@@ -136,10 +137,10 @@ def test_air_after_a_stop_is_read_in_its_runs_and_a_rekindling_bed_ends_one():
     o2[t < 1100.0] = 8.0
     o2[(t >= 1500.0) & (t < 1900.0)] = 0.5
     stop, end = int(np.searchsorted(t, 1000.0)), len(t)
-    runs = [(t[a], t[b - 1]) for a, b in _air_periods(_case(t, o2), stop, end)]
+    runs = [(t[a], t[b - 1]) for a, b in air_periods(_case(t, o2), stop, end)]
     assert runs == [(1100.0, 1490.0), (1900.0, t[-1])]
     no_analyser = _case(t, np.full_like(t, np.nan))
-    assert _air_periods(no_analyser, stop, end) == [(stop, end)]
+    assert air_periods(no_analyser, stop, end) == [(stop, end)]
 
 
 def test_an_ignition_delay_as_short_as_a_normal_charge_carries_a_caveat():
