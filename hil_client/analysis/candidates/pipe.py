@@ -15,20 +15,25 @@ from hil_client.analysis.replay import SENSOR_TAU_S, Case
 from rig_emulator.model.water_heat import heat_to_water_kW
 
 
+def _pipe_water(case: Case, water: np.ndarray, theta: dict[str, float]) -> np.ndarray:
+    """The water at the forward sensor, fed by ``water`` through the pipe of ``theta``."""
+    return pipe_sensor(
+        water,
+        case.flow,
+        case.room,
+        case.dt,
+        theta["pipe_kg"],
+        theta["tau_loss_s"],
+        theta["tau_coupling_s"],
+    )
+
+
 def _pipe_predict(case: Case, theta: dict[str, float] | None) -> np.ndarray:
     water = case.lab["boiler_water_temp_C"]
-    if theta is not None:
-        water = pipe_sensor(
-            water,
-            case.flow,
-            case.room,
-            case.dt,
-            theta["pipe_kg"],
-            theta["tau_loss_s"],
-            theta["tau_coupling_s"],
-        )
-        return first_order_lag(water, case.dt, SENSOR_TAU_S["water_out_temp_C"])
-    return water
+    if theta is None:
+        return water
+    pipe = _pipe_water(case, water, theta)
+    return first_order_lag(pipe, case.dt, SENSOR_TAU_S["water_out_temp_C"])
 
 
 class PipeCandidate(CurveCandidate):
@@ -55,15 +60,7 @@ class PipeCandidate(CurveCandidate):
         return r
 
     def prediction(self, case: Case, theta: dict[str, float]) -> dict[str, np.ndarray]:
-        pipe = pipe_sensor(
-            case.model["t_boiler_C"],
-            case.flow,
-            case.room,
-            case.dt,
-            theta["pipe_kg"],
-            theta["tau_loss_s"],
-            theta["tau_coupling_s"],
-        )
+        pipe = _pipe_water(case, case.model["t_boiler_C"], theta)
         return {
             "water_out_temp_C": first_order_lag(pipe, case.dt, SENSOR_TAU_S["water_out_temp_C"]),
             "heat_to_water_kW": heat_to_water_kW(case.flow, case.t_in, pipe),
