@@ -183,6 +183,13 @@ def _build_parser() -> argparse.ArgumentParser:
     dia.add_argument("--validation", required=True, type=Path, help="VAL.csv (held out)")
     dia.add_argument("--boiler", required=True, help="documentation values: NAME or PATH")
     dia.add_argument("--out", required=True, type=Path, help="output directory")
+    dia.add_argument(
+        "--ignition-charge-kg",
+        type=finite_float(0.0, 10.0, "kg"),
+        default=0.0,
+        help="fuel the burner's start-up program feeds before the flame by design, as "
+        "received (its manual): only feed beyond it is read as an ignition delay [0]",
+    )
     frep = sub.add_parser(
         "fault-report",
         help="compare what a run saw with the server's fault journal",
@@ -263,7 +270,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     cal, val = _logs_with_phases([args.calibration, args.validation])
     _check_out_dir(args.out)
     with bad_input(LogError):
-        result = diagnose(*cal, *val, doc)
+        result = diagnose(*cal, *val, doc, args.ignition_charge_kg)
     write_diagnosis(result, args.out, str(args.calibration), str(args.validation))
     print(f"effect: {result.effect} (confidence {result.confidence:.2f})")
     if result.unexplained_gap:

@@ -28,7 +28,8 @@ section 4). The diagnosis is built to name an effect *through* that background g
    separate events (stops, starts, standstills, the closure's loads) gets at most
    (n + 1) / (n + 2) (one stop cannot show that it was typical), and one that may be the
    plant's normal behaviour (an ignition delay as short as a normal start-up's charge,
-   :func:`caveats`) at most 0.5. A ``none`` is discounted
+   where the burner's documented charge was not given: :func:`caveats`) at most 0.5. A
+   ``none`` is discounted
    by how close the closest candidate came to being named (its mark and its evidence), and
    is at most 1 / (1 + k) where the log gives k candidates no evidence at all (absence of
    evidence is not evidence of absence), and at most (n + 1) / (n + 2) where the least
@@ -139,17 +140,20 @@ NORMAL_CHARGE_MAX_S = 260.0
 def caveats(effect: str, params: dict[str, float]) -> list[str]:
     """What the answer cannot tell apart, in words for the report: an ignition delay no
     longer than a normal start-up's charge may be the burner's normal ignition sequence
-    rather than a fault or a change (the diagnosis has no reference for what this burner
-    does normally)."""
+    rather than a fault or a change, unless the burner's documented charge was given
+    (``charge_kg``; without it the diagnosis has no reference for what this burner does
+    normally)."""
     delay = params.get("delay_s", math.nan)
-    if effect == "ignition_delay" and delay <= NORMAL_CHARGE_MAX_S:
+    documented = params.get("charge_kg", 0.0) > 0.0
+    if effect == "ignition_delay" and delay <= NORMAL_CHARGE_MAX_S and not documented:
         return [
             f"The fuel fed before the flame ({delay:.0f} s of feed per start) is within what "
             f"burners' normal start-ups drop as an ignition charge (up to "
             f"{NORMAL_CHARGE_MAX_S:.0f} s on the eight independently written plants this "
             "diagnosis was tested on): Type 869 lacks it either way, but compare it with "
-            "this burner's start-up program before reading it as a fault (its confidence is "
-            "held at even odds at most)."
+            "this burner's start-up program before reading it as a fault, or give the "
+            "charge its manual documents (hil-client diagnose --ignition-charge-kg), and "
+            "only the feed beyond it is read (its confidence is held at even odds at most)."
         ]
     return []
 
@@ -275,15 +279,22 @@ class Diagnosis:
 
 
 def diagnose(
-    cal_log: LabLog, cal_phases: Phases, val_log: LabLog, val_phases: Phases, doc: BoilerParams
+    cal_log: LabLog,
+    cal_phases: Phases,
+    val_log: LabLog,
+    val_phases: Phases,
+    doc: BoilerParams,
+    ignition_charge_kg: float = 0.0,
 ) -> Diagnosis:
-    """The whole diagnosis (see the module docstring)."""
+    """The whole diagnosis (see the module docstring); ``ignition_charge_kg``: the fuel the
+    burner's start-up program feeds before the flame by design, as received (its manual;
+    0: not documented), which is not read as an ignition delay."""
     calibration = calibrate([(cal_log, cal_phases)], doc)
     # Pstart from the start-up fuel rate presumes the nominal calorific value, the very thing
     # a fuel-energy bias changes: the diagnosis keeps the documented start-up power
     params = replace(calibration.params, p_start_kW=doc.p_start_kW)
-    cal = prepare(cal_log, cal_phases, params)
-    val = prepare(val_log, val_phases, params)
+    cal = prepare(cal_log, cal_phases, params, ignition_charge_kg)
+    val = prepare(val_log, val_phases, params, ignition_charge_kg)
     assessments = {effect: cand.assess(cal) for effect, cand in CANDIDATES.items()}
     verdicts = {effect: a.verdict() for effect, a in assessments.items()}
     effect = _answer(verdicts, assessments)
@@ -346,6 +357,7 @@ def diagnose(
         "candidates": candidates,
         "shrinkage": shrinkage,
         "caveats": caveats(effect, assessments[effect].params) if effect != "none" else [],
+        "ignition_charge_kg": ignition_charge_kg,
         "firing": {"calibration": cal.firing.source, "validation": val.firing.source},
         "calibrated": {key: f.value for key, f in calibration.fitted.items()},
         "calibration_flags": dict(getattr(calibration, "flags", {})),

@@ -63,6 +63,9 @@ class Case:
     model: dict[str, np.ndarray]  # replay outputs by name (model.layout.OUTPUT_FIELDS)
     balance: np.ndarray  # the balance's reading without refills, gaps kept [kg]
     settled: np.ndarray  # test-phase rows far from any start or stop, with flow
+    #: fuel the burner's start-up program feeds before the flame by design, as received
+    #: (its manual) [kg]: not an ignition delay (0: not documented)
+    ignition_charge_kg: float = 0.0
     _lag_cache: dict = field(default_factory=dict)
     _memo: dict = field(default_factory=dict)
 
@@ -138,8 +141,11 @@ def _step_lengths(t: np.ndarray) -> np.ndarray:
     return np.concatenate(([float(np.median(steps))], steps))
 
 
-def prepare(log: LabLog, phases: Phases, params: BoilerParams) -> Case:
-    """Fill gaps, observe the firing, and replay the log through the model."""
+def prepare(
+    log: LabLog, phases: Phases, params: BoilerParams, ignition_charge_kg: float = 0.0
+) -> Case:
+    """Fill gaps, observe the firing, and replay the log through the model
+    (``ignition_charge_kg``: :attr:`Case.ignition_charge_kg`)."""
     t = log.t
     dt = _step_lengths(t)
     flow = np.clip(np.nan_to_num(fill_gaps(log["water_flow_kg_h"], t)), 0.0, None)
@@ -169,4 +175,19 @@ def prepare(log: LabLog, phases: Phases, params: BoilerParams) -> Case:
         settled &= flow > 0.3 * float(np.median(flow[test]))
     if settled.sum() < 60:
         settled = test if test.sum() >= 60 else np.ones(len(t), bool)
-    return Case(log, phases, params, t, dt, flow, t_in, room, firing, lab, model, balance, settled)
+    return Case(
+        log,
+        phases,
+        params,
+        t,
+        dt,
+        flow,
+        t_in,
+        room,
+        firing,
+        lab,
+        model,
+        balance,
+        settled,
+        ignition_charge_kg,
+    )

@@ -101,6 +101,13 @@ def diagnosis_report(result: dict, figures: list[Path], cal: str, val: str) -> s
         ]
     for caveat in result.get("caveats", []):
         lines += [f"*Caveat:* {caveat}", ""]
+    if result.get("ignition_charge_kg"):
+        lines += [
+            f"The burner's documented ignition charge, {result['ignition_charge_kg']:g} kg as "
+            "received, is fed before the flame by design: only feed beyond it is read as an "
+            "ignition delay.",
+            "",
+        ]
     flags = result.get("calibration_flags") or {}
     if flags:
         lines += ["Calibration values kept at their documentation value:", ""]

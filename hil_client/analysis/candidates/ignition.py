@@ -98,7 +98,9 @@ def _pre_feed(case: Case) -> list[tuple[float, float, float]]:
     hardly moves does not reduce: they all round the same way; only starts at different
     masses average it out. The rate is the documented start-up power's (Pstart at the
     nominal calorific value), so the evidence reads as seconds of feed whatever the
-    plant's own start-up does after the onset.
+    plant's own start-up does after the onset. A charge the burner's start-up program feeds
+    before the flame by design (:attr:`Case.ignition_charge_kg`, from its manual) is taken
+    off the pre-feed: only fuel beyond it waits for a bed that is late to light.
 
     Where the flue gas counts the flame's fuel, the fuel still in the bed
     :data:`HOLDUP_AT_S` after the onset (:func:`_holdup`) is read as well, and the start
@@ -130,7 +132,8 @@ def _pre_feed(case: Case) -> list[tuple[float, float, float]]:
         sxx = float(np.sum((x - x.mean()) ** 2))
         u1 = s_res * math.sqrt(1.0 / len(x) + x.mean() ** 2 / sxx) if sxx > 0 else s_res
         u1 = math.hypot(u1, rounding)
-        pre_feed = (m0 - float(intercept), math.hypot(u0, u1), rate_kg_h)
+        lost = m0 - float(intercept) - case.ignition_charge_kg
+        pre_feed = (lost, math.hypot(u0, u1), rate_kg_h)
         held = _holdup(case, i, pre, m0, u0)
         out.append(held if held is not None and held[0] > pre_feed[0] else pre_feed)
     return out
@@ -261,6 +264,14 @@ def _ignition_rmsd(units, delay_s: float) -> tuple[float, float]:
     return float(np.sqrt(np.mean(pre**2))), float(np.sqrt(np.mean(after**2)))
 
 
+def _params(case: Case, delay_s: float) -> dict[str, float]:
+    """The candidate's parameters: the delay, and the documented charge it lies beyond
+    where one was given."""
+    if case.ignition_charge_kg > 0.0:
+        return {"delay_s": delay_s, "charge_kg": case.ignition_charge_kg}
+    return {"delay_s": delay_s}
+
+
 class IgnitionCandidate:
     effect = "ignition_delay"
     signal = "fuel_cum_kg"
@@ -282,7 +293,7 @@ class IgnitionCandidate:
             self.effect,
             self.signal,
             self.locus,
-            {"delay_s": delay},
+            _params(case, delay),
             units,
             _decide_ignition,
             before,
@@ -296,9 +307,11 @@ class IgnitionCandidate:
         return _ignition_rmsd(_pre_feed(case), theta.get("delay_s", 0.0))
 
     def prediction(self, case: Case, theta: dict[str, float]) -> dict[str, np.ndarray]:
-        """The balance loses the pre-feed of every start on top of the model's fuel."""
+        """The balance loses the documented charge and the pre-feed beyond it at every
+        start, on top of the model's fuel."""
         fuel = case.base_prediction()["fuel_cum_kg"].copy()
-        per_start = theta["delay_s"] * _start_feed_rate_kg_h(case) / 3600.0
+        per_start = theta.get("charge_kg", 0.0)
+        per_start += theta["delay_s"] * _start_feed_rate_kg_h(case) / 3600.0
         for i in case.firing.starts:
             fuel[i:] += per_start
         return {"fuel_cum_kg": fuel}

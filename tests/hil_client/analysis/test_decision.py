@@ -146,9 +146,12 @@ def test_air_after_a_stop_is_read_in_its_runs_and_a_rekindling_bed_ends_one():
 def test_an_ignition_delay_as_short_as_a_normal_charge_carries_a_caveat():
     """A pre-feed within what the eight plants' normal start-ups read (0-259 s of feed) may
     be the burner's normal ignition charge: the answer says so in words, and the report
-    shows it; a longer one, or another effect, carries none."""
+    shows it; a longer one, another effect, or one read beyond the burner's documented
+    charge carries none."""
     short = caveats("ignition_delay", {"delay_s": 150.0})
     assert len(short) == 1 and "150 s of feed" in short[0]
+    assert "--ignition-charge-kg" in short[0]
+    assert caveats("ignition_delay", {"delay_s": 150.0, "charge_kg": 0.1}) == []
     assert caveats("ignition_delay", {"delay_s": NORMAL_CHARGE_MAX_S + 100.0}) == []
     assert caveats("flue_gas_lag", {"tau_s": 150.0}) == []
     result = {

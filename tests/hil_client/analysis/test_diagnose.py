@@ -121,6 +121,72 @@ def test_an_ignition_delay_as_short_as_a_normal_charge_is_caveated(small_benchma
     assert "caveat: The fuel fed before the flame" in capsys.readouterr().out
 
 
+def test_a_documented_ignition_charge_is_not_read_as_an_ignition_delay(tmp_path, capsys):
+    """A `none` case of the ninth independent plant (the 6-kW boiler, its benchmark seed
+    307830): its burner drops an ignition charge on the grate and lights it minutes later,
+    a normal start-up Type 869 lacks. Without the charge the diagnosis names an ignition
+    delay and says it may be the burner's normal charge; given the charge the plant's
+    burner documents (its own figure, drawn from the same seed), only the feed beyond it
+    is read, under the floor, and no ignition delay is named."""
+    import numpy as np
+
+    from hil_client.analysis.candidates.ignition import PRE_FEED_MIN_S
+    from hil_client.analysis.gap_benchmark import _independent_logs
+    from hil_client.reality9 import draw_background
+
+    truth = {"plant": "hil_client.reality9", "boiler": "windhager_6kw", "seed": 307830}
+    truth |= {"effect": "none", "form": None, "strength": 0.0}
+    logs = _independent_logs(truth, tmp_path)
+    boiler = yaml.safe_load((tmp_path / "boiler.yaml").read_text())
+    charge_kg = draw_background(np.random.default_rng(truth["seed"]), boiler)["charge_kg"]
+    argv = ["diagnose", "--calibration", str(logs["stationary"]), "--validation"]
+    argv += [str(logs["load_cycle"]), "--boiler", str(tmp_path / "boiler.yaml")]
+
+    assert main([*argv, "--out", str(tmp_path / "plain")]) == 0
+    plain = json.loads((tmp_path / "plain" / "diagnosis.json").read_text())
+    assert plain["effect"] == "ignition_delay" and plain["caveats"]
+    assert "caveat:" in capsys.readouterr().out
+
+    out = tmp_path / "documented"
+    assert main([*argv, "--out", str(out), "--ignition-charge-kg", f"{charge_kg:.4f}"]) == 0
+    documented = json.loads((out / "diagnosis.json").read_text())
+    assert documented["ignition_charge_kg"] == pytest.approx(charge_kg, abs=1e-4)
+    ignition = next(c for c in documented["candidates"] if c["effect"] == "ignition_delay")
+    assert ignition["params"]["delay_s"] < PRE_FEED_MIN_S and not ignition["named"]
+    assert documented["effect"] != "ignition_delay" and not documented["caveats"]
+    assert "documented ignition charge" in (out / "report.md").read_text()
+    assert "caveat:" not in capsys.readouterr().out
+
+
+def test_the_charge_study_rediagnoses_a_benchmark_with_each_burners_charge(tmp_path, capsys):
+    """bench/gap_charge.py on a two-case run of the ninth plant (one `none`, one effect):
+    every case re-diagnosed with its burner's own charge, both scores printed; a directory
+    that is no benchmark of such a plant is one line, exit 2."""
+    path = Path(__file__).parents[3] / "bench" / "gap_charge.py"
+    spec = importlib.util.spec_from_file_location("gap_charge", path)
+    gap_charge = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(gap_charge)
+    out = tmp_path / "gap"
+    run_benchmark(2, seed=5, out=out, workers=2, reality="independent",
+                  plants=["hil_client.reality9"])  # fmt: skip
+    capsys.readouterr()
+    assert gap_charge.main([str(out), "--workers", "1"]) == 0
+    assert "of 2 without the charge" in capsys.readouterr().out
+    assert gap_charge.main([str(tmp_path)]) == 2
+    assert capsys.readouterr().err.count("\n") == 1
+
+
+@pytest.mark.parametrize("value", ["-0.1", "nan", "11", "lots"])
+def test_a_bad_ignition_charge_is_one_line_and_exit_2(value, tmp_path, capsys):
+    code = main(
+        ["diagnose", "--calibration", "a.csv", "--validation", "b.csv", "--boiler",
+         "windhager_6kw", "--out", str(tmp_path / "d"), "--ignition-charge-kg", value]
+    )  # fmt: skip
+    assert code == 2
+    err = capsys.readouterr().err.strip()
+    assert "--ignition-charge-kg" in err and "\n" not in err and "Traceback" not in err
+
+
 def test_diagnosis_works_on_a_real_labs_csv(small_benchmark, tmp_path):
     """No phase, sequence, setpoint or boiler_on columns and no meta file: phases and the
     firing from the signals alone."""

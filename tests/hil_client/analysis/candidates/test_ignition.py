@@ -25,9 +25,11 @@ from hil_client.analysis.logio import LabLog
 from rig_emulator.boilers import load_boiler
 
 
-def _start_case(mass: np.ndarray, t: np.ndarray, starts: list[int]) -> SimpleNamespace:
+def _start_case(
+    mass: np.ndarray, t: np.ndarray, starts: list[int], charge_kg: float = 0.0
+) -> SimpleNamespace:
     """A log of the balance alone around its starts (no flue-gas velocity: the flame's fuel
-    is not counted)."""
+    is not counted); ``charge_kg``: the burner's documented ignition charge."""
     firing = SimpleNamespace(starts=np.array(starts), stops=np.array([], dtype=int))
     return SimpleNamespace(
         t=t,
@@ -36,6 +38,7 @@ def _start_case(mass: np.ndarray, t: np.ndarray, starts: list[int]) -> SimpleNam
         params=load_boiler("windhager_6kw"),
         log=LabLog(Path("x.csv"), {"time_s": t}, {}),
         memo=lambda key, compute: compute(),
+        ignition_charge_kg=charge_kg,
     )
 
 
@@ -55,6 +58,20 @@ def test_one_balance_step_at_one_start_is_not_evidence_of_a_pre_feed():
     fed = np.where(t < t[onset] - 240.0, 286.08, 285.92)  # 0.16 kg, 4 min of Pstart feed
     named, z, why = _decide_ignition(_pre_feed(_start_case(fed, t, [onset])) * 20)
     assert named, why
+
+
+def test_a_documented_ignition_charge_is_taken_off_the_pre_feed():
+    """A burner that drops its documented 0.10-kg charge and then feeds 0.06 kg more before
+    the flame (a bed late to light): given the charge, only the 0.06 kg beyond it is read,
+    as seconds of feed at Pstart; without it, all 0.16 kg is."""
+    t = np.arange(0.0, 3600.0, 1.0)
+    onset = 2400
+    fed = np.where(t < t[onset] - 240.0, 286.08, 285.92)
+    rate_kg_h = _start_feed_rate_kg_h(_start_case(fed, t, [onset]))
+    [(beyond, _, _)] = _pre_feed(_start_case(fed, t, [onset], charge_kg=0.10))
+    [(whole, _, _)] = _pre_feed(_start_case(fed, t, [onset]))
+    assert beyond == pytest.approx(0.06, abs=1e-9) and whole == pytest.approx(0.16, abs=1e-9)
+    assert _delay_s([(beyond, 0.005, rate_kg_h)]) == pytest.approx(0.06 / rate_kg_h * 3600.0)
 
 
 def test_the_pre_feeds_evidence_and_its_floor_are_told_apart():
@@ -122,6 +139,7 @@ def _slow_bed_case(
         log=LabLog(Path("x.csv"), columns, {}),
         lab={"flue_gas_temp_C": np.full(len(t), 110.0)},
         memo=lambda key, compute: compute(),
+        ignition_charge_kg=0.0,
     )
 
 
