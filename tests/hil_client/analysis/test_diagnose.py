@@ -7,13 +7,16 @@ import importlib.util
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
+from hil_client.analysis.candidates.ignition import PRE_FEED_MIN_S
 from hil_client.analysis.diagnose import NORMAL_CHARGE_MAX_S
-from hil_client.analysis.gap_benchmark import ANSWERS, run_benchmark
+from hil_client.analysis.gap_benchmark import ANSWERS, _independent_logs, run_benchmark
 from hil_client.cli import main
 from hil_client.protocol.definition import DEFINITION_DIR
+from hil_client.reality9 import draw_background
 from rig_emulator.boilers import BOILER_DIR
 from rig_emulator.instruments.profile import PROFILE_DIR
 
@@ -128,12 +131,6 @@ def test_a_documented_ignition_charge_is_not_read_as_an_ignition_delay(tmp_path,
     delay and says it may be the burner's normal charge; given the charge the plant's
     burner documents (its own figure, drawn from the same seed), only the feed beyond it
     is read, under the floor, and no ignition delay is named."""
-    import numpy as np
-
-    from hil_client.analysis.candidates.ignition import PRE_FEED_MIN_S
-    from hil_client.analysis.gap_benchmark import _independent_logs
-    from hil_client.reality9 import draw_background
-
     truth = {"plant": "hil_client.reality9", "boiler": "windhager_6kw", "seed": 307830}
     truth |= {"effect": "none", "form": None, "strength": 0.0}
     logs = _independent_logs(truth, tmp_path)
