@@ -339,8 +339,8 @@ def diagnose(
             "confirmed": shrink is not None and shrink > 0.0,
         }
     base_val, base_cal = val.base_prediction(), cal.base_prediction()
-    where_val = where(val, base_val)
-    gap_left = any((w["beyond_floor"] or 0.0) > 1.0 for w in where_val + where(cal, base_cal))
+    where_val, where_cal = where(val, base_val), where(cal, base_cal)
+    gap_left = any((w["beyond_floor"] or 0.0) > 1.0 for w in where_val + where_cal)
     content = {
         "effect": effect,
         "confidence": _confidence(assessments, effect),
@@ -353,7 +353,7 @@ def diagnose(
             "whose fingerprint stands furthest beyond its floor wins"
         ),
         "where": where_val[:12],
-        "where_calibration": where(cal, base_cal)[:12],
+        "where_calibration": where_cal[:12],
         "candidates": candidates,
         "shrinkage": shrinkage,
         "caveats": caveats(effect, assessments[effect].params) if effect != "none" else [],

@@ -430,6 +430,14 @@ def run_benchmark(
     return scores
 
 
+def _miss_lines(misses: dict[str, dict[str, int]]) -> list[str]:
+    """One line per true answer: why its misses missed, with counts."""
+    return [
+        f"{effect}: " + "; ".join(f"{why} {n}" for why, n in sorted(row.items()))
+        for effect, row in misses.items()
+    ]
+
+
 def _report(scores: dict, cases: list[dict], figure: str) -> str:
     """The benchmark as a readable page: figures, reliability table, every case."""
     med = scores["median_validation_shrink_pct"]
@@ -469,10 +477,7 @@ def _report(scores: dict, cases: list[dict], figure: str) -> str:
             f"{r['right']} | {share} |"
         )
     lines += ["", "## Why the misses missed", ""]
-    lines += [
-        f"- {effect}: " + "; ".join(f"{why} {n}" for why, n in sorted(row.items()))
-        for effect, row in scores["misses"].items()
-    ] or ["none missed"]
+    lines += [f"- {line}" for line in _miss_lines(scores["misses"])] or ["none missed"]
     lines += [
         "",
         "## Cases",
@@ -519,8 +524,8 @@ def _print_scores(scores: dict, n: int, wall: float) -> None:
         row = scores["confusion"][t]
         print(f"  {t:<20}" + " ".join(f"{row[a]:>8}" for a in (*ANSWERS, "error")))
     print("why the misses missed (truth: reason count):")
-    for effect, row in scores["misses"].items():
-        print(f"  {effect}: " + "; ".join(f"{why} {n}" for why, n in sorted(row.items())))
+    for line in _miss_lines(scores["misses"]):
+        print(f"  {line}")
     print(
         f"time: diagnosis median {scores['median_diagnosis_s']:.1f} s, max "
         f"{scores['max_diagnosis_s']:.1f} s; {wall:.0f} s for {n} cases; written "

@@ -143,19 +143,6 @@ def test_strength_one_changes_its_signal(b12, bg12, effect, form):
         assert np.max(np.abs(a[:n] - b[:n])) > 0.5 * max(1e-3, np.std(a))
 
 
-def test_effect_forms_vocabulary():
-    assert set(EFFECT_FORMS) == {
-        "body_heat_diffusion",
-        "outlet_sensor_pipe",
-        "ignition_delay",
-        "flue_gas_lag",
-        "fuel_energy_bias",
-    }
-    names = [f for forms in EFFECT_FORMS.values() for f in forms]
-    assert all(len(forms) == 2 for forms in EFFECT_FORMS.values())
-    assert len(set(names)) == 10
-
-
 def _same(a: dict, b: dict) -> bool:
     if list(a) != list(b):
         return False
