@@ -13,6 +13,8 @@
 5. The whole load-cycle test through Modbus in lockstep with ``hil-client run`` (issue 4).
 6. What the restart guard costs on that whole test (issue 12): the rig with its journal and
    its per-step check of epoch, counter and time, against the rig without them.
+7. Fairness: the first answer to a new connection while another client pipelines 200,000
+   reads without waiting for their answers.
 
 Servers and load generators run in separate processes (the machine has 2 cores).
 """
@@ -342,7 +344,54 @@ def bench_restart_guard() -> None:
     )
 
 
+def bench_burst_fairness() -> None:
+    """A client pipelining 200,000 reads without waiting for the answers, and beside it
+    new connections, one request each: how long their first answer takes."""
+    import threading
+
+    from hil_client.demo import rig_emulator_serve
+
+    unit, address, count = PLC_BLOCK
+    request = struct.pack(">HHHB", 1, 0, 6, unit) + _fc4(address, count)
+    n = 200_000
+    with rig_emulator_serve("windhager_12kw", "--lockstep") as (port, _):
+        burst = socket.create_connection(("127.0.0.1", port))
+        answered = [0]
+
+        def drain() -> None:  # takes the burst's answers, slowly at first
+            time.sleep(0.5)
+            reply_bytes = 7 + 2 + 2 * count
+            while answered[0] < n * reply_bytes:
+                data = burst.recv(1 << 16)
+                if not data:
+                    break
+                answered[0] += len(data)
+
+        reader = threading.Thread(target=drain, daemon=True)
+        sender = threading.Thread(target=burst.sendall, args=(request * n,), daemon=True)
+        reader.start()
+        sender.start()
+        time.sleep(0.2)
+        waits = []
+        for _ in range(20):
+            t0 = time.perf_counter()
+            with socket.create_connection(("127.0.0.1", port), timeout=30) as s:
+                s.sendall(request)
+                s.recv(64)
+            waits.append((time.perf_counter() - t0) * 1e3)
+            time.sleep(0.05)
+        sender.join(timeout=120)
+        reader.join(timeout=120)
+        burst.close()
+    print(
+        f"first answer to a new connection while another pipelines {n:,} reads: median "
+        f"{statistics.median(waits):.1f} ms, max {max(waits):.1f} ms over {len(waits)} "
+        f"connections (target max < 50 ms; 64 requests of a connection answered per turn)"
+    )
+
+
 def main() -> int:
+    bench_burst_fairness()
     bench_throughput()
     asyncio.run(_lateness())
     bench_lockstep()

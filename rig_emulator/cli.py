@@ -123,14 +123,16 @@ def _build_parser() -> argparse.ArgumentParser:
         type=finite_float(0.0, 1e7, "s"),
         default=300.0,
         metavar="SECONDS",
-        help="close client connections silent this long (0: never) [300]",
+        help="close client connections silent this long, or stalled in a TLS handshake "
+        "(0: never) [300]",
     )
     serve.add_argument(
         "--max-connections",
         type=int_in(1, 100_000),
         default=100,
         metavar="N",
-        help="client connections open at once; more are closed at once, logged [100]",
+        help="client connections open at once; a new one beyond closes the oldest unused "
+        "one (all busy: the new one), logged [100]",
     )
     certs = sub.add_parser(
         "certs",

@@ -51,6 +51,34 @@ class Datastore(Protocol):
     ) -> int | None: ...
 
 
+class DocumentedBits:
+    """A datastore whose bit tables answer only the bits each unit documents.
+
+    A datastore that keeps bits 16 to a register (pymodbus's) would answer a read of coil 2
+    of a unit whose coils are 0 and 1 with data; the spec's 6.1 and 6.2 ask "Starting
+    Address == OK AND Starting Address + Quantity of Outputs == OK", else 02. ``bits`` maps
+    a unit to the bit addresses it has per read function (1: coils, 2: discrete inputs);
+    units and functions it does not name are passed through, as are writes (checked by
+    the datastore's own rules)."""
+
+    def __init__(self, store: Datastore, bits: Mapping[int, Mapping[int, frozenset[int]]]):
+        self.store = store
+        self.bits = bits
+
+    async def async_getValues(
+        self, device_id: int, func_code: int, address: int, count: int = 1
+    ) -> list | int:
+        documented = self.bits.get(device_id, {}).get(func_code)
+        if documented is not None and not documented.issuperset(range(address, address + count)):
+            return ILLEGAL_DATA_ADDRESS
+        return await self.store.async_getValues(device_id, func_code, address, count)
+
+    async def async_setValues(
+        self, device_id: int, func_code: int, address: int, values: list
+    ) -> int | None:
+        return await self.store.async_setValues(device_id, func_code, address, values)
+
+
 @dataclass(frozen=True)
 class DeviceIdentity:
     """The basic objects of read device identification (spec 6.21, objects 0x00-0x02)."""
@@ -182,8 +210,11 @@ async def _read_write_registers(store: Datastore, unit: int, pdu: bytes, _id) ->
         raise Refused(ILLEGAL_DATA_VALUE)
     _check_range(read_address, read_qty)
     _check_range(write_address, write_qty)
+    # 6.17: the read addresses are checked (02) before the operation, which writes first
+    # and then reads; a request refused for its read must write nothing
+    _values(await store.async_getValues(unit, 23, read_address, read_qty))
     values = list(struct.unpack_from(f">{write_qty}H", pdu, 10))
-    refused = await store.async_setValues(unit, 23, write_address, values)  # write first
+    refused = await store.async_setValues(unit, 23, write_address, values)
     if refused:
         raise Refused(int(refused))
     read = _values(await store.async_getValues(unit, 23, read_address, read_qty))

@@ -4,18 +4,21 @@ pymodbus keeps the datastore (``SimCore`` over one ``SimDevice`` per instrument)
 is here, written from the Modbus specs rather than from pymodbus's server:
 
 - :mod:`rig_emulator.modbus.framing` cuts the byte stream into MBAP frames, however TCP
-  segments it; a header that cannot be trusted closes the connection with one log line;
+  segments it; a frame with a wrong header is discarded, one whose length cannot be
+  trusted (over 254) closes the connection, each with a log line;
 - :meth:`BenchModbusServer.execute` is transport-neutral (TCP, TLS and RTU use it): the
   gates first (:class:`GateDecision`: delay, drop or force an exception), then the unit
   check (0B), then :func:`rig_emulator.modbus.conformance.process`;
 - answers go out in the order the requests came, per connection. A request that never
-  waits is answered at once, without a task (answers to one segment leave in one write);
+  waits is answered at once, without a task (the answers of one turn leave in one write);
   one that waits (a gate's delay, a long lockstep advance) holds the later requests of
   its connection behind it while other connections are served;
 - a connection stops being read while its answers are not taken (the transport's buffer
   is full) or while more than :data:`MAX_QUEUED_BYTES` of its requests wait: TCP flow
-  control, nothing dropped; connections idle for ``idle_timeout_s`` are closed, and at
-  most ``max_connections`` are open (the next ones are closed at once); each logged.
+  control, nothing dropped; a connection answers at most :data:`MAX_ANSWERS_PER_TURN`
+  requests per turn of the event loop; connections idle for ``idle_timeout_s`` are closed,
+  and at most ``max_connections`` are open (a new one closes the oldest unused, as the
+  guide says); each logged.
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ import logging
 import time
 import types
 from collections import deque
-from collections.abc import Callable, Coroutine, Generator, Iterable
+from collections.abc import Callable, Coroutine, Generator, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -36,18 +39,22 @@ from rig_emulator.modbus.conformance import (
     GATEWAY_TARGET_FAILED,
     SERVER_DEVICE_FAILURE,
     DeviceIdentity,
+    DocumentedBits,
     exception_pdu,
     process,
 )
-from rig_emulator.modbus.framing import MbapFrame, frame_bytes, split_frames
+from rig_emulator.modbus.framing import MbapFrame, frame_bytes, frame_ready, split_frames
 
 log = logging.getLogger("rig_emulator.serve")
 _PENDING: set[asyncio.Task] = set()  # strong references to requests that had to wait
 
 MAX_QUEUED_BYTES = 65536  # requests of one connection waiting behind a slow one [bytes]
+#: requests of one connection answered in one turn of the event loop; the rest wait for the
+#: next turn, so a client pipelining thousands does not hold up the others (~1-2 ms)
+MAX_ANSWERS_PER_TURN = 64
 DEFAULT_IDLE_TIMEOUT_S = 300.0
 DEFAULT_MAX_CONNECTIONS = 100
-_REFUSAL_LOG_INTERVAL_S = 10.0  # connection-limit refusals: one line per interval at most
+_LIMIT_LOG_INTERVAL_S = 10.0  # what the connection limit did: one line per interval at most
 
 
 @dataclass(frozen=True)
@@ -111,6 +118,8 @@ class RequestHandler(asyncio.Protocol):
         self._read_paused = False
         self._last_activity = time.monotonic()
         self._idle_timer: asyncio.TimerHandle | None = None
+        self._discarded = 0  # frames discarded for a wrong MBAP header
+        self._yielding = False  # a slice of requests was answered; the rest come next turn
 
     # ------------------------------------------------------------------ connection
     def connection_made(self, transport: Any) -> None:
@@ -118,8 +127,7 @@ class RequestHandler(asyncio.Protocol):
         peer = transport.get_extra_info("peername")
         self.peer = f"{peer[0]}:{peer[1]}" if peer else "?"
         server = self.server
-        if len(server.handlers) >= server.max_connections:
-            server.refuse_connection(self.peer)
+        if len(server.handlers) >= server.max_connections and not server.make_room(self.peer):
             self._closed = True
             transport.close()
             return
@@ -156,6 +164,15 @@ class RequestHandler(asyncio.Protocol):
         log.warning("closing the connection of %s: %s", self.peer, reason)
         self.transport.close()
 
+    def close_quietly(self) -> None:
+        """Close the connection now and free its place (the caller logs why)."""
+        if self._registered:
+            self._registered = False
+            self.server.handlers.discard(self)
+        self._closed = True
+        if self.transport is not None:
+            self.transport.close()
+
     def _arm_idle_timer(self, delay_s: float) -> None:
         if self.server.idle_timeout_s > 0 and hasattr(self.transport, "get_extra_info"):
             loop = asyncio.get_running_loop()
@@ -179,7 +196,8 @@ class RequestHandler(asyncio.Protocol):
         self._update_reading()
 
     def _update_reading(self) -> None:
-        want_pause = self._write_paused or self._queued_bytes > MAX_QUEUED_BYTES
+        waiting_bytes = self._queued_bytes + len(self._buffer)
+        want_pause = self._write_paused or waiting_bytes > MAX_QUEUED_BYTES or self._yielding
         if self._closed or want_pause == self._read_paused:
             return
         self._read_paused = want_pause
@@ -194,19 +212,47 @@ class RequestHandler(asyncio.Protocol):
             return
         self._last_activity = time.monotonic()
         self._buffer += data
-        frames, error = split_frames(self._buffer)
+        self._drain()
+
+    def _parse(self) -> int:
+        """Take up to :data:`MAX_ANSWERS_PER_TURN` frames from the buffer into the queue
+        (a stream of thousands is cut into turns, never parsed in one go); returns how
+        many were discarded for their header."""
+        frames, discarded, error = split_frames(self._buffer, MAX_ANSWERS_PER_TURN)
+        for why in discarded:
+            self._log_discard(why)
         if error is not None:  # answer the frames before the bad header, then close
             self._buffer.clear()
             self._close_after = f"bad MBAP header ({error}); the stream cannot be resynchronised"
         for frame in frames:
             self._queue.append(frame)
             self._queued_bytes += len(frame.pdu) + 7
-        self._drain()
+        return len(discarded)
+
+    def _log_discard(self, why: str) -> None:
+        """One warning for the first frame of a connection discarded for its header, the
+        rest counted at debug level (a stream of them must not flood the log)."""
+        self._discarded += 1
+        level = logging.WARNING if self._discarded == 1 else logging.DEBUG
+        log.log(
+            level,
+            "discarded a frame of %s: bad MBAP header (%s); the frames after it are answered"
+            " (%d discarded on this connection)",
+            self.peer,
+            why,
+            self._discarded,
+        )
+
+    @property
+    def unused_since(self) -> float | None:
+        """When it last sent or was answered (``time.monotonic()``), if no request of it
+        waits and it is open; else None."""
+        return None if self._closed or self.waiting else self._last_activity
 
     @property
     def waiting(self) -> bool:
         """Whether requests of this connection are still to be answered."""
-        return self._busy or bool(self._queue)
+        return self._busy or bool(self._queue) or frame_ready(self._buffer)
 
     def cancel(self) -> None:
         """Abandon the request in progress and the queued ones (the server stops)."""
@@ -222,8 +268,20 @@ class RequestHandler(asyncio.Protocol):
     def _drain(self) -> None:
         """Answer the queued requests in order until one has to wait (then it goes on in a
         task, and this resumes when it is done)."""
+        self._yielding = False
         out: list[bytes] = []
-        while self._queue and not self._busy and not self._closed:
+        answered = 0
+        while not self._busy and not self._closed:
+            if answered >= MAX_ANSWERS_PER_TURN:  # bounded work: let other connections in
+                self._yielding = True
+                asyncio.get_running_loop().call_soon(self._drain)
+                break
+            if not self._queue:
+                if not frame_ready(self._buffer):
+                    break
+                answered += self._parse()  # a discarded frame is work too
+                continue
+            answered += 1
             frame = self._queue.popleft()
             self._queued_bytes -= len(frame.pdu) + 7
             coro = self._answer(frame)
@@ -238,7 +296,7 @@ class RequestHandler(asyncio.Protocol):
             _PENDING.add(self._task)
             self._task.add_done_callback(_PENDING.discard)
         self._send(out)
-        if not self._queue and not self._busy:
+        if not self.waiting and not self._yielding:
             if self._close_after is not None:
                 self.close(self._close_after)
                 return
@@ -283,8 +341,11 @@ class BenchModbusServer:
         address: (host, port) to listen on (port 0: any free one).
         identity: what read device identification (43/14) answers; None: exception 01.
         idle_timeout_s: close connections that sent nothing for this long (0: never).
-        max_connections: connections open at once; the next ones are closed at once.
+        max_connections: connections open at once; a new one beyond closes the oldest
+            unused one (none unused: the new one is closed).
         ssl: an ``ssl.SSLContext`` for Modbus/TCP Security, or None.
+        bits: per unit, the bit addresses it has per read function (1: coils, 2: discrete
+            inputs); a read of others gets 02 (:class:`DocumentedBits`).
     """
 
     def __init__(
@@ -296,8 +357,11 @@ class BenchModbusServer:
         idle_timeout_s: float = DEFAULT_IDLE_TIMEOUT_S,
         max_connections: int = DEFAULT_MAX_CONNECTIONS,
         ssl: Any = None,
+        bits: Mapping[int, Mapping[int, frozenset[int]]] | None = None,
     ) -> None:
         self.context = SimCore(devices)
+        #: what requests read and write: the datastore, its bit tables as documented
+        self.requests_store = DocumentedBits(self.context, bits or {})
         self.units = frozenset(d.id for d in devices if d.id != 0)
         self.address = address
         self.identity = identity
@@ -310,8 +374,8 @@ class BenchModbusServer:
         self.connection_hooks: list[Callable[[RequestHandler], None]] = []
         self.handlers: set[RequestHandler] = set()
         self.transport: asyncio.Server | None = None
-        self._refusals = 0
-        self._refusal_logged_s = -_REFUSAL_LOG_INTERVAL_S
+        self._limit_events = 0
+        self._limit_logged_s = -_LIMIT_LOG_INTERVAL_S
 
     @property
     def connections(self) -> int:
@@ -324,16 +388,30 @@ class BenchModbusServer:
     async def serve_forever(self, *, background: bool = True) -> None:
         """Listen (raises ``RuntimeError`` when it cannot); with ``background=False`` also
         wait until :meth:`shutdown`."""
-        loop = asyncio.get_running_loop()
         host, port = self.address
         try:
-            self.transport = await loop.create_server(
-                self.callback_new_connection, host, port, ssl=self.ssl, reuse_address=True
-            )
+            self.transport = await self.listen(host, port, self.ssl)
         except OSError as exc:
             raise RuntimeError(f"cannot listen on {host}:{port}: {exc}") from exc
         if not background:
             await self.transport.serve_forever()
+
+    async def listen(self, host: str, port: int, ssl_context: Any = None) -> asyncio.Server:
+        """A listener for this server's connections on ``host:port``, TLS with
+        ``ssl_context``. A TLS handshake is bounded by the idle timeout as any silence is
+        (asyncio's own bound, 60 s, otherwise): a client that opens the port and stalls
+        its handshake holds no place for long (a connection counts once it is made)."""
+        tls = {}
+        if ssl_context is not None and self.idle_timeout_s > 0:
+            tls["ssl_handshake_timeout"] = self.idle_timeout_s
+        return await asyncio.get_running_loop().create_server(
+            self.callback_new_connection,
+            host,
+            port,
+            ssl=ssl_context,
+            reuse_address=True,
+            **tls,
+        )
 
     async def shutdown(self) -> None:
         """Stop listening and close every connection."""
@@ -352,19 +430,35 @@ class BenchModbusServer:
             handler.close(reason)
         return len(handlers)
 
-    def refuse_connection(self, peer: str) -> None:
-        """Log a connection refused at the limit: one line per interval, with a count."""
-        self._refusals += 1
+    def make_room(self, peer: str) -> bool:
+        """At the connection limit, close the oldest unused connection for the new one from
+        ``peer``: "If the number of client and server connections is greater than the
+        number of authorized connections the oldest unused connection is closed" (the
+        guide's 4.2.1.2). Unused: no request waiting; oldest: the longest since it last sent
+        or was answered (a client that connected and left without a word, whose end the
+        server has not read yet, goes first). With every connection busy the new one is
+        refused. Either is logged, at most once per interval, with a count."""
+        unused = [h for h in self.handlers if h.unused_since is not None]
+        if not unused:
+            self._log_limit(f"refused the connection of {peer}")
+            return False
+        oldest = min(unused, key=lambda h: h.unused_since or 0.0)
+        self._log_limit(f"closed the oldest unused connection ({oldest.peer}) for {peer}")
+        oldest.close_quietly()
+        return True
+
+    def _log_limit(self, what: str) -> None:
+        """Log what the connection limit did: one line per interval, with a count."""
+        self._limit_events += 1
         now = time.monotonic()
-        if now - self._refusal_logged_s >= _REFUSAL_LOG_INTERVAL_S:
+        if now - self._limit_logged_s >= _LIMIT_LOG_INTERVAL_S:
             log.warning(
-                "refused the connection of %s: %d connections open (--max-connections); "
-                "%d refused so far",
-                peer,
+                "%s: %d connections open (--max-connections); %d so far",
+                what,
                 len(self.handlers),
-                self._refusals,
+                self._limit_events,
             )
-            self._refusal_logged_s = now
+            self._limit_logged_s = now
 
     # ------------------------------------------------------------------ requests
     def decide(self, info: RequestInfo, gates: Iterable[Gate] | None = None) -> GateDecision:
@@ -389,7 +483,7 @@ class BenchModbusServer:
         if info.unit_id not in self.units:
             return exception_pdu(info.function_code, GATEWAY_TARGET_FAILED)
         try:
-            return await process(self.context, info.unit_id, pdu, self.identity)
+            return await process(self.requests_store, info.unit_id, pdu, self.identity)
         except Exception:  # a datastore fault: the spec's 04, and the server goes on
             log.exception("request %s of %s failed", pdu[:8].hex(), info.peer)
             return exception_pdu(info.function_code, SERVER_DEVICE_FAILURE)

@@ -249,6 +249,12 @@ class BenchServer:
             idle_timeout_s=self.idle_timeout_s,
             max_connections=self.max_connections,
             ssl=self.ssl_context,
+            bits={
+                dev.unit_id: {
+                    fc: frozenset(p.address for p in dev.table(_READ_FC[fc])) for fc in (1, 2)
+                }
+                for dev in self.map.devices
+            },
         )
         try:
             await self._server.serve_forever(background=True)

@@ -41,10 +41,7 @@ class Transports:
     ) -> tuple[str, int]:
         """Listen for plain TCP (``context`` None) or TLS connections on ``host:port``
         (0: any free port); the address listened on. OSError when it cannot."""
-        loop = asyncio.get_running_loop()
-        listener = await loop.create_server(
-            self.server.callback_new_connection, host, port, ssl=context, reuse_address=True
-        )
+        listener = await self.server.listen(host, port, context)
         self.listeners.append(listener)
         sock: socket.socket = listener.sockets[0]
         return sock.getsockname()[0], sock.getsockname()[1]

@@ -211,6 +211,53 @@ def test_read_write_registers_writes_before_it_reads(serve):
     assert srv.values()["water_flow_setpoint_kg_h"] == 432.0
 
 
+@pytest.mark.parametrize("read_address", [50, 0xFFFF])
+def test_read_write_registers_with_an_illegal_read_address_writes_nothing(bench, read_address):
+    """6.17's state diagram checks "Read Starting Address == OK AND Read Starting Address +
+    Quantity of Read == OK" (02) before "Read/Write operation" (not found: from memory, in
+    the form of the 6.11 diagram that was found): a valid write beside an unmapped read is
+    refused whole, the write included."""
+    srv, before = bench
+    _, flow = point(srv, "bench_plc", "flow_setpoint")
+    regs = encode(flow, 800.0)
+    pdu = struct.pack(">BHHHHB2H", 23, read_address, 1, flow.address, 2, 4, *regs)
+    _refused(srv, before, PLC, pdu, ILLEGAL_DATA_ADDRESS)
+
+
+def test_read_write_registers_refused_for_its_read_does_not_advance_the_clock(serve):
+    """The same on the simulation control unit: a lockstep advance written beside a read of
+    an unmapped holding register is refused and the simulated time stays where it was."""
+    srv = serve()
+    _, advance = point(srv, "sim_control", "lockstep_advance")
+    regs = encode(advance, 3600.0)
+    pdu = struct.pack(">BHHHHB2H", 23, 0x7000, 1, advance.address, 2, 4, *regs)
+    assert ask(srv.port, SIM, pdu) == bytes([23 | 0x80, ILLEGAL_DATA_ADDRESS])
+    assert srv.server.emulator.sim_time_s == 0.0
+
+
+# --- bits the map documents --------------------------------------------------------------
+# 6.1 Read Coils / 6.2 Read Discrete Inputs state diagrams: "Starting Address == OK AND
+# Starting Address + Quantity of Outputs == OK", else 02 (not found: from memory). The PLC
+# has coils 0-1; the balance (unit 5) has discrete input 0 only. A datastore that keeps
+# bits 16 to a register must not answer the 14 bits nobody mapped.
+@pytest.mark.parametrize(
+    ("unit", "fc", "address", "quantity"),
+    [(PLC, 1, 2, 1), (PLC, 1, 0, 3), (PLC, 1, 8, 1), (PLC, 1, 0, 16), (5, 2, 1, 1), (5, 2, 0, 2)],
+)
+def test_reading_bits_the_map_does_not_have_is_illegal_data_address(
+    bench, unit, fc, address, quantity
+):
+    srv, before = bench
+    _refused(srv, before, unit, read_pdu(fc, address, quantity), ILLEGAL_DATA_ADDRESS)
+
+
+@pytest.mark.parametrize(("unit", "fc", "quantity"), [(PLC, 1, 2), (PLC, 1, 1), (5, 2, 1)])
+def test_reading_the_bits_the_map_has_answers_them(bench, unit, fc, quantity):
+    srv, _ = bench
+    reply = ask(srv.port, unit, read_pdu(fc, 0, quantity))
+    assert reply[:2] == bytes([fc, 1]) and len(reply) == 3, reply.hex()
+
+
 # --- function codes --------------------------------------------------------------------------
 @pytest.mark.parametrize("fc", [7, 8, 11, 12, 17, 20, 21, 22, 24, 0x41, 0x64, 0x7F, 0])
 def test_unsupported_function_is_illegal_function_without_data(bench, fc):

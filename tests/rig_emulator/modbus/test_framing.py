@@ -8,9 +8,11 @@ Identifier and data fields"; "Protocol Identifier - It is used for intra-system
 multiplexing. The MODBUS protocol is identified by the value 0". Its Transaction Identifier
 "is used for transaction pairing" and lets a client have several transactions outstanding,
 which is what pipelining is. The largest ADU, 260 bytes, is 7 header bytes and the 253-byte
-PDU of the Application Protocol Specification 4.1. What a server does on a bad header was
-not found in the guide's text with the search tool: ours closes the connection (see the
-README), since without a trustworthy length the next frame cannot be found.
+PDU of the Application Protocol Specification 4.1. On a bad header its 4.4.2.2 says: "If
+an error is detected on the MBAP, the indication is discarded"; a length over 254 leaves no
+trustworthy way to find the next frame, and the connection is closed (see the README).
+Connection management, its 4.2.1.2: "If the number of client and server connections is
+greater than the number of authorized connections the oldest unused connection is closed."
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ import time
 
 import pytest
 
+from rig_emulator.modbus.handler import GateDecision
 from rig_emulator.registers import decode, encode
 from tests.modbus_helpers import ADVANCE, point
 from tests.rig_emulator.modbus.raw import (
@@ -129,26 +132,57 @@ def test_an_undecodable_frame_does_not_discard_the_frames_after_it(serve):
 
 
 @pytest.mark.parametrize(
-    ("label", "header"),
+    ("label", "bad"),
     [
         ("protocol id 1", struct.pack(">HHHB", 9, 1, 6, PLC) + read_pdu(4, 0, 1)),
         ("protocol id 0xFFFF", struct.pack(">HHHB", 9, 0xFFFF, 6, PLC) + read_pdu(4, 0, 1)),
-        ("length 0", struct.pack(">HHHB", 9, 0, 0, PLC) + read_pdu(4, 0, 1)),
-        ("length 1", struct.pack(">HHHB", 9, 0, 1, PLC) + read_pdu(4, 0, 1)),
-        ("length 255", struct.pack(">HHHB", 9, 0, 255, PLC) + read_pdu(4, 0, 1)),
-        ("length 0xFFFF", struct.pack(">HHHB", 9, 0, 0xFFFF, PLC) + read_pdu(4, 0, 1)),
+        ("protocol id 5, 2-byte PDU", struct.pack(">HHHB", 9, 5, 3, PLC) + bytes([4, 0])),
+        ("length 0", struct.pack(">HHH", 9, 0, 0)),
+        ("length 1", struct.pack(">HHHB", 9, 0, 1, PLC)),
     ],
 )
-def test_a_bad_mbap_header_answers_what_came_before_then_closes_with_a_log_line(
-    serve, caplog, label, header
+def test_a_frame_with_a_wrong_mbap_header_is_discarded_and_the_rest_answered(
+    serve, caplog, label, bad
 ):
-    """Never a silent stall: the requests before the bad header are answered, then the
-    connection is closed (one warning naming the header), and the server serves others."""
+    """The guide's 4.4.2.2: "If an error is detected on the MBAP, the indication is
+    discarded"; "The Protocol Identifier field has to be checked: If it is different from
+    MODBUS protocol type, the indication is simply discarded." Its length still says where
+    the next frame starts: no answer to it, the frames before and after it are answered on
+    the same connection, one warning names it."""
     srv = serve()
     good, counts = _reads(2)
     caplog.set_level(logging.WARNING, logger="rig_emulator.serve")
     with connect(srv.port) as s:
-        s.sendall(good + header + good)
+        s.sendall(good + bad + bad + good)
+        replies = Replies(s).take(4)
+        _check_read_replies(replies[:2], counts)
+        _check_read_replies(replies[2:], counts)
+        s.sendall(bad)  # alone in its segment: decided on its own bytes, nothing waits
+        s.sendall(good)
+        _check_read_replies(Replies(s).take(2), counts)
+    assert sum("discarded a frame" in r.getMessage() for r in caplog.records) == 1, label
+
+
+@pytest.mark.parametrize(
+    ("label", "header"),
+    [
+        ("length 255", struct.pack(">HHHB", 9, 0, 255, PLC) + read_pdu(4, 0, 1)),
+        ("length 0xFFFF", struct.pack(">HHHB", 9, 0, 0xFFFF, PLC) + read_pdu(4, 0, 1)),
+        ("length 0xFFFF, 6 bytes only", struct.pack(">HHH", 9, 0, 0xFFFF)),
+    ],
+)
+def test_a_length_over_254_answers_what_came_before_then_closes_with_a_log_line(
+    serve, caplog, label, header
+):
+    """A frame longer than any Modbus TCP ADU (260 bytes): its length cannot be trusted to
+    find the next frame. Never a silent stall: the requests before it are answered, then
+    the connection is closed (one warning naming the header), and the server serves
+    others. Six bytes of header are enough to decide."""
+    srv = serve()
+    good, counts = _reads(2)
+    caplog.set_level(logging.WARNING, logger="rig_emulator.serve")
+    with connect(srv.port) as s:
+        s.sendall(good + header)
         _check_read_replies(Replies(s).take(2), counts)
         assert closed_by_server(s), label
     assert sum("bad MBAP header" in r.getMessage() for r in caplog.records) == 1
@@ -258,23 +292,62 @@ def test_idle_connections_are_closed_with_a_log_line_and_busy_ones_are_not(serve
     busy.close()
 
 
-def test_connections_over_the_limit_are_closed_and_logged(serve, caplog):
+def test_at_the_limit_a_new_connection_closes_the_oldest_unused_one(serve, caplog):
+    """The guide's 4.2.1.2: "If the number of client and server connections is greater
+    than the number of authorized connections the oldest unused connection is closed." The
+    one that sent or was answered longest ago goes; the others and the new one are served;
+    one log line says so."""
     srv = serve(max_connections=3)
     caplog.set_level(logging.WARNING, logger="rig_emulator.serve")
     good, counts = _reads(1)
     kept = [connect(srv.port) for _ in range(3)]
-    for s in kept:
+    for s in (kept[1], kept[0], kept[2]):  # kept[1] is now the oldest unused
         s.sendall(good)
         _check_read_replies(Replies(s).take(1), counts)
+        time.sleep(0.02)
+    with connect(srv.port) as extra:
+        extra.sendall(good)
+        _check_read_replies(Replies(extra).take(1), counts)
+        assert closed_by_server(kept[1])
+        for s in (kept[0], kept[2]):
+            s.sendall(good)
+            _check_read_replies(Replies(s).take(1), counts)
+    assert sum("closed the oldest unused" in r.getMessage() for r in caplog.records) == 1
+    for s in kept:
+        s.close()
+
+
+def test_at_the_limit_with_every_connection_waiting_the_new_one_is_refused(serve, caplog):
+    """No connection is unused (each has a request waiting behind a 2-s gate): the new one
+    is closed with a log line, and the waiting ones get their answers."""
+    srv = serve(max_connections=2)
+    caplog.set_level(logging.WARNING, logger="rig_emulator.serve")
+
+    async def slow_gate() -> None:
+        srv.server._server.gates[:] = [lambda info: GateDecision(delay_s=2.0)]
+
+    srv.call(slow_gate())
+    good, counts = _reads(1)
+    waiting = [connect(srv.port, timeout=30) for _ in range(2)]
+    for s in waiting:
+        s.sendall(good)
+    time.sleep(0.2)  # both requests are held by the gate
     extra = connect(srv.port)
     assert closed_by_server(extra)
-    assert sum("--max-connections" in r.getMessage() for r in caplog.records) == 1
-    kept[0].close()
-    deadline = time.monotonic() + 10
-    while srv.server._server.connections > 2 and time.monotonic() < deadline:
-        time.sleep(0.01)
-    with connect(srv.port) as s:  # a place is free again
+    assert sum("refused the connection" in r.getMessage() for r in caplog.records) == 1
+    for s in waiting:
+        _check_read_replies(Replies(s).take(1), counts)
+        s.close()
+
+
+def test_connections_left_without_a_word_do_not_lock_out_a_real_client(serve):
+    """A burst of connects that close at once (their ends not yet read when the next comes)
+    filled the limit and refused the client after them; now they are the oldest unused
+    connections and make room."""
+    srv = serve(max_connections=10)
+    good, counts = _reads(1)
+    for _ in range(100):
+        connect(srv.port).close()
+    with connect(srv.port) as s:
         s.sendall(good)
         _check_read_replies(Replies(s).take(1), counts)
-    for s in kept[1:]:
-        s.close()

@@ -16,6 +16,7 @@ from rig_emulator.modbus.roles import DEFAULT_POLICY
 from rig_emulator.modbus.tls import server_context
 from rig_emulator.modbus.transports import Transports
 from rig_emulator.registers import decode, encode
+from tests.rig_emulator.modbus.raw import closed_by_server
 
 ROLES = ("observer", "operator", "engineer", "norole")
 
@@ -169,6 +170,25 @@ def test_certificate_of_another_ca_refused(tls_server, certs, tmp_path):
     (tmp_path / "ca.pem").write_bytes((certs / "ca.pem").read_bytes())
     with pytest.raises((ssl.SSLError, ConnectionError, OSError)):
         _raw_exchange(client_context(tmp_path, "stranger"), tls_server.port)
+
+
+@pytest.mark.parametrize(
+    "hello",
+    [b"", bytes.fromhex("16030102000100 01fc0303")],  # nothing; half a ClientHello
+    ids=["silent", "half-hello"],
+)
+def test_a_stalled_handshake_is_closed_at_the_idle_timeout(serve, certs, hello):
+    """A client that opens the TLS port and stalls its handshake is closed after
+    --idle-timeout (here 1 s), as any silent connection is, not after asyncio's own 60 s;
+    a good client is served meanwhile."""
+    srv = serve(
+        ssl_context=server_context(certs / "server.pem", certs / "server.key", certs / "ca.pem"),
+        idle_timeout_s=1.0,
+    )
+    with socket.create_connection(("127.0.0.1", srv.port), timeout=5) as stalled:
+        stalled.sendall(hello)
+        assert _raw_exchange(client_context(certs, "observer"), srv.port)[7] == 4
+        assert closed_by_server(stalled, timeout=20)  # 60 s without the bound
 
 
 @pytest.mark.filterwarnings("ignore:ssl.TLSVersion.TLSv1:DeprecationWarning")
