@@ -32,7 +32,7 @@ from rig_emulator.cli_support import (
 )
 from rig_emulator.dashboard import Dashboard
 from rig_emulator.emulator import CommandError, Emulator, check_command
-from rig_emulator.faults import FaultError, load_faults
+from rig_emulator.faults import FaultError, check_units, load_faults
 from rig_emulator.instruments import ProfileError, load_profile
 from rig_emulator.modbus import BenchServer
 from rig_emulator.model import pack_constants, steady_state
@@ -248,6 +248,7 @@ def _cmd_serve(args: argparse.Namespace) -> int:
         check_command("speed_factor", args.speed)
     with bad_input(FaultError, prefix="--faults: "):
         faults = load_faults(args.faults) if args.faults is not None else []
+        check_units(faults, {d.unit_id for d in register_map.devices}, f"{args.faults}: faults")
     if args.fault_log is not None:
         try:
             output_file(args.fault_log)

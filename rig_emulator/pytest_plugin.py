@@ -5,7 +5,8 @@ Installed with the package (entry point ``pytest11``), it gives every test suite
 port of 127.0.0.1 in a subprocess and yields a :class:`RigEmulator` with ``host``, ``port``,
 ``advance(seconds)``, ``inject(fault)``, ``clear_faults()`` and ``truth(signal)`` (and
 ``read(signal)``, ``write(signal, value)`` by name for set-up and checks). The server
-stops when the test ends, passed or failed. Options per test::
+stops when the test ends, passed or failed, and on Linux when the pytest process dies
+however it dies (SIGTERM, SIGKILL). Options per test::
 
     @pytest.mark.rig_emulator(boiler="windhager_12kw", profile="lab", seed=1, faults="F.yaml")
     def test_my_logger_survives_a_silent_analyser(rig_emulator):
@@ -38,6 +39,19 @@ import pytest
 DEFAULTS = {"boiler": "windhager_12kw", "profile": "clean", "seed": 0, "faults": None}
 START_TIMEOUT_S = 120.0  # the first start may compile numba's kernels
 _LISTENING = re.compile(r"serving .* on ([^\s:]+):(\d+) ")
+
+
+_PR_SET_PDEATHSIG = 1  # linux/prctl.h
+
+
+def _stop_with_parent() -> None:
+    """In the server's process before it runs (Linux): SIGTERM it when the process that
+    started it dies, however that dies (a CI job cancelled with SIGTERM, pytest killed
+    with -9, a timeout's hard exit), so no server outlives its test run."""
+    import ctypes
+
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
 
 
 class RigEmulatorError(RuntimeError):
@@ -94,8 +108,13 @@ class RigEmulator:
         if faults is not None:
             command += ["--faults", str(faults)]
         self.stderr_lines: list[str] = []
+        self._client = None
         self.process = subprocess.Popen(
-            command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
+            command,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+            preexec_fn=_stop_with_parent if sys.platform == "linux" else None,
         )
         self.host, self.port = self._wait_listening()
         self._drain = threading.Thread(target=self._read_stderr, daemon=True)
@@ -103,7 +122,6 @@ class RigEmulator:
         from rig_emulator.registers import load_map
 
         self.map = load_map()
-        self._client = None
 
     # ------------------------------------------------------------------ lifecycle
     def _wait_listening(self) -> tuple[str, int]:

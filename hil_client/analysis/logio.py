@@ -10,7 +10,10 @@ Rules (each refusal is a :class:`LogError` naming the file, column, row or value
   (in ``time_s`` it is refused);
 - ``phase``/``sequence`` are text; other unknown columns are kept as numbers if they parse;
 - a row of the wrong width is refused, except a last row cut short without a line end (an
-  acquisition killed while writing it): it is left out and named in :attr:`LabLog.notes`.
+  acquisition killed while writing it): it is left out and named in :attr:`LabLog.notes`;
+  so is a last row of the full width without a line end whose last field is shorter than
+  the row before's (a number cut in two: '23' of '231.84000'; a hand-written file without
+  a final line end keeps its last row).
 
 The optional ``NAME.meta.json`` beside the log is read when present.
 """
@@ -144,6 +147,13 @@ def read_log(
             )
         else:
             raise LogError(f"{path}: row {line} has {fields} fields, header has {len(header)}")
+    elif len(raw) >= 2 and _ends_unterminated(path) and not _whole(raw[-1][-1], raw[-2][-1]):
+        notes.append(
+            f"{path}: the last row (line {reader.line_num}) has no line end and its last "
+            f"field '{raw[-1][-1]}' is shorter than the row before's '{raw[-2][-1]}' (the "
+            "acquisition stopped while writing it); ignored"
+        )
+        raw.pop()
     if not raw:
         raise LogError(f"{path}: no data rows")
     columns: dict[str, np.ndarray] = {}
@@ -194,6 +204,18 @@ def read_log(
         if not isinstance(meta, dict):
             raise LogError(f"{meta_file}: expected a JSON object")
     return LabLog(path, columns, text, meta, notes)
+
+
+def _whole(last: str, before: str) -> bool:
+    """Whether the last field of a last row without a line end has the shape of the same
+    field a row earlier: as many decimals, and at most one character shorter (a number cut
+    in two loses digits, '23' of '231.84000'; a count may gain one, 999 to 1000)."""
+    last, before = last.strip(), before.strip()
+
+    def decimals(v: str) -> int:
+        return len(v.split(".", 1)[1]) if "." in v else -1
+
+    return decimals(last) == decimals(before) and len(last) >= len(before) - 1
 
 
 def _ends_unterminated(path: Path) -> bool:

@@ -259,6 +259,7 @@ class ModbusRig:
         self._replayable = self._base_counter == 0 and self._base_time == 0.0
         # log time = server time + offset; the last row's times
         self.log_time_s = 0.0
+        self._stepped = False  # a step has given a row
         self._offset = -status["sim_time_s"]
         self._row_server_time = status["sim_time_s"]
         self._row_wall = time.monotonic()
@@ -465,7 +466,8 @@ class ModbusRig:
     # ------------------------------------------------------------------ breaks and gaps
     def _gap(self, reason: str, action: str, status: dict[str, float]) -> dict[str, Any]:
         gap: dict[str, Any] = {
-            "start_time_s": round(self.log_time_s, 3),  # as the log writes time_s
+            # as the log writes time_s; None before the first row
+            "start_time_s": round(self.log_time_s, 3) if self._stepped else None,
             "end_time_s": None,
             "reason": reason,
             "action": action,
@@ -579,6 +581,7 @@ class ModbusRig:
             except ModbusExceptionResponse as exc:
                 raise RigError(f"{self.url}: {exc}") from None
             self._row_wall = time.monotonic()
+            self._stepped = True
             for event in self._step_events:
                 self.comm_events.append(
                     {"time_s": round(self.log_time_s, 3), "server_time_s": self.sim_time_s} | event

@@ -4,8 +4,12 @@
 control unit), starts each at the first evaluation where the simulated time has reached its
 ``at_s`` and ends it once ``for_s`` has passed since it started. It is evaluated whenever the
 readings are evaluated (:meth:`apply`, called by the emulator each time it publishes): in
-lockstep that is after every advance, so a fault starts exactly at the step where
-``t_sim >= at_s``; in real time at the next tick.
+lockstep that is after every advance, in real time at every tick. A fault scheduled ahead
+keeps its own window in simulated time, ``at_s`` to ``at_s + for_s``, however far one
+evaluation moves the clock: it is seen by the first evaluation inside its window and gone by
+the first after it, and one whose whole window falls between two evaluations (a long
+lockstep advance) is journalled as started and ended, unseen. The journal gives the
+window's own times. A fault set once its ``at_s`` has passed starts when it is set.
 
 - Communication faults are decided per request by :meth:`decide` (unit ID in, delay / drop
   / exception out); a ``disconnect`` calls :attr:`on_disconnect` once.
@@ -129,7 +133,8 @@ class FaultEngine:
         self.now_s = 0.0
         self._initial = [(e, source) for e in entries]
         self._next_id = 1
-        self._pending: list[tuple[FaultSpec, str]] = []
+        #: (fault, source, simulated time it was set): one set before its at_s keeps it
+        self._pending: list[tuple[FaultSpec, str, float]] = []
         self._random: list[_RandomState] = []
         self.active: dict[int, ActiveFault] = {}
         self._by_unit: dict[int, list[ActiveFault]] = {}
@@ -144,7 +149,7 @@ class FaultEngine:
             if isinstance(entry, RandomSpec):
                 self._random.append(_RandomState(entry))
             else:
-                self._pending.append((entry, source))
+                self._pending.append((entry, source, self.now_s))
 
     def add_initial(self, entries: Iterable[Entry], source: str) -> None:
         """Schedule ``entries`` from the start, again after each reset of the plant."""
@@ -198,6 +203,7 @@ class FaultEngine:
         readings by signal) as the active instrument faults say."""
         if t_sim_s < self.now_s - _EPS_S:  # the plant was reset: the schedule starts again
             self.clear("reset")
+            self.now_s = t_sim_s
             self._arm(self._initial)
         self.now_s = t_sim_s
         if self.idle:
@@ -209,36 +215,55 @@ class FaultEngine:
         if readings is not None:
             self._last_instrument = dict(readings)
         instrument = self._last_instrument
-        ended = [
-            f for f in self.active.values() if f.end_s is not None and f.end_s <= t_sim_s + _EPS_S
-        ]
-        due = [(s, src) for s, src in self._pending if s.at_s is None or s.at_s <= t_sim_s + _EPS_S]
+        ended = [f for f in self.active.values() if _over(f, t_sim_s)]
+        due = [p for p in self._pending if p[0].at_s is None or p[0].at_s <= t_sim_s + _EPS_S]
         if due:
             self._pending = [p for p in self._pending if p not in due]
         for state in self._random:
-            due += [(s, "random") for s in state.draw(t_sim_s)]
+            due += [(s, "random", -math.inf) for s in state.draw(t_sim_s)]
         for fault in ended:
             del self.active[fault.id]
-        started = [self._start(spec, src, t_sim_s, instrument) for spec, src in due]
+        started = [
+            self._start(spec, src, _start_s(spec, set_s, t_sim_s), t_sim_s, instrument)
+            for spec, src, set_s in due
+        ]
+        unseen = [f for f in started if f.id in self.active and _over(f, t_sim_s)]
+        for fault in unseen:
+            del self.active[fault.id]
         if ended or started:
             self._rebuild()
         if readings is not None and self._instrument:
             self._transform(readings, t_sim_s)
-        for fault in ended:
-            self._journal("end", fault, t_sim_s, readings, reason="for_s elapsed")
+        # the journal in the order of the windows' own times
+        events: list[tuple[float, str, ActiveFault, dict[str, Any] | None]] = [
+            (_end_s(f, t_sim_s), "end", f, None) for f in ended
+        ]
         for fault in started:
             if fault.spec.kind == "disconnect":
                 continue  # journalled when it happened
-            self._journal("start", fault, t_sim_s, readings)
+            events.append((fault.start_s, "start", fault, _UNSEEN if fault in unseen else None))
+            if fault in unseen:
+                events.append((_end_s(fault, t_sim_s), "end", fault, _UNSEEN))
+        for t_s, event, fault, served in sorted(events, key=lambda e: e[0]):
+            shown = None if served is not None else readings
+            reason = "for_s elapsed" if event == "end" else None
+            self._journal(event, fault, t_s, shown, served, reason)
 
     def _start(
-        self, spec: FaultSpec, source: str, t_sim_s: float, instrument: Mapping[str, float]
+        self,
+        spec: FaultSpec,
+        source: str,
+        start_s: float,
+        t_sim_s: float,
+        instrument: Mapping[str, float],
     ) -> ActiveFault:
+        """Start ``spec`` with its window from ``start_s``; the evaluation is at ``t_sim_s``
+        (a disconnect happens then)."""
         for_s = spec.for_s
         if for_s is None and spec.kind == "spike":
             for_s = SPIKE_FOR_S
         fault = ActiveFault(
-            self._next_id, spec, source, t_sim_s, None if for_s is None else t_sim_s + for_s
+            self._next_id, spec, source, start_s, None if for_s is None else start_s + for_s
         )
         self._next_id += 1
         if spec.kind == "disconnect":
@@ -355,6 +380,25 @@ class FaultEngine:
             "instrument": self._last_instrument.get(signal, math.nan),
             "truth": truth,
         }
+
+
+_UNSEEN = {"seen": False, "why": "its whole window fell between two evaluations"}
+
+
+def _start_s(spec: FaultSpec, set_s: float, t_sim_s: float) -> float:
+    """Where a due fault's window starts: its ``at_s`` if it was set before that, else now."""
+    if spec.at_s is not None and spec.at_s >= set_s - _EPS_S:
+        return min(spec.at_s, t_sim_s)
+    return t_sim_s
+
+
+def _over(fault: ActiveFault, t_sim_s: float) -> bool:
+    return fault.end_s is not None and fault.end_s <= t_sim_s + _EPS_S
+
+
+def _end_s(fault: ActiveFault, t_sim_s: float) -> float:
+    """The simulated time a fault's window ended (its own, not the evaluation's)."""
+    return t_sim_s if fault.end_s is None else min(fault.end_s, t_sim_s)
 
 
 def _combine(faults: list[ActiveFault]) -> CommDecision:

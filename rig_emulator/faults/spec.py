@@ -297,6 +297,24 @@ def faults_from_list(data: Any, source: str = "<faults>", key: str = "faults") -
     return [fault_from_mapping(item, f"{source}: {key}[{i}]") for i, item in enumerate(data)]
 
 
+def check_units(entries: Sequence[Entry], units: frozenset[int] | set[int], where: str) -> None:
+    """Each communication fault names a unit the bench has, or 0 (every unit): a fault on a
+    unit nobody polls would hit nothing, silently (a typo, 99 for 9)."""
+    for i, entry in enumerate(entries):
+        if isinstance(entry, RandomSpec):
+            named = [(f"{where}[{i}].units", u) for u in entry.units]
+        elif entry.is_comm:
+            named = [(f"{where}[{i}].unit", entry.unit)]
+        else:
+            named = []
+        for field_name, unit in named:
+            if unit and unit not in units:
+                known = ", ".join(str(u) for u in sorted(units) if u not in NEVER_FAULTED)
+                raise FaultError(
+                    f"{field_name}: unit {unit} is not on the bench (units {known}, 0: all)"
+                )
+
+
 def load_faults(path: str | Path) -> list[Entry]:
     """The faults of a ``FAULTS.yaml`` file (a mapping with the list ``faults:``)."""
     path = Path(path)

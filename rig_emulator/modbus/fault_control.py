@@ -26,7 +26,7 @@ from typing import Any
 from pymodbus.constants import ExcCodes
 
 from rig_emulator.emulator import Emulator
-from rig_emulator.faults import Entry, FaultEngine, FaultError, FaultJournal
+from rig_emulator.faults import Entry, FaultEngine, FaultError, FaultJournal, check_units
 from rig_emulator.faults.wire import (
     BLOCK_SIGNALS,
     COMMAND_CLEAR,
@@ -81,6 +81,8 @@ class ServerFaults:
         emulator.reading_hook = self.engine.apply
         self.block: dict[str, float] = dict.fromkeys(BLOCK_SIGNALS, 0.0)
         self._invalid = invalid_values(register_map)
+        #: the units a communication fault may name (the bench's; 0: all of them)
+        self.units = frozenset(d.unit_id for d in register_map.devices)
 
     # ------------------------------------------------------------------ wiring
     def attach(self, modbus_server: Any) -> bool:
@@ -141,6 +143,7 @@ class ServerFaults:
     def inject(self, fault: Mapping[str, Any] | Entry, source: str = "python") -> None:
         """Set a fault given as a dict (as in ``FAULTS.yaml``) or a parsed entry."""
         entry = fault if not isinstance(fault, Mapping) else fault_dict_to_spec(fault)
+        check_units([entry], self.units, "fault")
         self.engine.add(entry, source)
 
     def write(self, new: Mapping[str, float]) -> ExcCodes | None:
@@ -150,6 +153,8 @@ class ServerFaults:
         command = int(block["fault_command"])
         try:
             spec = spec_from_block(block) if command == COMMAND_SET else None
+            if spec is not None:
+                check_units([spec], self.units, "fault")
         except FaultError:
             return ExcCodes.ILLEGAL_VALUE
         if command not in (0, COMMAND_SET, COMMAND_CLEAR):

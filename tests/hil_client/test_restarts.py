@@ -204,6 +204,28 @@ def test_another_client_advancing_a_lockstep_server_aborts_by_default(
     assert _meta(out)["gaps"][-1]["action"] == "abort"
 
 
+def test_a_second_run_on_a_busy_server_names_no_row_it_never_wrote(serve, tmp_path, capsys):
+    """Two runs on one lockstep server: the second finds it advanced by the first before
+    it wrote a row. Its gap says so: ``start_time_s`` is the last row before the break,
+    None when there is none (it was 0.0, a row that never existed)."""
+    srv = serve(lockstep=True)
+    first, second = tmp_path / "first.csv", tmp_path / "second.csv"
+    codes: list[int] = []
+    thread = threading.Thread(target=lambda: codes.append(_run(srv.port, first)), daemon=True)
+    thread.start()
+    _wait(lambda: _rows(first) >= 200, "row 200 of the first run")
+    assert _run(srv.port, second) == 1
+    thread.join(timeout=120)
+    capsys.readouterr()
+    gap = _meta(second)["gaps"][-1]
+    assert gap["action"] == "abort"
+    rows = _rows(second)
+    if rows == 0:  # the usual case: the first run advanced it before the second's first step
+        assert gap["start_time_s"] is None
+    else:
+        assert gap["start_time_s"] == read_log(second).t[-1]
+
+
 @pytest.mark.parametrize("on_restart", ["continue", "restart-phase"])
 def test_another_client_advancing_is_a_marked_break(serve, tmp_path, local, on_restart):
     srv = serve(lockstep=True)

@@ -119,3 +119,67 @@ def test_marker_is_registered_once(tmp_path, also_p):
     )
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.count("@pytest.mark.rig_emulator(boiler=") == 1
+
+
+def test_a_server_that_does_not_start_says_why(tmp_path):
+    """An unknown boiler: the fixture's own error with the server's message, not an
+    AttributeError from its clean-up."""
+    from rig_emulator.pytest_plugin import RigEmulator, RigEmulatorError
+
+    with pytest.raises(RigEmulatorError, match=r"did not start.*no_such_boiler"):
+        RigEmulator(boiler="no_such_boiler", workdir=tmp_path)
+
+
+SLOW_SUITE = """
+import time
+
+
+def test_waits(rig_emulator):
+    with open(PORTS_FILE, "w") as fh:
+        fh.write(f"{rig_emulator.port} {rig_emulator.process.pid}\\n")
+    time.sleep(600)
+"""
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="the parent-death signal is Linux's")
+@pytest.mark.parametrize("how", ["SIGTERM", "SIGKILL"])
+def test_the_server_stops_when_pytest_is_killed(tmp_path, how):
+    """A CI job cancelled (SIGTERM to pytest, which Python does not turn into clean-up) or
+    pytest killed outright: the server it started goes too, and frees its port."""
+    import signal
+    import time
+
+    ports = tmp_path / "ports.txt"
+    (tmp_path / "test_slow.py").write_text(f"PORTS_FILE = {str(ports)!r}\n" + SLOW_SUITE)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "test_slow.py"],
+        cwd=tmp_path,
+        env=_env_with_entry_point(tmp_path),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        deadline = time.monotonic() + 180
+        while not (ports.exists() and ports.read_text().endswith("\n")):
+            assert time.monotonic() < deadline and proc.poll() is None, "no server started"
+            time.sleep(0.1)
+        port, pid = (int(x) for x in ports.read_text().split())
+        proc.send_signal(getattr(signal, how))
+        proc.wait(timeout=30)
+        deadline = time.monotonic() + 30
+        while _alive(pid) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not _alive(pid), f"the server (pid {pid}) outlived pytest killed by {how}"
+        with pytest.raises(OSError), socket.create_connection(("127.0.0.1", port), 1):
+            pass
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+
+
+def _alive(pid: int) -> bool:
+    status = Path(f"/proc/{pid}/status")
+    try:
+        return "zombie" not in status.read_text()
+    except OSError:
+        return False

@@ -61,6 +61,35 @@ def test_a_last_row_cut_short_by_a_killed_acquisition_is_left_out_and_named(tmp_
     assert err.count("\n") == 1 and "warning" in err and "cut short" in err
 
 
+@pytest.mark.parametrize(
+    ("last", "kept"),
+    [
+        ("231.84000", True),  # whole, only the final line end missing
+        ("1000.00000", True),
+        ("23", False),  # cut inside the number: 23 of 231.84000
+        ("231.8", False),
+        ("231.8400", False),
+    ],
+)
+def test_a_last_row_without_a_line_end_is_kept_only_when_its_last_field_is_whole(
+    tmp_path, last, kept
+):
+    """The last row has all its fields but no line end: the logger may have been killed
+    inside its last field, whose cut number would be read as a wrong reading (a balance of
+    23 kg instead of 231.84, a fuel power of 167 kW); a field shaped like the one above it
+    is kept, a shorter one is left out and named."""
+    rows = [f"{i},1,1,1,1,1,1,1,231.84{i}00" for i in range(1, 4)]
+    path = _write(tmp_path, HEADER + "\n" + "\n".join(rows) + f"\n4,1,1,1,1,1,1,1,{last}")
+    log = read_log(path)
+    column = HEADER.split(",")[-1]
+    if kept:
+        assert log["time_s"].tolist() == [1.0, 2.0, 3.0, 4.0] and not log.notes
+        assert log[column][-1] == float(last)
+    else:
+        assert log["time_s"].tolist() == [1.0, 2.0, 3.0]
+        assert len(log.notes) == 1 and f"'{last}'" in log.notes[0] and "line 5" in log.notes[0]
+
+
 def test_a_spreadsheets_byte_order_mark_is_not_part_of_the_first_name(tmp_path):
     """A CSV saved by a spreadsheet starts with a UTF-8 byte-order mark: its first column
     is still ``time_s`` (it was once refused as missing)."""

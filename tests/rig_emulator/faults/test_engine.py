@@ -88,7 +88,9 @@ def test_each_kind_acts_on_the_reading_from_its_step(params_12kw):
 
 
 def test_schedule_is_exact_in_simulated_time(tmp_path):
-    """Started at the first evaluation with t >= at_s, ended at the first with t >= end."""
+    """CONTRACT section 5: "each entry starts at at_s (simulated seconds) and lasts for_s".
+    Evaluated every 7 s, a fault is seen by the evaluations inside its window and gone from
+    the first after it; the journal gives the window's own times, in their order."""
     path = tmp_path / "j.jsonl"
     engine = FaultEngine(
         faults_from_list(
@@ -105,17 +107,72 @@ def test_schedule_is_exact_in_simulated_time(tmp_path):
         decisions[float(t)] = (engine.decide(2), engine.decide(5), engine.decide(100))
     assert decisions[21.0] == (None, None, None)
     assert decisions[28.0][0].drop and decisions[28.0][1] is None
-    assert decisions[35.0][0].drop  # started at 28, ends at 38
+    assert not decisions[35.0][0].drop  # 25 to 35: over at 35
+    assert decisions[35.0][0].exception_code == 4  # unit 0's exception from 30 on
     assert decisions[35.0][1].exception_code == 4 and decisions[35.0][2] is None
-    assert not decisions[42.0][0].drop and decisions[42.0][0].exception_code == 4
+    assert decisions[42.0][0].exception_code == 4
     events = read_journal(path)
     assert [(e["event"], e["kind"], e["t_sim_s"]) for e in events] == [
-        ("start", "no_reply", 28.0),
-        ("start", "exception", 35.0),
-        ("end", "no_reply", 42.0),
+        ("start", "no_reply", 25.0),
+        ("start", "exception", 30.0),
+        ("end", "no_reply", 35.0),
     ]
     assert events[1]["served"] == {"exception_code": 4}
-    assert events[2]["requests"] == 2  # decide(2) at 28 and 35
+    assert events[2]["requests"] == 1  # decide(2) at 28
+
+
+def test_a_window_inside_one_long_advance_is_over_after_it(tmp_path):
+    """One evaluation 880 s after the last (a lockstep advance of 880 s): faults whose
+    windows lay inside it are journalled as started and ended at their own times, unseen,
+    and act on nothing after it; one that began inside it and lasts beyond is active with
+    its own end."""
+    path = tmp_path / "j.jsonl"
+    engine = FaultEngine(
+        faults_from_list(
+            [
+                {"kind": "delay", "unit": 1, "delay_ms": 800, "at_s": 700, "for_s": 10},
+                {"kind": "exception", "unit": 5, "code": 6, "at_s": 740, "for_s": 10},
+                {"kind": "dropout", "signal": "flue_gas_temp_C", "at_s": 860, "for_s": 5},
+                {"kind": "no_reply", "unit": 2, "at_s": 870, "for_s": 30},
+            ]
+        ),
+        FaultJournal(path),
+    )
+    engine.apply({"flue_gas_temp_C": 120.0}, 0.0)
+    readings = {"flue_gas_temp_C": 120.0}
+    engine.apply(readings, 880.0)
+    assert readings["flue_gas_temp_C"] == 120.0
+    assert engine.decide(1) is None and engine.decide(5) is None
+    assert engine.decide(2).drop
+    engine.apply({"flue_gas_temp_C": 120.0}, 899.0)
+    assert engine.decide(2).drop
+    engine.apply({"flue_gas_temp_C": 120.0}, 900.0)
+    assert engine.decide(2) is None and not engine.active
+    events = [(e["event"], e["kind"], e["t_sim_s"], e["served"]) for e in read_journal(path)]
+    unseen = {"seen": False, "why": "its whole window fell between two evaluations"}
+    assert events == [
+        ("start", "delay", 700.0, unseen),
+        ("end", "delay", 710.0, unseen),
+        ("start", "exception", 740.0, unseen),
+        ("end", "exception", 750.0, unseen),
+        ("start", "dropout", 860.0, unseen),
+        ("end", "dropout", 865.0, unseen),
+        ("start", "no_reply", 870.0, {"reply": "none"}),
+        ("end", "no_reply", 900.0, {"reply": "normal"}),
+    ]
+
+
+def test_a_fault_set_after_its_at_s_starts_when_it_is_set(tmp_path):
+    """Set at 100 s with at_s 50 and for_s 30: it starts at 100 and lasts 30 s (it was not
+    there to be seen from 50 to 80)."""
+    engine = FaultEngine(journal=FaultJournal(tmp_path / "j.jsonl"))
+    engine.apply({}, 100.0)
+    engine.add(faults_from_list([{"kind": "no_reply", "unit": 3, "at_s": 50, "for_s": 30}])[0])
+    assert engine.decide(3).drop
+    engine.apply({}, 129.0)
+    assert engine.decide(3).drop
+    engine.apply({}, 130.0)
+    assert engine.decide(3) is None
 
 
 def test_random_faults_are_seeded_and_at_the_rate():

@@ -11,10 +11,12 @@ import subprocess
 import sys
 import urllib.request
 
+import pytest
+
 from hil_client.demo import rig_emulator_serve
 from hil_client.wait_for_port import free_port, wait_for_port
 from rig_emulator.cli import main as rig_emulator_main
-from rig_emulator.faults import read_journal
+from rig_emulator.faults import faults_from_list, load_faults, read_journal
 from rig_emulator.faults.wire import KIND_CODES, SIGNAL_CODES
 from rig_emulator.registers import encode
 from tests.modbus_helpers import ADVANCE, client, point, read_point, start_boiler, write
@@ -55,6 +57,7 @@ def test_command_block_sets_and_clears_faults(serve, tmp_path):
         _block(srv, "dropout", 99, 0.0, 5.0),  # no such signal
         _block(srv, "exception", 5, 300.0, 5.0),  # no such exception code
         _block(srv, "no_reply", 100, 0.0, 5.0),  # the simulation control
+        _block(srv, "no_reply", 99, 0.0, 5.0),  # a unit the bench does not have
     ):
         r = c.write_registers(10, bad, device_id=100)
         assert r.isError() and r.exception_code == 3
@@ -156,3 +159,47 @@ def test_serve_refuses_a_bad_faults_file(tmp_path, capsys):
     )
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert proc.stderr.strip().count("\n") == 0
+
+
+@pytest.mark.parametrize(
+    ("entry", "where"),
+    [
+        ("{kind: no_reply, unit: 99, at_s: 0}", "faults[0].unit: unit 99 is not on the bench"),
+        (
+            "{kind: random, rate_per_h: 6, kinds: [no_reply], units: [2, 9]}",
+            "faults[0].units: unit 9 is not on the bench",
+        ),
+    ],
+)
+def test_a_fault_on_a_unit_the_bench_does_not_have_is_refused(tmp_path, capsys, entry, where):
+    """A typo (99 for 9) would give a fault that hits no instrument, silently."""
+    bad = tmp_path / "faults.yaml"
+    bad.write_text(f"faults:\n  - {entry}\n")
+    code = rig_emulator_main(["serve", "--boiler", "windhager_12kw", "--faults", str(bad)])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and where in err, err
+
+
+def test_numbers_in_exponent_form_are_numbers_in_a_faults_file(tmp_path):
+    """YAML 1.1 reads 1e3 (no dot) as text; a faults file takes it as the number it is."""
+    path = tmp_path / "faults.yaml"
+    path.write_text("faults:\n  - {kind: delay, unit: 1, delay_ms: 8e2, at_s: 1E3, for_s: 6e1}\n")
+    (spec,) = load_faults(path)
+    assert (spec.parameter, spec.at_s, spec.for_s) == (800.0, 1000.0, 60.0)
+
+
+def test_a_fault_window_inside_one_advance_is_over_after_it(serve, tmp_path):
+    """CONTRACT section 5: a fault "starts at at_s and lasts for_s" in simulated seconds.
+    One lockstep advance of 880 s over a balance busy from 740 to 750 s: afterwards the
+    balance answers, and the journal gives the window's own times."""
+    journal = tmp_path / "j.jsonl"
+    faults = faults_from_list(
+        [{"kind": "exception", "unit": 5, "code": 6, "at_s": 740, "for_s": 10}]
+    )
+    srv = serve(faults=faults, fault_log=journal)
+    c = client(srv.port)
+    assert not write(c, srv, *ADVANCE, 880).isError()
+    assert read_point(c, *point(srv, "balance", "mass")) > 0
+    c.close()
+    events = [(e["event"], e["t_sim_s"]) for e in read_journal(journal)]
+    assert events == [("start", 740.0), ("end", 750.0)]
