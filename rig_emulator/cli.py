@@ -8,8 +8,10 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import ipaddress
 import logging
 import math
+import re
 import signal
 import sys
 from collections.abc import Sequence
@@ -25,6 +27,7 @@ from rig_emulator.cli_support import (
     finite_float,
     input_errors,
     int_in,
+    listen_host,
     output_file,
     report,
     text_file,
@@ -58,7 +61,9 @@ def _build_parser() -> argparse.ArgumentParser:
         type=text_input,
         help="register map YAML [register_maps/wieselburg_bench.yaml]",
     )
-    serve.add_argument("--host", default="127.0.0.1", help="address to listen on [127.0.0.1]")
+    serve.add_argument(
+        "--host", type=listen_host, default="127.0.0.1", help="address to listen on [127.0.0.1]"
+    )
     serve.add_argument(
         "--port",
         type=int_in(0, 65535),
@@ -193,8 +198,8 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
 def _cmd_steady(args: argparse.Namespace) -> int:
     params = boiler_arg(args.boiler)
-    if not 0.0 < args.load <= 150.0:
-        raise UsageError(f"--load: {args.load} is outside 0..150 %")
+    if not args.load > 0.0:
+        raise UsageError(f"--load: must be above 0 % (no flow, no steady state), got {args.load}")
     flow = args.load / 100.0 * params.nominal_flow_kg_h
     try:
         ss = steady_state(pack_constants(params), flow, args.return_temp, args.room_temp)
@@ -203,6 +208,12 @@ def _cmd_steady(args: argparse.Namespace) -> int:
     figures = (ss.t_boiler_C, ss.t_flue_gas_C, ss.q_fuel_kW, ss.q_water_kW, ss.q_amb_kW)
     if not all(math.isfinite(x) for x in figures) or ss.q_fuel_kW <= 0:
         raise UsageError("no finite steady state at these inputs")
+    if ss.t_boiler_C >= params.shutoff_temp_C:
+        raise UsageError(
+            f"no steady state at {args.load:g} % load and return {args.return_temp:g} C: even at "
+            f"Pmin ({params.p_min_kW:g} kW) the water would settle at {ss.t_boiler_C:.0f} C, "
+            f"above the shut-off temperature ({params.shutoff_temp_C:g} C); the burner cycles"
+        )
     share = 100.0 / ss.q_fuel_kW
     print(f"{params.name} at {args.load:g} % load ({flow:.1f} kg/h, return {args.return_temp} C)")
     print(f"  T_boiler   {ss.t_boiler_C:8.2f} C     T_flue_gas {ss.t_flue_gas_C:8.2f} C")
@@ -211,6 +222,11 @@ def _cmd_steady(args: argparse.Namespace) -> int:
     print(f"  Q_water    {ss.q_water_kW:8.3f} kW    {ss.q_water_kW * share:5.1f} %")
     print(f"  Q_fluegas  {ss.q_flue_gas_kW:8.3f} kW    {ss.q_flue_gas_kW * share:5.1f} %")
     print(f"  Q_amb      {ss.q_amb_kW:8.3f} kW    {ss.q_amb_kW * share:5.1f} %")
+    set_c = params.set_temp_C
+    if ss.firing_kW >= params.p_max_kW and ss.t_boiler_C < set_c - 0.01:
+        print(f"  note: the burner is at Pmax; the water stays below its set point ({set_c:g} C)")
+    elif ss.firing_kW <= params.p_min_kW and ss.t_boiler_C > set_c + 0.01:
+        print(f"  note: the burner is at Pmin; the water settles above its set point ({set_c:g} C)")
     return 0
 
 
@@ -218,7 +234,7 @@ def _cmd_certs(args: argparse.Namespace) -> int:
     if args.out.exists() and not args.out.is_dir():
         raise UsageError(f"--out: '{args.out}' is a file, not a directory")
     for name in args.server_name:
-        if not name or not name.isascii() or any(c.isspace() or c in "/\\:@" for c in name):
+        if not _host_name_or_address(name):
             raise UsageError(f"--server-name: '{name}' is not a host name or IP address")
     try:
         written = make_lab_certificates(args.out, server_names=tuple(args.server_name))
@@ -229,10 +245,30 @@ def _cmd_certs(args: argparse.Namespace) -> int:
     return 0
 
 
+def _host_name_or_address(name: str) -> bool:
+    """An IPv4 or IPv6 address, or a DNS host name (RFC 1123: labels of 1-63 letters,
+    digits and hyphens, not starting or ending with one, 253 characters at most; an
+    all-numeric name such as 999.1.1.1 is a bad address, not a name)."""
+    try:
+        ipaddress.ip_address(name)
+        return True
+    except ValueError:
+        pass
+    labels = name.rstrip(".").split(".")
+    if not name or len(name) > 253 or all(label.isdigit() for label in labels):
+        return False
+    return all(_HOST_LABEL.fullmatch(label) for label in labels)
+
+
+_HOST_LABEL = re.compile(r"[A-Za-z0-9](?:[A-Za-z0-9-]{0,61}[A-Za-z0-9])?")
+
+
 def _cmd_map_doc(args: argparse.Namespace) -> int:
     with bad_input(MapError):
         text = markdown(load_map(args.map))
-    if args.out:
+    if args.out is not None:
+        if not args.out.strip():
+            raise UsageError("--out: empty (a file to write; leave --out out for stdout)")
         output_file(Path(args.out)).write_text(text, encoding="utf-8")
     else:
         sys.stdout.write(text)
@@ -282,10 +318,12 @@ def _cmd_serve(args: argparse.Namespace) -> int:
     try:
         asyncio.run(_serve(server, args))
     except OSError as exc:  # busy port, address not local, no permission: bad input
+        if exc.strerror is None:
+            raise UsageError(str(exc)) from None
+        if "attempting to bind" in str(exc):  # asyncio names the address: the HTTP port's too
+            raise UsageError(f"cannot serve: {exc}") from None
         raise UsageError(
-            str(exc)
-            if exc.strerror is None
-            else f"cannot serve on {args.host}:{args.transport_plan.port}: {exc.strerror}"
+            f"cannot serve on {args.host}:{args.transport_plan.port}: {exc.strerror}"
         ) from None
     return 0
 

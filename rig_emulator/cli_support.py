@@ -58,7 +58,9 @@ def finite_float(low: float, high: float, unit: str = "") -> Callable[[str], flo
             value = float(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"'{text}' is not a number ({where})") from None
-        if not math.isfinite(value) or not low <= value <= high:
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"{text} is not a finite number ({where})")
+        if not low <= value <= high:
             raise argparse.ArgumentTypeError(f"{text} is outside {where}")
         return value
 
@@ -82,9 +84,21 @@ def int_in(low: int, high: int) -> Callable[[str], int]:
     return parse
 
 
+def listen_host(text: str) -> str:
+    """An argparse ``type`` for an address to listen on: not empty (an empty host listens
+    on every interface, which must be asked for by name: 0.0.0.0 or ::)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(
+            "empty; give an address (127.0.0.1, or 0.0.0.0 for every interface)"
+        )
+    return text
+
+
 def text_input(text: str) -> str:
     """An argparse ``type`` for NAME-or-PATH options: a PATH that exists must be a readable
     UTF-8 text file (a NAME that is no path passes unchanged)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("empty (a NAME or a PATH)")
     path = Path(text)
     if not path.exists():
         return text

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+from collections.abc import Hashable
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +29,26 @@ _Loader.add_implicit_resolver(
 )
 
 
+def _mapping_without_duplicates(loader: _Loader, node: yaml.MappingNode, deep: bool = False):
+    """A mapping whose keys are unique: YAML 1.1 lets the last of two equal keys win
+    silently (a boiler file with two ``p_nom_kW`` would use the second)."""
+    seen: set[Any] = set()
+    for key_node, _ in node.value:
+        if key_node.tag == "tag:yaml.org,2002:merge":
+            continue  # '<<: *base' merges; the mapping's own keys may override it
+        key = loader.construct_object(key_node, deep=deep)
+        if isinstance(key, Hashable):
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"key '{key}' appears twice", key_node.start_mark
+                )
+            seen.add(key)
+    return loader.construct_mapping(node, deep=deep)
+
+
+_Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _mapping_without_duplicates)
+
+
 def read_yaml(path: Path, error: type[Exception]) -> Any:
     """The parsed content of ``path``; an unreadable file or bad YAML raises ``error`` with
     the file (and line) named."""
@@ -37,10 +58,14 @@ def read_yaml(path: Path, error: type[Exception]) -> Any:
         raise error(f"{path}: cannot read ({exc.strerror})") from None
     try:
         return yaml.load(text, Loader=_Loader)  # a SafeLoader: no object construction
+    except ValueError:  # an integer of more digits than Python converts (4300)
+        raise error(f"{path}: not valid YAML (a number of thousands of digits)") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark is not None else ""
-        raise error(f"{path}: not valid YAML{where}") from None
+        problem = getattr(exc, "problem", None)
+        why = f" ({problem})" if problem and "twice" in problem else ""
+        raise error(f"{path}: not valid YAML{where}{why}") from None
 
 
 def resolve_named(name_or_path: str, folder: Path, kind: str, error: type[Exception]) -> Path:

@@ -64,6 +64,22 @@ INSTRUMENT_KEYS = (
 )
 
 
+#: The largest value each key may take: a relative error of 100 %; a lag, dead time or
+#: update period of an hour (beyond that the reading is of another test); an absolute
+#: error of 10,000 of the signal's units (the widest range of the bench's instruments: CO
+#: and OGC in ppm). Beyond these a profile describes no instrument (a noise of 1e300 K).
+INSTRUMENT_BOUNDS = {
+    "accuracy_abs": 1e4,
+    "accuracy_rel": 1.0,
+    "noise_sd": 1e4,
+    "noise_rel": 1.0,
+    "resolution": 1e4,
+    "lag_s": 3600.0,
+    "delay_s": 3600.0,
+    "update_period_s": 3600.0,
+}
+
+
 class ProfileError(ValueError):
     """A profile is malformed; the message names the file and key."""
 
@@ -130,8 +146,9 @@ def profile_from_mapping(data: Any, source: str = "<profile>") -> Profile:
                 raise ProfileError(f"{source}: unknown key '{full}'")
             if isinstance(value, bool) or not isinstance(value, int | float):
                 raise ProfileError(f"{source}: key '{full}' must be a number")
-            if not math.isfinite(value) or value < 0:
-                raise ProfileError(f"{source}: key '{full}' must be finite and >= 0")
+            high = INSTRUMENT_BOUNDS[key]
+            if not math.isfinite(value) or not 0 <= value <= high:
+                raise ProfileError(f"{source}: key '{full}' must be finite, in 0..{high:g}")
             values[key] = float(value)
         instruments[signal] = InstrumentSpec(**values)
     try:

@@ -131,10 +131,19 @@ class BoilerParams:
         return out
 
 
+#: The plausibility check of the standing losses: at this much above the room ...
+UA_CHECK_DT_K = 100.0
+#: ... a boiler loses at most this share of its nominal power.
+UA_MAX_SHARE = 0.5
+
+
 def _number(value: Any, key: str, source: str) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise ParameterError(f"{source}: key '{key}' must be a number, got {value!r}")
-    x = float(value)
+    try:
+        x = float(value)
+    except OverflowError:  # an integer of hundreds of digits
+        raise ParameterError(f"{source}: key '{key}' is too large to be a number") from None
     if not math.isfinite(x):
         raise ParameterError(f"{source}: key '{key}' must be finite, got {value!r}")
     return x
@@ -212,6 +221,19 @@ def params_from_mapping(data: Any, source: str = "<parameters>") -> BoilerParams
             f"{source}: key 'p_min_kW' ({values['p_min_kW']}) exceeds 'p_max_kW' "
             f"({values['p_max_kW']})"
         )
+    if not values["p_min_kW"] <= values["p_nom_kW"] <= values["p_max_kW"]:
+        raise ParameterError(
+            f"{source}: key 'p_nom_kW' ({values['p_nom_kW']}) must lie between 'p_min_kW' "
+            f"({values['p_min_kW']}) and 'p_max_kW' ({values['p_max_kW']})"
+        )
+    for key in ("ua_amb_off_W_K", "ua_amb_on_W_K"):
+        # a boiler that loses half its nominal power to the room 100 K above it is no
+        # boiler (the bench's: 1-3 W/K, Table 3; at most 0.5 p_nom / 100 K)
+        if values[key] * UA_CHECK_DT_K > UA_MAX_SHARE * values["p_nom_kW"] * 1000.0:
+            raise ParameterError(
+                f"{source}: key '{key}' ({values[key]:g} W/K) would lose more than "
+                f"{UA_MAX_SHARE:.0%} of p_nom_kW to the room at {UA_CHECK_DT_K:g} K above it"
+            )
     if values["p_start_kW"] > values["p_max_kW"] * 1.5:
         raise ParameterError(f"{source}: key 'p_start_kW' is above 1.5 x p_max_kW")
     params = BoilerParams(**values)

@@ -17,12 +17,47 @@ def test_check_prints_parameters(capsys):
 
 
 @pytest.mark.parametrize(
-    "args", [["steady", "--boiler", "nope"], ["steady", "--boiler", "windhager_6kw", "--load", "0"]]
+    ("args", "message"),
+    [
+        (["steady", "--boiler", "nope"], "unknown boiler 'nope'"),
+        (["steady", "--boiler", "windhager_6kw", "--load", "0"], "must be above 0 %"),
+        (["check", "--boiler", ""], "empty (a NAME or a PATH)"),
+        (["serve", "--boiler", "windhager_6kw", "--host", ""], "--host: empty"),
+        (["serve", "--boiler", "windhager_6kw", "--speed", "nan"], "nan is not a finite number"),
+        (["map-doc", "--out", ""], "--out: empty"),
+        (["certs", "--out", "x", "--server-name", "999.1.1.1"], "'999.1.1.1' is not a host"),
+        (["certs", "--out", "x", "--server-name", "a b"], "'a b' is not a host"),
+    ],
 )
-def test_bad_input_exit_2(capsys, args):
+def test_bad_input_exit_2(capsys, args, message):
     assert main(args) == 2
     err = capsys.readouterr().err
-    assert err.startswith("rig-emulator: error:") and err.count("\n") == 1
+    assert err.startswith("rig-emulator") and err.count("\n") == 1 and message in err, err
+
+
+@pytest.mark.parametrize(("load", "return_temp"), [("1", "55"), ("0.001", "55"), ("150", "90")])
+def test_steady_refuses_a_load_where_the_burner_cycles(capsys, load, return_temp):
+    """At 1 % of the nominal flow even Pmin heats the water far above the shut-off
+    temperature (it printed 308 C): the burner cycles, there is no steady state to print."""
+    args = ["steady", "--boiler", "windhager_6kw", "--load", load, "--return-temp", return_temp]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "no steady state" in err and "shut-off temperature (85 C)" in err
+
+
+@pytest.mark.parametrize(("load", "note"), [("30", "at Pmin"), ("150", "at Pmax")])
+def test_steady_says_when_the_burner_sits_at_a_bound(capsys, load, note):
+    """Below the modulation range the water settles above the set point; above it, below:
+    the printed point is right, and says it is not the set point."""
+    assert main(["steady", "--boiler", "windhager_6kw", "--load", load]) == 0
+    out = capsys.readouterr().out
+    assert f"note: the burner is {note}" in out
+
+
+@pytest.mark.parametrize("name", ["::1", "rig.lab.example", "127.0.0.1", "localhost"])
+def test_certs_take_ipv6_addresses_and_dns_names(tmp_path, capsys, name):
+    assert main(["certs", "--out", str(tmp_path), "--server-name", name]) == 0
+    assert (tmp_path / "server.pem").exists()
 
 
 def test_serve_runs_logs_connections_and_stops_on_sigterm():

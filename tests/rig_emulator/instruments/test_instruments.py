@@ -101,7 +101,17 @@ def test_lab_profile_covers_every_measured_signal_and_is_reproducible():
             {"name": "x", "instruments": {"room_temp_C": {"lag": 1}}},
             "'instruments.room_temp_C.lag'",
         ),
-        ({"name": "x", "instruments": {"room_temp_C": {"lag_s": -1}}}, "finite and >= 0"),
+        ({"name": "x", "instruments": {"room_temp_C": {"lag_s": -1}}}, "finite, in 0..3600"),
+        # beyond any instrument: a noise of 1e300 K, a reading frozen for 30 years
+        (
+            {"name": "x", "instruments": {"flue_gas_temp_C": {"noise_sd": 1e300}}},
+            "noise_sd' must be finite, in 0..10000",
+        ),
+        (
+            {"name": "x", "instruments": {"room_temp_C": {"delay_s": 1e9}}},
+            "delay_s' must be finite, in 0..3600",
+        ),
+        ({"name": "x", "instruments": {"room_temp_C": {"noise_rel": 2}}}, "in 0..1"),
         ({"name": "x", "extra": 1}, "unknown key 'extra'"),
     ],
 )

@@ -46,6 +46,10 @@ def _write(tmp_path: Path, mutate) -> Path:
         (lambda d: d["fuel"].update(c=0.9), "fractions"),
         (lambda d: d.update(fac_a_lambda=0.5), "lambda <= 1"),
         (lambda d: d.update(restart_temp_C=90.0), "'restart_temp_C' < 'set_temp_C'"),
+        (lambda d: d.update(p_nom_kW=60.0), "'p_nom_kW' (60.0) must lie between 'p_min_kW'"),
+        (lambda d: d.update(p_nom_kW=1.0), "'p_nom_kW' (1.0) must lie between 'p_min_kW'"),
+        (lambda d: d.update(ua_amb_on_W_K=1e12), "'ua_amb_on_W_K' (1e+12 W/K) would lose"),
+        (lambda d: d.update(p_max_kW=10**400), "'p_max_kW' is too large to be a number"),
     ],
 )
 def test_broken_files_name_the_key_and_file(tmp_path, mutate, message):
