@@ -37,12 +37,12 @@ from hil_client.lablog import LabLogWriter, meta_path, write_meta
 from hil_client.progress import LiveView, ProgressLine
 from hil_client.protocol.definition import ProtocolError, load_protocol
 from hil_client.protocol.rig import RigError
-from hil_client.protocol.runner import RunResult, run_protocol
+from hil_client.protocol.runner import RunResult, check_setpoints, run_protocol
 from hil_client.rigs.local import LocalRig
-from hil_client.rigs.modbus import ModbusRig
+from hil_client.rigs.modbus import WRITES, ModbusRig, boiler_id, check_map
 from hil_client.rigs.transports import RIG_TIMEOUT_S, connector, tls_files
 from hil_client.summary import RunSummary
-from rig_emulator.boilers import dump_boiler
+from rig_emulator.boilers import BOILER_DIR, dump_boiler, load_boiler
 from rig_emulator.cli_support import (
     Parser,
     UsageError,
@@ -56,9 +56,10 @@ from rig_emulator.cli_support import (
     text_file,
     text_input,
 )
+from rig_emulator.emulator import CommandError
 from rig_emulator.instruments import ProfileError, load_profile
-from rig_emulator.model.params import ParameterError, params_from_mapping
-from rig_emulator.registers import load_map
+from rig_emulator.model.params import BoilerParams, ParameterError, params_from_mapping
+from rig_emulator.registers import MapError, RegisterMap, load_map
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -209,7 +210,9 @@ def _build_parser() -> argparse.ArgumentParser:
         "Writes scores.json (with the confidence's reliability table and Brier score, and why "
         "each miss missed).",
     )
-    gap.add_argument("--cases", type=int, default=48, help="number of cases [48]")
+    gap.add_argument(
+        "--cases", type=int_in(1, 10_000), default=48, help="number of cases, 1..10000 [48]"
+    )
     gap.add_argument(
         "--reality",
         choices=("independent", "emulator"),
@@ -217,9 +220,13 @@ def _build_parser() -> argparse.ArgumentParser:
         help="what writes the lab logs: an independently written plant, or the emulator's "
         "own [independent]",
     )
-    gap.add_argument("--seed", type=int, default=0, help="seed of the case generator [0]")
+    gap.add_argument(
+        "--seed", type=int_in(0, 2**32 - 1), default=0, help="seed of the case generator [0]"
+    )
     gap.add_argument("--out", required=True, type=Path, help="output directory")
-    gap.add_argument("--workers", type=int, default=2, help="parallel processes [2]")
+    gap.add_argument(
+        "--workers", type=int_in(1, 256), default=2, help="parallel processes, 1..256 [2]"
+    )
     gap.add_argument(
         "--plant",
         action="append",
@@ -258,6 +265,17 @@ def _same_log(a: Path, b: Path) -> bool:
 def _check_out_dir(out: Path) -> None:
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out: '{out}' exists and is not a directory")
+    _check_out_parent(out)
+
+
+def _check_out_parent(out: Path) -> None:
+    """Refuse an ``--out`` that cannot be created because an existing ancestor of it is a
+    file (checked without creating anything; :func:`output_file` creates the rest)."""
+    for parent in out.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise UsageError(f"--out: '{parent}' is a file, not a directory")
+            return
 
 
 def _cmd_diagnose(args: argparse.Namespace) -> int:
@@ -293,8 +311,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
 
 
 def _cmd_gap_benchmark(args: argparse.Namespace) -> int:
-    if args.cases < 1 or args.workers < 1:
-        raise UsageError("--cases and --workers must be at least 1")
+    _check_out_dir(args.out)
     from hil_client.analysis.gap_benchmark import (
         plants_by_name,
         run_benchmark,
@@ -317,9 +334,10 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     params = boiler_arg(args.boiler)
     [(log, phases)] = _logs_with_phases([args.log])
     _check_out_dir(args.out)
+    with bad_input(LogError):
+        comp = compare(log, phases, params)
+        result = validation_metrics(comp, log, params)
     args.out.mkdir(parents=True, exist_ok=True)
-    comp = compare(log, phases, params)
-    result = validation_metrics(comp, log, params)
     result = {
         "log": str(args.log),
         "boiler": params.name,
@@ -445,29 +463,60 @@ def _cmd_balance(args: argparse.Namespace) -> int:
     return 0
 
 
-def _make_rig(args: argparse.Namespace, params):
-    """The rig named by --rig; bad options raise UsageError, an unreachable server RigError."""
-    if args.rig == "local":
-        with bad_input(ProfileError, prefix="--profile: "):
-            profile = load_profile(args.profile)
-        return LocalRig(params, profile, seed=args.seed)
-    if not args.rig.startswith(("modbus://", "modbus+tls://", "modbus-rtu://")):
+def _rig_map(args: argparse.Namespace) -> RegisterMap | None:
+    """The register map a Modbus rig uses (None for the local rig); a ``--map`` given is
+    validated whatever the rig, and a Modbus rig's must have every signal it reads or
+    writes."""
+    remote = args.rig != "local"
+    if not remote and args.map is None:
+        return None
+    if remote and not args.rig.startswith(("modbus://", "modbus+tls://", "modbus-rtu://")):
         raise UsageError(
             f"--rig: '{args.rig}' is neither 'local' nor modbus://HOST:PORT, "
             "modbus+tls://HOST:PORT or modbus-rtu:///DEVICE"
         )
-    with bad_input(ValueError, prefix="--rig/--map: "):  # MapError is a ValueError too
-        connect = connector(args.rig, RIG_TIMEOUT_S, tls_files(args))
+    with bad_input(MapError, prefix="--map: "):
         register_map = load_map(args.map)
-    if args.reconnect_timeout < 0:
-        raise UsageError("--reconnect-timeout must not be negative")
-    return ModbusRig(
+        if remote:
+            check_map(register_map)
+    return register_map if remote else None
+
+
+def _served_boiler(served: int) -> str:
+    """The shipped boiler whose ``boiler_id`` is ``served``, else the id in hex."""
+    for path in sorted(BOILER_DIR.glob("*.yaml")):
+        try:
+            if boiler_id(load_boiler(path.stem)) == served:
+                return f"{path.stem} (boiler id {served:08x})"
+        except ParameterError:
+            continue
+    return f"boiler id {served:08x}"
+
+
+def _make_rig(args: argparse.Namespace, params: BoilerParams, register_map: RegisterMap | None):
+    """The rig named by --rig; bad options (and a server running another boiler than
+    ``params``) raise UsageError, an unreachable server RigError."""
+    if register_map is None:
+        with bad_input(ProfileError, prefix="--profile: "):
+            profile = load_profile(args.profile)
+        return LocalRig(params, profile, seed=args.seed)
+    with bad_input(ValueError, prefix="--rig: "):
+        connect = connector(args.rig, RIG_TIMEOUT_S, tls_files(args))
+    rig = ModbusRig(
         args.rig,
         register_map,
         reconnect_timeout_s=args.reconnect_timeout,
         on_restart=args.on_restart,
         connect=connect,
     )
+    served = rig.identity["boiler_id"]
+    if served != boiler_id(params):
+        rig.close()
+        raise UsageError(
+            f"--boiler {args.boiler}: the server at {args.rig} runs another boiler, "
+            f"{_served_boiler(served)}; {params.name} is boiler id {boiler_id(params):08x}"
+        )
+    return rig
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -480,15 +529,31 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise UsageError(f"--out: '{out}' must name a .csv file")
     if out.is_dir():
         raise UsageError(f"--out: '{out}' is a directory")
+    _check_out_parent(out)
     if args.fault_report is not None and args.fault_journal is None:
         raise UsageError("--fault-report needs --fault-journal JOURNAL.jsonl")
     if args.fault_report is not None and args.rig == "local":
         raise UsageError("--fault-report needs a Modbus rig (faults act in the server)")
+    register_map = _rig_map(args)
+    # every setpoint the protocol writes for this boiler, against what the emulator (and
+    # a Modbus rig's map) accepts: refused now, not after the log was begun
+    limits = (
+        {s: (p.minimum, p.maximum) for s in WRITES for p in [register_map.point(s)[1]]}
+        if register_map is not None
+        else None
+    )
+    with bad_input(ProtocolError, prefix=f"{args.protocol}: "):
+        check_setpoints(protocol, params.p_nom_kW, params.name, limits)
     try:
-        rig = _make_rig(args, params)
+        rig = _make_rig(args, params, register_map)
     except RigError as exc:
         print(f"hil-client: error: {exc}", file=sys.stderr)
         return 1
+    try:
+        output_file(out)
+    except UsageError:
+        rig.close()
+        raise
 
     remote = isinstance(rig, ModbusRig)
     meta = {
@@ -502,6 +567,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
         else "offline",
         "profile": "set by the server" if remote else args.profile,
         "seed": None if remote else args.seed,
+        # what the server publishes of its set-up (CONTRACT section 7)
+        **(
+            {f"server_{k}": f"{rig.identity[k]:08x}" for k in ("boiler_id", "profile_id")}
+            if remote
+            else {}
+        ),
         "acquisition_period_s": protocol.acquisition_period_s,
         **dict.fromkeys(("t0_s", "t1_s", "t2_s", "t3_s", "t4_s")),
         "complete": False,
@@ -540,6 +611,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
             progress.done()
         print(f"hil-client: error: {exc}; the log keeps every row acquired", file=sys.stderr)
         return 1
+    except CommandError as exc:  # a setpoint the rig refused (check_setpoints passed it)
+        if progress is not None:
+            progress.done()
+        raise UsageError(
+            f"{args.protocol}: commands {exc}; the log keeps every row acquired"
+        ) from None
     finally:
         rig.close()
         if remote:  # what faulty units did, beside the log

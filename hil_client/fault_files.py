@@ -14,7 +14,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from hil_client.analysis.fault_report import compare
+from hil_client.analysis.fault_report import check_journal, compare
 from hil_client.analysis.logio import read_log
 
 
@@ -52,17 +52,19 @@ def fault_report(log_path: Path, journal_path: Path, slack_s: float = 2.0) -> di
     """Compare the run's events and log with the server's journal (ValueError if a file
     is not what it should be)."""
     journal = read_jsonl(journal_path, "the server's fault journal")
-    for number, event in enumerate(journal, 1):
-        missing = [k for k in ("event", "id", "t_sim_s", "kind") if k not in event]
-        if missing:
-            raise ValueError(f"{journal_path}: line {number} lacks '{missing[0]}'")
+    check_journal(journal, str(journal_path))
     events_file = events_path(log_path)
-    events = read_jsonl(events_file, "Modbus events") if events_file.exists() else []
+    if not events_file.exists():
+        raise ValueError(
+            f"{log_path}: no Modbus events file beside it ({events_file.name}): not a log of "
+            "hil-client run on a Modbus rig, so there is nothing to compare with the journal"
+        )
+    events = read_jsonl(events_file, "Modbus events")
     log = read_log(Path(log_path), as_read=True)
     offset = log.meta.get("server_time_offset_s", 0.0)
     offset = float(offset) if isinstance(offset, int | float) else 0.0
     server_time = log.t - offset
-    report = compare(journal, events, log.columns, server_time, slack_s)
+    report = compare(journal, events, log.columns, server_time, slack_s, str(journal_path))
     report["log"] = str(log_path)
     report["journal"] = str(journal_path)
     return report

@@ -3,14 +3,20 @@
 Each row is written and flushed as soon as it is acquired, so a killed client leaves a valid
 CSV holding every row acquired so far. A missing value (NaN) is an empty field. The column
 ``rig_epoch`` (optional, CONTRACT section 7) says which plant a row comes from: 0, then one
-higher after each break (a restarted or reset server the run went on from).
+higher after each break (a restarted or reset server the run went on from). A text field
+holding a comma, a quote or a line break (protocol files refuse such names; a rig or a
+caller might not) is quoted as RFC 4180 says, so every row keeps its width.
 """
 
 from __future__ import annotations
 
+import csv
+import io
 import json
+import math
 import os
 import re
+from operator import itemgetter
 from pathlib import Path
 from typing import Any
 
@@ -37,16 +43,19 @@ _DECIMALS = {
     "rig_epoch": 0,
 }
 _TEXT = {"phase", "sequence"}
+_TEXT_OF = itemgetter(*(i for i, column in enumerate(LOG_COLUMNS) if column in _TEXT))
+_NEEDS_QUOTES = re.compile(r'[,"\r\n]')
 
 
 _MISSING = re.compile(r"(?<=,)(?:nan|-?inf)(?=,|$)")
 
 
+#: Format of each column's number, None for a text column (temperatures: 10 uK by default).
+_FORMATS = tuple(None if c in _TEXT else f"%.{_DECIMALS.get(c, 5)}f" for c in LOG_COLUMNS)
+
+
 def _row_format() -> str:
-    parts = []
-    for column in LOG_COLUMNS:
-        parts.append("%s" if column in _TEXT else f"%.{_DECIMALS.get(column, 5)}f")
-    return ",".join(parts) + "\n"  # temperatures: 10 uK by default
+    return ",".join("%s" if f is None else f for f in _FORMATS) + "\n"
 
 
 class LabLogWriter:
@@ -59,15 +68,34 @@ class LabLogWriter:
         self._file.write(",".join(LOG_COLUMNS) + "\n")
         self._file.flush()
         self._format = _row_format()
+        self._text: tuple[object, ...] = ()  # the last row's text fields, and whether plain
+        self._plain = True
         self.rows = 0
 
     def __call__(self, row: Row) -> None:
-        line = self._format % row
-        if "nan" in line or "inf" in line:
-            line = _MISSING.sub("", line)
+        text = _TEXT_OF(row)
+        if text != self._text:
+            self._text = text
+            self._plain = not any(_NEEDS_QUOTES.search(str(v)) for v in text)
+        if self._plain:
+            line = self._format % row
+            if "nan" in line or "inf" in line:
+                line = _MISSING.sub("", line)
+        else:
+            line = self._quoted(row)
         self._file.write(line)
         self._file.flush()
         self.rows += 1
+
+    def _quoted(self, row: Row) -> str:
+        """The row through :mod:`csv`: its text fields quoted, a missing number empty."""
+        fields = [
+            str(v) if fmt is None else (fmt % v if math.isfinite(v) else "")  # type: ignore[arg-type]
+            for fmt, v in zip(_FORMATS, row, strict=True)
+        ]
+        buffer = io.StringIO()
+        csv.writer(buffer, lineterminator="\n").writerow(fields)
+        return buffer.getvalue()
 
     def close(self) -> None:
         self._file.close()

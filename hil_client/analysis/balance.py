@@ -12,13 +12,19 @@ Per phase:
 - direct efficiency Q_water / Q_fuel, indirect efficiency 1 - (flue-gas + ash losses) /
   Q_fuel (the loss to the room is not measured, so the indirect figure is an upper bound).
 
-Missing readings (empty fields) are interpolated in time.
+Missing readings (empty fields) are interpolated in time. What the log cannot give is
+unknown (NaN; null in the JSON, "-" in the table), never 0 or 100 %, and each phase's
+``warnings`` say why: a column without any reading (no balance: fuel, Q_fuel, flue-gas loss
+and efficiencies; no O2: lambda, flue-gas loss and indirect efficiency, the firing rows being
+unknown; no flow or water temperature: Q_water and direct efficiency), or a stuck balance
+(one reading throughout at least 10 min of firing by the O2, in the log or the phase: the
+fuel is not read).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
@@ -30,6 +36,8 @@ from rig_emulator.model.params import BoilerParams
 from rig_emulator.model.water_heat import heat_to_water_kW
 
 FIRING_O2_PCT = 19.0
+#: Firing this long [s] changes any balance's reading (0.02 kg at 0.1 kg/h is 12 min)
+STUCK_FIRING_S = 600.0
 
 
 @dataclass(slots=True)
@@ -49,6 +57,8 @@ class PhaseBalance:
     lambda_mean: float
     eta_direct: float
     eta_indirect: float
+    #: why a figure of this phase is unknown (NaN), one line each
+    warnings: list[str] = field(default_factory=list)
 
 
 def flue_gas_loss_per_kg(
@@ -99,26 +109,63 @@ def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[Ph
     firing = get["flue_gas_O2_pct"] < FIRING_O2_PCT
     per_kg_dry = params.fuel.balance_loss_per_kg_dry
     hhv = params.fuel.hhv_dry_kJ_kg
+    empty = {name: bool(np.isnan(v).all()) for name, v in get.items()}
+    no_water = [n for n in ("water_flow_kg_h", "water_in_temp_C", "water_out_temp_C") if empty[n]]
+    no_fg = [n for n in ("flue_gas_temp_C", "room_temp_C") if empty[n]]
+    mass = log["balance_mass_kg"]
+    read_all = mass[~np.isnan(mass)]
+    fired_all = float(dt[firing].sum())
+    stuck_all = bool(fired_all >= STUCK_FIRING_S and len(read_all) and np.ptp(read_all) == 0)
     out = []
     for name in NAMES:
         mask = phases.mask(name, t)
         if not mask.any():
             continue
+        warn: list[str] = []
         idx = np.flatnonzero(mask)
         duration = float(dt[idx].sum())
         first = max(idx[0] - 1, 0)
         fuel_ar = float(get["balance_mass_kg"][first] - get["balance_mass_kg"][idx[-1]])
-        fuel_dry = max(fuel_ar, 0.0) / per_kg_dry
+        burn = idx[firing[idx]]
+        fired_s = float(dt[burn].sum())
+        read = mass[first : idx[-1] + 1]
+        read = read[~np.isnan(read)]
+        if empty["balance_mass_kg"]:
+            warn.append(
+                "column 'balance_mass_kg' has no readings: fuel, Q_fuel, flue-gas loss and "
+                "efficiencies unknown"
+            )
+        elif stuck_all or (fired_s >= STUCK_FIRING_S and (not len(read) or np.ptp(read) == 0)):
+            fuel_ar = math.nan
+            what = f"reads {read[0]:g} kg" if len(read) else "has no reading"
+            where = "the log's" if stuck_all else "the phase's"
+            minutes = (fired_all if stuck_all else fired_s) / 60
+            warn.append(
+                f"the balance {what} throughout {where} {minutes:.0f} min of firing (stuck?): "
+                "fuel, Q_fuel, flue-gas loss and efficiencies unknown"
+            )
+        fuel_dry = max(fuel_ar, 0.0) / per_kg_dry if math.isfinite(fuel_ar) else math.nan
         q_fuel = fuel_dry * hhv / duration
         q_w = float((q_water[idx] * dt[idx]).sum() / duration)
-        burn = idx[firing[idx]]
-        if len(burn) and fuel_dry > 0:
+        if no_water:
+            warn.append(
+                f"column '{no_water[0]}' has no readings: Q_water and direct efficiency unknown"
+            )
+        o2_known = not np.isnan(get["flue_gas_O2_pct"][idx]).all()
+        lam_mean = float(lam[burn].mean()) if len(burn) else math.nan
+        if not o2_known:
+            s_ = l_ = c_ = math.nan
+            warn.append(
+                "column 'flue_gas_O2_pct' has no readings: the firing rows, lambda, flue-gas "
+                "loss and indirect efficiency unknown"
+            )
+        elif not len(burn):
+            s_ = l_ = c_ = 0.0  # no combustion, no flue-gas loss
+        else:  # per kg of dry fuel times the phase's fuel flow
             rate = fuel_dry / duration  # kg/s
             s_, l_, c_ = (float(a[burn].mean()) * rate for a in (sens, lat, chem))
-            lam_mean = float(lam[burn].mean())
-        else:
-            s_ = l_ = c_ = 0.0
-            lam_mean = math.nan
+            if no_fg:
+                warn.append(f"column '{no_fg[0]}' has no readings: flue-gas loss unknown")
         q_fg = s_ + l_ + c_
         eta_d = q_w / q_fuel if q_fuel > 0 else math.nan
         eta_i = 1.0 - (q_fg + k.ASH_LOSS_FRACTION * q_fuel) / q_fuel if q_fuel > 0 else math.nan
@@ -137,9 +184,16 @@ def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[Ph
                 lam_mean,
                 eta_d,
                 eta_i,
+                warn,
             )
         )
     return out
+
+
+def _cell(value: float, spec: str, width: int, scale: float = 1.0, unit: str = "") -> str:
+    """``value`` formatted, or "-" where it is unknown (NaN), right-aligned in ``width``."""
+    text = f"{value * scale:{spec}}{unit}" if math.isfinite(value) else "-"
+    return f"{text:>{width}}"
 
 
 def table(rows: list[PhaseBalance]) -> str:
@@ -151,10 +205,17 @@ def table(rows: list[PhaseBalance]) -> str:
     lines = [head, f"{'':<10} {'h':>9} {'(a.r.)':>8} {'kW':>8} {'kW':>8} {'kW':>9}"]
     for r in rows:
         lines.append(
-            f"{r.phase:<10} {r.duration_s / 3600:>9.3f} {r.fuel_as_received_kg:>8.2f} "
-            f"{r.q_fuel_kW:>8.3f} {r.q_water_kW:>8.3f} {r.q_flue_gas_kW:>9.3f} "
-            f"{r.lambda_mean:>7.2f} {r.eta_direct * 100:>7.1f}% {r.eta_indirect * 100:>7.1f}%"
+            f"{r.phase:<10} {r.duration_s / 3600:>9.3f} {_cell(r.fuel_as_received_kg, '.2f', 8)} "
+            f"{_cell(r.q_fuel_kW, '.3f', 8)} {_cell(r.q_water_kW, '.3f', 8)} "
+            f"{_cell(r.q_flue_gas_kW, '.3f', 9)} {_cell(r.lambda_mean, '.2f', 7)} "
+            f"{_cell(r.eta_direct, '.1f', 8, 100, '%')} {_cell(r.eta_indirect, '.1f', 8, 100, '%')}"
         )
+    # each reason once, with the phases it concerns
+    reasons: dict[str, list[str]] = {}
+    for r in rows:
+        for w in r.warnings:
+            reasons.setdefault(w, []).append(r.phase)
+    lines += [f"warning: {w} ({', '.join(phases)})" for w, phases in reasons.items()]
     return "\n".join(lines)
 
 

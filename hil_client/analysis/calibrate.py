@@ -37,7 +37,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from hil_client.analysis.logio import LabLog, fill_gaps
+from hil_client.analysis.logio import LabLog, LogError, fill_gaps
 from hil_client.analysis.phases import Phases
 from rig_emulator.model import constants as k
 from rig_emulator.model.fuel import stoichiometry
@@ -175,6 +175,8 @@ def _fuel_rate_dry(iv: Interval, params: BoilerParams) -> tuple[float, float]:
     t = iv.log.t[iv.i0 : iv.i1]
     m = iv.log["balance_mass_kg"][iv.i0 : iv.i1]
     ok = ~np.isnan(m)
+    if ok.sum() < 2:
+        return math.nan, math.nan
     _, slope, _, se = _linfit(t[ok], m[ok])
     per_kg_dry = params.fuel.balance_loss_per_kg_dry
     duration = t[-1] - t[0]
@@ -308,8 +310,14 @@ def _fit_stationary(
             "mean (T_fg - T_in) at nominal load, dThx,wat kept",
             len(x),
         )
-    # --- Eq. 9: facA, facB (Fig. 5)
-    fuel = np.array([_fuel_rate_dry(iv, doc) for iv in intervals])
+    # --- Eq. 9: facA, facB (Fig. 5), only where the balance shows fuel fed (a stuck or
+    # empty balance gives no fuel flow: nothing to regress lambda or Pel on)
+    rates = [_fuel_rate_dry(iv, doc) for iv in intervals]
+    fed = [r[0] > COVERAGE * r[1] for r in rates]  # NaN compares False
+    if not any(fed):
+        return {"x": x, "y": y}, {"fuel": np.array([]), "lambda": np.array([])}
+    intervals = [iv for iv, f in zip(intervals, fed, strict=True) if f]
+    fuel = np.array([r for r, f in zip(rates, fed, strict=True) if f])
     lam = np.array([float(np.mean(_lambda_rows(iv.log, iv.i0, iv.i1, doc))) for iv in intervals])
     # a fixed O2 error (+-0.2 vol-%) moves lambda most where the air excess is high: refit
     # with O2 shifted by its standard uncertainty to propagate it
@@ -403,10 +411,12 @@ def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibrati
                 ua_on_values.append((v * per_K, _u("flue_gas_velocity_m_s", v) * per_K))
             if log.has("electric_power_W"):
                 pel_off.append(float(np.nanmean(log["electric_power_W"][mask])))
-        # start-up: Wel and Pstart from the first start
+        # start-up: Wel and Pstart from the first start, if the log holds it from the row
+        # before t0 to the end of the start-up time
         i0 = int(np.searchsorted(t, ph.t0, side="right"))
         i_end = int(np.searchsorted(t, ph.t0 + doc.startup_duration_s, side="right"))
-        starts.append((log, i0, i_end))
+        if i0 >= 1 and t[-1] >= ph.t0 + doc.startup_duration_s:
+            starts.append((log, i0, i_end))
     if ua_off_values:
         vals = np.array(ua_off_values)
         ua_off = float(np.mean(vals[:, 0]))
@@ -443,11 +453,11 @@ def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibrati
         tb = log["boiler_water_temp_C"]
         reach = np.flatnonzero(tb[i0:i_end] >= doc.set_temp_C - 0.5)
         i_stop = i0 + int(reach[0]) if len(reach) else i_end
-        if i_stop - i0 >= 120:
-            mass = fill_gaps(log["balance_mass_kg"], t)
-            per_kg_dry = doc.fuel.balance_loss_per_kg_dry
+        mass = fill_gaps(log["balance_mass_kg"], t)
+        per_kg_dry = doc.fuel.balance_loss_per_kg_dry
+        dm = (mass[i0 - 1] - mass[i_stop - 1]) / per_kg_dry
+        if i_stop - i0 >= 120 and dm > 0:  # NaN (no balance) compares False
             duration = t[i_stop - 1] - t[i0 - 1]
-            dm = (mass[i0 - 1] - mass[i_stop - 1]) / per_kg_dry
             p_start.append(
                 (
                     dm / duration * doc.fuel.lhv_dry_kJ_kg,
@@ -476,6 +486,12 @@ def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibrati
             "dry fuel flow over the start-up at Pstart x LHV",
             len(vals),
         )
+    names = ", ".join(str(log.path) for log, _ in logs)
+    if not fitted:
+        raise LogError(
+            f"{names}: nothing to calibrate: no stationary interval, no second cooling "
+            "longer than 30 min plus 600 rows, no start-up recorded whole (too short a log?)"
+        )
     params, flags = _plausible(doc, fitted)
     if not intervals:
         for key in STATIONARY_KEYS:
@@ -483,4 +499,21 @@ def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibrati
                 "no stationary interval (a test phase with steady firing of at least "
                 f"{MIN_INTERVAL_S / 60:.0f} min)"
             )
+    elif not len(fig5["fuel"]):
+        for key in ("fac_a_lambda", "fac_b_lambda_h_kg", "p_el_max_W", "p_el_min_W"):
+            flags[key] = (
+                "no fuel flow from the balance over the stationary intervals (a stuck or "
+                "empty balance?)"
+            )
+    if not starts:
+        for key in ("w_el_Wh", "p_start_kW"):
+            flags[key] = (
+                "no start-up recorded whole (from the row before t0 to t0 + the start-up "
+                f"time, {doc.startup_duration_s / 60:.0f} min)"
+            )
+    elif not p_start and "p_start_kW" not in flags:
+        flags["p_start_kW"] = (
+            "no fuel fed over the start-up by the balance (120 rows or more before the "
+            "water reaches the set temperature; a stuck or empty balance?)"
+        )
     return Calibration(params, fitted, fig4, fig5, flags)

@@ -37,6 +37,8 @@ from typing import Any
 
 import numpy as np
 
+from rig_emulator.faults import COMM_KINDS, KINDS
+
 INSTRUMENT_UNITS_ANY = 0
 _COMM_MARKS = {
     "no_reply": ("no_reply", "timeout"),
@@ -46,8 +48,74 @@ _COMM_MARKS = {
 }
 
 
-def fault_windows(journal: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
-    """One record per journalled fault: kind, target, start and end (server time)."""
+def _journal_error(source: str, line: int, key: str, value: Any, what: str) -> ValueError:
+    return ValueError(f"{source}: line {line}: field '{key}' = {value!r}: {what}")
+
+
+def check_journal(journal: Sequence[Mapping[str, Any]], source: str = "fault journal") -> None:
+    """Refuse a journal line that is not what the server writes (CONTRACT section 5):
+    ValueError naming ``source``, the line (the n-th record, blank lines not counted) and
+    the field. Each line: ``event`` start or end, ``id`` an integer, ``t_sim_s`` a finite
+    number, ``kind`` one of the fault kinds, ``unit`` (communication faults) a unit number,
+    ``signal`` (instrument faults) a name, ``code`` (exception) an integer; each id started
+    once (the server numbers its faults afresh in each journal) and ended at most once,
+    not before its start, with the kind of its start."""
+    starts: dict[int, tuple[float, str, int]] = {}  # id -> (time, kind, line)
+    ended: dict[int, int] = {}  # id -> line
+    for line, event in enumerate(journal, 1):
+
+        def bad(key: str, what: str, line: int = line, event: Mapping = event) -> ValueError:
+            return _journal_error(source, line, key, event.get(key), what)
+
+        for key in ("event", "id", "t_sim_s", "kind"):
+            if key not in event:
+                raise ValueError(f"{source}: line {line}: no field '{key}'")
+        if event["event"] not in ("start", "end"):
+            raise bad("event", "not 'start' or 'end'")
+        fid, t = event["id"], event["t_sim_s"]
+        if isinstance(fid, bool) or not isinstance(fid, int):
+            raise bad("id", "not an integer")
+        if isinstance(t, bool) or not isinstance(t, int | float) or not math.isfinite(t):
+            raise bad("t_sim_s", "not a finite number of seconds")
+        kind = event["kind"]
+        if kind not in KINDS:
+            raise bad("kind", f"not a fault kind ({', '.join(KINDS)})")
+        if kind in COMM_KINDS:
+            unit = event.get("unit")
+            if isinstance(unit, bool) or not isinstance(unit, int) or not 0 <= unit <= 255:
+                raise bad("unit", "not a unit number 0..255")
+            code = event.get("code")  # the server may write it as a float: 11.0
+            if code is not None and not (
+                isinstance(code, int | float)
+                and not isinstance(code, bool)
+                and math.isfinite(code)
+                and code == int(code)
+            ):
+                raise bad("code", "not an exception code (a whole number)")
+        elif not isinstance(event.get("signal"), str):
+            raise bad("signal", "not the name of a lab-log column")
+        if event["event"] == "start":
+            if fid in starts:
+                raise bad("id", f"fault {fid} started already (line {starts[fid][2]})")
+            starts[fid] = (float(t), kind, line)
+        elif fid not in starts:
+            raise bad("id", f"the end of fault {fid}, which has not started")
+        elif fid in ended:
+            raise bad("id", f"fault {fid} ended already (line {ended[fid]})")
+        else:
+            ended[fid] = line
+            if t < starts[fid][0]:
+                raise bad("t_sim_s", f"the end is before the start ({starts[fid][0]:g} s)")
+            if kind != starts[fid][1]:
+                raise bad("kind", f"fault {fid} started as '{starts[fid][1]}'")
+
+
+def fault_windows(
+    journal: Sequence[Mapping[str, Any]], source: str = "fault journal"
+) -> list[dict[str, Any]]:
+    """One record per journalled fault: kind, target, start and end (server time); a bad
+    journal line raises ValueError (:func:`check_journal`)."""
+    check_journal(journal, source)
     faults: dict[int, dict[str, Any]] = {}
     for event in journal:
         fid = int(event["id"])
@@ -111,9 +179,11 @@ def compare(
     log_columns: Mapping[str, np.ndarray] | None = None,
     server_time: np.ndarray | None = None,
     slack_s: float = 2.0,
+    journal_name: str = "fault journal",
 ) -> dict[str, Any]:
-    """The report: every fault detected or missed, and the client's false alarms."""
-    faults = fault_windows(journal)
+    """The report: every fault detected or missed, and the client's false alarms
+    (``journal_name``: the journal's file, for its errors)."""
+    faults = fault_windows(journal, journal_name)
     end_of_run = max(
         [float(e.get("server_time_s", 0.0)) for e in client_events]
         + ([float(server_time[-1])] if server_time is not None and server_time.size else [])

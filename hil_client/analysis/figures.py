@@ -197,8 +197,14 @@ def validation_figures(comp, phases: Phases, stem: Path, title: str) -> list[Pat
     mask = comp.segments["start_up"] | comp.segments["test"]
     for ax, (name, label) in zip(axes, labels[:2], strict=True):
         lab, model = comp.lab[name][mask], comp.model[name][mask]
+        ok = np.isfinite(lab) & np.isfinite(model)  # a signal with no readings: no points
+        lab, model = lab[ok], model[ok]
         ax.plot(lab, model, ".", ms=1.5, alpha=0.4, color="tab:blue")
-        lo, hi = float(min(lab.min(), model.min())), float(max(lab.max(), model.max()))
+        lo, hi = (
+            (float(min(lab.min(), model.min())), float(max(lab.max(), model.max())))
+            if ok.any()
+            else (0.0, 1.0)
+        )
         xs = np.linspace(lo, hi, 10)
         ax.plot(xs, xs, "k-", lw=1, label="identity")
         ax.fill_between(xs, 0.9 * xs, 1.1 * xs, color="0.8", alpha=0.5, label="+-10 %")

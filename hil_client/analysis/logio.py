@@ -199,7 +199,11 @@ def read_log(
     if meta_file.exists():
         try:
             meta = json.loads(meta_file.read_text(encoding="utf-8"))
-        except (OSError, json.JSONDecodeError) as exc:
+        except UnicodeDecodeError as exc:
+            raise LogError(f"{meta_file}: not UTF-8 text (byte at {exc.start})") from None
+        except OSError as exc:
+            raise LogError(f"{meta_file}: cannot read ({exc.strerror})") from None
+        except json.JSONDecodeError as exc:
             raise LogError(f"{meta_file}: not valid JSON ({exc})") from None
         if not isinstance(meta, dict):
             raise LogError(f"{meta_file}: expected a JSON object")

@@ -1,6 +1,8 @@
 """Phase boundaries t0..t4 of a lab log (Fig. 3 of Carlon et al. 2015).
 
-Taken, in this order of preference, from the ``phase`` column, the meta file, or the signals:
+Taken, in this order of preference, from the ``phase`` column, the meta file (all five
+marks t0_s..t4_s; marks that cannot be the log's are refused, see :func:`_from_meta`), or
+the signals:
 
 - t0: the burner first fires (``boiler_on``), or, without that column, the flue gas first
   runs 20 K hotter than the water inside the boiler or its O2 falls below 19 vol-%;
@@ -19,6 +21,7 @@ A boundary is the time of the last row of the phase before it (as the runner rec
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -74,12 +77,49 @@ def _from_column(log: LabLog) -> Phases | None:
     )
 
 
+MARKS = ("t0_s", "t1_s", "t2_s", "t3_s", "t4_s")
+
+
 def _from_meta(log: LabLog) -> Phases | None:
-    keys = ("t0_s", "t1_s", "t2_s", "t3_s", "t4_s")
-    values = [log.meta.get(k) for k in keys]
-    if any(not isinstance(v, int | float) for v in values):
+    """The marks t0_s..t4_s of the meta file; None unless it gives all five (CONTRACT
+    section 3: "where known"; an interrupted run's meta file keeps the marks it reached),
+    and then the signals tell.
+
+    Marks that cannot be this log's are refused (:class:`LogError` naming the meta file and
+    the mark) rather than replaced by marks found from the signals: they are the bench's
+    record of when it switched, and a lab user takes the phases of a balance or a
+    validation for the recorded ones, while a guess from the signals can put them minutes
+    away; a meta file that contradicts its log (edited, or beside another or a truncated
+    log) is worth knowing about, and the message says how to fall back to the signals.
+    Refused: a mark that is no finite number, marks out of order (t0 < t1 < t2 < t3 <=
+    t4), t0..t3 outside the record. A t4_s after the last row is the record's end (its
+    last row cut short and left out)."""
+    meta_file = log.path.with_name(log.path.stem + ".meta.json") if log.path else "meta file"
+    fix = "; remove t0_s..t4_s from it to find the phases from the signals"
+    for key in MARKS:
+        v = log.meta.get(key)
+        bad = isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v)
+        if key in log.meta and bad:
+            raise LogError(f"{meta_file}: {key} = {v!r} is not a finite number of seconds{fix}")
+    if any(key not in log.meta for key in MARKS):
         return None
-    return Phases(*(float(v) for v in values), source="meta file")  # type: ignore[arg-type]
+    values = [float(log.meta[key]) for key in MARKS]
+    first, last = float(log.t[0]), float(log.t[-1])
+    name = log.path.name if log.path else "the log"
+    for key, v in zip(MARKS[:4], values[:4], strict=True):
+        if not first <= v <= last:
+            raise LogError(
+                f"{meta_file}: {key} = {v:g} lies outside the record of {name} (time_s "
+                f"{first:g}..{last:g}): marks of another log, or the log cut short{fix}"
+            )
+    for i in range(1, len(MARKS)):
+        if not (values[i - 1] < values[i] or (i == 4 and values[3] == values[4])):
+            raise LogError(
+                f"{meta_file}: {MARKS[i]} = {values[i]:g} is not after "
+                f"{MARKS[i - 1]} = {values[i - 1]:g}{fix}"
+            )
+    values[4] = min(values[4], last)
+    return Phases(*values, source="meta file")  # type: ignore[arg-type]
 
 
 def rise_rate_K_min(t: np.ndarray, y: np.ndarray, window_s: float = 300.0) -> np.ndarray:

@@ -13,6 +13,9 @@ with several sequences its stationary and dynamic intervals):
   flue-gas temperature and composition (Eq. 4-6) times the fuel flow from the balance
   (a linear fit over a centred 15-min window, since the balance resolves no single second);
 - the cumulative fuel (as received, less ash) against the balance.
+
+A log whose start-up and test (t0..t2) hold fewer than two rows is too short to validate:
+refused (:class:`LogError` naming the file).
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hil_client.analysis.balance import flue_gas_loss_per_kg
-from hil_client.analysis.logio import LabLog, fill_gaps
+from hil_client.analysis.logio import LabLog, LogError, fill_gaps
 from hil_client.analysis.metrics import table4_metrics
 from hil_client.analysis.phases import Phases
 from rig_emulator.model import pack_constants
@@ -96,8 +99,23 @@ def segments_of(log: LabLog, phases: Phases) -> dict[str, np.ndarray]:
     return out
 
 
+MIN_FIRING_ROWS = 2
+
+
+def check_length(log: LabLog, phases: Phases) -> None:
+    """Refuse a log too short to validate: the model runs on the log's rows, and the burner
+    is on from t0 to t2; fewer than two rows there compare nothing."""
+    rows = int((phases.mask("start_up", log.t) | phases.mask("test", log.t)).sum())
+    if len(log) < MIN_FIRING_ROWS or rows < MIN_FIRING_ROWS:
+        raise LogError(
+            f"{log.path}: too short to validate: {len(log)} row(s), {rows} of them from t0 to "
+            f"t2 (start-up and test); at least {MIN_FIRING_ROWS} needed there"
+        )
+
+
 def compare(log: LabLog, phases: Phases, params: BoilerParams) -> Comparison:
-    """Model and lab series of the validated signals."""
+    """Model and lab series of the validated signals (LogError: too short to validate)."""
+    check_length(log, phases)
     t = log.t
     y = model_run(log, phases, params)
     flow = fill_gaps(log["water_flow_kg_h"], t)
@@ -116,10 +134,13 @@ def compare(log: LabLog, phases: Phases, params: BoilerParams) -> Comparison:
     )
     firing = fill_gaps(log["flue_gas_O2_pct"], t) < 19.0
     lab_fuel = fuel_rate_from_balance(log, params)
+    lab_fg = np.where(firing, lab_fuel / 3600.0 * (sens + lat + chem), 0.0)
+    if any(np.isnan(log[c]).all() for c in ("flue_gas_O2_pct", "balance_mass_kg")):
+        lab_fg = np.full(len(t), np.nan)  # no analyser or no balance: unknown, not 0
     lab = {
         "boiler_water_temp_C": fill_gaps(log["boiler_water_temp_C"], t),
         "heat_to_water_kW": heat_to_water_kW(flow, t_in, fill_gaps(log["water_out_temp_C"], t)),
-        "flue_gas_loss_kW": np.where(firing, lab_fuel / 3600.0 * (sens + lat + chem), 0.0),
+        "flue_gas_loss_kW": lab_fg,
     }
     model = {
         "boiler_water_temp_C": y["t_boiler_C"],

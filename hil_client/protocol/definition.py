@@ -21,11 +21,25 @@ nominal load and become flow setpoints as load * Pnom / (cp_w * flow_spread_K).
 
 A sequence whose ``load_pct`` is a pair is a linear ramp from the first to the second value.
 Durations are seconds or "HH:MM:SS".
+
+Bounds (a file outside them is refused, naming the key): every duration and the whole
+record (longest preheat + longest start-up + the measuring cycle + the longer of the first
+cooling and the second) at most :data:`MAX_RECORD_S` (a week: the paper's records last
+under a day and a long bench test a few days, while a typo such as 1e12 s would run for
+ever and fill the disk); the acquisition period within :data:`ACQUISITION_PERIOD_S`
+(0.1..600 s: a real-time emulator ticks at 10 Hz, so a faster logger reads the same state
+again, and the phase rules look at minutes, the t1 slope over 5 min, the preheat hold of
+1 min, which a logger slower than 10 min cannot follow); tolerances and the t1 rise positive,
+hold times not negative, each minimum duration at most its maximum. Sequence names are
+written into the lab log, so they may not hold a comma, a quote or control characters.
+What the setpoints of a protocol make of a given boiler is checked against the emulator's
+command limits by :func:`hil_client.protocol.runner.check_setpoints`.
 """
 
 from __future__ import annotations
 
 import math
+import unicodedata
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,6 +48,11 @@ from typing import Any
 from rig_emulator.yamlio import read_yaml, resolve_named
 
 DEFINITION_DIR = Path(__file__).parent / "definitions"
+
+#: Longest duration of any key, and of the whole record [s]: a week (module docstring).
+MAX_RECORD_S = 7 * 86400.0
+#: Accepted acquisition periods [s] (module docstring).
+ACQUISITION_PERIOD_S = (0.1, 600.0)
 
 
 class ProtocolError(ValueError):
@@ -112,6 +131,8 @@ def parse_duration(value: Any, key: str, source: str) -> float:
             if len(parts) != 3:
                 raise ValueError
             h, m, s = (float(x) for x in parts)
+            if not all(math.isfinite(x) and x >= 0 for x in (h, m, s)):
+                raise ValueError
         except ValueError:
             raise ProtocolError(
                 f"{source}: key '{key}' must be seconds or HH:MM:SS, got {value!r}"
@@ -121,6 +142,10 @@ def parse_duration(value: Any, key: str, source: str) -> float:
         seconds = _number(value, key, source)
     if seconds <= 0:
         raise ProtocolError(f"{source}: key '{key}' must be a positive duration")
+    if seconds > MAX_RECORD_S:
+        raise ProtocolError(
+            f"{source}: key '{key}' is {seconds:g} s, more than a week ({MAX_RECORD_S:g} s)"
+        )
     return seconds
 
 
@@ -140,7 +165,9 @@ def _section(data: Mapping[str, Any], key: str, source: str) -> Mapping[str, Any
 
 
 def _get(section: Mapping[str, Any], prefix: str, key: str, source: str, kind: str = "num") -> Any:
-    full = f"{prefix}.{key}"
+    """A number of ``section``; ``kind``: ``num``, ``load`` (0..120 %), ``duration`` (see
+    :func:`parse_duration`), ``positive`` (> 0) or ``hold`` (a time that may be 0)."""
+    full = f"{prefix}.{key}" if prefix else key
     if key not in section:
         raise ProtocolError(f"{source}: missing required key '{full}'")
     if kind == "duration":
@@ -148,7 +175,26 @@ def _get(section: Mapping[str, Any], prefix: str, key: str, source: str, kind: s
     value = _number(section[key], full, source)
     if kind == "load" and not 0.0 <= value <= 120.0:
         raise ProtocolError(f"{source}: key '{full}' must be a load in 0..120 %, got {value}")
+    if kind == "positive" and value <= 0:
+        raise ProtocolError(f"{source}: key '{full}' must be > 0, got {value:g}")
+    if kind == "hold" and not 0.0 <= value <= MAX_RECORD_S:
+        raise ProtocolError(f"{source}: key '{full}' must be 0..{MAX_RECORD_S:g} s, got {value:g}")
     return value
+
+
+def _log_text(name: str) -> bool:
+    """Whether ``name`` can stand in a lab-log field as it is: no comma, quote, line break
+    or other control character."""
+    return not any(
+        ch in ',"' or unicodedata.category(ch) in ("Cc", "Cf", "Zl", "Zp") for ch in name
+    )
+
+
+def _not_longer(short: float, long: float, keys: tuple[str, str], source: str) -> None:
+    if short > long:
+        raise ProtocolError(
+            f"{source}: key '{keys[0]}' ({short:g} s) exceeds '{keys[1]}' ({long:g} s)"
+        )
 
 
 def _check_keys(section: Mapping[str, Any], allowed: set[str], prefix: str, source: str) -> None:
@@ -182,10 +228,13 @@ def protocol_from_mapping(data: Any, source: str = "<protocol>") -> ProtocolDefi
     for key in ("name", "test"):
         if not isinstance(data.get(key), str) or not data.get(key):
             raise ProtocolError(f"{source}: missing required key '{key}' (a non-empty string)")
-    period = _get(data, "", "acquisition_period_s", source)
-    spread = _get(data, "", "flow_spread_K", source)
-    if period <= 0 or spread <= 0:
-        raise ProtocolError(f"{source}: 'acquisition_period_s' and 'flow_spread_K' must be > 0")
+    period = _get(data, "", "acquisition_period_s", source, "positive")
+    low, high = ACQUISITION_PERIOD_S
+    if not low <= period <= high:
+        raise ProtocolError(
+            f"{source}: key 'acquisition_period_s' must be {low:g}..{high:g} s, got {period:g}"
+        )
+    spread = _get(data, "", "flow_spread_K", source, "positive")
 
     pre = _section(data, "preheat", source)
     _check_keys(
@@ -196,8 +245,8 @@ def protocol_from_mapping(data: Any, source: str = "<protocol>") -> ProtocolDefi
     )
     preheat = Preheat(
         temperature_C=_get(pre, "preheat", "temperature_C", source),
-        tolerance_K=_get(pre, "preheat", "tolerance_K", source),
-        hold_s=_get(pre, "preheat", "hold_s", source),
+        tolerance_K=_get(pre, "preheat", "tolerance_K", source, "positive"),
+        hold_s=_get(pre, "preheat", "hold_s", source, "hold"),
         load_pct=_get(pre, "preheat", "load_pct", source, "load"),
         max_duration_s=_get(pre, "preheat", "max_duration_s", source, "duration"),
     )
@@ -217,10 +266,20 @@ def protocol_from_mapping(data: Any, source: str = "<protocol>") -> ProtocolDefi
     start_up = StartUp(
         return_setpoint_C=_get(su, "start_up", "return_setpoint_C", source),
         t1_window_s=_get(su, "start_up", "t1_window_s", source, "duration"),
-        t1_max_rise_K_min=_get(su, "start_up", "t1_max_rise_K_min", source),
+        t1_max_rise_K_min=_get(su, "start_up", "t1_max_rise_K_min", source, "positive"),
         min_duration_s=_get(su, "start_up", "min_duration_s", source, "duration"),
         max_duration_s=_get(su, "start_up", "max_duration_s", source, "duration"),
     )
+    _not_longer(
+        preheat.hold_s, preheat.max_duration_s, ("preheat.hold_s", "preheat.max_duration_s"), source
+    )
+    for key in ("min_duration_s", "t1_window_s"):
+        _not_longer(
+            getattr(start_up, key),
+            start_up.max_duration_s,
+            (f"start_up.{key}", "start_up.max_duration_s"),
+            source,
+        )
     ts = _section(data, "test_sequence", source)
     _check_keys(ts, {"return_setpoint_C", "sequences"}, "test_sequence", source)
     raw_sequences = ts.get("sequences")
@@ -235,6 +294,11 @@ def protocol_from_mapping(data: Any, source: str = "<protocol>") -> ProtocolDefi
         name = raw.get("name")
         if not isinstance(name, str) or not name:
             raise ProtocolError(f"{source}: missing required key '{prefix}.name'")
+        if not _log_text(name):
+            raise ProtocolError(
+                f"{source}: key '{prefix}.name' {name!r} may not hold a comma, a quote or "
+                "control characters (it is a field of the lab log)"
+            )
         if "load_pct" not in raw:
             raise ProtocolError(f"{source}: missing required key '{prefix}.load_pct'")
         load = raw["load_pct"]
@@ -262,7 +326,7 @@ def protocol_from_mapping(data: Any, source: str = "<protocol>") -> ProtocolDefi
     )
     c2 = _section(data, "cooling_2", source)
     _check_keys(c2, {"until_after_t2_s"}, "cooling_2", source)
-    return ProtocolDefinition(
+    protocol = ProtocolDefinition(
         name=data["name"],
         test=data["test"],
         acquisition_period_s=period,
@@ -274,6 +338,18 @@ def protocol_from_mapping(data: Any, source: str = "<protocol>") -> ProtocolDefi
         cooling_1=cooling_1,
         cooling_2_until_after_t2_s=_get(c2, "cooling_2", "until_after_t2_s", source, "duration"),
     )
+    record = (
+        preheat.max_duration_s
+        + start_up.max_duration_s
+        + protocol.test_duration_s
+        + max(cooling_1.max_duration_s, protocol.cooling_2_until_after_t2_s)
+    )
+    if record > MAX_RECORD_S:
+        raise ProtocolError(
+            f"{source}: the record may last {record:g} s (the maximum durations, the "
+            f"sequences and the cooling), more than a week ({MAX_RECORD_S:g} s)"
+        )
+    return protocol
 
 
 def load_protocol(name_or_path: str) -> ProtocolDefinition:

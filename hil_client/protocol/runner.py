@@ -29,12 +29,13 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from operator import itemgetter
 
-from hil_client.protocol.definition import ProtocolDefinition
+from hil_client.protocol.definition import ProtocolDefinition, ProtocolError
 from hil_client.protocol.rig import READING_KEYS, Rig, RigCommand, RigError
+from rig_emulator.emulator import CommandError, check_command
 from rig_emulator.model.water_heat import flow_for_heat_kg_h
 
 #: Columns of the lab log (CONTRACT section 3), in file order.
@@ -123,6 +124,49 @@ class _SlopeWindow:
 def flow_for_load(load_pct: float, p_nom_kW: float, spread_K: float) -> float:
     """Water flow [kg/h] that imposes ``load_pct`` of nominal load with a ``spread_K`` spread."""
     return flow_for_heat_kg_h(load_pct / 100.0 * p_nom_kW, spread_K)
+
+
+def setpoints(protocol: ProtocolDefinition, p_nom_kW: float) -> Iterator[tuple[str, str, float]]:
+    """Every setpoint value :func:`run_protocol` can write for a boiler of ``p_nom_kW``:
+    (the protocol key it comes from, the command, the value). A ramp's extremes are its
+    ends; the second cooling writes a flow of 0."""
+    spread = protocol.flow_spread_K
+    flows = [
+        ("preheat.load_pct", protocol.preheat.load_pct),
+        ("cooling_1.load_pct", protocol.cooling_1.load_pct),
+    ]
+    for i, seq in enumerate(protocol.sequences):
+        flows += [(f"test_sequence.sequences[{i}].load_pct", seq.load_start_pct)]
+        flows += [(f"test_sequence.sequences[{i}].load_pct", seq.load_end_pct)]
+    for key, load in flows:
+        yield key, "water_flow_setpoint_kg_h", flow_for_load(load, p_nom_kW, spread)
+    for key, value in (
+        ("preheat.temperature_C", protocol.preheat.temperature_C),
+        ("start_up.return_setpoint_C", protocol.start_up.return_setpoint_C),
+        ("test_sequence.return_setpoint_C", protocol.test_return_setpoint_C),
+        ("cooling_1.return_setpoint_C", protocol.cooling_1.return_setpoint_C),
+    ):
+        yield key, "return_setpoint_C", value
+
+
+def check_setpoints(
+    protocol: ProtocolDefinition,
+    p_nom_kW: float,
+    boiler: str,
+    within: Mapping[str, tuple[float, float]] | None = None,
+) -> None:
+    """Refuse (:class:`ProtocolError`, one line naming the key, the boiler and the limit)
+    a protocol that would write a setpoint the emulator does not accept for ``boiler``:
+    its :func:`~rig_emulator.emulator.check_command`, with a register map's narrower
+    ``within`` ranges by command where given."""
+    for key, command, value in setpoints(protocol, p_nom_kW):
+        try:
+            check_command(command, value, (within or {}).get(command))
+        except CommandError as exc:
+            spread = f", flow_spread_K {protocol.flow_spread_K:g}" if "flow" in command else ""
+            raise ProtocolError(
+                f"key '{key}' on {boiler} ({p_nom_kW:g} kW{spread}) commands {exc}"
+            ) from None
 
 
 def run_protocol(

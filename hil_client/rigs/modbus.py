@@ -67,7 +67,12 @@ from hil_client.modbus_client import (
     write_registers_pdu,
 )
 from hil_client.protocol.rig import READING_KEYS, RigCommand, RigError
-from rig_emulator.registers import Point, RegisterMap, encode, run_decoder
+from hil_client.rigs.transports import url_port
+from rig_emulator.bench import BenchConfig
+from rig_emulator.emulator import plant_identity
+from rig_emulator.instruments import load_profile
+from rig_emulator.model.params import BoilerParams
+from rig_emulator.registers import MapError, Point, RegisterMap, encode, run_decoder
 
 _READ_FUNCTION = {"coil": 1, "discrete": 2, "holding": 3, "input": 4}
 
@@ -77,6 +82,17 @@ ON_RESTART = ("abort", "restart-phase", "continue")
 CHECK_KEYS = ("sim_time_s", "lockstep_counter", "epoch_id")
 STATUS_KEYS = (*CHECK_KEYS, "boiler_id", "profile_id", "seed")
 _IDENTITY = {"boiler_id": "boiler", "profile_id": "profile", "seed": "seed"}
+#: Commands the rig writes (the setpoints, the switches, the lockstep clock).
+WRITES = (
+    "water_flow_setpoint_kg_h",
+    "return_setpoint_C",
+    "pump_on",
+    "return_heating",
+    "boiler_command",
+    "lockstep_advance_s",
+)
+#: Every signal the rig reads or writes: a register map must have them all.
+NEEDED = (*READING_KEYS, *STATUS_KEYS, "clock_mode", "speed_factor", *WRITES)
 # a replay batch stays in one small segment: the server drops a receive buffer above 264
 # bytes (pymodbus's max_buffer_size for Modbus TCP: the largest frame, 260, and slack)
 _REPLAY_SEGMENT_BYTES = 240
@@ -113,16 +129,35 @@ class _Read:
     decode: Callable[[Sequence[int]], list[float]]  # the run's registers -> its values
 
 
+def check_map(register_map: RegisterMap) -> None:
+    """:class:`~rig_emulator.registers.MapError` naming the first signal the rig needs
+    (:data:`NEEDED`) that ``register_map`` has no point for, or cannot write."""
+    for signal in NEEDED:
+        try:
+            _, point = register_map.point(signal)
+        except KeyError:
+            raise MapError(
+                f"{register_map.source}: no point for '{signal}' (the Modbus rig needs it)"
+            ) from None
+        if signal in WRITES and not point.writable:
+            raise MapError(
+                f"{register_map.source}: point '{point.name}' ({signal}) is read-only; "
+                "the Modbus rig writes it (access: rw)"
+            )
+
+
+def boiler_id(params: BoilerParams) -> int:
+    """The ``boiler_id`` a server started with ``params`` publishes (``rig-emulator serve``
+    runs the default bench; :func:`rig_emulator.emulator.plant_identity`)."""
+    return int(plant_identity(params, load_profile("clean"), 0, BenchConfig())["boiler_id"])
+
+
 def parse_url(url: str) -> tuple[str, int]:
     """(host, port) of ``modbus://HOST:PORT``."""
     parsed = urlparse(url)
     if parsed.scheme != "modbus" or not parsed.hostname:
         raise ValueError(f"'{url}' is not modbus://HOST:PORT")
-    try:
-        port = parsed.port or 502
-    except ValueError:
-        raise ValueError(f"'{url}' has a bad port") from None
-    return parsed.hostname, port
+    return parsed.hostname, url_port(url, 502)
 
 
 def _read_plan(
@@ -198,6 +233,7 @@ class ModbusRig:
         self.timeout_s = timeout_s
         self.reconnect_timeout_s = reconnect_timeout_s
         self.on_restart = on_restart
+        check_map(register_map)
         #: the runner restarts the current phase when :attr:`epoch` changes
         self.restart_phase = on_restart == "restart-phase"
         self.checks = checks
@@ -220,17 +256,7 @@ class ModbusRig:
         self._status_plan = _read_plan(register_map, STATUS_KEYS)
         self._check_plan = _read_plan(register_map, CHECK_KEYS, trim=True)
         self._clock_plan = _read_plan(register_map, ("clock_mode", "speed_factor"))
-        self._points = {
-            s: register_map.point(s)
-            for s in (
-                "water_flow_setpoint_kg_h",
-                "return_setpoint_C",
-                "pump_on",
-                "return_heating",
-                "boiler_command",
-                "lockstep_advance_s",
-            )
-        }
+        self._points = {s: register_map.point(s) for s in WRITES}
         self._conn: Connection | None = None
         self._command: RigCommand | None = None
         self._written_switches: tuple[bool, bool, bool] | None = None

@@ -104,11 +104,22 @@ def parse_endpoint(url: str) -> Endpoint:
         return Endpoint("modbus-rtu", path=parsed.path, baud=int(baud_text), parity=parity)
     if not parsed.hostname:
         raise ValueError(f"'{url}' names no host ({parsed.scheme}://HOST:PORT)")
-    try:
-        port = parsed.port or (DEFAULT_TLS_PORT if parsed.scheme == "modbus+tls" else 502)
-    except ValueError:
-        raise ValueError(f"'{url}' has a bad port") from None
+    port = url_port(url, DEFAULT_TLS_PORT if parsed.scheme == "modbus+tls" else 502)
     return Endpoint(parsed.scheme, host=parsed.hostname, port=port)
+
+
+def url_port(url: str, default: int) -> int:
+    """The port of a ``SCHEME://HOST:PORT`` URL, ``default`` if it names none; ValueError
+    for one outside 1..65535 (port 0 is no port to connect to)."""
+    try:
+        port = urlparse(url).port
+    except ValueError:
+        port = 0
+    if port is None:
+        return default
+    if not 1 <= port <= 65535:
+        raise ValueError(f"'{url}' has a bad port (1..65535)")
+    return port
 
 
 def tls_client_context(files: TlsFiles) -> ssl.SSLContext:

@@ -1,0 +1,261 @@
+"""Bad or thin input to the analyses: refused in one line naming the file and what is
+wrong, or reported as unknown with the reason, never as a made-up number."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from hil_client.analysis.balance import energy_balance, table
+from hil_client.analysis.calibrate import calibrate
+from hil_client.analysis.fault_report import check_journal, compare
+from hil_client.analysis.logio import LogError, read_log
+from hil_client.analysis.phases import Phases, find_phases
+from hil_client.analysis.validate import compare as validation_compare
+from hil_client.cli import main
+from rig_emulator.boilers import load_boiler
+
+from .test_balance import _steady_log
+
+HEADER = (
+    "time_s,water_flow_kg_h,water_in_temp_C,water_out_temp_C,boiler_water_temp_C,"
+    "flue_gas_temp_C,flue_gas_O2_pct,balance_mass_kg,room_temp_C"
+)
+MARKS = {"t0_s": 3.0, "t1_s": 5.0, "t2_s": 7.0, "t3_s": 8.0, "t4_s": 10.0}
+
+
+def _short_log(tmp_path, rows: int = 10, meta: dict | None = None):
+    """A log of ``rows`` rows 1 s apart (no phase column) with a meta file."""
+    path = tmp_path / "short.csv"
+    body = "".join(f"{i},300,50,60,60,150,8,{250 - 0.001 * i},20\n" for i in range(1, rows + 1))
+    path.write_text(HEADER + "\n" + body)
+    meta = {"boiler": "windhager_6kw", **MARKS} if meta is None else meta
+    path.with_name("short.meta.json").write_text(json.dumps(meta))
+    return path
+
+
+# --- phases from a meta file ------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("marks", "message"),
+    [
+        ({"t1_s": 8.0, "t3_s": 5.0}, "t2_s = 7 is not after t1_s = 8"),  # t1 and t3 swapped
+        ({"t2_s": 1e9}, "t2_s = 1e+09 lies outside the record of short.csv (time_s 1..10)"),
+        ({"t2_s": math.nan}, "t2_s = nan is not a finite number"),
+        ({"t2_s": "abc"}, "t2_s = 'abc' is not a finite number"),
+        ({"t0_s": -5.0}, "t0_s = -5 lies outside the record"),
+    ],
+)
+def test_meta_marks_that_cannot_be_the_logs_are_refused_naming_file_and_mark(
+    tmp_path, marks, message
+):
+    path = _short_log(tmp_path, meta={**MARKS, **marks})
+    with pytest.raises(LogError) as info:
+        find_phases(read_log(path))
+    text = str(info.value)
+    assert text.startswith(f"{tmp_path / 'short.meta.json'}: ") and message in text
+    assert "\n" not in text and "from the signals" in text
+
+
+def test_meta_marks_in_order_within_the_record_are_taken(tmp_path):
+    # t4 one row beyond the last (a last row cut short and left out) is the record's end
+    path = _short_log(tmp_path, rows=9)
+    phases = find_phases(read_log(path))
+    assert phases.source == "meta file"
+    assert phases.as_dict() == {**MARKS, "t4_s": 9.0}
+
+
+def test_an_interrupted_runs_partial_marks_leave_the_phases_to_the_signals(tmp_path):
+    # the runner keeps the marks it reached; the signals tell (here: they cannot, 10 s)
+    path = _short_log(tmp_path, meta={"t0_s": 3.0, "t1_s": 5.0})
+    with pytest.raises(LogError) as info:
+        find_phases(read_log(path))
+    assert str(info.value) == f"{path}: cannot find t1: the flue-gas temperature never settles"
+
+
+def test_a_log_whose_meta_marks_lie_beyond_it_is_refused_by_every_analysis(tmp_path, capsys):
+    """A single row beside the meta file of a whole run (the probe's one_row.csv)."""
+    path = _short_log(tmp_path, rows=1, meta={**MARKS, "t0_s": 14400.0, "t4_s": 65920.0})
+    for argv in (
+        ["validate", str(path), "--boiler", "windhager_6kw", "--out", str(tmp_path / "v")],
+        ["calibrate", str(path), "--boiler", "windhager_6kw", "--out", str(tmp_path / "c.yaml")],
+        ["balance", str(path), "--boiler", "windhager_6kw", "--out", str(tmp_path / "b.json")],
+    ):
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "short.meta.json: t0_s = 14400 lies outside" in err
+    assert not any(tmp_path.glob("v*")) and not any(tmp_path.glob("[bc].*"))
+
+
+# --- validate -----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("rows", [1, 2, 10])
+def test_a_log_too_short_to_validate_is_refused_naming_it(tmp_path, rows):
+    log = read_log(_short_log(tmp_path, rows=rows, meta={}))
+    # the burner on for less than two rows (t0..t2), whatever the phases say
+    phases = Phases(1.0, 1.2, 1.4, 1.6, float(log.t[-1]), "test")
+    with pytest.raises(LogError) as info:
+        validation_compare(log, phases, load_boiler("windhager_6kw"))
+    assert str(info.value).startswith(f"{log.path}: too short to validate: {rows} row(s), 0 ")
+
+
+@pytest.mark.parametrize("column", ["flue_gas_O2_pct", "balance_mass_kg"])
+def test_validation_without_analyser_or_balance_has_no_lab_flue_gas_loss(tmp_path, column):
+    log = read_log(_short_log(tmp_path, rows=10, meta={}))
+    log.columns[column] = np.full(len(log), np.nan)
+    comp = validation_compare(
+        log, Phases(3.0, 5.0, 7.0, 8.0, 10.0, "test"), load_boiler("windhager_6kw")
+    )
+    assert np.isnan(comp.lab["flue_gas_loss_kW"]).all()  # unknown, not 0
+    assert np.isfinite(comp.lab["boiler_water_temp_C"]).all()
+
+
+# --- balance --------------------------------------------------------------------------------
+
+
+def _balance(params, **columns: np.ndarray):
+    log, _ = _steady_log(params, hours=1.0)
+    log.columns.update(columns)
+    t_end = float(log.t[-1])
+    phases = Phases(0.0, 0.5, t_end, t_end + 1, t_end + 2, "test")
+    rows = energy_balance(log, params, phases)
+    return next(r for r in rows if r.phase == "test"), table(rows)
+
+
+def test_balance_without_o2_reports_the_flue_gas_loss_unknown_not_zero(params_12kw):
+    n = 3600
+    test, text = _balance(params_12kw, flue_gas_O2_pct=np.full(n, np.nan))
+    assert test.q_fuel_kW > 0  # the balance still gives the fuel
+    for value in (test.q_flue_gas_kW, test.lambda_mean, test.eta_indirect):
+        assert math.isnan(value)
+    assert "100.0%" not in text and "nan" not in text
+    assert "warning: column 'flue_gas_O2_pct' has no readings" in text
+
+
+def test_balance_without_mass_keeps_lambda_and_leaves_the_fuel_unknown(params_12kw):
+    test, text = _balance(params_12kw, balance_mass_kg=np.full(3600, np.nan))
+    # the flue-gas loss is per kg of fuel times the fuel flow: unknown without the balance
+    for value in (test.fuel_as_received_kg, test.q_fuel_kW, test.q_flue_gas_kW, test.eta_direct):
+        assert math.isnan(value)
+    assert test.lambda_mean > 1.0  # from O2 alone
+    assert "warning: column 'balance_mass_kg' has no readings" in text
+
+
+def test_a_balance_stuck_through_firing_reads_no_fuel(params_12kw):
+    test, text = _balance(params_12kw, balance_mass_kg=np.full(3600, 250.0))
+    assert math.isnan(test.fuel_as_received_kg) and math.isnan(test.q_fuel_kW)
+    assert math.isnan(test.q_flue_gas_kW) and math.isnan(test.eta_indirect)
+    assert "the balance reads 250 kg throughout the log's 60 min of firing (stuck?)" in text
+    row = next(line for line in text.splitlines() if line.startswith("test"))
+    assert row.split()[2:4] == ["-", "-"]  # fuel kg, Q_fuel
+
+
+def test_balance_json_writes_unknown_as_null_with_the_reason(tmp_path, capsys):
+    log, _ = _steady_log(load_boiler("windhager_6kw"), hours=0.5)
+    path = tmp_path / "steady.csv"
+    names = list(log.columns)
+    data = np.column_stack([log[c] for c in names])
+    data[:, names.index("flue_gas_O2_pct")] = np.nan
+    np.savetxt(path, data, delimiter=",", header=",".join(names), comments="", fmt="%.6f")
+    text = path.read_text().replace("nan", "")
+    path.write_text(text)
+    t_end = float(log.t[-1])
+    meta = {"t0_s": 1.0, "t1_s": 2.0, "t2_s": t_end - 2, "t3_s": t_end - 1, "t4_s": t_end}
+    path.with_name("steady.meta.json").write_text(json.dumps(meta))
+    out = tmp_path / "b.json"
+    assert main(["balance", str(path), "--boiler", "windhager_6kw", "--out", str(out)]) == 0
+    assert "warning: column 'flue_gas_O2_pct' has no readings" in capsys.readouterr().out
+    test = next(r for r in json.loads(out.read_text())["balance"] if r["phase"] == "test")
+    assert test["q_flue_gas_kW"] is None and test["eta_indirect"] is None
+    assert test["q_fuel_kW"] > 0 and test["warnings"]
+
+
+# --- calibrate ----------------------------------------------------------------------------
+
+
+def test_a_stuck_balance_fits_neither_eq9_nor_pel_nor_pstart(run_log):
+    doc = load_boiler("windhager_12kw")
+    log = read_log(run_log("stationary", "windhager_12kw").path)
+    phases = find_phases(log)
+    stuck = replace(log, columns={**log.columns, "balance_mass_kg": np.full(len(log), 250.0)})
+    result = calibrate([(stuck, phases)], doc)
+    for key in ("fac_a_lambda", "fac_b_lambda_h_kg", "p_el_max_W", "p_el_min_W", "p_start_kW"):
+        assert "stuck or empty balance" in result.flags[key], key
+        assert getattr(result.params, key) == getattr(doc, key), key
+    assert not len(result.fig5["fuel"])
+    # what does not rest on the balance is still fitted
+    assert "dt_nom_K" in result.fitted and "dt_nom_K" not in result.flags
+
+
+def test_a_start_up_not_recorded_whole_gives_no_wel(run_log):
+    doc = load_boiler("windhager_12kw")
+    log = read_log(run_log("stationary", "windhager_12kw").path)
+    phases = find_phases(log)
+    keep = log.t > phases.t0 + 60.0  # the record begins a minute into the start-up
+    cut = replace(
+        log,
+        columns={k: v[keep] for k, v in log.columns.items()},
+        text={k: [x for x, y in zip(v, keep, strict=True) if y] for k, v in log.text.items()},
+    )
+    result = calibrate([(cut, phases)], doc)
+    for key in ("w_el_Wh", "p_start_kW"):
+        assert key not in result.fitted and "no start-up recorded whole" in result.flags[key]
+        assert getattr(result.params, key) == getattr(doc, key)
+    assert "ua_amb_off_W_K" in result.fitted  # the second cooling is still there
+
+
+def test_a_log_too_short_to_calibrate_anything_is_refused(tmp_path):
+    log = read_log(_short_log(tmp_path, rows=10, meta={}))
+    phases = Phases(3.0, 5.0, 7.0, 8.0, 10.0, "test")
+    with pytest.raises(LogError) as info:
+        calibrate([(log, phases)], load_boiler("windhager_6kw"))
+    assert str(info.value).startswith(f"{log.path}: nothing to calibrate")
+
+
+# --- fault report journal -----------------------------------------------------------------
+
+START = {"event": "start", "id": 1, "t_sim_s": 600.0, "kind": "no_reply", "unit": 2}
+END = {**START, "event": "end", "t_sim_s": 630.0}
+
+
+@pytest.mark.parametrize(
+    ("lines", "message"),
+    [
+        ([{**START, "id": "x"}], "line 1: field 'id' = 'x': not an integer"),
+        ([{**START, "t_sim_s": "abc"}], "line 1: field 't_sim_s' = 'abc': not a finite number"),
+        ([{**START, "t_sim_s": math.nan}], "line 1: field 't_sim_s' = nan: not a finite"),
+        ([{**START, "kind": "explode"}], "line 1: field 'kind' = 'explode': not a fault kind"),
+        ([{**START, "unit": "two"}], "line 1: field 'unit' = 'two': not a unit number"),
+        ([{**START, "event": "begin"}], "line 1: field 'event' = 'begin'"),
+        ([START, {**END, "t_sim_s": 100.0}], "line 2: field 't_sim_s' = 100.0: the end is before"),
+        ([START, END, START], "line 3: field 'id' = 1: fault 1 started already (line 1)"),
+        ([END], "line 1: field 'id' = 1: the end of fault 1, which has not started"),
+        ([START, {**END, "kind": "delay"}], "line 2: field 'kind' = 'delay': fault 1 started"),
+        (
+            [{"event": "start", "id": 1, "t_sim_s": 1.0, "kind": "spike", "signal": 5}],
+            "line 1: field 'signal' = 5",
+        ),
+        ([{k: v for k, v in START.items() if k != "kind"}], "line 1: no field 'kind'"),
+        ([{**START, "kind": "exception", "code": "x"}], "line 1: field 'code' = 'x'"),
+    ],
+)
+def test_a_bad_journal_line_is_refused_naming_file_line_and_field(lines, message):
+    with pytest.raises(ValueError) as info:
+        compare(lines, [], journal_name="j.jsonl")
+    assert str(info.value).startswith("j.jsonl: ") and message in str(info.value)
+
+
+def test_a_journal_as_the_server_writes_it_passes():
+    spike = {"event": "start", "id": 2, "t_sim_s": 1.0, "kind": "spike", "signal": "x"}
+    exc = {"event": "start", "id": 3, "t_sim_s": 2.0, "kind": "exception", "unit": 0}
+    check_journal(
+        [START, END, spike, {**spike, "event": "end", "t_sim_s": 1.0}, {**exc, "code": 11.0}],
+        "j.jsonl",
+    )
+    assert compare([START, END], [], journal_name="j.jsonl")["missed"] == 1

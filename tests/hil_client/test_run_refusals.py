@@ -1,0 +1,248 @@
+"""``hil-client run`` and ``gap-benchmark`` refuse bad input before any file is written:
+exit code 2, one line naming what is wrong, an existing ``--out`` left as it was."""
+
+from __future__ import annotations
+
+import csv
+import json
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+import yaml
+
+from hil_client.cli import main
+from hil_client.lablog import LabLogWriter
+from hil_client.protocol.runner import LOG_COLUMNS
+from rig_emulator.boilers import BOILER_DIR
+from rig_emulator.registers import load_map
+
+SHORT = Path(__file__).resolve().parents[1] / "data" / "short_protocol.yaml"
+KEPT = "an earlier log the run must not replace\n"
+
+
+def _refused(capsys, argv: list[str], message: str) -> str:
+    """Run ``argv``; assert exit 2 with one stderr line holding ``message``."""
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert message in err, err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    return err
+
+
+def _kept(tmp_path: Path) -> Path:
+    out = tmp_path / "log.csv"
+    out.write_text(KEPT)
+    return out
+
+
+def _protocol(tmp_path: Path, mutate: Callable[[dict], object]) -> str:
+    data = yaml.safe_load(SHORT.read_text())
+    mutate(data)
+    path = tmp_path / "protocol.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return str(path)
+
+
+def _seq(data: dict, **changes: object) -> None:
+    data["test_sequence"]["sequences"][0].update(changes)
+
+
+def test_a_boiler_too_big_for_the_bench_is_refused_and_the_log_kept(tmp_path, capsys):
+    # a consistent 40 kW boiler: its nominal load at a 15 K spread needs 2291 kg/h, more
+    # than the bench's flow range
+    big = yaml.safe_load((BOILER_DIR / "windhager_6kw.yaml").read_text())
+    big.update(name="big40", p_nom_kW=40.0, p_max_kW=44.0, p_min_kW=12.0, p_start_kW=44.0)
+    big.update(c_therm_kJ_K=400.0, vol_water_m3=0.15, fac_b_lambda_h_kg=-0.33)
+    boiler = tmp_path / "big40.yaml"
+    boiler.write_text(yaml.safe_dump(big))
+    out = _kept(tmp_path)
+    argv = ["run", "stationary", "--boiler", str(boiler), "--quiet", "--out", str(out)]
+    err = _refused(capsys, argv, "water_flow_setpoint_kg_h: 2291.1")
+    assert "big40" in err and "'preheat.load_pct'" in err and "0..2000" in err
+    assert out.read_text() == KEPT
+    assert not (tmp_path / "log.meta.json").exists()
+
+
+@pytest.mark.parametrize(
+    ("mutate", "message"),
+    [
+        (lambda d: d["test_sequence"].update(return_setpoint_C=500), "return_setpoint_C: 500"),
+        (lambda d: d["test_sequence"].update(return_setpoint_C=-300), "return_setpoint_C: -300"),
+        (lambda d: d["preheat"].update(temperature_C=400), "'preheat.temperature_C'"),
+        (lambda d: d.update(flow_spread_K=1e-6), "water_flow_setpoint_kg_h"),
+    ],
+)
+def test_setpoints_out_of_the_emulators_range_are_refused(tmp_path, capsys, mutate, message):
+    out = _kept(tmp_path)
+    protocol = _protocol(tmp_path, mutate)
+    argv = ["run", protocol, "--boiler", "windhager_12kw", "--quiet", "--out", str(out)]
+    err = _refused(capsys, argv, message)
+    assert "outside" in err and protocol in err
+    assert out.read_text() == KEPT
+
+
+@pytest.mark.parametrize(
+    ("mutate", "message"),
+    [
+        (lambda d: _seq(d, duration="nan:00:00"), "HH:MM:SS"),
+        (lambda d: _seq(d, duration="inf:00:00"), "HH:MM:SS"),
+        (lambda d: _seq(d, duration="99999999:00:00"), "more than a week"),
+        (lambda d: _seq(d, duration=1e12), "more than a week"),
+        (lambda d: d.update(acquisition_period_s=1e-6), "0.1..600 s"),
+        (lambda d: d.update(acquisition_period_s=1e9), "0.1..600 s"),
+        (lambda d: d["start_up"].update(min_duration_s=9000), "exceeds 'start_up.max_duration_s'"),
+        (lambda d: d["preheat"].update(tolerance_K=-0.5), "'preheat.tolerance_K' must be > 0"),
+        (lambda d: d["preheat"].update(hold_s=-60), "'preheat.hold_s'"),
+        (lambda d: d["start_up"].update(t1_max_rise_K_min=-0.5), "'start_up.t1_max_rise_K_min'"),
+        (lambda d: _seq(d, name="a,b\nc"), "'test_sequence.sequences[0].name'"),
+        (lambda d: _seq(d, name='say "peak"'), "may not hold a comma, a quote"),
+        (lambda d: _seq(d, name="tab\there"), "control characters"),
+    ],
+)
+def test_protocols_that_would_hang_or_corrupt_the_log_are_refused(
+    tmp_path, capsys, mutate, message
+):
+    out = _kept(tmp_path)
+    protocol = _protocol(tmp_path, mutate)
+    argv = ["run", protocol, "--boiler", "windhager_12kw", "--quiet", "--out", str(out)]
+    _refused(capsys, argv, message)
+    assert out.read_text() == KEPT
+
+
+def test_a_command_refused_mid_run_is_one_line(tmp_path, capsys, monkeypatch):
+    # a setpoint the up-front check did not catch: one line, exit 2, no traceback
+    monkeypatch.setattr("hil_client.cli.check_setpoints", lambda *args: None)
+    protocol = _protocol(tmp_path, lambda d: d["test_sequence"].update(return_setpoint_C=500))
+    out = tmp_path / "log.csv"
+    argv = ["run", protocol, "--boiler", "windhager_12kw", "--quiet", "--out", str(out)]
+    err = _refused(capsys, argv, "return_setpoint_C: 500.0 outside 10..90")
+    assert "the log keeps every row acquired" in err
+
+
+def test_out_below_a_file_is_refused(tmp_path, capsys):
+    (tmp_path / "p.sh").write_text("#!/bin/sh\n")
+    argv = ["run", "stationary", "--boiler", "windhager_6kw", "--out", str(tmp_path / "p.sh/a.csv")]
+    _refused(capsys, argv, "is a file, not a directory")
+    for out in ("p.sh", "p.sh/sub"):
+        argv = ["gap-benchmark", "--cases", "1", "--out", str(tmp_path / out)]
+        _refused(capsys, argv, "--out: ")
+    assert (tmp_path / "p.sh").read_text() == "#!/bin/sh\n"
+
+
+@pytest.mark.parametrize(
+    ("option", "message"),
+    [
+        (["--seed", "-1"], "--seed: -1 is outside 0..4294967295"),
+        (["--seed", str(2**32)], "--seed"),
+        (["--cases", "100000000000"], "--cases: 100000000000 is outside 1..10000"),
+        (["--cases", "0"], "--cases"),
+        (["--workers", "0"], "--workers"),
+    ],
+)
+def test_gap_benchmark_bounds(tmp_path, capsys, option, message):
+    out = tmp_path / "gap"
+    _refused(capsys, ["gap-benchmark", *option, "--out", str(out)], message)
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("port", ["0", "70000"])
+def test_rig_port_outside_1_to_65535_is_refused(tmp_path, capsys, port):
+    out = _kept(tmp_path)
+    rig = f"modbus://127.0.0.1:{port}"
+    argv = ["run", str(SHORT), "--boiler", "windhager_12kw", "--rig", rig, "--out", str(out)]
+    _refused(capsys, argv, "bad port (1..65535)")
+    assert out.read_text() == KEPT
+
+
+def _map_without(tmp_path: Path, drop: Callable[[dict], object]) -> str:
+    data = yaml.safe_load(Path(load_map().source).read_text())
+    drop(data)
+    path = tmp_path / "map.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return str(path)
+
+
+def _drop_device(name: str) -> Callable[[dict], object]:
+    return lambda d: d.update(devices=[dev for dev in d["devices"] if dev["name"] != name])
+
+
+@pytest.mark.parametrize(
+    ("drop", "message"),
+    [
+        (_drop_device("sim_control"), "no point for 'sim_time_s'"),
+        (_drop_device("balance"), "no point for 'balance_mass_kg'"),
+    ],
+)
+def test_a_map_without_what_the_modbus_rig_needs_is_refused(tmp_path, capsys, serve, drop, message):
+    srv = serve()
+    out = _kept(tmp_path)
+    rig = f"modbus://127.0.0.1:{srv.port}"
+    argv = ["run", str(SHORT), "--boiler", "windhager_12kw", "--rig", rig, "--quiet"]
+    argv += ["--map", _map_without(tmp_path, drop), "--out", str(out)]
+    _refused(capsys, argv, message)
+    assert out.read_text() == KEPT
+
+
+def test_an_invalid_map_is_refused_for_the_local_rig_too(tmp_path, capsys):
+    def overlap(data: dict) -> None:
+        data["devices"][0]["points"][1]["address"] = data["devices"][0]["points"][0]["address"]
+
+    out = _kept(tmp_path)
+    argv = ["run", str(SHORT), "--boiler", "windhager_12kw", "--rig", "local", "--quiet"]
+    argv += ["--map", _map_without(tmp_path, overlap), "--out", str(out)]
+    _refused(capsys, argv, "--map: ")
+    assert out.read_text() == KEPT
+
+
+def test_a_server_running_another_boiler_is_refused(tmp_path, capsys, serve):
+    srv = serve(boiler="windhager_6kw")
+    out = _kept(tmp_path)
+    rig = f"modbus://127.0.0.1:{srv.port}"
+    argv = ["run", str(SHORT), "--boiler", "windhager_12kw", "--rig", rig, "--quiet"]
+    err = _refused(capsys, [*argv, "--out", str(out)], "runs another boiler")
+    assert "windhager_6kw" in err and "windhager_12kw" in err
+    assert out.read_text() == KEPT
+
+
+def test_the_meta_file_records_the_servers_boiler(tmp_path, capsys, serve):
+    from hil_client.rigs.modbus import boiler_id
+    from rig_emulator.boilers import load_boiler
+
+    srv = serve(boiler="windhager_6kw")
+    out = tmp_path / "log.csv"
+    rig = f"modbus://127.0.0.1:{srv.port}"
+    argv = ["run", str(SHORT), "--boiler", "windhager_6kw", "--rig", rig, "--quiet"]
+    assert main([*argv, "--out", str(out)]) == 0
+    meta = json.loads((tmp_path / "log.meta.json").read_text())
+    assert meta["server_boiler_id"] == f"{boiler_id(load_boiler('windhager_6kw')):08x}"
+    assert meta["server_boiler_id"] == f"{int(srv.values()['boiler_id']):08x}"
+
+
+def test_the_log_writer_quotes_a_text_field_that_would_break_the_row(tmp_path):
+    path = tmp_path / "log.csv"
+    numbers = [1.5] * (len(LOG_COLUMNS) - 3)
+    with LabLogWriter(path) as writer:
+        writer((1.0, "test", "a,b\nc", *numbers))
+        writer((2.0, "test", 'say "x"', *numbers[:-1], float("nan")))
+        writer((3.0, "test", "plain", *numbers))
+    rows = list(csv.reader(path.open(newline="")))
+    assert [len(r) for r in rows] == [len(LOG_COLUMNS)] * 4
+    assert [r[2] for r in rows[1:]] == ["a,b\nc", 'say "x"', "plain"]
+    # the quoted rows' numbers are written as the plain row's; a missing one is empty
+    assert rows[1][3:] == rows[3][3:] and rows[1][0] == "1.000"
+    assert rows[2][-1] == "" and rows[2][3:-1] == rows[3][3:-1]
+
+
+@pytest.mark.parametrize("protocol", ["stationary", "load_cycle"])
+@pytest.mark.parametrize("boiler", ["windhager_6kw", "windhager_12kw"])
+def test_the_shipped_protocols_pass_the_setpoint_check(protocol, boiler):
+    from hil_client.protocol.definition import load_protocol
+    from hil_client.protocol.runner import check_setpoints, setpoints
+    from rig_emulator.boilers import load_boiler
+
+    proto, params = load_protocol(protocol), load_boiler(boiler)
+    check_setpoints(proto, params.p_nom_kW, boiler)  # raises if not
+    flows = [v for _, c, v in setpoints(proto, params.p_nom_kW) if c == "water_flow_setpoint_kg_h"]
+    assert max(flows) > 300  # the nominal load's flow is among the values checked
