@@ -519,6 +519,32 @@ def _make_rig(args: argparse.Namespace, params: BoilerParams, register_map: Regi
     return rig
 
 
+def _set_aside(out: Path) -> list[tuple[Path, Path]]:
+    """Move the files of a previous run at ``out`` (log, meta, Modbus events) aside, so a
+    run that fails before its first row (a server refusing this client's writes, Ctrl-C)
+    loses nothing; (original, aside) pairs."""
+    moved = []
+    for path in (out, meta_path(out), events_path(out)):
+        if path.exists():
+            aside = path.with_name(path.name + ".previous")
+            path.replace(aside)
+            moved.append((path, aside))
+    return moved
+
+
+def _settle_previous(out: Path, moved: list[tuple[Path, Path]], keep: bool) -> None:
+    """Put the previous run's files back (``keep``: this run wrote no row; its own files
+    go), or delete them (this run's log replaces them)."""
+    if keep and moved:
+        for path in (out, meta_path(out), events_path(out)):
+            path.unlink(missing_ok=True)
+    for path, aside in moved:
+        if keep:
+            aside.replace(path)
+        else:
+            aside.unlink(missing_ok=True)
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     # validate everything before any file is written
     params = boiler_arg(args.boiler)
@@ -595,12 +621,15 @@ def _cmd_run(args: argparse.Namespace) -> int:
         meta["gaps"] = getattr(rig, "gaps", [])
         write_meta(out, meta)
 
+    previous = _set_aside(out)
+    written = [0]  # rows of this run in the log
     try:
         with LabLogWriter(out) as writer:
             write_meta(out, meta)
 
             def sink(row: tuple[object, ...]) -> None:
                 writer(row)
+                written[0] += 1
                 summary(row)
 
             result = run_protocol(
@@ -621,6 +650,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         rig.close()
         if remote:  # what faulty units did, beside the log
             write_events(out, rig.comm_events)
+        _settle_previous(out, previous, keep=not written[0])
     if progress is not None:
         progress.done()
     wall = time.monotonic() - started

@@ -34,6 +34,7 @@ from hil_client.analysis.phases import find_phases
 from hil_client.cli import main as hil_client_main
 from hil_client.wait_for_port import free_port, wait_for_port
 from rig_emulator.boilers import load_boiler
+from rig_emulator.model.params import ParameterError
 
 
 @contextlib.contextmanager
@@ -83,7 +84,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not 0 < args.speed <= 10_000:
         parser.error("--speed must be in (0, 10000]")
     out_dir: Path = args.out_dir
-    out_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        boiler = load_boiler(args.boiler)
+    except ParameterError as exc:
+        parser.error(f"--boiler: {exc}")
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:  # a file in the way, no permission
+        parser.error(f"out_dir: cannot make '{out_dir}' ({exc.strerror})")
     log_path = out_dir / f"{Path(args.protocol).stem}.csv"
     started = time.monotonic()
     pace = ["--lockstep"]
@@ -115,7 +123,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
     if code != 0:
         return code
-    params = load_boiler(args.boiler)
+    params = boiler
     log = read_log(log_path)
     phases = find_phases(log)
     rows = energy_balance(log, params, phases)

@@ -40,7 +40,7 @@ def read_jsonl(path: Path, what: str) -> list[dict[str, Any]]:
             continue
         try:
             item = json.loads(line)
-        except json.JSONDecodeError:
+        except (json.JSONDecodeError, RecursionError):  # nested a thousand deep: no journal
             raise ValueError(f"{path}: line {number} is not JSON ({what})") from None
         if not isinstance(item, dict):
             raise ValueError(f"{path}: line {number} is not a JSON object ({what})")
@@ -88,7 +88,9 @@ def summary(report: dict[str, Any]) -> str:
         f"{kind} {c['detected']}/{c['detected'] + c['missed']}"
         for kind, c in sorted(report["by_kind"].items())
     )
+    unseen = len(report.get("unseen", ()))
+    never = f", {unseen} never served (inside one lockstep step)" if unseen else ""
     return (
         f"faults: {report['detected']} detected, {report['missed']} missed, "
-        f"{report['false']} false ({kinds or 'none journalled'})"
+        f"{report['false']} false{never} ({kinds or 'none journalled'})"
     )

@@ -284,7 +284,10 @@ def _cmd_serve(args: argparse.Namespace) -> int:
         check_command("speed_factor", args.speed)
     with bad_input(FaultError, prefix="--faults: "):
         faults = load_faults(args.faults) if args.faults is not None else []
-        check_units(faults, {d.unit_id for d in register_map.devices}, f"{args.faults}: faults")
+        units = {d.unit_id for d in register_map.devices}
+        check_units(faults, units, f"{args.faults}: faults")
+    with bad_input(FaultError, prefix="--profile: "):
+        check_units(profile.faults, units, f"{args.profile}: faults")
     if args.fault_log is not None:
         try:
             output_file(args.fault_log)

@@ -122,19 +122,24 @@ def _hash32(data: object) -> int:
     return int.from_bytes(hashlib.blake2b(text, digest_size=4).digest(), "big")
 
 
+def _values(params: BoilerParams) -> dict:
+    """The parameters without the file's name: a lab's renamed copy is the same boiler."""
+    return {k: v for k, v in params.to_mapping().items() if k != "name"}
+
+
 def plant_identity(
     params: BoilerParams, profile: Profile, seed: int, config: BenchConfig
 ) -> dict[str, float]:
-    """What identifies a plant set-up, as published: 32-bit hashes of the boiler (with the
-    bench configuration) and of the profile, and the seed modulo 2**32. Two servers started
-    with the same files and seed publish the same values."""
+    """What identifies a plant set-up, as published: 32-bit hashes of the boiler's values
+    (not its name; with the bench configuration) and of the profile, and the seed modulo
+    2**32. Two servers started with the same files and seed publish the same values."""
     profile_data = {
         "name": profile.name,
         "instruments": {k: dataclasses.asdict(v) for k, v in profile.instruments.items()},
         "effects": {k: dict(v) for k, v in profile.effects.items()},
     }
     return {
-        "boiler_id": float(_hash32([params.to_mapping(), dataclasses.asdict(config)])),
+        "boiler_id": float(_hash32([_values(params), dataclasses.asdict(config)])),
         "profile_id": float(_hash32(profile_data)),
         "seed": float(seed % 2**32),
     }

@@ -58,6 +58,8 @@ def read_yaml(path: Path, error: type[Exception]) -> Any:
         raise error(f"{path}: cannot read ({exc.strerror})") from None
     try:
         return yaml.load(text, Loader=_Loader)  # a SafeLoader: no object construction
+    except RecursionError:  # [[[[... a thousand deep
+        raise error(f"{path}: not valid YAML (nested too deeply)") from None
     except ValueError:  # an integer of more digits than Python converts (4300)
         raise error(f"{path}: not valid YAML (a number of thousands of digits)") from None
     except yaml.YAMLError as exc:

@@ -12,7 +12,8 @@ Per phase:
 - direct efficiency Q_water / Q_fuel, indirect efficiency 1 - (flue-gas + ash losses) /
   Q_fuel (the loss to the room is not measured, so the indirect figure is an upper bound).
 
-Missing readings (empty fields) are interpolated in time. What the log cannot give is
+Missing readings (empty fields) are interpolated in time; a refill of the balance (a rise
+over 0.5 kg between readings) is no fuel leaving and is taken out. What the log cannot give is
 unknown (NaN; null in the JSON, "-" in the table), never 0 or 100 %, and each phase's
 ``warnings`` say why: a column without any reading (no balance: fuel, Q_fuel, flue-gas loss
 and efficiencies; no O2: lambda, flue-gas loss and indirect efficiency, the firing rows being
@@ -28,7 +29,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from hil_client.analysis.logio import LabLog, fill_gaps
+from hil_client.analysis.logio import LabLog, fill_gaps, without_refills
 from hil_client.analysis.phases import NAMES, Phases
 from rig_emulator.model import constants as k
 from rig_emulator.model.fuel import stoichiometry
@@ -36,6 +37,8 @@ from rig_emulator.model.params import BoilerParams
 from rig_emulator.model.water_heat import heat_to_water_kW
 
 FIRING_O2_PCT = 19.0
+#: Fuel gone from the balance beyond its resolution (two 0.02-kg steps) [kg]
+FUEL_SEEN_KG = 0.05
 #: Firing this long [s] changes any balance's reading (0.02 kg at 0.1 kg/h is 12 min)
 STUCK_FIRING_S = 600.0
 
@@ -112,7 +115,8 @@ def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[Ph
     empty = {name: bool(np.isnan(v).all()) for name, v in get.items()}
     no_water = [n for n in ("water_flow_kg_h", "water_in_temp_C", "water_out_temp_C") if empty[n]]
     no_fg = [n for n in ("flue_gas_temp_C", "room_temp_C") if empty[n]]
-    mass = log["balance_mass_kg"]
+    mass = without_refills(log["balance_mass_kg"])  # a refill is no fuel leaving
+    get["balance_mass_kg"] = fill_gaps(mass, t)
     read_all = mass[~np.isnan(mass)]
     fired_all = float(dt[firing].sum())
     stuck_all = bool(fired_all >= STUCK_FIRING_S and len(read_all) and np.ptp(read_all) == 0)
@@ -158,6 +162,13 @@ def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[Ph
             warn.append(
                 "column 'flue_gas_O2_pct' has no readings: the firing rows, lambda, flue-gas "
                 "loss and indirect efficiency unknown"
+            )
+        elif not len(burn) and fuel_dry * per_kg_dry > FUEL_SEEN_KG:
+            s_ = l_ = c_ = math.nan  # fuel left the balance, yet the analyser read air
+            warn.append(
+                f"the analyser reads air (O2 >= {FIRING_O2_PCT:g} %) throughout while the "
+                f"balance lost {fuel_dry * per_kg_dry:.2f} kg: lambda, flue-gas loss and "
+                "indirect efficiency unknown"
             )
         elif not len(burn):
             s_ = l_ = c_ = 0.0  # no combustion, no flue-gas loss

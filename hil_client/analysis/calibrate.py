@@ -208,11 +208,16 @@ class Calibration:
     flags: dict[str, str] = field(default_factory=dict)
 
 
+#: The most excess air a firing boiler runs at: O2 about 19 % of the dry gas, where the
+#: balance counts a row as firing no more (an analyser reading air fits lambda 16).
+LAMBDA_MAX = 10.0
+
+
 def _lambda_ok(params: BoilerParams) -> bool:
-    """Eq. 9 gives lambda > 1 over the whole modulation range."""
+    """Eq. 9 gives 1 < lambda <= :data:`LAMBDA_MAX` over the whole modulation range."""
     lhv = params.fuel.lhv_dry_kJ_kg
     return all(
-        params.fac_a_lambda + params.fac_b_lambda_h_kg * p * 3600.0 / lhv > 1.0
+        1.0 < params.fac_a_lambda + params.fac_b_lambda_h_kg * p * 3600.0 / lhv <= LAMBDA_MAX
         for p in (params.p_min_kW, params.p_max_kW)
     )
 
@@ -249,7 +254,8 @@ def _plausible(doc: BoilerParams, fitted: dict[str, Fitted]) -> tuple[BoilerPara
         for key in ("fac_a_lambda", "fac_b_lambda_h_kg"):
             if key in values:
                 flags[key] = (
-                    f"fitted {values[key]:.4g} gives lambda <= 1 in the modulation range (Eq. 9)"
+                    f"fitted {values[key]:.4g} gives lambda outside 1..{LAMBDA_MAX:g} in the "
+                    "modulation range (Eq. 9; an analyser reading air?)"
                 )
         params = replace(
             params, fac_a_lambda=doc.fac_a_lambda, fac_b_lambda_h_kg=doc.fac_b_lambda_h_kg

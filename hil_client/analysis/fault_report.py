@@ -129,6 +129,11 @@ def fault_windows(
                 "start_s": float(event["t_sim_s"]),
                 "end_s": None,
                 "source": event.get("source"),
+                # the server never served it: its whole window fell inside one step
+                "seen": not (
+                    isinstance(event.get("served"), Mapping)
+                    and event["served"].get("seen") is False
+                ),
             }
         elif fid in faults:
             faults[fid]["end_s"] = float(event["t_sim_s"])
@@ -182,8 +187,11 @@ def compare(
     journal_name: str = "fault journal",
 ) -> dict[str, Any]:
     """The report: every fault detected or missed, and the client's false alarms
-    (``journal_name``: the journal's file, for its errors)."""
-    faults = fault_windows(journal, journal_name)
+    (``journal_name``: the journal's file, for its errors). A fault the server journalled
+    as never served (its window fell wholly inside one lockstep step) is neither: it is
+    listed under ``unseen``."""
+    windows = fault_windows(journal, journal_name)
+    faults = [f for f in windows if f["seen"]]  # an unserved fault can be neither caught nor missed
     end_of_run = max(
         [float(e.get("server_time_s", 0.0)) for e in client_events]
         + ([float(server_time[-1])] if server_time is not None and server_time.size else [])
@@ -240,6 +248,7 @@ def compare(
         "faults": rows_out,
         "detected": sum(r["detected"] for r in rows_out),
         "missed": sum(not r["detected"] for r in rows_out),
+        "unseen": [f for f in windows if not f["seen"]],
         "false": len(false_events),
         "false_events": false_events,
         "by_kind": by_kind,

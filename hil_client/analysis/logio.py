@@ -205,6 +205,8 @@ def read_log(
             raise LogError(f"{meta_file}: cannot read ({exc.strerror})") from None
         except json.JSONDecodeError as exc:
             raise LogError(f"{meta_file}: not valid JSON ({exc})") from None
+        except RecursionError:
+            raise LogError(f"{meta_file}: not valid JSON (nested too deeply)") from None
         if not isinstance(meta, dict):
             raise LogError(f"{meta_file}: expected a JSON object")
     return LabLog(path, columns, text, meta, notes)
@@ -246,3 +248,19 @@ def fill_gaps(values: np.ndarray, t: np.ndarray) -> np.ndarray:
     if ok.all() or not ok.any():
         return values
     return np.interp(t, t[ok], values[ok])
+
+
+REFILL_STEP_KG = 0.5
+
+
+def without_refills(mass_kg: np.ndarray) -> np.ndarray:
+    """The balance reading with every refill (a rise over :data:`REFILL_STEP_KG` between
+    two valid readings) taken out, so that it only ever shows fuel leaving; gaps stay."""
+    out = mass_kg.copy()
+    ok = np.flatnonzero(~np.isnan(mass_kg))
+    if len(ok) < 2:
+        return out
+    jumps = np.diff(mass_kg[ok])
+    refills = np.where(jumps > REFILL_STEP_KG, jumps, 0.0)
+    out[ok[1:]] -= np.cumsum(refills)
+    return out

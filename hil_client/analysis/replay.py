@@ -20,7 +20,7 @@ import numpy as np
 
 from hil_client.analysis.augment import first_order_lag
 from hil_client.analysis.firing import Firing, observe_firing
-from hil_client.analysis.logio import LabLog, LogError, fill_gaps
+from hil_client.analysis.logio import LabLog, LogError, fill_gaps, without_refills
 from hil_client.analysis.phases import Phases
 from rig_emulator.model import pack_constants
 from rig_emulator.model.params import BoilerParams
@@ -117,22 +117,6 @@ def _filled(log: LabLog, name: str) -> np.ndarray:
 
 #: A rise of the balance bigger than this between two readings is a refill [kg]: fuel only
 #: leaves the boiler, and the balance resolves 0.02 kg (Section 2.2).
-REFILL_STEP_KG = 0.5
-
-
-def without_refills(mass_kg: np.ndarray) -> np.ndarray:
-    """The balance reading with every refill (a rise over :data:`REFILL_STEP_KG` between
-    two valid readings) taken out, so that it only ever shows fuel leaving; gaps stay."""
-    out = mass_kg.copy()
-    ok = np.flatnonzero(~np.isnan(mass_kg))
-    if len(ok) < 2:
-        return out
-    jumps = np.diff(mass_kg[ok])
-    refills = np.where(jumps > REFILL_STEP_KG, jumps, 0.0)
-    out[ok[1:]] -= np.cumsum(refills)
-    return out
-
-
 def _step_lengths(t: np.ndarray) -> np.ndarray:
     """Each row's step [s]: the time since the row before (the first: the median step)."""
     if len(t) < 2:

@@ -202,7 +202,7 @@ class Dashboard:
             return
         try:
             request = json.loads(body or b"{}")
-        except (json.JSONDecodeError, UnicodeDecodeError):
+        except (json.JSONDecodeError, UnicodeDecodeError, RecursionError):
             raise BadRequest("the body is not JSON") from None
         if not isinstance(request, dict):
             raise BadRequest('expected {"signal": NAME, "value": NUMBER}')
@@ -226,7 +226,7 @@ class Dashboard:
             return
         try:
             request = json.loads(body or b"{}")
-        except (json.JSONDecodeError, UnicodeDecodeError):
+        except (json.JSONDecodeError, UnicodeDecodeError, RecursionError):
             raise BadRequest("the body is not JSON") from None
         if not isinstance(request, dict) or not (
             isinstance(request.get("inject"), dict) or request.get("clear") is True

@@ -266,6 +266,11 @@ class FaultEngine:
             self._next_id, spec, source, start_s, None if for_s is None else start_s + for_s
         )
         self._next_id += 1
+        if spec.kind == "disconnect" and fault.end_s is not None and fault.end_s <= t_sim_s:
+            # its window fell between two evaluations: no connection is closed now
+            self._journal("start", fault, start_s, None, served=_UNSEEN)
+            self._journal("end", fault, fault.end_s, None, _UNSEEN, "for_s elapsed")
+            return fault
         if spec.kind == "disconnect":
             closed = 0
             if self.on_disconnect is not None:

@@ -56,6 +56,6 @@ def read_journal(path: str | Path) -> list[dict[str, Any]]:
         if line.strip():
             try:
                 events.append(json.loads(line))
-            except json.JSONDecodeError:
+            except (json.JSONDecodeError, RecursionError):
                 raise ValueError(f"{path}: line {number} is not JSON") from None
     return events

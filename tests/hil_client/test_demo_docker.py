@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 import yaml
 
 from hil_client.cli import _build_parser as client_parser
@@ -101,3 +102,22 @@ def test_wait_for_port(capsys):
     assert wait_main(["127.0.0.1", "1", "--timeout", "0.3"]) == 1
     assert "not reachable" in capsys.readouterr().err
     assert not wait_for_port("127.0.0.1", 1, 60.0, alive=lambda: False)  # gives up at once
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--boiler", "nosuch"], "--boiler: unknown boiler 'nosuch'"),
+        (["IN_A_FILE/sub"], "out_dir: cannot make"),
+    ],
+)
+def test_the_demo_refuses_bad_input_in_one_line(tmp_path, capsys, argv, message):
+    """No traceback for a mistyped boiler or an out_dir under a file (both gave one)."""
+    (tmp_path / "afile").write_text("")
+    argv = [a.replace("IN_A_FILE", str(tmp_path / "afile")) for a in argv]
+    if argv[0].startswith("--"):
+        argv = [str(tmp_path / "out"), *argv]
+    with pytest.raises(SystemExit) as info:
+        demo_main(argv)
+    err = capsys.readouterr().err
+    assert info.value.code == 2 and message in err and "Traceback" not in err

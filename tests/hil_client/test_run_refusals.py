@@ -246,3 +246,47 @@ def test_the_shipped_protocols_pass_the_setpoint_check(protocol, boiler):
     check_setpoints(proto, params.p_nom_kW, boiler)  # raises if not
     flows = [v for _, c, v in setpoints(proto, params.p_nom_kW) if c == "water_flow_setpoint_kg_h"]
     assert max(flows) > 300  # the nominal load's flow is among the values checked
+
+
+def test_a_run_refused_at_its_first_step_keeps_the_previous_logs(tmp_path, capsys, serve):
+    """A TLS client whose role may not drive the lockstep clock (an observer) fails at
+    its first step: the previous run's log, meta and events files are as they were."""
+    from rig_emulator.certs import make_lab_certificates
+    from rig_emulator.modbus.roles import DEFAULT_POLICY
+    from rig_emulator.modbus.tls import server_context
+    from rig_emulator.modbus.transports import Transports
+
+    certs = tmp_path / "certs"
+    make_lab_certificates(certs)
+    srv = serve(
+        ssl_context=server_context(certs / "server.pem", certs / "server.key", certs / "ca.pem")
+    )
+
+    async def roles() -> None:
+        Transports(srv.server.modbus_server).authorise(DEFAULT_POLICY)
+
+    srv.call(roles())
+    out = _kept(tmp_path)
+    meta = tmp_path / "log.meta.json"
+    meta.write_text('{"earlier": true}')
+    tls = ["--tls-cert", str(certs / "observer.pem"), "--tls-key", str(certs / "observer.key")]
+    argv = ["run", str(SHORT), "--boiler", "windhager_12kw", "--quiet", "--out", str(out)]
+    rig = ["--rig", f"modbus+tls://127.0.0.1:{srv.port}", *tls, "--tls-ca", str(certs / "ca.pem")]
+    assert main([*argv, *rig]) == 1
+    assert "refused" in capsys.readouterr().err
+    assert out.read_text() == KEPT and meta.read_text() == '{"earlier": true}'
+    assert not (tmp_path / "log.csv.previous").exists()
+
+
+def test_a_renamed_copy_of_the_servers_boiler_is_the_same_boiler(tmp_path, capsys, serve):
+    """The boiler id is of the parameters, not the file's name: a lab's copy named
+    my_lab_boiler with the same values runs against the server."""
+    data = yaml.safe_load((BOILER_DIR / "windhager_12kw.yaml").read_text())
+    data["name"] = "my_lab_boiler"
+    copy = tmp_path / "mine.yaml"
+    copy.write_text(yaml.safe_dump(data))
+    srv = serve(boiler="windhager_12kw")
+    out = tmp_path / "log.csv"
+    rig = f"modbus://127.0.0.1:{srv.port}"
+    argv = ["run", str(SHORT), "--boiler", str(copy), "--rig", rig, "--quiet"]
+    assert main([*argv, "--out", str(out)]) == 0, capsys.readouterr().err

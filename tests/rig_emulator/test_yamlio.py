@@ -41,3 +41,9 @@ def test_an_integer_of_thousands_of_digits_is_one_line(tmp_path):
     with pytest.raises(Bad) as info:
         _read(tmp_path, "a: " + "9" * 5000 + "\n")
     assert "not valid YAML" in str(info.value) and "\n" not in str(info.value)
+
+
+def test_a_file_nested_thousands_deep_is_one_line(tmp_path):
+    with pytest.raises(Bad) as info:
+        _read(tmp_path, "a: " + "[" * 3000 + "]" * 3000 + "\n")
+    assert "nested too deeply" in str(info.value)

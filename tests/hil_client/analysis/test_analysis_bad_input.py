@@ -176,7 +176,41 @@ def test_balance_json_writes_unknown_as_null_with_the_reason(tmp_path, capsys):
     assert test["q_fuel_kW"] > 0 and test["warnings"]
 
 
+def test_balance_with_the_analyser_reading_air_while_fuel_burns_says_unknown(params_12kw):
+    """O2 at air's 20.95 % through a test that burnt fuel: no row counts as firing, and the
+    flue-gas loss is unknown, not 0 with an indirect efficiency of 100 %."""
+    test, text = _balance(params_12kw, flue_gas_O2_pct=np.full(3600, 20.95))
+    assert test.q_fuel_kW > 0 and math.isnan(test.q_flue_gas_kW)
+    assert math.isnan(test.eta_indirect) and "100.0%" not in text
+    assert "warning: the analyser reads air" in text
+
+
+def test_a_refill_of_the_balance_is_no_fuel(params_12kw):
+    """A +15 kg refill mid-test (the emulator's own offset fault) read as fuel going the
+    wrong way gave 0.98 kg of fuel and a direct efficiency of 1386 %."""
+    plain, _ = _balance(params_12kw)
+    log, _ = _steady_log(params_12kw, hours=1.0)
+    mass = log["balance_mass_kg"].copy()
+    mass[len(mass) // 2 :] += 15.0
+    refilled, _ = _balance(params_12kw, balance_mass_kg=mass)
+    assert refilled.fuel_as_received_kg == pytest.approx(plain.fuel_as_received_kg, abs=0.02)
+    assert refilled.eta_direct == pytest.approx(plain.eta_direct, rel=0.02)
+
+
 # --- calibrate ----------------------------------------------------------------------------
+
+
+def test_an_analyser_reading_air_fits_no_excess_air(run_log):
+    """O2 at air's level through the stationary test fitted fac_a_lambda = 16 (lambda 16,
+    no firing boiler's) and wrote it; now it is flagged and the documentation value kept."""
+    doc = load_boiler("windhager_12kw")
+    log = read_log(run_log("stationary", "windhager_12kw").path)
+    phases = find_phases(log)
+    air = replace(log, columns={**log.columns, "flue_gas_O2_pct": np.full(len(log), 20.95)})
+    result = calibrate([(air, phases)], doc)
+    flagged = [k for k in ("fac_a_lambda", "fac_b_lambda_h_kg") if k in result.flags]
+    assert flagged and all("lambda outside 1..10" in result.flags[k] for k in flagged)
+    assert result.params.fac_a_lambda == doc.fac_a_lambda
 
 
 def test_a_stuck_balance_fits_neither_eq9_nor_pel_nor_pstart(run_log):
@@ -259,3 +293,13 @@ def test_a_journal_as_the_server_writes_it_passes():
         "j.jsonl",
     )
     assert compare([START, END], [], journal_name="j.jsonl")["missed"] == 1
+
+
+def test_a_fault_the_server_never_served_is_neither_caught_nor_missed():
+    """Its whole window fell inside one lockstep step: the journal says so, and the report
+    lists it apart instead of blaming the acquisition software for missing it."""
+    unseen = {"seen": False, "why": "its whole window fell between two evaluations"}
+    lines = [{**START, "served": unseen}, {**END, "served": unseen}]
+    report = compare(lines, [], journal_name="j.jsonl")
+    assert report["missed"] == 0 and report["detected"] == 0
+    assert [f["id"] for f in report["unseen"]] == [1]

@@ -174,3 +174,10 @@ def test_a_record_cut_in_its_first_cooling_ends_that_cooling_and_says_so(run_log
         assert found.as_dict()[key] == pytest.approx(rec.meta[key], abs=60), key
     assert found.t3 == found.t4 == pytest.approx(short.t[-1])
     assert any("no second cooling" in note for note in short.notes)
+
+
+def test_a_meta_file_nested_thousands_deep_is_one_line(tmp_path):
+    path = _write(tmp_path, HEADER + "\n1,1,1,1,1,1,1,1,1\n2,1,1,1,1,1,1,1,1\n")
+    path.with_name(path.stem + ".meta.json").write_text('{"a": ' + "[" * 3000 + "]" * 3000 + "}")
+    with pytest.raises(LogError, match="nested too deeply"):
+        read_log(path)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hil_client.analysis.replay import without_refills
+from hil_client.analysis.logio import without_refills
 
 
 def test_a_refill_is_taken_out_of_the_balance_and_gaps_stay():

@@ -162,6 +162,29 @@ def test_a_window_inside_one_long_advance_is_over_after_it(tmp_path):
     ]
 
 
+def test_a_disconnect_window_inside_one_advance_closes_nothing(tmp_path):
+    """A disconnect with a window (for_s) wholly inside one evaluation step closes no
+    connection after it; a one-shot disconnect (no for_s) still happens, once, late."""
+    path = tmp_path / "j.jsonl"
+    closed: list[str] = []
+    engine = FaultEngine(
+        faults_from_list(
+            [
+                {"kind": "disconnect", "at_s": 300, "for_s": 5},
+                {"kind": "disconnect", "at_s": 160},
+            ]
+        ),
+        FaultJournal(path),
+    )
+    engine.on_disconnect = lambda reason: closed.append(reason) or 1
+    engine.apply({}, 0.0)
+    engine.apply({}, 1000.0)
+    assert len(closed) == 1  # the one-shot only
+    events = [(e["event"], e["t_sim_s"], e["served"]) for e in read_journal(path)]
+    unseen = {"seen": False, "why": "its whole window fell between two evaluations"}
+    assert ("start", 300.0, unseen) in events and ("end", 305.0, unseen) in events
+
+
 def test_a_fault_set_after_its_at_s_starts_when_it_is_set(tmp_path):
     """Set at 100 s with at_s 50 and for_s 30: it starts at 100 and lasts 30 s (it was not
     there to be seen from 50 to 80)."""

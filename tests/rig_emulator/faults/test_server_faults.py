@@ -203,3 +203,15 @@ def test_a_fault_window_inside_one_advance_is_over_after_it(serve, tmp_path):
     c.close()
     events = [(e["event"], e["t_sim_s"]) for e in read_journal(journal)]
     assert events == [("start", 740.0), ("end", 750.0)]
+
+
+def test_a_profile_fault_on_a_unit_the_bench_does_not_have_is_refused(tmp_path, capsys):
+    profile = tmp_path / "faulty.yaml"
+    profile.write_text(
+        "name: faulty\nfaults:\n  - {kind: random, rate_per_h: 6, kinds: [delay], units: [9, 42]}\n"
+    )
+    code = rig_emulator_main(
+        ["serve", "--boiler", "windhager_12kw", "--lockstep", "--profile", str(profile)]
+    )
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "unit 9 is not on the bench" in err, err
