@@ -519,6 +519,24 @@ def _make_rig(args: argparse.Namespace, params: BoilerParams, register_map: Regi
     return rig
 
 
+#: Modbus write functions: a command the rig sends
+_WRITE_FUNCTIONS = (5, 6, 15, 16, 23)
+
+
+def _refused_commands(events: list[dict]) -> str | None:
+    """One line on the setpoint and switch writes the server refused or left unanswered
+    (a TLS role that may not write, a faulty unit), or None."""
+    failed = [e for e in events if e.get("function") in _WRITE_FUNCTIONS]
+    if not failed:
+        return None
+    codes = sorted({f"exception {e['code']:02d}" for e in failed if "code" in e})
+    how = ", ".join(codes) or failed[0]["event"]
+    return (
+        f"{len(failed)} setpoint or switch writes failed ({how}; the first to unit "
+        f"{failed[0]['unit']}): the plant did not get those commands (see the events file)"
+    )
+
+
 def _set_aside(out: Path) -> list[tuple[Path, Path]]:
     """Move the files of a previous run at ``out`` (log, meta, Modbus events) aside, so a
     run that fails before its first row (a server refusing this client's writes, Ctrl-C)
@@ -659,6 +677,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         meta["modbus_events"] = events_path(out).name
         meta["modbus_event_count"] = len(rig.comm_events)
         meta["server_time_offset_s"] = rig.server_time_offset_s
+        refused = _refused_commands(rig.comm_events)
+        if refused:  # the plant did not get them: the run is no test of this protocol
+            result.notes.append(refused)
+            print(f"hil-client: warning: {refused}", file=sys.stderr)
     save_meta(result)
     if args.fault_report is not None:
         with bad_input(ValueError, LogError, prefix="--fault-report: "):

@@ -290,3 +290,32 @@ def test_a_renamed_copy_of_the_servers_boiler_is_the_same_boiler(tmp_path, capsy
     rig = f"modbus://127.0.0.1:{srv.port}"
     argv = ["run", str(SHORT), "--boiler", str(copy), "--rig", rig, "--quiet"]
     assert main([*argv, "--out", str(out)]) == 0, capsys.readouterr().err
+
+
+def test_commands_the_server_refused_are_not_a_silent_success(tmp_path, capsys, serve):
+    """The bench PLC answers 04 for ten minutes (an injected fault; a TLS observer's 01 is
+    the same to the rig): the run goes on, as acquisition must, but says in one warning and
+    in the meta file's notes that the plant did not get those commands."""
+    from rig_emulator.faults import faults_from_list
+
+    faults = faults_from_list(
+        [{"kind": "exception", "unit": 1, "code": 4, "at_s": 60, "for_s": 600}]
+    )
+    srv = serve(faults=faults)
+    out = tmp_path / "log.csv"
+    rig = f"modbus://127.0.0.1:{srv.port}"
+    argv = ["run", str(SHORT), "--boiler", "windhager_12kw", "--rig", rig, "--quiet"]
+    assert main([*argv, "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "setpoint or switch writes failed (exception 04; the first to unit 1)" in err
+    notes = json.loads((tmp_path / "log.meta.json").read_text())["notes"]
+    assert any("the plant did not get those commands" in n for n in notes)
+
+
+def test_a_run_whose_commands_all_arrived_has_no_such_warning(tmp_path, capsys, serve):
+    srv = serve()
+    out = tmp_path / "log.csv"
+    rig = f"modbus://127.0.0.1:{srv.port}"
+    argv = ["run", str(SHORT), "--boiler", "windhager_12kw", "--rig", rig, "--quiet"]
+    assert main([*argv, "--out", str(out)]) == 0
+    assert "writes failed" not in capsys.readouterr().err
