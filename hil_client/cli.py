@@ -39,7 +39,7 @@ from hil_client.protocol.definition import ProtocolError, load_protocol
 from hil_client.protocol.rig import RigError
 from hil_client.protocol.runner import RunResult, check_setpoints, run_protocol
 from hil_client.rigs.local import LocalRig
-from hil_client.rigs.modbus import WRITES, ModbusRig, boiler_id, check_map
+from hil_client.rigs.modbus import WRITES, ModbusRig, check_map
 from hil_client.rigs.transports import RIG_TIMEOUT_S, connector, tls_files
 from hil_client.summary import RunSummary
 from rig_emulator.boilers import BOILER_DIR, dump_boiler, load_boiler
@@ -56,7 +56,7 @@ from rig_emulator.cli_support import (
     text_file,
     text_input,
 )
-from rig_emulator.emulator import CommandError
+from rig_emulator.emulator import CommandError, boiler_identity
 from rig_emulator.instruments import ProfileError, load_profile
 from rig_emulator.model.params import BoilerParams, ParameterError, params_from_mapping
 from rig_emulator.registers import MapError, RegisterMap, load_map
@@ -486,7 +486,7 @@ def _served_boiler(served: int) -> str:
     """The shipped boiler whose ``boiler_id`` is ``served``, else the id in hex."""
     for path in sorted(BOILER_DIR.glob("*.yaml")):
         try:
-            if boiler_id(load_boiler(path.stem)) == served:
+            if boiler_identity(load_boiler(path.stem)) == served:
                 return f"{path.stem} (boiler id {served:08x})"
         except ParameterError:
             continue
@@ -509,12 +509,12 @@ def _make_rig(args: argparse.Namespace, params: BoilerParams, register_map: Regi
         on_restart=args.on_restart,
         connect=connect,
     )
-    served = rig.identity["boiler_id"]
-    if served != boiler_id(params):
+    served, ours = rig.identity["boiler_id"], boiler_identity(params)
+    if served != ours:
         rig.close()
         raise UsageError(
             f"--boiler {args.boiler}: the server at {args.rig} runs another boiler, "
-            f"{_served_boiler(served)}; {params.name} is boiler id {boiler_id(params):08x}"
+            f"{_served_boiler(served)}; {params.name} is boiler id {ours:08x}"
         )
     return rig
 

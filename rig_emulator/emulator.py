@@ -122,9 +122,11 @@ def _hash32(data: object) -> int:
     return int.from_bytes(hashlib.blake2b(text, digest_size=4).digest(), "big")
 
 
-def _values(params: BoilerParams) -> dict:
-    """The parameters without the file's name: a lab's renamed copy is the same boiler."""
-    return {k: v for k, v in params.to_mapping().items() if k != "name"}
+def boiler_identity(params: BoilerParams, config: BenchConfig | None = None) -> int:
+    """The published 32-bit hash of a boiler's values (not its file's name: a lab's renamed
+    copy is the same boiler) with the bench configuration (the default bench's if None)."""
+    values = {k: v for k, v in params.to_mapping().items() if k != "name"}
+    return _hash32([values, dataclasses.asdict(config or BenchConfig())])
 
 
 def plant_identity(
@@ -139,7 +141,7 @@ def plant_identity(
         "effects": {k: dict(v) for k, v in profile.effects.items()},
     }
     return {
-        "boiler_id": float(_hash32([_values(params), dataclasses.asdict(config)])),
+        "boiler_id": float(boiler_identity(params, config)),
         "profile_id": float(_hash32(profile_data)),
         "seed": float(seed % 2**32),
     }

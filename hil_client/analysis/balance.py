@@ -82,21 +82,24 @@ def flue_gas_loss_per_kg(
     return lam, sens, latent, chem
 
 
+#: The log columns the balance reads (besides CO, where the log has it).
+READ = (
+    "water_flow_kg_h",
+    "water_in_temp_C",
+    "water_out_temp_C",
+    "flue_gas_temp_C",
+    "flue_gas_O2_pct",
+    "balance_mass_kg",
+    "room_temp_C",
+)
+
+
 def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[PhaseBalance]:
     """Per-phase energy balance of a lab log (see the module docstring)."""
     t = log.t
-    get = {
-        name: fill_gaps(log[name], t)
-        for name in (
-            "water_flow_kg_h",
-            "water_in_temp_C",
-            "water_out_temp_C",
-            "flue_gas_temp_C",
-            "flue_gas_O2_pct",
-            "balance_mass_kg",
-            "room_temp_C",
-        )
-    }
+    mass = without_refills(log["balance_mass_kg"])  # a refill is no fuel leaving
+    raw = {name: log[name] for name in READ} | {"balance_mass_kg": mass}
+    get = {name: fill_gaps(values, t) for name, values in raw.items()}
     co = (
         np.nan_to_num(fill_gaps(log["flue_gas_CO_ppm"], t))
         if log.has("flue_gas_CO_ppm")
@@ -115,8 +118,6 @@ def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[Ph
     empty = {name: bool(np.isnan(v).all()) for name, v in get.items()}
     no_water = [n for n in ("water_flow_kg_h", "water_in_temp_C", "water_out_temp_C") if empty[n]]
     no_fg = [n for n in ("flue_gas_temp_C", "room_temp_C") if empty[n]]
-    mass = without_refills(log["balance_mass_kg"])  # a refill is no fuel leaving
-    get["balance_mass_kg"] = fill_gaps(mass, t)
     read_all = mass[~np.isnan(mass)]
     fired_all = float(dt[firing].sum())
     stuck_all = bool(fired_all >= STUCK_FIRING_S and len(read_all) and np.ptp(read_all) == 0)

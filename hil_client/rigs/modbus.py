@@ -68,10 +68,6 @@ from hil_client.modbus_client import (
 )
 from hil_client.protocol.rig import READING_KEYS, RigCommand, RigError
 from hil_client.rigs.transports import url_port
-from rig_emulator.bench import BenchConfig
-from rig_emulator.emulator import plant_identity
-from rig_emulator.instruments import load_profile
-from rig_emulator.model.params import BoilerParams
 from rig_emulator.registers import MapError, Point, RegisterMap, encode, run_decoder
 
 _READ_FUNCTION = {"coil": 1, "discrete": 2, "holding": 3, "input": 4}
@@ -144,12 +140,6 @@ def check_map(register_map: RegisterMap) -> None:
                 f"{register_map.source}: point '{point.name}' ({signal}) is read-only; "
                 "the Modbus rig writes it (access: rw)"
             )
-
-
-def boiler_id(params: BoilerParams) -> int:
-    """The ``boiler_id`` a server started with ``params`` publishes (``rig-emulator serve``
-    runs the default bench; :func:`rig_emulator.emulator.plant_identity`)."""
-    return int(plant_identity(params, load_profile("clean"), 0, BenchConfig())["boiler_id"])
 
 
 def parse_url(url: str) -> tuple[str, int]:

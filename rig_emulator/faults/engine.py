@@ -223,13 +223,14 @@ class FaultEngine:
             due += [(s, "random", -math.inf) for s in state.draw(t_sim_s)]
         for fault in ended:
             del self.active[fault.id]
-        started = [
-            self._start(spec, src, _start_s(spec, set_s, t_sim_s), t_sim_s, instrument)
-            for spec, src, set_s in due
-        ]
-        unseen = [f for f in started if f.id in self.active and _over(f, t_sim_s)]
-        for fault in unseen:
-            del self.active[fault.id]
+        started: list[ActiveFault] = []
+        unseen: list[ActiveFault] = []  # windows wholly between two evaluations: act not
+        for spec, src, set_s in due:
+            fault = self._new(spec, src, _start_s(spec, set_s, t_sim_s))
+            if _over(fault, t_sim_s):
+                unseen.append(fault)
+            else:
+                started.append(self._start(fault, t_sim_s, instrument))
         if ended or started:
             self._rebuild()
         if readings is not None and self._instrument:
@@ -238,27 +239,18 @@ class FaultEngine:
         events: list[tuple[float, str, ActiveFault, dict[str, Any] | None]] = [
             (_end_s(f, t_sim_s), "end", f, None) for f in ended
         ]
-        for fault in started:
-            if fault.spec.kind == "disconnect":
-                continue  # journalled when it happened
-            events.append((fault.start_s, "start", fault, _UNSEEN if fault in unseen else None))
-            if fault in unseen:
-                events.append((_end_s(fault, t_sim_s), "end", fault, _UNSEEN))
+        events += [(f.start_s, "start", f, None) for f in started if f.spec.kind != "disconnect"]
+        for fault in unseen:  # (a disconnect that happened is journalled as it happened)
+            events += [(fault.start_s, "start", fault, _UNSEEN)]
+            events += [(_end_s(fault, t_sim_s), "end", fault, _UNSEEN)]
         for t_s, event, fault, served in sorted(events, key=lambda e: e[0]):
             shown = None if served is not None else readings
             reason = "for_s elapsed" if event == "end" else None
             self._journal(event, fault, t_s, shown, served, reason)
 
-    def _start(
-        self,
-        spec: FaultSpec,
-        source: str,
-        start_s: float,
-        t_sim_s: float,
-        instrument: Mapping[str, float],
-    ) -> ActiveFault:
-        """Start ``spec`` with its window from ``start_s``; the evaluation is at ``t_sim_s``
-        (a disconnect happens then)."""
+    def _new(self, spec: FaultSpec, source: str, start_s: float) -> ActiveFault:
+        """A fault of ``spec`` whose window begins at ``start_s`` (a spike without ``for_s``
+        lasts one acquisition)."""
         for_s = spec.for_s
         if for_s is None and spec.kind == "spike":
             for_s = SPIKE_FOR_S
@@ -266,11 +258,13 @@ class FaultEngine:
             self._next_id, spec, source, start_s, None if for_s is None else start_s + for_s
         )
         self._next_id += 1
-        if spec.kind == "disconnect" and fault.end_s is not None and fault.end_s <= t_sim_s:
-            # its window fell between two evaluations: no connection is closed now
-            self._journal("start", fault, start_s, None, served=_UNSEEN)
-            self._journal("end", fault, fault.end_s, None, _UNSEEN, "for_s elapsed")
-            return fault
+        return fault
+
+    def _start(
+        self, fault: ActiveFault, t_sim_s: float, instrument: Mapping[str, float]
+    ) -> ActiveFault:
+        """Make ``fault`` act; the evaluation is at ``t_sim_s`` (a disconnect happens then)."""
+        spec = fault.spec
         if spec.kind == "disconnect":
             closed = 0
             if self.on_disconnect is not None:

@@ -207,8 +207,8 @@ def test_a_server_running_another_boiler_is_refused(tmp_path, capsys, serve):
 
 
 def test_the_meta_file_records_the_servers_boiler(tmp_path, capsys, serve):
-    from hil_client.rigs.modbus import boiler_id
     from rig_emulator.boilers import load_boiler
+    from rig_emulator.emulator import boiler_identity
 
     srv = serve(boiler="windhager_6kw")
     out = tmp_path / "log.csv"
@@ -216,7 +216,7 @@ def test_the_meta_file_records_the_servers_boiler(tmp_path, capsys, serve):
     argv = ["run", str(SHORT), "--boiler", "windhager_6kw", "--rig", rig, "--quiet"]
     assert main([*argv, "--out", str(out)]) == 0
     meta = json.loads((tmp_path / "log.meta.json").read_text())
-    assert meta["server_boiler_id"] == f"{boiler_id(load_boiler('windhager_6kw')):08x}"
+    assert meta["server_boiler_id"] == f"{boiler_identity(load_boiler('windhager_6kw')):08x}"
     assert meta["server_boiler_id"] == f"{int(srv.values()['boiler_id']):08x}"
 
 
