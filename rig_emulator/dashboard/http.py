@@ -13,7 +13,8 @@ Routes (GET unless said):
   :meth:`~rig_emulator.modbus.server.BenchServer.write_signal` (the same checks, the same
   exception codes), so the page can do nothing a Modbus client could not;
 - POST ``/api/faults`` with ``{"inject": {FAULT}}`` (an entry as in ``FAULTS.yaml``,
-  validated the same way) or ``{"clear": true}``: only with ``--http-control``, through
+  validated the same way), ``{"clear": true}``, or both (clear, then inject; a bad fault
+  changes nothing): only with ``--http-control``, through
   :meth:`~rig_emulator.modbus.server.BenchServer.inject` and ``clear_faults``.
 
 Every request is bounded (8 kB of headers, 4 kB of body, 10 s to arrive); a malformed one
@@ -228,19 +229,25 @@ class Dashboard:
             request = json.loads(body or b"{}")
         except (json.JSONDecodeError, UnicodeDecodeError, RecursionError):
             raise BadRequest("the body is not JSON") from None
-        if not isinstance(request, dict) or not (
-            isinstance(request.get("inject"), dict) or request.get("clear") is True
-        ):
-            raise BadRequest('expected {"inject": {FAULT}} or {"clear": true}')
-        if request.get("clear") is True:
-            self.server.clear_faults()
-            log.info("dashboard control: faults cleared")
-        else:
-            try:
-                self.server.inject(request["inject"])
+        usage = 'expected {"inject": {FAULT}}, {"clear": true} or both (clear, then inject)'
+        if not isinstance(request, dict) or not request or set(request) - {"inject", "clear"}:
+            raise BadRequest(usage)
+        if "inject" in request and not isinstance(request["inject"], dict):
+            raise BadRequest(usage)
+        if "clear" in request and request["clear"] is not True:
+            raise BadRequest(usage)
+        entry = None
+        if "inject" in request:
+            try:  # checked before anything is cleared: a bad fault changes nothing
+                entry = self.server.faults.parse(request["inject"])
             except FaultError as exc:
                 await _respond(writer, 400, {"error": str(exc)})
                 return
+        if request.get("clear") is True:
+            self.server.clear_faults()
+            log.info("dashboard control: faults cleared")
+        if entry is not None:
+            self.server.inject(entry)
             log.info("dashboard control: fault %s", request["inject"])
         self._sample()
         await _respond(writer, 200, {"ok": True, "faults": self.server.active_faults()})

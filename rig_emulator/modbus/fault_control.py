@@ -140,11 +140,16 @@ class ServerFaults:
         return float(plant[signal])
 
     # ------------------------------------------------------------------ commands
-    def inject(self, fault: Mapping[str, Any] | Entry, source: str = "python") -> None:
-        """Set a fault given as a dict (as in ``FAULTS.yaml``) or a parsed entry."""
+    def parse(self, fault: Mapping[str, Any] | Entry) -> Entry:
+        """A fault given as a dict (as in ``FAULTS.yaml``) or a parsed entry, checked
+        against this bench's units; :class:`FaultError` names what is wrong."""
         entry = fault if not isinstance(fault, Mapping) else fault_dict_to_spec(fault)
         check_units([entry], self.units, "fault")
-        self.engine.add(entry, source)
+        return entry
+
+    def inject(self, fault: Mapping[str, Any] | Entry, source: str = "python") -> None:
+        """Set a fault given as a dict (as in ``FAULTS.yaml``) or a parsed entry."""
+        self.engine.add(self.parse(fault), source)
 
     def write(self, new: Mapping[str, float]) -> ExcCodes | None:
         """A client's write to the command block: applied whole, or refused with 03 and

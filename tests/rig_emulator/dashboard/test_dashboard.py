@@ -248,3 +248,23 @@ def test_faults_are_set_and_cleared_from_the_page_only_with_controls(dashboard):
         assert not c.read_input_registers(0, count=2, device_id=2).isError()
     finally:
         c.close()
+
+
+def test_clear_and_inject_in_one_request_replaces_the_faults(dashboard):
+    """``{"clear": true, "inject": F}`` clears, then sets F (it used to clear and drop F);
+    with a bad F nothing is cleared; a key beside the two is refused, naming the form."""
+    _, http = dashboard("--http-control")
+    first = b'{"inject": {"kind": "delay", "unit": 3, "delay_ms": 50}}'
+    assert _post(http, first, "/api/faults")[0] == 200
+    status, body = _post(
+        http, b'{"clear": true, "inject": {"kind": "exception", "unit": 2, "code": 4}}',
+        "/api/faults",
+    )  # fmt: skip
+    assert status == 200 and [(f["kind"], f["unit"]) for f in body["faults"]] == [("exception", 2)]
+    status, body = _post(http, b'{"clear": true, "inject": {"kind": "no_reply", "unit": 99}}',
+                         "/api/faults")  # fmt: skip
+    assert status == 400 and "99" in body["error"]
+    status, body = _post(http, b'{"clear": true, "injct": {}}', "/api/faults")
+    assert status == 400 and "clear, then inject" in body["error"]
+    _, _, raw = _get(http, "/api/state")
+    assert [f["kind"] for f in json.loads(raw)["faults"]] == ["exception"]  # nothing changed
