@@ -21,6 +21,7 @@ Journal events (:mod:`rig_emulator.faults.journal`) go to :attr:`journal` when s
 
 from __future__ import annotations
 
+import logging
 import math
 import random
 import time
@@ -39,6 +40,7 @@ from rig_emulator.faults.spec import (
 )
 
 _EPS_S = 1e-9
+log = logging.getLogger("rig_emulator.serve")
 
 
 @dataclass(frozen=True, slots=True)
@@ -164,10 +166,16 @@ class FaultEngine:
         self._update(self.now_s, dict(self._last_instrument))
 
     def clear(self, reason: str = "cleared") -> int:
-        """End every active fault and drop the scheduled and random ones; how many ended."""
+        """End every active fault and drop the scheduled and random ones; how many ended.
+        The journal has lines only for faults that started, so what is dropped unstarted is
+        named in the server's log."""
         n = len(self.active)
         for fault in list(self.active.values()):
             self._end(fault, reason)
+        dropped = [f"{spec.kind} at {spec.at_s or 0:g} s ({src})" for spec, src, _ in self._pending]
+        dropped += ["a random fault generator"] * len(self._random)
+        if dropped and reason == "cleared":  # a reset schedules them again
+            log.warning("faults cleared: dropped before they started: %s", "; ".join(dropped))
         self._pending.clear()
         self._random.clear()
         self._rebuild()

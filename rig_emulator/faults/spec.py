@@ -55,7 +55,9 @@ PARAMETER = {
 }
 CONTROL_UNIT = 100  # the simulation control: never faulted
 TRUTH_UNIT = 101  # the plant's true values: never faulted
-NEVER_FAULTED = (CONTROL_UNIT, TRUTH_UNIT)
+#: the emulator's own units, not instruments: never faulted, never reached by a broadcast
+EMULATOR_UNITS = (CONTROL_UNIT, TRUTH_UNIT)
+NEVER_FAULTED = EMULATOR_UNITS
 SPIKE_FOR_S = 1.0  # a spike without for_s: one acquisition at the usual 1 s period
 MAX_DELAY_MS = 600_000.0
 #: Parameters of randomly drawn faults unless the entry's ``params`` says otherwise.

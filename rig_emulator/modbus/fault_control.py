@@ -110,7 +110,11 @@ class ServerFaults:
         return True
 
     def gate(self, info: Any) -> Any:
-        """The fault-injection gate: a decision for a request to a faulty unit, else None."""
+        """The fault-injection gate: a decision for a request to a faulty unit, else None; a
+        unit the bench does not have is never faulty (it gets 0B, as without faults, even
+        under a fault on every unit, 0)."""
+        if info.unit_id not in self.units:
+            return None
         decision = self.engine.decide(info.unit_id)
         if decision is None:
             return None

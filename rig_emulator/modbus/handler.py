@@ -472,10 +472,22 @@ class BenchModbusServer:
     async def execute(self, info: RequestInfo, pdu: bytes) -> bytes | None:
         """The response PDU to ``pdu`` (None: no reply): the gates, then the unit check
         (0B for a unit the bench does not have, whatever the function), then the request
-        itself, checked per the spec (:mod:`rig_emulator.modbus.conformance`)."""
+        itself, checked per the spec (:mod:`rig_emulator.modbus.conformance`). A gate's
+        delay passes before the request is carried out."""
         decision = self.decide(info) if self.gates else _PASS
         if decision.delay_s > 0:
             await asyncio.sleep(decision.delay_s)
+        return await self._carry_out(decision, info, pdu)
+
+    async def answer(self, info: RequestInfo, pdu: bytes) -> tuple[float, bytes | None]:
+        """(a gate's delay [s], the response PDU) to ``pdu``, carried out at once: for a line
+        that keeps its own time (RTU), where the delay comes on top of the reply's."""
+        decision = self.decide(info) if self.gates else _PASS
+        return decision.delay_s, await self._carry_out(decision, info, pdu)
+
+    async def _carry_out(
+        self, decision: GateDecision, info: RequestInfo, pdu: bytes
+    ) -> bytes | None:
         if decision.drop:
             return None
         if decision.exception_code is not None:

@@ -7,14 +7,22 @@ The same units and map as TCP: every request goes through
 
 - a frame ends with 3.5 characters of silence; bytes that come before that belong to it;
 - a frame with a bad CRC, a unit no instrument on the line has, and a broadcast (unit 0)
-  get no reply; a broadcast write is carried out by every unit of the map;
-- a pty has no line speed, so the emulator keeps the time the wire would take (on a
-  device the UART takes the reply's time itself and the emulator only keeps the rest): a frame
+  get no reply; a broadcast write is carried out by every instrument unit of the map (not
+  by the emulator's own units, the simulation control and the truth: a master's broadcast
+  of a setpoint must not reset or advance the simulation);
+- a pause longer than 1.5 characters inside a frame is not detected: the bytes' arrival is
+  seen by a thread that may wait for the interpreter several milliseconds, longer than the
+  1.5 to 3.5 characters that would tell a broken frame at common speeds, and a frame
+  discarded for a pause the client never made is worse than a stutter let through;
+- a pty (``pty``, or a path that is one, e.g. a socat pair) has no line speed, so the
+  emulator keeps the time the wire would take (on a device the UART takes the reply's time
+  itself and the emulator only keeps the rest): a frame
   occupies the line for its characters at the baud rate from its first byte, it is taken
   as ended only after the silence that follows, the reply is handed over when its last
   character would have arrived, and the next request starts on the line no earlier than a
   silence after that. A transaction thus takes at least request + silence + reply +
-  silence, as on a line.
+  silence, as on a line;
+- a unit under a ``delay`` fault answers that much after its reply would have come.
 
 The line is served by one thread with blocking I/O and ``select`` timeouts (microseconds,
 where the event loop's timers are good to about a millisecond); the requests run in the
@@ -35,7 +43,9 @@ import threading
 import time
 import tty
 from concurrent.futures import Future
+from typing import Any
 
+from rig_emulator.faults.spec import EMULATOR_UNITS
 from rig_emulator.modbus.handler import BenchModbusServer, RequestInfo
 from rig_emulator.modbus.rtu_wire import (
     BROADCAST_UNIT,
@@ -97,6 +107,14 @@ def open_line(path: str, baud: int, parity: str) -> tuple[int, int | None, str]:
     return fd, None, path
 
 
+def is_pty(fd: int) -> bool:
+    """Whether ``fd`` is a pseudo-terminal's slave (Linux: Unix98 ptys, majors 136-143)."""
+    try:
+        return os.major(os.fstat(fd).st_rdev) in range(136, 144)
+    except OSError:
+        return False
+
+
 def _configure(fd: int, baud: int, parity: str) -> bool:
     """Raw mode, 8 data bits, ``baud`` and ``parity``; False if the line refused the speed
     and parity (a pty has no line, and some kernels refuse parity on one): raw mode only."""
@@ -137,7 +155,7 @@ class RtuLine:
         self.silence_s = silence_s(baud)
         self._fd, self._keep_fd, self.path = open_line(path, baud, parity)
         #: keep the reply's on-wire time (a pty); a device's UART takes it itself
-        self.paced = path == "pty"
+        self.paced = path == "pty" or is_pty(self._fd)
         self.crc_errors = 0
         self.transactions = 0
         self._stop_r, self._stop_w = os.pipe()
@@ -207,7 +225,7 @@ class RtuLine:
             return None
         info = RequestInfo(unit_id, pdu[0], self.path, None)
         return len(request), asyncio.run_coroutine_threadsafe(
-            self.server.execute(info, pdu), self._loop
+            self.server.answer(info, pdu), self._loop
         )
 
     def _transaction(self, request: bytes, ended: float, answer: Future | None = None) -> float:
@@ -232,19 +250,20 @@ class RtuLine:
             return ended  # nobody on the line has that address: silence, as on a line
         if answer is None:
             info = RequestInfo(unit_id, pdu[0], self.path, None)
-            answer = asyncio.run_coroutine_threadsafe(self.server.execute(info, pdu), self._loop)
-        reply = self._result(answer)
+            answer = asyncio.run_coroutine_threadsafe(self.server.answer(info, pdu), self._loop)
+        delay_s, reply = self._result(answer) or (0.0, None)
         if reply is None:
             return ended
         out = frame(unit_id, reply)
         wire_s = len(out) * self.character_s
         if self.paced:
-            # the reply goes on the line after the request's silence; the emulator's own work
-            # overlaps its on-wire time (a reply that took longer is handed over when ready)
-            reply_end = max(ended + wire_s, time.monotonic())
+            # the reply goes on the line after the request's silence (and a delay fault's
+            # delay); the emulator's own work overlaps its on-wire time (a reply that took
+            # longer is handed over when ready)
+            reply_end = max(ended + delay_s + wire_s, time.monotonic())
             _sleep_until(reply_end)
         else:  # a real line: its UART takes the reply's time itself
-            _sleep_until(ended)
+            _sleep_until(ended + delay_s)
             reply_end = time.monotonic() + wire_s
         try:
             os.write(self._fd, out)
@@ -254,14 +273,14 @@ class RtuLine:
         return reply_end + self.silence_s
 
     async def _broadcast(self, pdu: bytes) -> None:
-        for unit_id in sorted(self.server.units):
-            await self.server.execute(RequestInfo(unit_id, pdu[0], self.path, None), pdu)
+        for unit_id in sorted(self.server.units - set(EMULATOR_UNITS)):
+            await self.server.answer(RequestInfo(unit_id, pdu[0], self.path, None), pdu)
 
-    def _run(self, coro) -> bytes | None:
+    def _run(self, coro) -> None:
         assert self._loop is not None
-        return self._result(asyncio.run_coroutine_threadsafe(coro, self._loop))
+        self._result(asyncio.run_coroutine_threadsafe(coro, self._loop))
 
-    def _result(self, future: Future) -> bytes | None:
+    def _result(self, future: Future) -> Any:
         try:
             return future.result(EXECUTE_TIMEOUT_S)
         except Exception as exc:  # the loop stopped, or the request failed: no reply

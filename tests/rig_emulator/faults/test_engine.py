@@ -240,3 +240,21 @@ def test_reset_rearms_the_schedule_and_clear_ends_everything(tmp_path):
     assert engine.clear() == 1 and engine.idle
     reasons = [e.get("reason") for e in read_journal(path) if e["event"] == "end"]
     assert reasons == ["reset", "cleared"]
+
+
+def test_clear_names_the_scheduled_faults_it_drops(tmp_path, caplog):
+    """Clearing drops the faults not yet started (a FAULTS.yaml entry due later): the
+    journal has lines only for faults that start, so the server's log names them (they
+    used to vanish without a word); a reset, which schedules them again, says nothing."""
+    path = tmp_path / "j.jsonl"
+    engine = FaultEngine(
+        faults_from_list([{"kind": "disconnect", "at_s": 40}]), FaultJournal(path), source="file"
+    )
+    engine.apply({}, 15.0)
+    engine.apply({}, 0.0)  # a reset
+    assert "dropped" not in caplog.text
+    engine.apply({}, 15.0)
+    assert engine.clear() == 0 and engine.idle
+    assert "dropped before they started: disconnect at 40 s (file)" in caplog.text
+    engine.apply({}, 45.0)
+    assert read_journal(path) == []  # it never started

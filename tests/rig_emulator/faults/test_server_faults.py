@@ -12,6 +12,7 @@ import sys
 import urllib.request
 
 import pytest
+from pymodbus.exceptions import ModbusIOException
 
 from hil_client.demo import rig_emulator_serve
 from hil_client.wait_for_port import free_port, wait_for_port
@@ -215,3 +216,22 @@ def test_a_profile_fault_on_a_unit_the_bench_does_not_have_is_refused(tmp_path, 
     )
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "unit 9 is not on the bench" in err, err
+
+
+def test_a_fault_on_every_unit_leaves_a_unit_the_bench_lacks_answering_0B(serve):
+    """Unit 0 in a fault means every unit of the bench; a unit the bench does not have
+    still gets 0B, as without faults (it timed out under ``no_reply`` on unit 0)."""
+    srv = serve()
+    srv.call(_inject(srv.server, {"kind": "no_reply", "unit": 0}))
+    c = client(srv.port, timeout_s=0.5)
+    try:
+        r = c.read_holding_registers(0, count=1, device_id=9)
+        assert r.isError() and r.exception_code == 0x0B
+    finally:
+        c.close()
+    c = client(srv.port, timeout_s=0.5)
+    try:
+        with pytest.raises(ModbusIOException):  # the fault acts on the bench's units
+            c.read_input_registers(0, count=2, device_id=1)
+    finally:
+        c.close()

@@ -138,6 +138,50 @@ def test_broadcast_write_no_reply_every_unit_acts(rtu_server, line):
     assert after["pump_on"] == 0.0 and after["boiler_command"] == 0.0
 
 
+def test_broadcast_never_reaches_the_emulators_own_units(rtu_server, line):
+    """A master's broadcast of a setpoint reaches the instruments, not the simulation
+    control at the same addresses (holding 0-1 of unit 100 is its speed factor, 6 its
+    reset): a broadcast used to re-clock and reset the simulation."""
+    srv = rtu_server
+    tcp = client(srv.port)
+    try:
+        before = tcp.read_holding_registers(0, count=8, device_id=100).registers
+        # FC16 holding 0-1 = 50.0 (the bench PLC's flow setpoint), then FC6 holding 6 = 1
+        line.send(
+            rtu_frame(
+                0,
+                struct.pack(">BHHB2H", 16, 0, 2, 4, *struct.unpack(">2H", struct.pack(">f", 50.0))),
+            )
+        )  # noqa: E501
+        assert line.read(64, timeout_s=0.5) == b""
+        line.send(rtu_frame(0, struct.pack(">BHH", 6, 6, 1)))
+        assert line.read(64, timeout_s=0.5) == b""
+        assert srv.values()["water_flow_setpoint_kg_h"] == 50.0  # the instruments got the broadcast
+        assert tcp.read_holding_registers(0, count=8, device_id=100).registers == before
+    finally:
+        tcp.close()
+
+
+def test_a_delay_fault_comes_on_top_of_the_line_time(rtu_server, line):
+    """``delay`` on RTU: the reply comes that much after it would have come (it was counted
+    from the request's arrival, so the line's own time hid a short delay)."""
+    request = rtu_frame(7, struct.pack(">BHH", 3, 0, 1))
+    least_s = (8 + 7) * character_s(BAUD) + silence_s(BAUD)  # FC3 of 1: 8 and 7 characters
+
+    def fastest() -> float:
+        durations = []
+        for _ in range(5):
+            sent = line.send(request)
+            assert len(line.read(7)) == 7
+            durations.append(time.monotonic() - sent)
+            time.sleep(2 * silence_s(BAUD))
+        return min(durations)
+
+    assert fastest() >= least_s
+    rtu_server.server.inject({"kind": "delay", "unit": 7, "delay_ms": 20})
+    assert fastest() >= least_s + 0.020
+
+
 def test_transaction_takes_at_least_the_wire_time(rtu_server, line):
     # FC4 of 14 registers: request 8 characters, reply 33, t3.5 between them
     least_s = (8 + 33) * character_s(BAUD) + silence_s(BAUD)
@@ -349,8 +393,9 @@ SOCAT = shutil.which("socat")
 
 @pytest.mark.skipif(SOCAT is None or MBPOLL is None, reason="socat or mbpoll not installed")
 def test_device_path_served_through_a_socat_line(serve, tmp_path):
-    """``--serial PATH``: a line the emulator did not create (socat's pty pair standing in
-    for a serial adapter; a device's UART keeps the reply's time itself)."""
+    """``--serial PATH``: a line the emulator did not create, here socat's pty pair: a pty
+    has no line speed, whoever made it, so the emulator keeps the wire's time on it too (it
+    answered every request in 7 ms, where an FC4 of 72 registers takes 92 at 19,200 baud)."""
     ours, theirs = tmp_path / "emulator", tmp_path / "client"
     socat = subprocess.Popen(
         [SOCAT, f"pty,raw,echo=0,link={ours}", f"pty,raw,echo=0,link={theirs}"],
@@ -368,7 +413,14 @@ def test_device_path_served_through_a_socat_line(serve, tmp_path):
 
         transports, rtu = srv.call(setup())
         try:
-            assert rtu.path == str(ours) and not rtu.paced
+            assert rtu.path == str(ours) and rtu.paced
+            far = Line(str(theirs))
+            try:
+                sent = far.send(rtu_frame(1, _fc4(0, 14)))
+                assert len(far.read(33)) == 33
+                assert time.monotonic() - sent >= (8 + 33) * character_s(BAUD) + silence_s(BAUD)
+            finally:
+                far.close()
             _mbpoll("-a", "1", "-t", "4:float", "-B", "-r", "0", str(theirs), "321.5")
             out = _mbpoll("-a", "1", "-t", "4:float", "-B", "-r", "0", "-c", "2", str(theirs))
             assert float(_mbpoll_values(out.stdout)[0]) == 321.5
