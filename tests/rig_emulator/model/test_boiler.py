@@ -153,6 +153,28 @@ def test_cut_out_at_85_and_restart_at_55(params):
     assert temp.max() < params.shutoff_temp_C + 0.1
 
 
+@pytest.mark.parametrize("load", [0.34, 0.39, 0.5])
+def test_a_restart_inside_the_modulation_range_settles_into_modulation(params, load):
+    """A restart's start-up hands over to modulation at the set temperature when the load
+    lies in the modulation range (the firing that holds 70 C is above Pmin), and the boiler
+    settles at the closed form. Run on, the start-up at Pstart took the 12-kW boiler from
+    55 C to 85 C within its 900 s at 34-39 % load, and it cut out and restarted for ever
+    (from a stranger's physics probe)."""
+    c = pack_constants(params)
+    flow = load * params.nominal_flow_kg_h
+    ss = steady_state(c, flow, 55.0, 22.0)
+    assert ss.firing_kW > params.p_min_kW  # the load lies in the modulation range
+    s = new_state(80.0)  # switched on hot: no start until the water is back at 55 C
+    n = 10 * 3600
+    out = run(c, s, np.full(n, flow), np.full(n, 55.0), np.ones(n, bool))
+    mode = out[:, Y_MODE].astype(int)
+    assert np.any((mode[1:] == STARTUP) & (mode[:-1] == CUTOUT))  # it restarted
+    last = out[-1]
+    assert mode[-1] == MODULATING
+    assert last[Y_T_BOILER] == pytest.approx(ss.t_boiler_C, abs=1e-6)
+    assert last[Y_Q_WATER] == pytest.approx(ss.q_water_kW, abs=1e-6)
+
+
 def test_switched_off_boiler_cools_with_ua_off(params):
     c = pack_constants(params)
     s = new_state(55.0)

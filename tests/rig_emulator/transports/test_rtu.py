@@ -152,7 +152,7 @@ def test_broadcast_never_reaches_the_emulators_own_units(rtu_server, line):
                 0,
                 struct.pack(">BHHB2H", 16, 0, 2, 4, *struct.unpack(">2H", struct.pack(">f", 50.0))),
             )
-        )  # noqa: E501
+        )
         assert line.read(64, timeout_s=0.5) == b""
         line.send(rtu_frame(0, struct.pack(">BHH", 6, 6, 1)))
         assert line.read(64, timeout_s=0.5) == b""
