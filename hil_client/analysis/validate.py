@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hil_client.analysis.balance import flue_gas_loss_per_kg
-from hil_client.analysis.logio import LabLog, LogError, fill_gaps
+from hil_client.analysis.logio import LabLog, LogError, fill_gaps, without_refills
 from hil_client.analysis.metrics import table4_metrics
 from hil_client.analysis.phases import Phases
 from rig_emulator.model import pack_constants
@@ -162,15 +162,17 @@ def validation_metrics(comp: Comparison, log: LabLog, params: BoilerParams) -> d
     t = comp.t
     dt = np.diff(t, prepend=t[0] - (t[1] - t[0] if len(t) > 1 else 1.0))
     per_kg_dry = params.fuel.balance_loss_per_kg_dry
-    mass = fill_gaps(log["balance_mass_kg"], t)
+    mass = fill_gaps(without_refills(log["balance_mass_kg"]), t)
     fuel = {}
     for name, mask in [*comp.segments.items(), ("total", np.ones(len(t), bool))]:
         idx = np.flatnonzero(mask)
         if not len(idx):
             continue
         model_kg = float(np.sum(comp.model["fuel_dry_kg_h"][idx] * dt[idx]) / 3600 * per_kg_dry)
-        first = max(idx[0] - 1, 0)
-        lab_kg = float(mass[first] - mass[idx[-1]])
+        # the balance's loss over each stretch of the segment (the load cycle's stationary
+        # intervals lie apart: first to last would count the gradients between them too)
+        runs = np.split(idx, np.flatnonzero(np.diff(idx) > 1) + 1)
+        lab_kg = float(sum(mass[max(run[0] - 1, 0)] - mass[run[-1]] for run in runs))
         fuel[name] = {
             "model_kg": model_kg,
             "balance_kg": lab_kg,

@@ -108,7 +108,14 @@ def test_validating_a_clean_run_against_its_own_parameters_gives_no_gap(run_log,
         # inputs come from the CSV, rounded to 1e-5 K and 1e-4 kg/h: gaps to rounding only
         assert signals["boiler_water_temp_C"]["rmsd"] < 1e-3, segment
         assert signals["heat_to_water_kW"]["rmsd"] < 1e-3, segment
-    assert abs(result["fuel"]["total"]["deviation_pct"]) < 0.01
+    # every segment, the load cycle's stationary and dynamic stretches too, which lie apart
+    # (first to last row of the balance counted the stretches between: -23 % and -61 %)
+    for segment, fuel in result["fuel"].items():
+        if fuel["deviation_pct"] is not None:
+            assert abs(fuel["deviation_pct"]) < 0.01, segment
+    assert {"test_stationary", "test_dynamic"} <= {
+        s for s, f in result["fuel"].items() if f["deviation_pct"] is not None
+    }
     assert set(result["metrics"]) >= {
         "start_up",
         "test",
