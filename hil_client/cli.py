@@ -681,6 +681,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
         if refused:  # the plant did not get them: the run is no test of this protocol
             result.notes.append(refused)
             print(f"hil-client: warning: {refused}", file=sys.stderr)
+    meta["sampling_median_s"] = summary.median_interval_s
+    coarse = _coarse_sampling(summary.median_interval_s, protocol.acquisition_period_s, meta)
+    if coarse:
+        result.notes.append(coarse)
+        print(f"hil-client: warning: {coarse}", file=sys.stderr)
     save_meta(result)
     if args.fault_report is not None:
         with bad_input(ValueError, LogError, prefix="--fault-report: "):
@@ -705,6 +710,24 @@ def _cmd_run(args: argparse.Namespace) -> int:
         )
         print(f"log: {out}\nmeta: {meta_path(out)}")
     return 0
+
+
+#: Rows further apart than this many acquisition periods (median) are reported as coarse.
+COARSE_SAMPLING = 1.5
+
+
+def _coarse_sampling(median_s: float | None, period_s: float, meta: dict) -> str | None:
+    """A note when the rows came much further apart in simulated time than the protocol's
+    period: a real-time server running faster than the client reads (x1000: one row per
+    100 s), so the log and its phase marks are that coarse, whatever the meta's period."""
+    if median_s is None or median_s <= COARSE_SAMPLING * period_s:
+        return None
+    return (
+        f"rows came {median_s:g} s apart (median, simulated), not every {period_s:g} s: "
+        f"the server's clock ({meta['clock']}) ran faster than the client could read; "
+        "the log and its phase marks are that coarse (a slower --speed or --lockstep keeps "
+        "the period)"
+    )
 
 
 def _cmd_fault_report(args: argparse.Namespace) -> int:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import statistics
 from dataclasses import dataclass, field
 
 from hil_client.protocol.runner import LOG_COLUMNS, Row
@@ -33,6 +34,8 @@ class RunSummary:
     """Accumulates :class:`PhaseTotal` row by row (a sink for the runner)."""
 
     phases: dict[str, PhaseTotal] = field(default_factory=dict)
+    #: simulated time between consecutive rows [s]
+    intervals_s: list[float] = field(default_factory=list)
     _t_prev: float = 0.0
     _mass_prev: float | None = None
 
@@ -40,6 +43,7 @@ class RunSummary:
         t: float = row[_T]  # type: ignore[assignment]
         dt = t - self._t_prev
         self._t_prev = t
+        self.intervals_s.append(dt)
         mass: float = row[_MASS]  # type: ignore[assignment]
         phase: str = row[_PHASE]  # type: ignore[assignment]
         total = self.phases.get(phase)
@@ -52,6 +56,11 @@ class RunSummary:
         total.mass_end_kg = mass
         total.t_boiler_end_C = row[_T_BOILER]  # type: ignore[assignment]
         self._mass_prev = mass
+
+    @property
+    def median_interval_s(self) -> float | None:
+        """The rows' median spacing in simulated time [s] (None before two rows)."""
+        return statistics.median(self.intervals_s[1:]) if len(self.intervals_s) > 1 else None
 
     def table(self) -> str:
         """The totals as a text table, one line per phase."""

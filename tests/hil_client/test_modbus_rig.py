@@ -73,9 +73,26 @@ def test_modbus_lockstep_run_equals_the_local_run(serve, tmp_path, local_log):
     assert proxy.segments_to_server <= 1.05 * len(remote) + 20
     assert remote.meta["clock"] == "lockstep" and remote.meta["complete"] is True
     assert remote.meta["gaps"] == []
+    assert remote.meta["sampling_median_s"] == 1.0  # the protocol's period, kept
     for key in ("t0_s", "t1_s", "t2_s", "t3_s", "t4_s"):
         assert remote.meta[key] == local_log.meta[key]
     assert_logs_equal(local_log, remote)
+
+
+def test_a_server_faster_than_the_client_reads_is_a_coarse_log_said_so(serve, tmp_path, capsys):
+    """At x2000 a client cannot read every simulated second: the rows come tens of seconds
+    apart. The meta said "acquisition_period_s: 1" and nothing else; now it gives the rows'
+    median spacing and a note, and the run warns (the phase marks are that coarse too)."""
+    srv = serve(lockstep=False, speed=2000.0)
+    out = tmp_path / "fast.csv"
+    assert _run(["--rig", f"modbus://127.0.0.1:{srv.port}", "--out", str(out)]) == 0
+    log = read_log(out)
+    spacing = float(np.median(np.diff(log.t)))
+    assert log.meta["sampling_median_s"] == pytest.approx(spacing)
+    if spacing <= 1.5:  # a machine fast enough to keep up: nothing to say
+        pytest.skip(f"the client kept up with x2000 (rows {spacing:g} s apart)")
+    assert any("rows came" in note and "x2000" in note for note in log.meta["notes"])
+    assert "warning: rows came" in capsys.readouterr().err
 
 
 def test_dropped_connections_are_retried_and_nothing_is_lost(serve, tmp_path, local_log):
