@@ -4,7 +4,6 @@ WORKDIR /app
 COPY pyproject.toml README.md ./
 COPY rig_emulator ./rig_emulator
 COPY hil_client ./hil_client
-COPY register_maps ./register_maps
 RUN pip install --no-cache-dir -e . \
     && python -c "import rig_emulator.bench, rig_emulator.instruments"  # warm the numba cache
 EXPOSE 5020

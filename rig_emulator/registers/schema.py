@@ -40,7 +40,9 @@ from rig_emulator.registers.datatypes import DATATYPES
 from rig_emulator.signals import SIGNALS
 from rig_emulator.yamlio import read_yaml
 
-MAP_DIR = Path(__file__).resolve().parents[2] / "register_maps"
+#: The shipped maps, package data (the checkout's top-level ``register_maps/`` links here,
+#: so an installed package has them too)
+MAP_DIR = Path(__file__).resolve().parent / "maps"
 
 TABLES = ("input", "holding", "coil", "discrete")
 WORD_ORDERS = ("ABCD", "CDAB")

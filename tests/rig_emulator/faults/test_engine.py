@@ -223,6 +223,29 @@ def test_random_faults_are_seeded_and_at_the_rate():
     assert {k for _, k, _ in first} == {"no_reply", "dropout"}
 
 
+def test_random_faults_are_the_same_whatever_the_advances(tmp_path):
+    """One 3-h advance journals the random faults that 180 one-minute advances journal (at
+    the same times, the same kinds and targets), those it passed over as unseen: it used to
+    skip them, and the draws after them changed too (a user's lab_faulty run found 1 of 4)."""
+    spec = [{"kind": "random", "rate_per_h": 4, "kinds": ["no_reply", "spike"], "seed": 5,
+             "fault_for_s": 30}]  # fmt: skip
+
+    def journal(times, name) -> list[tuple]:
+        path = tmp_path / name
+        engine = FaultEngine(faults_from_list(spec), FaultJournal(path))
+        for t in times:
+            engine.apply({"flue_gas_O2_pct": 8.0}, float(t))
+        events = read_journal(path)
+        return [
+            (e["event"], e["t_sim_s"], e["kind"], e.get("unit"), e.get("signal")) for e in events
+        ]
+
+    short = journal(range(60, 3 * 3600 + 1, 60), "short.jsonl")
+    long = journal([3 * 3600], "long.jsonl")
+    assert len(short) >= 4  # 4/h over 3 h: 12 expected
+    assert long == short
+
+
 def test_reset_rearms_the_schedule_and_clear_ends_everything(tmp_path):
     path = tmp_path / "j.jsonl"
     engine = FaultEngine(
