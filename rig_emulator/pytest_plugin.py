@@ -22,6 +22,7 @@ block, ``truth`` reads the truth unit (101).
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import re
 import signal
@@ -38,6 +39,7 @@ import pytest
 
 DEFAULTS = {"boiler": "windhager_12kw", "profile": "clean", "seed": 0, "faults": None}
 START_TIMEOUT_S = 120.0  # the first start may compile numba's kernels
+MAX_ADVANCE_S = 86_400  # the server's limit for one lockstep advance (a day)
 _LISTENING = re.compile(r"serving .* on ([^\s:]+):(\d+) ")
 
 
@@ -83,6 +85,7 @@ class RigEmulator:
         faults: str | os.PathLike | None = None,
         workdir: str | os.PathLike | None = None,
     ) -> None:
+        self.options = {"boiler": boiler, "profile": profile, "seed": seed, "faults": faults}
         self._tmp = tempfile.TemporaryDirectory(prefix="rig_emulator_") if workdir is None else None
         folder = Path(workdir if workdir is not None else self._tmp.name)  # type: ignore[union-attr]
         self.journal = folder / "fault_journal.jsonl"
@@ -122,6 +125,12 @@ class RigEmulator:
         from rig_emulator.registers import load_map
 
         self.map = load_map()
+
+    def __repr__(self) -> str:
+        return (
+            f"<RigEmulator {self.host}:{self.port} boiler={self.options['boiler']!s} "
+            f"profile={self.options['profile']!s} seed={self.options['seed']}>"
+        )
 
     # ------------------------------------------------------------------ lifecycle
     def _wait_listening(self) -> tuple[str, int]:
@@ -206,9 +215,27 @@ class RigEmulator:
             raise RigEmulatorError(f"write at {unit}:{start} refused: {reply}")
 
     def advance(self, seconds: float) -> None:
-        """Advance the simulation by ``seconds`` (1..86400, whole seconds on the wire: the
-        register is a uint32) and return once the new state is readable. A connection lost
-        meanwhile is settled by the lockstep counter: the advance happens exactly once."""
+        """Advance the simulation by ``seconds`` and return once the new state is readable.
+
+        Whole seconds (the register is a uint32 of seconds); 0 does nothing; more than a
+        day goes as several writes of at most a day each. A fraction, a negative number or
+        one that is not finite is refused with ``ValueError`` before anything moves. A
+        connection lost meanwhile is settled by the lockstep counter: each write happens
+        exactly once."""
+        if isinstance(seconds, bool) or not isinstance(seconds, int | float):
+            raise ValueError(f"advance({seconds!r}): expected a number of seconds")
+        if not math.isfinite(seconds) or seconds < 0 or seconds != int(seconds):
+            raise ValueError(
+                f"advance({seconds!r}): the emulator advances whole seconds, 0 or more "
+                "(the lockstep_advance register is a uint32 of seconds)"
+            )
+        left = int(seconds)
+        while left > 0:
+            chunk = min(left, MAX_ADVANCE_S)
+            self._advance_once(chunk)
+            left -= chunk
+
+    def _advance_once(self, seconds: int) -> None:
         from pymodbus.exceptions import ConnectionException, ModbusIOException
 
         from rig_emulator.registers import encode
@@ -228,11 +255,22 @@ class RigEmulator:
 
     def inject(self, fault: Mapping[str, Any]) -> None:
         """Set a fault, a dict as in ``FAULTS.yaml`` (e.g. ``{"kind": "dropout", "signal":
-        "flue_gas_CO_ppm", "for_s": 60}``); without ``at_s`` it starts now."""
+        "flue_gas_CO_ppm", "for_s": 60}``); without ``at_s`` it starts now. A fault that is
+        none (a field missing or wrong, a unit the bench does not have) raises
+        :class:`~rig_emulator.faults.FaultError` naming the field, and nothing is set."""
+        from rig_emulator.faults.spec import EMULATOR_UNITS, FaultError, check_units
         from rig_emulator.faults.wire import block_values, fault_dict_to_spec
         from rig_emulator.registers import encode
 
-        values = block_values(fault_dict_to_spec(fault))
+        if not isinstance(fault, Mapping):
+            raise FaultError(
+                f"inject({fault!r}): expected a dict as in FAULTS.yaml, e.g. "
+                '{"kind": "no_reply", "unit": 2, "for_s": 30}'
+            )
+        spec = fault_dict_to_spec(fault)
+        units = {d.unit_id for d in self.map.devices} - set(EMULATOR_UNITS)
+        check_units([spec], units, "fault")
+        values = block_values(spec)
         _, first = self.map.point("fault_kind")
         registers: list[int] = []
         for name in ("fault_kind", "fault_target", "fault_parameter", "fault_duration_s"):
@@ -299,19 +337,49 @@ class RigEmulator:
         return int(self.read("active_fault_count"))
 
 
+def marker_options(request: pytest.FixtureRequest) -> dict[str, Any]:
+    """The fixture's options from the test's ``rig_emulator`` marker, checked: each wrong
+    one fails the test with one line naming it. A relative ``faults`` path is taken from
+    the working directory, or else from the test file's folder."""
+    options = dict(DEFAULTS)
+    marker = request.node.get_closest_marker("rig_emulator")
+    if marker is None:
+        return options
+    usage = f"@pytest.mark.rig_emulator takes only the keywords {', '.join(DEFAULTS)}"
+    if marker.args:
+        pytest.fail(f"{usage}; got positional {marker.args!r}", pytrace=False)
+    unknown = sorted(set(marker.kwargs) - set(DEFAULTS))
+    if unknown:
+        pytest.fail(f"{usage}; got {', '.join(unknown)}", pytrace=False)
+    options.update(marker.kwargs)
+    for key in ("boiler", "profile"):
+        if not isinstance(options[key], str | os.PathLike) or not str(options[key]):
+            pytest.fail(f"@pytest.mark.rig_emulator: {key}={options[key]!r} is no name or path",
+                        pytrace=False)  # fmt: skip
+    seed = options["seed"]
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**32:
+        pytest.fail(f"@pytest.mark.rig_emulator: seed={seed!r} is not an integer 0..2**32-1",
+                    pytrace=False)  # fmt: skip
+    faults = options["faults"]
+    if faults is not None:
+        if not isinstance(faults, str | os.PathLike):
+            pytest.fail(f"@pytest.mark.rig_emulator: faults={faults!r} is no path",
+                        pytrace=False)  # fmt: skip
+        path = Path(faults)
+        beside = Path(request.node.path).parent / path
+        if not path.is_absolute() and not path.exists() and beside.exists():
+            options["faults"] = beside
+    return options
+
+
 @pytest.fixture
 def rig_emulator(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[RigEmulator]:
     """A lockstep ``rig-emulator serve`` on a free port, stopped when the test ends."""
-    options = dict(DEFAULTS)
-    marker = request.node.get_closest_marker("rig_emulator")
-    if marker is not None:
-        unknown = set(marker.kwargs) - set(DEFAULTS)
-        if unknown or marker.args:
-            raise pytest.UsageError(
-                f"@pytest.mark.rig_emulator takes only {', '.join(DEFAULTS)} as keywords"
-            )
-        options.update(marker.kwargs)
-    emulator = RigEmulator(workdir=tmp_path, **options)
+    options = marker_options(request)
+    try:
+        emulator = RigEmulator(workdir=tmp_path, **options)
+    except RigEmulatorError as exc:  # the server's own one line, not the plugin's insides
+        pytest.fail(str(exc), pytrace=False)
     try:
         yield emulator
     finally:

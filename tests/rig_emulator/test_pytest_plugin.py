@@ -183,3 +183,85 @@ def _alive(pid: int) -> bool:
         return "zombie" not in status.read_text()
     except OSError:
         return False
+
+
+def test_advance_and_inject_take_what_a_user_gives_or_say_why(tmp_path):
+    """From a user's probe: advance(0) is nothing, more than a day goes in several writes,
+    a fraction or a negative is a ValueError before anything moves (0.5 was refused by the
+    server with a bare 03, 1.5 rounded to 2); inject of a unit the bench lacks or of no dict
+    names what is wrong (a bare 03, a TypeError from dict())."""
+    from rig_emulator.faults import FaultError
+    from rig_emulator.pytest_plugin import RigEmulator
+
+    with RigEmulator(workdir=tmp_path) as rig:
+        assert repr(rig).startswith(f"<RigEmulator 127.0.0.1:{rig.port} boiler=windhager_12kw")
+        rig.advance(0)
+        assert rig.read("sim_time_s") == 0.0
+        for bad in (0.5, 1.5, -1, float("nan"), float("inf"), "10", True):
+            with pytest.raises(ValueError, match="advance"):
+                rig.advance(bad)
+        assert rig.read("sim_time_s") == 0.0  # nothing moved
+        rig.advance(2 * 86_400 + 5)
+        assert rig.read("sim_time_s") == 2 * 86_400 + 5
+        with pytest.raises(FaultError, match="99"):
+            rig.inject({"kind": "no_reply", "unit": 99})
+        with pytest.raises(FaultError, match="expected a dict"):
+            rig.inject("no_reply")  # type: ignore[arg-type]
+        assert rig.active_fault_count() == 0
+
+
+BAD_MARKERS = """
+import pytest
+
+
+@pytest.mark.rig_emulator(seed="abc")
+def test_seed_text(rig_emulator):
+    pass
+
+
+@pytest.mark.rig_emulator(seed=1.7)
+def test_seed_fraction(rig_emulator):
+    pass
+
+
+@pytest.mark.rig_emulator(speed=5)
+def test_unknown_keyword(rig_emulator):
+    pass
+
+
+@pytest.mark.rig_emulator(boiler="no_such_boiler")
+def test_unknown_boiler(rig_emulator):
+    pass
+
+
+@pytest.mark.rig_emulator(faults="faults_here.yaml")
+def test_faults_beside_the_test_file(rig_emulator):
+    rig_emulator.advance(20)
+    assert rig_emulator.active_fault_count() == 1
+"""
+
+
+def test_bad_marker_options_fail_in_one_line_each(tmp_path):
+    """Each wrong marker option fails its test with one line naming it, without the
+    plugin's insides (45 lines of traceback per test), and a relative faults file is found
+    beside the test file when pytest runs from elsewhere."""
+    suite = tmp_path / "suite"
+    suite.mkdir()
+    (suite / "test_markers.py").write_text(BAD_MARKERS)
+    (suite / "faults_here.yaml").write_text(
+        "faults:\n  - {kind: stuck, signal: room_temp_C, at_s: 10}\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", str(suite)],
+        cwd=tmp_path,  # not the suite's folder
+        env=_env_with_entry_point(tmp_path),
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    out = proc.stdout
+    assert "4 errors" in out and "1 passed" in out, out + proc.stderr
+    assert "seed='abc' is not an integer" in out and "seed=1.7 is not an integer" in out
+    assert "takes only the keywords boiler, profile, seed, faults; got speed" in out
+    assert "unknown boiler 'no_such_boiler'" in out
+    assert "_wait_listening" not in out and "Traceback" not in out
