@@ -292,7 +292,9 @@ def controller_mode(c, mode, mode_time_s, t_boiler_C, enabled, restart=False):
     again at or below the restart temperature. The start-up at Pstart lasts
     ``startup_duration_s``:
 
-    - after a restart from a cut-out (``restart``) the whole time, ended early by the
+    - after a restart (``restart``: a start after a cut-out, or any start after the first
+      of the run, as when a replay switches the model on again where the lab's burner
+      restarted) the whole time, ended early by the
       shut-off temperature, or by the set temperature where the load lies in the
       modulation range (:func:`restart_hands_over`, decided in the step, which knows the
       load): the boiler "maintains the maximum power output during the start-up phase"
@@ -330,7 +332,7 @@ def update_mode(c, s, enabled):
     if new_mode != mode:
         s[S_MODE_TIME] = 0.0
         if new_mode == STARTUP:
-            s[S_RESTART] = 1.0 if mode == CUTOUT else 0.0
+            s[S_RESTART] = 1.0 if mode == CUTOUT or s[S_STARTS] >= 1.0 else 0.0
             s[S_SINCE_START] = 0.0
             s[S_STARTS] += 1.0
             started = True
