@@ -10,7 +10,9 @@ import argparse
 import filecmp
 import json
 import math
+import signal
 import sys
+import threading
 import time
 import warnings
 from collections.abc import Sequence
@@ -523,10 +525,19 @@ def _make_rig(args: argparse.Namespace, params: BoilerParams, register_map: Regi
 _WRITE_FUNCTIONS = (5, 6, 15, 16, 23)
 
 
+#: What a write came back with when the plant did not (or may not) get it; a ``late`` reply
+#: was carried out, only slowly.
+_FAILED_EVENTS = ("exception", "timeout", "no_reply")
+
+
 def _refused_commands(events: list[dict]) -> str | None:
     """One line on the setpoint and switch writes the server refused or left unanswered
     (a TLS role that may not write, a faulty unit), or None."""
-    failed = [e for e in events if e.get("function") in _WRITE_FUNCTIONS]
+    failed = [
+        e
+        for e in events
+        if e.get("function") in _WRITE_FUNCTIONS and e.get("event") in _FAILED_EVENTS
+    ]
     if not failed:
         return None
     codes = sorted({f"exception {e['code']:02d}" for e in failed if "code" in e})
@@ -750,6 +761,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "gap-benchmark": _cmd_gap_benchmark,
         "fault-report": _cmd_fault_report,
     }
+    previous = _stop_on_sigterm()
     try:
         args = _build_parser().parse_args(argv)
         with input_errors(), warnings.catch_warnings():
@@ -762,6 +774,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("hil-client: interrupted; the log keeps every row acquired", file=sys.stderr)
         return 1
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _stop_on_sigterm() -> Any:
+    """SIGTERM (timeout, a CI job cancelled, docker stop) ends a command as Ctrl-C does, so
+    what it writes on the way out (a run's Modbus events, its meta file) is written; the
+    handler it replaces, or None off the main thread (where handlers cannot be set)."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+
+    def interrupt(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
+
+    return signal.signal(signal.SIGTERM, interrupt)
 
 
 if __name__ == "__main__":

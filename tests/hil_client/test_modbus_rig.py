@@ -187,6 +187,23 @@ def test_killed_client_leaves_a_valid_log(serve, tmp_path):
     assert meta["complete"] is False  # written at the start, updated at each phase
 
 
+@pytest.mark.parametrize("how", [signal.SIGINT, signal.SIGTERM])
+def test_a_stopped_client_keeps_its_log_and_its_events(serve, tmp_path, how):
+    """Ctrl-C, or SIGTERM (timeout, a CI job cancelled, docker stop): one line, exit 1, the
+    log valid and the Modbus events file written. SIGTERM ended the client silently without
+    its events file, and fault-report then refused the log (a new user's probe)."""
+    srv = serve(lockstep=True)
+    out = tmp_path / "stopped.csv"
+    proc = _start_client(srv.port, out)
+    _wait_rows(out, 100)
+    proc.send_signal(how)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 1
+    assert err.count("\n") == 1 and "interrupted" in err and "Traceback" not in err
+    assert _assert_valid_partial(out) >= 100
+    assert (tmp_path / "stopped.modbus_events.jsonl").exists()
+
+
 def test_killed_server_ends_the_client_cleanly(tmp_path):
     from tests.conftest import RunningServer
 

@@ -312,8 +312,14 @@ def test_commands_the_server_refused_are_not_a_silent_success(tmp_path, capsys, 
     assert any("the plant did not get those commands" in n for n in notes)
 
 
-def test_a_run_whose_commands_all_arrived_has_no_such_warning(tmp_path, capsys, serve):
-    srv = serve()
+@pytest.mark.parametrize("slow", [False, True])
+def test_a_run_whose_commands_all_arrived_has_no_such_warning(tmp_path, capsys, serve, slow):
+    """Also when the bench PLC answers its writes 0.4 s late (a delay fault): late is not
+    lost (60 slow writes were reported as commands the plant did not get)."""
+    from rig_emulator.faults import faults_from_list
+
+    delay = [{"kind": "delay", "unit": 1, "delay_ms": 400, "at_s": 60, "for_s": 10}]
+    srv = serve(faults=faults_from_list(delay if slow else []))
     out = tmp_path / "log.csv"
     rig = f"modbus://127.0.0.1:{srv.port}"
     argv = ["run", str(SHORT), "--boiler", "windhager_12kw", "--rig", rig, "--quiet"]
