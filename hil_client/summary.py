@@ -5,6 +5,7 @@ from __future__ import annotations
 import statistics
 from dataclasses import dataclass, field
 
+from hil_client.analysis.logio import REFILL_STEP_KG
 from hil_client.protocol.runner import LOG_COLUMNS, Row
 from rig_emulator.model.water_heat import heat_to_water_kW
 
@@ -25,7 +26,7 @@ class PhaseTotal:
 
     @property
     def fuel_kg(self) -> float:
-        """Fuel as received less ash, from the balance [kg]."""
+        """Fuel as received less ash, from the balance, refills taken out [kg]."""
         return self.mass_start_kg - self.mass_end_kg
 
 
@@ -38,13 +39,21 @@ class RunSummary:
     intervals_s: list[float] = field(default_factory=list)
     _t_prev: float = 0.0
     _mass_prev: float | None = None
+    #: refills so far (rises of the balance between two readings), taken out of the mass
+    _refilled_kg: float = 0.0
+    _reading_prev: float | None = None
 
     def __call__(self, row: Row) -> None:
         t: float = row[_T]  # type: ignore[assignment]
         dt = t - self._t_prev
         self._t_prev = t
         self.intervals_s.append(dt)
-        mass: float = row[_MASS]  # type: ignore[assignment]
+        reading: float = row[_MASS]  # type: ignore[assignment]
+        if reading == reading:  # a reading (NaN: none this row)
+            if self._reading_prev is not None and reading - self._reading_prev > REFILL_STEP_KG:
+                self._refilled_kg += reading - self._reading_prev
+            self._reading_prev = reading
+        mass = reading - self._refilled_kg
         phase: str = row[_PHASE]  # type: ignore[assignment]
         total = self.phases.get(phase)
         if total is None:
