@@ -563,8 +563,9 @@ def _set_aside(out: Path) -> list[tuple[Path, Path]]:
 
 def _settle_previous(out: Path, moved: list[tuple[Path, Path]], keep: bool) -> None:
     """Put the previous run's files back (``keep``: this run wrote no row; its own files
-    go), or delete them (this run's log replaces them)."""
-    if keep and moved:
+    go, a header and a meta file with nothing to describe), or delete them (this run's log
+    replaces them)."""
+    if keep:
         for path in (out, meta_path(out), events_path(out)):
             path.unlink(missing_ok=True)
     for path, aside in moved:
@@ -572,6 +573,15 @@ def _settle_previous(out: Path, moved: list[tuple[Path, Path]], keep: bool) -> N
             aside.replace(path)
         else:
             aside.unlink(missing_ok=True)
+
+
+def _what_is_kept(rows: int, previous: list) -> str:
+    """What a run that stopped on an error leaves at ``--out``."""
+    if rows:
+        return "the log keeps every row acquired"
+    if previous:
+        return "no row was acquired; the previous run's log is back"
+    return "no row was acquired; no log written"
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -667,13 +677,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except RigError as exc:
         if progress is not None:
             progress.done()
-        print(f"hil-client: error: {exc}; the log keeps every row acquired", file=sys.stderr)
+        print(f"hil-client: error: {exc}; {_what_is_kept(written[0], previous)}", file=sys.stderr)
         return 1
     except CommandError as exc:  # a setpoint the rig refused (check_setpoints passed it)
         if progress is not None:
             progress.done()
         raise UsageError(
-            f"{args.protocol}: commands {exc}; the log keeps every row acquired"
+            f"{args.protocol}: commands {exc}; {_what_is_kept(written[0], previous)}"
         ) from None
     finally:
         rig.close()

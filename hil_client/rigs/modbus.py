@@ -255,7 +255,10 @@ class ModbusRig:
             self._connect()
             status = self._read_status()
         except ConnectionLost as exc:
-            raise RigError(f"cannot reach {url}: {exc}") from None
+            hint = ""
+            if url.startswith("modbus://") and "closed by the server" in str(exc):
+                hint = " (a Modbus/TCP Security port closes plain connections: modbus+tls://?)"
+            raise RigError(f"cannot reach {url}: {exc}{hint}") from None
         except ModbusExceptionResponse as exc:
             raise RigError(f"{url}: {exc} (not a rig-emulator with this map?)") from None
         self.lockstep = status["clock_mode"] == 1.0

@@ -273,9 +273,19 @@ def test_a_run_refused_at_its_first_step_keeps_the_previous_logs(tmp_path, capsy
     argv = ["run", str(SHORT), "--boiler", "windhager_12kw", "--quiet", "--out", str(out)]
     rig = ["--rig", f"modbus+tls://127.0.0.1:{srv.port}", *tls, "--tls-ca", str(certs / "ca.pem")]
     assert main([*argv, *rig]) == 1
-    assert "refused" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "refused" in err and "no row was acquired; the previous run's log is back" in err
     assert out.read_text() == KEPT and meta.read_text() == '{"earlier": true}'
     assert not (tmp_path / "log.csv.previous").exists()
+    # without an earlier run, nothing is left: no header-only log, no meta, no events
+    fresh = tmp_path / "fresh" / "log.csv"
+    fresh_argv = ["run", str(SHORT), "--boiler", "windhager_12kw", "--quiet", "--out", str(fresh)]
+    assert main([*fresh_argv, *rig]) == 1
+    assert "no row was acquired; no log written" in capsys.readouterr().err
+    assert list(fresh.parent.iterdir()) == []
+    # plain Modbus/TCP at the TLS port: the server closes it; the message says what to try
+    assert main([*fresh_argv, "--rig", f"modbus://127.0.0.1:{srv.port}"]) == 1
+    assert "modbus+tls://?" in capsys.readouterr().err
 
 
 def test_a_renamed_copy_of_the_servers_boiler_is_the_same_boiler(tmp_path, capsys, serve):
