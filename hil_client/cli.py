@@ -247,12 +247,24 @@ def _warn_tolerated(logs: Sequence[LabLog]) -> None:
             print(f"hil-client: warning: {note}", file=sys.stderr)
 
 
-def _logs_with_phases(paths: Sequence[Path]) -> list[tuple[LabLog, Phases]]:
-    """Each lab log with its phases; a bad log is bad input."""
+def _logs_with_phases(
+    paths: Sequence[Path], boiler: BoilerParams | None = None
+) -> list[tuple[LabLog, Phases]]:
+    """Each lab log with its phases; a bad log is bad input. A log whose meta file names
+    another boiler than ``boiler`` (the one it is analysed with) gets a warning: one log of
+    a 6-kW boiler analysed as the 12-kW one gave fits far from any boiler, silently."""
     with bad_input(LogError):
         logs = [read_log(path) for path in paths]
         found = [(log, find_phases(log)) for log in logs]
     _warn_tolerated(logs)
+    for log in logs:
+        recorded = log.meta.get("boiler")
+        if boiler is not None and isinstance(recorded, str) and recorded != boiler.name:
+            print(
+                f"hil-client: warning: {log.path} was recorded with boiler '{recorded}' (its "
+                f"meta file) and is analysed as '{boiler.name}' (--boiler)",
+                file=sys.stderr,
+            )
     return found
 
 
@@ -287,7 +299,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
             "--validation: the same log as --calibration; the held-out log must be another"
             " (CONTRACT section 4: nothing is fitted or selected on it)"
         )
-    cal, val = _logs_with_phases([args.calibration, args.validation])
+    cal, val = _logs_with_phases([args.calibration, args.validation], doc)
     _check_out_dir(args.out)
     with bad_input(LogError):
         result = diagnose(*cal, *val, doc, args.ignition_charge_kg)
@@ -334,7 +346,7 @@ def _cmd_gap_benchmark(args: argparse.Namespace) -> int:
 
 def _cmd_validate(args: argparse.Namespace) -> int:
     params = boiler_arg(args.boiler)
-    [(log, phases)] = _logs_with_phases([args.log])
+    [(log, phases)] = _logs_with_phases([args.log], params)
     _check_out_dir(args.out)
     with bad_input(LogError):
         comp = compare(log, phases, params)
@@ -368,7 +380,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     doc = boiler_arg(args.boiler)
     if args.out.suffix not in (".yaml", ".yml"):
         raise UsageError(f"--out: '{args.out}' must name a .yaml file")
-    logs = _logs_with_phases(args.logs)
+    logs = _logs_with_phases(args.logs, doc)
     with bad_input(LogError, ParameterError):
         result = calibrate(logs, doc)
         params = params_from_mapping(result.params.to_mapping(), str(args.out))
@@ -431,9 +443,17 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 
 def _boiler_for(log: LabLog, name: str | None):
     """The boiler named on the command line, else in the log's meta file."""
-    name = name or log.meta.get("boiler")
+    recorded = log.meta.get("boiler")
+    if name and isinstance(recorded, str) and recorded != boiler_arg(name).name:
+        print(
+            f"hil-client: warning: {log.path} was recorded with boiler '{recorded}' (its meta "
+            f"file) and is analysed as '{boiler_arg(name).name}' (--boiler)",
+            file=sys.stderr,
+        )
+    name = name or recorded
     if not isinstance(name, str):
-        raise UsageError(f"{log.path}: no boiler in the meta file; give --boiler")
+        where = "in its meta file" if log.meta else f"(no meta file {meta_path(log.path).name})"
+        raise UsageError(f"{log.path}: no boiler named {where}; give --boiler")
     return boiler_arg(name)
 
 

@@ -8,7 +8,11 @@ Rules (each refusal is a :class:`LogError` naming the file, column, row or value
   nor a number is refused; an infinite reading, or one outside what its instrument can read
   (:data:`PLAUSIBLE_RANGES`, an error code such as -999), is missing, named in the notes
   (in ``time_s`` it is refused);
-- ``phase``/``sequence`` are text; other unknown columns are kept as numbers if they parse;
+- ``phase``/``sequence`` are text; a column the log format does not name (a lab's own, e.g.
+  an operator's note) is kept as numbers if they parse, else as text, not analysed; in a
+  column it names, a field that is not a number is refused;
+- a file whose fields are separated by semicolons or tabs is refused as such (a
+  spreadsheet's export in another locale);
 - a row of the wrong width is refused, except a last row cut short without a line end (an
   acquisition killed while writing it): it is left out and named in :attr:`LabLog.notes`;
   so is a last row of the full width without a line end whose last field is shorter than
@@ -29,7 +33,11 @@ from typing import Any
 
 import numpy as np
 
+from hil_client.protocol.runner import LOG_COLUMNS
+
 TEXT_COLUMNS = ("phase", "sequence")
+#: The columns the log format names (CONTRACT section 3 and the project's own logger's)
+KNOWN_COLUMNS = frozenset(LOG_COLUMNS)
 #: Columns every analysis of CONTRACT section 3 may rely on.
 REQUIRED = (
     "time_s",
@@ -117,6 +125,13 @@ def read_log(
         except csv.Error as exc:
             raise LogError(f"{path}: not a CSV file ({exc})") from None
         header = [h.strip() for h in header]
+        if len(header) == 1:
+            for sep, what in ((";", "semicolons"), ("\t", "tabs")):
+                if sep in header[0]:
+                    raise LogError(
+                        f"{path}: fields separated by {what}, not commas (CONTRACT section 3: "
+                        "a CSV with '.' as the decimal point)"
+                    )
         for name in required:
             if name not in header:
                 raise LogError(f"{path}: missing required column '{name}'")
@@ -166,6 +181,10 @@ def read_log(
         try:
             out = np.array([v if v.strip() else "nan" for v in values], dtype=float)
         except ValueError:
+            if name not in KNOWN_COLUMNS:  # a column of the lab's own: kept, not analysed
+                text[name] = values
+                notes.append(f"{path}: column '{name}' is text, not a reading; not analysed")
+                continue
             i, v = next((i, v) for i, v in enumerate(values) if v.strip() and not _is_number(v))
             raise LogError(f"{path}: column '{name}' row {i + 2}: '{v}' is not a number") from None
         if as_read:

@@ -12,7 +12,7 @@ nominal load and become flow setpoints as load * Pnom / (cp_w * flow_spread_K).
                 max_duration_s: 14400}
     start_up:  {return_setpoint_C: 55, t1_window_s: 300, t1_max_rise_K_min: 0.5,
                 min_duration_s: 300, max_duration_s: 7200}
-    test:      {return_setpoint_C: 55,
+    test_sequence: {return_setpoint_C: 55,
                 sequences: [{name: peak, load_pct: 100, duration: "00:04:52"},
                             {name: gradient_100_48, load_pct: [100, 48], duration: 1560}]}
     cooling_1: {load_pct: 20, return_setpoint_C: 55, until_forward_C: 55,

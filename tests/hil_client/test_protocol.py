@@ -252,3 +252,15 @@ def test_readings_in_order_are_the_readings_by_name(params_12kw, profile):
         run_protocol(protocol, params_12kw.p_nom_kW, rig, rows[path].append)
     assert len(rows["values"]) > 40_000
     assert rows["values"] == rows["by_name"]  # no NaN in these readings: == is exact
+
+
+def test_the_schemas_own_example_is_a_protocol(tmp_path):
+    """The example in the schema's docstring (which the README points to) loads as written:
+    it once used the key 'test' twice and was refused."""
+    import hil_client.protocol.definition as definition
+
+    doc = definition.__doc__ or ""
+    block = doc[doc.index("    name: load_cycle") : doc.index("A sequence whose")]
+    path = tmp_path / "example.yaml"
+    path.write_text("\n".join(line[4:] for line in block.splitlines()))
+    assert definition.load_protocol(str(path)).name == "load_cycle"

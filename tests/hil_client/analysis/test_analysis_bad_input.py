@@ -303,3 +303,24 @@ def test_a_fault_the_server_never_served_is_neither_caught_nor_missed():
     report = compare(lines, [], journal_name="j.jsonl")
     assert report["missed"] == 0 and report["detected"] == 0
     assert [f["id"] for f in report["unseen"]] == [1]
+
+
+def test_a_log_of_another_boiler_is_analysed_with_a_warning(run_log, tmp_path, capsys):
+    """The README's own commands once calibrated a 6-kW log as the 12-kW boiler: every
+    command exited 0 and the fits were far from any boiler, without a word. Now each says
+    which boiler the log was recorded with; and a log without its meta file says so."""
+    import shutil
+
+    log = run_log("stationary", "windhager_6kw").path
+    assert main(["balance", str(log), "--boiler", "windhager_12kw"]) == 0
+    warning = "was recorded with boiler 'windhager_6kw' (its meta file) and is analysed as "
+    assert warning + "'windhager_12kw'" in capsys.readouterr().err
+    out = tmp_path / "c.yaml"
+    assert main(["calibrate", str(log), "--boiler", "windhager_12kw", "--out", str(out)]) == 0
+    assert warning + "'windhager_12kw'" in capsys.readouterr().err
+    assert main(["balance", str(log), "--boiler", "windhager_6kw"]) == 0
+    assert "recorded with boiler" not in capsys.readouterr().err
+    bare = tmp_path / "bare.csv"
+    shutil.copy(log, bare)  # no meta file beside it
+    assert main(["balance", str(bare)]) == 2
+    assert "no boiler named (no meta file bare.meta.json); give --boiler" in capsys.readouterr().err

@@ -37,6 +37,11 @@ def _write(tmp_path, text: str):
         ("", "empty file"),
         (HEADER + "\n,1,1,1,1,1,1,1,1\n", "column 'time_s' row 2 is empty"),
         (HEADER + "\n1,1,1,1,1,1,1,1,1\ninf,1,1,1,1,1,1,1,1\n", "'time_s' row 3: 'inf' is not"),
+        # a spreadsheet's export in another locale: the separator is named, not a column
+        (HEADER.replace(",", ";") + "\n1;1;1;1;1;1;1;1;1\n", "separated by semicolons"),
+        (HEADER.replace(",", "\t") + "\n1\t1\t1\t1\t1\t1\t1\t1\t1\n", "separated by tabs"),
+        # a column the format names holds readings: text there is refused
+        (HEADER + ",boiler_on\n1,1,1,1,1,1,1,1,1,on\n", "column 'boiler_on' row 2: 'on'"),
     ],
 )
 def test_bad_logs_are_refused_naming_what_is_wrong(tmp_path, text, message):
@@ -88,6 +93,16 @@ def test_a_last_row_without_a_line_end_is_kept_only_when_its_last_field_is_whole
     else:
         assert log["time_s"].tolist() == [1.0, 2.0, 3.0]
         assert len(log.notes) == 1 and f"'{last}'" in log.notes[0] and "line 5" in log.notes[0]
+
+
+def test_a_labs_own_text_column_is_kept_and_not_analysed(tmp_path):
+    """CONTRACT section 3 lists the columns analyses read; a lab's own (an operator's note)
+    is data beside them: it was refused ('ok' is not a number)."""
+    log = read_log(
+        _write(tmp_path, HEADER + ",operator_note\n1,1,1,1,1,1,1,1,1,ok\n2,1,1,1,1,1,1,1,1,\n")
+    )
+    assert log.text["operator_note"] == ["ok", ""] and len(log) == 2
+    assert any("'operator_note' is text" in note for note in log.notes)
 
 
 def test_a_spreadsheets_byte_order_mark_is_not_part_of_the_first_name(tmp_path):
