@@ -91,12 +91,24 @@ def _build_parser() -> argparse.ArgumentParser:
         run.add_argument(option, type=Path, default=None, help=what)
     run.add_argument(
         "--profile",
-        default="clean",
+        default=None,
         type=text_input,
-        help="clean | lab | PROFILE.yaml, for --rig local [clean]",
+        help="clean | lab | lab_instruments | lab_faulty | PROFILE.yaml, for --rig local "
+        "(a Modbus server runs its own: serve --profile) [clean]",
     )
     run.add_argument(
-        "--seed", type=int_in(0, 2**32 - 1), default=0, help="random seed of the profile [0]"
+        "--seed",
+        type=int_in(0, 2**32 - 1),
+        default=None,
+        help="random seed of the profile, for --rig local [0]",
+    )
+    run.add_argument(
+        "--reply-timeout",
+        type=finite_float(0.1, 600.0, "s"),
+        default=RIG_TIMEOUT_S,
+        help="how long a Modbus rig waits for an instrument's reply before leaving its "
+        "fields empty for the row (a no_reply fault costs this per row in lockstep) "
+        f"[{RIG_TIMEOUT_S:g} s]",
     )
     run.add_argument(
         "--map", default=None, type=text_input, help="register map of a Modbus rig [shipped map]"
@@ -520,13 +532,21 @@ def _make_rig(args: argparse.Namespace, params: BoilerParams, register_map: Regi
     ``params``) raise UsageError, an unreachable server RigError."""
     if register_map is None:
         with bad_input(ProfileError, prefix="--profile: "):
-            profile = load_profile(args.profile)
-        return LocalRig(params, profile, seed=args.seed)
+            profile = load_profile(args.profile or "clean")
+        return LocalRig(params, profile, seed=args.seed or 0)
+    ignored = [o for o, v in (("--profile", args.profile), ("--seed", args.seed)) if v is not None]
+    if ignored:  # the server's own profile and seed make the readings
+        print(
+            f"hil-client: warning: {' and '.join(ignored)} apply to --rig local; the server at "
+            f"{args.rig} runs its own (rig-emulator serve --profile/--seed)",
+            file=sys.stderr,
+        )
     with bad_input(ValueError, prefix="--rig: "):
-        connect = connector(args.rig, RIG_TIMEOUT_S, tls_files(args))
+        connect = connector(args.rig, args.reply_timeout, tls_files(args))
     rig = ModbusRig(
         args.rig,
         register_map,
+        timeout_s=args.reply_timeout,
         reconnect_timeout_s=args.reconnect_timeout,
         on_restart=args.on_restart,
         connect=connect,
@@ -650,8 +670,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         "clock": ("lockstep" if rig.lockstep else f"real time x{rig.speed:g}")
         if remote
         else "offline",
-        "profile": "set by the server" if remote else args.profile,
-        "seed": None if remote else args.seed,
+        "profile": "set by the server" if remote else (args.profile or "clean"),
+        "seed": None if remote else (args.seed or 0),
         # what the server publishes of its set-up (CONTRACT section 7)
         **(
             {f"server_{k}": f"{rig.identity[k]:08x}" for k in ("boiler_id", "profile_id")}

@@ -217,3 +217,23 @@ def test_killed_server_ends_the_client_cleanly(tmp_path):
     assert "not back within 1 s; the log keeps every row acquired" in err
     assert "Traceback" not in err
     assert _assert_valid_partial(out) >= 300
+
+
+def test_profile_and_seed_are_the_servers_and_the_reply_timeout_is_the_users(
+    serve, tmp_path, capsys
+):
+    """--profile and --seed make a local rig's readings; given with a Modbus rig they were
+    silently ignored, now a warning says whose they are. --reply-timeout shortens the wait
+    for a unit under no_reply (5 s per row made a lockstep run with such a fault crawl)."""
+    from rig_emulator.faults import faults_from_list
+
+    srv = serve(faults=faults_from_list([{"kind": "no_reply", "unit": 2, "at_s": 30, "for_s": 20}]))
+    out = tmp_path / "log.csv"
+    argv = ["--rig", f"modbus://127.0.0.1:{srv.port}", "--out", str(out), "--profile", "lab"]
+    assert _run([*argv, "--seed", "4", "--reply-timeout", "0.3"]) == 0
+    err = capsys.readouterr().err
+    assert "--profile and --seed apply to --rig local" in err
+    log = read_log(out)
+    silent = np.isnan(log["flue_gas_O2_pct"])
+    assert 15 <= silent.sum() <= 25  # the 20 s of the fault, a row a second
+    assert log.meta["profile"] == "set by the server"
