@@ -35,7 +35,7 @@ from hil_client.analysis.report import validation_report
 from hil_client.analysis.validate import compare, validation_metrics
 from hil_client.fault_files import events_path, fault_report, write_events, write_report
 from hil_client.fault_files import summary as fault_summary
-from hil_client.lablog import LabLogWriter, meta_path, write_meta
+from hil_client.lablog import DECIMALS, LabLogWriter, meta_path, write_meta
 from hil_client.progress import LiveView, ProgressLine
 from hil_client.protocol.definition import ProtocolError, load_protocol
 from hil_client.protocol.rig import RigError
@@ -615,6 +615,11 @@ def _settle_previous(out: Path, moved: list[tuple[Path, Path]], keep: bool) -> N
             aside.unlink(missing_ok=True)
 
 
+def _hms(seconds: float) -> str:
+    h, rem = divmod(round(seconds), 3600)
+    return f"{h}:{rem // 60:02d}:{rem % 60:02d}"
+
+
 def _what_is_kept(rows: int, previous: list) -> str:
     """What a run that stopped on an error leaves at ``--out``."""
     if rows:
@@ -693,9 +698,19 @@ def _cmd_run(args: argparse.Namespace) -> int:
     else:
         progress = None
     started = time.monotonic()
+    # off a terminal (a CI log, docker compose) each phase mark is a line as it comes
+    announce = progress is None and not args.quiet
+    announced: set[str] = set()
 
     def save_meta(result: RunResult) -> None:
-        meta.update(result.times)
+        # the marks as the log writes its times (1285.0, not 1285.0000000000364)
+        meta.update({k: round(v, DECIMALS["time_s"]) for k, v in result.times.items()})
+        if announce:
+            for key in result.times.keys() - announced:
+                announced.add(key)
+                wall = time.monotonic() - started
+                mark = f"{key[:2]} at {_hms(result.times[key])} simulated"
+                print(f"hil-client: {mark}, {wall:.0f} s into the run", file=sys.stderr)
         meta["notes"] = result.notes
         meta["gaps"] = getattr(rig, "gaps", [])
         write_meta(out, meta)

@@ -23,7 +23,7 @@ from typing import Any
 from hil_client.protocol.runner import LOG_COLUMNS, Row
 
 #: Decimals written per column: finer than any instrument's resolution.
-_DECIMALS = {
+DECIMALS = {
     "time_s": 3,
     "water_flow_kg_h": 4,
     "flue_gas_O2_pct": 5,
@@ -51,7 +51,7 @@ _MISSING = re.compile(r"(?<=,)(?:nan|-?inf)(?=,|$)")
 
 
 #: Format of each column's number, None for a text column (temperatures: 10 uK by default).
-_FORMATS = tuple(None if c in _TEXT else f"%.{_DECIMALS.get(c, 5)}f" for c in LOG_COLUMNS)
+_FORMATS = tuple(None if c in _TEXT else f"%.{DECIMALS.get(c, 5)}f" for c in LOG_COLUMNS)
 
 
 def _row_format() -> str:

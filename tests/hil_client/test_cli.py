@@ -58,3 +58,23 @@ def test_broken_parameter_file_is_refused_before_any_work(tmp_path, capsys):
     assert main(["run", "stationary", "--boiler", str(bad), "--out", str(out)]) == 2
     assert "missing required key 'p_max_kW'" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_off_a_terminal_each_phase_mark_is_a_line_and_the_meta_has_the_logs_times(tmp_path, capsys):
+    """A run in a CI log or docker compose printed nothing until it ended (17 minutes at
+    x50); now each phase mark is a line as it comes. The marks in the meta file are times
+    of the log (1285.0, not 1285.0000000000364)."""
+    import json
+    from pathlib import Path
+
+    from hil_client.analysis.logio import read_log
+
+    short = Path(__file__).resolve().parents[1] / "data" / "short_protocol.yaml"
+    out = tmp_path / "log.csv"
+    assert main(["run", str(short), "--boiler", "windhager_12kw", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert [line.split()[1] for line in err.splitlines()] == ["t0", "t1", "t2", "t3", "t4"]
+    meta = json.loads((tmp_path / "log.meta.json").read_text())
+    times = set(read_log(out).t.tolist())
+    for key in ("t0_s", "t1_s", "t2_s", "t3_s"):
+        assert meta[key] in times and meta[key] == round(meta[key], 3)

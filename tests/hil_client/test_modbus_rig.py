@@ -38,9 +38,9 @@ def _tolerance(column: str, value: np.ndarray) -> np.ndarray:
     effect of the setpoints' own encoding: they travel as float32 (6e-8 relative), and the
     ideal controller amplifies a state difference by C / (m cp dt), about 250, so readings
     may differ by up to 1e-5 relative."""
-    from hil_client.lablog import _DECIMALS
+    from hil_client.lablog import DECIMALS
 
-    csv = 10.0 ** -_DECIMALS.get(column, 5) + 1e-5 * np.abs(value)
+    csv = 10.0 ** -DECIMALS.get(column, 5) + 1e-5 * np.abs(value)
     try:
         _, p = load_map().point(column)
     except KeyError:
