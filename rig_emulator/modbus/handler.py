@@ -120,6 +120,9 @@ class RequestHandler(asyncio.Protocol):
         self._idle_timer: asyncio.TimerHandle | None = None
         self._discarded = 0  # frames discarded for a wrong MBAP header
         self._yielding = False  # a slice of requests was answered; the rest come next turn
+        #: it sent something: its connection and disconnection are logged at INFO (a port
+        #: probe, a health check that connects and closes, only at DEBUG)
+        self._spoke = False
 
     # ------------------------------------------------------------------ connection
     def connection_made(self, transport: Any) -> None:
@@ -135,7 +138,7 @@ class RequestHandler(asyncio.Protocol):
         self._registered = True
         for hook in server.connection_hooks:
             hook(self)
-        log.info("client %s connected (%d open)", self.peer, len(server.handlers))
+        log.debug("client %s connected (%d open)", self.peer, len(server.handlers))
         self._arm_idle_timer(server.idle_timeout_s)
 
     def connection_lost(self, exc: Exception | None) -> None:
@@ -147,7 +150,14 @@ class RequestHandler(asyncio.Protocol):
         self._registered = False
         self.server.handlers.discard(self)
         reason = f" ({exc})" if exc else ""
-        log.info("client %s disconnected%s (%d open)", self.peer, reason, len(self.server.handlers))
+        level = logging.INFO if self._spoke else logging.DEBUG
+        log.log(
+            level,
+            "client %s disconnected%s (%d open)",
+            self.peer,
+            reason,
+            len(self.server.handlers),
+        )
 
     def eof_received(self) -> bool:
         """The client sent all it will send: answer what it asked, then close."""
@@ -211,6 +221,9 @@ class RequestHandler(asyncio.Protocol):
         if self._closed or self._close_after is not None:
             return
         self._last_activity = time.monotonic()
+        if not self._spoke:
+            self._spoke = True
+            log.info("client %s connected (%d open)", self.peer, len(self.server.handlers))
         self._buffer += data
         self._drain()
 
