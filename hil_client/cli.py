@@ -601,15 +601,16 @@ def _set_aside(out: Path) -> list[tuple[Path, Path]]:
     return moved
 
 
-def _settle_previous(out: Path, moved: list[tuple[Path, Path]], keep: bool) -> None:
-    """Put the previous run's files back (``keep``: this run wrote no row; its own files
-    go, a header and a meta file with nothing to describe), or delete them (this run's log
-    replaces them)."""
-    if keep:
+def _settle_previous(out: Path, moved: list[tuple[Path, Path]], rows: int, gaps: list) -> None:
+    """After a run that wrote ``rows`` rows: with none, the previous run's files come back
+    and this run's own go (a header and a meta file with nothing to describe), unless,
+    with no previous run, its meta records a break (``gaps``: why it never got a row);
+    with rows, the previous run's files are deleted (this run's log replaces them)."""
+    if not rows and (moved or not gaps):
         for path in (out, meta_path(out), events_path(out)):
             path.unlink(missing_ok=True)
     for path, aside in moved:
-        if keep:
+        if not rows:
             aside.replace(path)
         else:
             aside.unlink(missing_ok=True)
@@ -620,12 +621,14 @@ def _hms(seconds: float) -> str:
     return f"{h}:{rem // 60:02d}:{rem % 60:02d}"
 
 
-def _what_is_kept(rows: int, previous: list) -> str:
-    """What a run that stopped on an error leaves at ``--out``."""
+def _what_is_kept(rows: int, previous: list, gaps: list) -> str:
+    """What a run that stopped leaves at ``--out`` (see :func:`_settle_previous`)."""
     if rows:
         return "the log keeps every row acquired"
     if previous:
         return "no row was acquired; the previous run's log is back"
+    if gaps:
+        return "no row was acquired; the meta file records why (its gaps)"
     return "no row was acquired; no log written"
 
 
@@ -732,19 +735,25 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except RigError as exc:
         if progress is not None:
             progress.done()
-        print(f"hil-client: error: {exc}; {_what_is_kept(written[0], previous)}", file=sys.stderr)
+        kept = _what_is_kept(written[0], previous, getattr(rig, "gaps", []))
+        print(f"hil-client: error: {exc}; {kept}", file=sys.stderr)
         return 1
     except CommandError as exc:  # a setpoint the rig refused (check_setpoints passed it)
         if progress is not None:
             progress.done()
-        raise UsageError(
-            f"{args.protocol}: commands {exc}; {_what_is_kept(written[0], previous)}"
-        ) from None
+        kept = _what_is_kept(written[0], previous, getattr(rig, "gaps", []))
+        raise UsageError(f"{args.protocol}: commands {exc}; {kept}") from None
+    except KeyboardInterrupt:  # Ctrl-C, or SIGTERM (see main)
+        if progress is not None:
+            progress.done()
+        kept = _what_is_kept(written[0], previous, getattr(rig, "gaps", []))
+        print(f"hil-client: interrupted; {kept}", file=sys.stderr)
+        return 1
     finally:
         rig.close()
         if remote:  # what faulty units did, beside the log
             write_events(out, rig.comm_events)
-        _settle_previous(out, previous, keep=not written[0])
+        _settle_previous(out, previous, written[0], getattr(rig, "gaps", []))
     if progress is not None:
         progress.done()
     wall = time.monotonic() - started
@@ -837,19 +846,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UsageError as exc:
         return report(exc, "hil-client")
     except KeyboardInterrupt:
-        print("hil-client: interrupted; the log keeps every row acquired", file=sys.stderr)
+        print("hil-client: interrupted", file=sys.stderr)
         return 1
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+        if previous is not _NOT_SET:  # (one set from C cannot be put back: the default)
+            signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
+
+
+_NOT_SET = object()
 
 
 def _stop_on_sigterm() -> Any:
     """SIGTERM (timeout, a CI job cancelled, docker stop) ends a command as Ctrl-C does, so
     what it writes on the way out (a run's Modbus events, its meta file) is written; the
-    handler it replaces, or None off the main thread (where handlers cannot be set)."""
+    handler it replaces (None: one set from C), or :data:`_NOT_SET` off the main thread,
+    where handlers cannot be set."""
     if threading.current_thread() is not threading.main_thread():
-        return None
+        return _NOT_SET
 
     def interrupt(signum: int, frame: Any) -> None:
         raise KeyboardInterrupt
