@@ -14,7 +14,7 @@ sheets), so a thermowell's lag is not mistaken for an effect.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -23,6 +23,7 @@ from hil_client.analysis.firing import Firing, observe_firing
 from hil_client.analysis.logio import LabLog, LogError, fill_gaps, without_refills
 from hil_client.analysis.phases import Phases
 from rig_emulator.model import pack_constants
+from rig_emulator.model.layout import K_SHUTOFF
 from rig_emulator.model.params import BoilerParams
 from rig_emulator.model.simulate import simulate
 from rig_emulator.model.water_heat import heat_to_water_kW
@@ -149,8 +150,11 @@ def prepare(
         "fuel_cum_kg": mass[0] - mass,
     }
     firing = observe_firing(log)
-    replay = replace(params, shutoff_temp_C=max(params.shutoff_temp_C, REPLAY_SHUTOFF_C))
-    model = simulate(pack_constants(replay), float(water[0]), dt, flow, t_in, room, firing.burning)
+    c = pack_constants(params)
+    # the lab's burner decides when it burns: the model does not cut out on its own (the
+    # start-up's hand-over keeps the boiler's own shut-off, K_HANDOVER_LIMIT)
+    c[K_SHUTOFF] = max(params.shutoff_temp_C, REPLAY_SHUTOFF_C)
+    model = simulate(c, float(water[0]), dt, flow, t_in, room, firing.burning)
     test = phases.mask("test", t)
     settled = test.copy()
     for i in np.concatenate([firing.starts, firing.stops]):

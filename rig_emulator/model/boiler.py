@@ -72,6 +72,7 @@ from rig_emulator.model.layout import (
     K_FAC_B,
     K_FLOW_NOM,
     K_FUEL_NOM,
+    K_HANDOVER_LIMIT,
     K_HHV,
     K_IGNITION,
     K_INV_SPAN,
@@ -106,7 +107,6 @@ from rig_emulator.model.layout import (
     S_FUEL,
     S_MODE,
     S_MODE_TIME,
-    S_RESTART,
     S_SINCE_START,
     S_SINCE_STOP,
     S_STARTS,
@@ -178,6 +178,7 @@ def pack_constants(p: BoilerParams) -> np.ndarray:
     c[K_FAC_A], c[K_FAC_B] = p.fac_a_lambda, p.fac_b_lambda_h_kg
     c[K_PEL_MIN], c[K_PEL_OFF] = p.p_el_min_W, p.p_el_off_W
     c[K_SET], c[K_SHUTOFF], c[K_RESTART] = p.set_temp_C, p.shutoff_temp_C, p.restart_temp_C
+    c[K_HANDOVER_LIMIT] = p.shutoff_temp_C  # a replay may move the shut-off, not this
     c[K_STARTUP_S] = p.startup_duration_s
     c[K_CO_PMIN], c[K_CO_PMAX] = p.co_ppm_at_p_min, p.co_ppm_at_p_max
     c[K_CO_START], c[K_CO_STOP] = p.co_start_peak_ppm, p.co_stop_peak_ppm
@@ -284,26 +285,15 @@ def node_exact(t0_C, q_in_kW, m_cp_kW_K, water_in_C, ua_kW_K, room_C, cap_kJ_K, 
 
 
 @njit(cache=True)
-def controller_mode(c, mode, mode_time_s, t_boiler_C, enabled, restart=False):
+def controller_mode(c, mode, mode_time_s, t_boiler_C, enabled):
     """Next controller mode from the current one and the node temperature.
 
     Off when not enabled; on enabling it starts unless the water is already at the set
     temperature; firing stops at or above the shut-off temperature (cut-out) and starts
     again at or below the restart temperature. The start-up at Pstart lasts
-    ``startup_duration_s``:
-
-    - after a restart (``restart``: a start after a cut-out, or any start after the first
-      of the run, as when a replay switches the model on again where the lab's burner
-      restarted) the whole time, ended early by the
-      shut-off temperature, or by the set temperature where the load lies in the
-      modulation range (:func:`restart_hands_over`, decided in the step, which knows the
-      load): the boiler "maintains the maximum power output during the start-up phase"
-      (Carlon et al. 2015, Section 3.2.2), which below the modulation range drives the
-      water to the shut-off again (the second stop of Fig. 7);
-    - after the first start from cold (the bench switching the boiler on) until the water
-      reaches the set temperature if that comes first (assumption: at part load a boiler
-      fired at Pmax for the whole first start-up would overshoot to the cut-out, which the
-      paper does not report for its stationary tests).
+    ``startup_duration_s`` unless the shut-off ends it, or the set temperature where the
+    load lies in the modulation range (:func:`startup_hands_over`, decided in the step,
+    which knows the load).
     """
     if not enabled:
         return OFF
@@ -313,9 +303,7 @@ def controller_mode(c, mode, mode_time_s, t_boiler_C, enabled, restart=False):
         return STARTUP if t_boiler_C <= c[K_RESTART] else CUTOUT
     if t_boiler_C >= c[K_SHUTOFF]:
         return CUTOUT
-    if mode == STARTUP and (
-        mode_time_s >= c[K_STARTUP_S] or (not restart and t_boiler_C >= c[K_SET])
-    ):
+    if mode == STARTUP and mode_time_s >= c[K_STARTUP_S]:
         return MODULATING
     return mode
 
@@ -327,12 +315,11 @@ def update_mode(c, s, enabled):
     Returns (mode for this step, True if the burner starts with this step).
     """
     mode = int(s[S_MODE])
-    new_mode = controller_mode(c, mode, s[S_MODE_TIME], s[S_T], enabled, s[S_RESTART] > 0.5)
+    new_mode = controller_mode(c, mode, s[S_MODE_TIME], s[S_T], enabled)
     started = False
     if new_mode != mode:
         s[S_MODE_TIME] = 0.0
         if new_mode == STARTUP:
-            s[S_RESTART] = 1.0 if mode == CUTOUT or s[S_STARTS] >= 1.0 else 0.0
             s[S_SINCE_START] = 0.0
             s[S_STARTS] += 1.0
             started = True
@@ -349,27 +336,15 @@ def igniter_kW(c, s):
 
 
 @njit(cache=True, inline="always")
-def fuel_power_for_heat_kW(c, s, q_req, water_flow_kg_h, water_in_C, room_C, co_start):
-    """Firing power [kW, net basis] whose combustion gives ``q_req`` [kW] to the exchanger,
-    with the flue-gas losses evaluated at the previous firing power (one fixed-point pass),
-    turned into fuel (:func:`fuel_for_heat`); not clipped."""
-    x_prev = s[S_FIRING] * 3600.0 / c[K_LHV]
-    lam_prev = excess_air(c, x_prev)
-    co_prev = co_stationary_ppm(c, s[S_FIRING]) + co_start
-    t_fg_prev = flue_gas_temperature(c, water_in_C, water_flow_kg_h, x_prev)
-    chem_prev = flue_gas_loss_per_kg(c, lam_prev, t_fg_prev, room_C, co_prev)[2]
-    return fuel_for_heat(c, q_req, t_fg_prev - room_C, chem_prev) * c[K_LHV] / 3600.0
-
-
-@njit(cache=True, inline="always")
 def firing_power_kW(
     c, s, mode, m_cp, water_flow_kg_h, water_in_C, room_C, q_ign, co_start, horizon_s
 ):
     """Firing power the controller commands while firing [kW, net basis].
 
     Pstart in the start-up; otherwise the heat to the exchanger that brings the node to
-    the set point at the end of ``horizon_s`` (the step, for the paper's ideal controller)
-    (:func:`fuel_power_for_heat_kW`), clipped to [Pmin, Pmax].
+    the set point at the end of ``horizon_s`` (the step, for the paper's ideal controller),
+    with the flue-gas losses evaluated at the previous firing power (one fixed-point
+    pass), turned into fuel (:func:`fuel_for_heat`) and clipped to [Pmin, Pmax].
     """
     if mode == STARTUP:
         return c[K_P_START]
@@ -378,26 +353,39 @@ def firing_power_kW(
     decay = math.exp(-b * horizon_s / c[K_CAP])
     t_eq = (c[K_SET] - s[S_T] * decay) / (1.0 - decay)
     q_req = max(b * t_eq - m_cp * water_in_C - ua * room_C - q_ign, 0.0)
-    p = fuel_power_for_heat_kW(c, s, q_req, water_flow_kg_h, water_in_C, room_C, co_start)
-    return min(max(p, c[K_P_MIN]), c[K_P_MAX])
+    x_prev = s[S_FIRING] * 3600.0 / c[K_LHV]
+    lam_prev = excess_air(c, x_prev)
+    co_prev = co_stationary_ppm(c, s[S_FIRING]) + co_start
+    t_fg_prev = flue_gas_temperature(c, water_in_C, water_flow_kg_h, x_prev)
+    chem_prev = flue_gas_loss_per_kg(c, lam_prev, t_fg_prev, room_C, co_prev)[2]
+    x = fuel_for_heat(c, q_req, t_fg_prev - room_C, chem_prev)
+    return min(max(x * c[K_LHV] / 3600.0, c[K_P_MIN]), c[K_P_MAX])
 
 
 @njit(cache=True, inline="always")
-def restart_hands_over(c, s, mode, m_cp, water_flow_kg_h, water_in_C, room_C, co_start):
-    """Whether a restart's start-up ends now, at the set temperature: when the power that
-    holds the set temperature (the heat the water and the room take there) lies in the
-    modulation range, so modulation can hold it. Below the range the start-up runs on at
-    Pstart, as in Fig. 7 (Carlon et al. 2015, 3.2.2: after the restart the boiler
-    "maintained the maximum power output during the start-up phase" and reached 85 C again);
-    within it, a start-up that ran on would reach the cut-out before its end and restart
-    again at every cycle, at loads the boiler holds by modulating (a restart at 39 % load
-    of the 12-kW boiler: 13.2 kW from 55 C reach 85 C within the 900-s start-up)."""
-    if mode != STARTUP or s[S_RESTART] < 0.5 or s[S_T] < c[K_SET]:
+def startup_hands_over(c, s, mode, m_cp, water_flow_kg_h, water_in_C, room_C, co_start):
+    """Whether the start-up at Pstart ends now, at the set temperature: when modulation can
+    keep the water below the shut-off, i.e. the node's equilibrium at Pmin with this
+    step's flow, return and room lies below it (the load is in, or not far below, the
+    modulation range). Otherwise the start-up runs its time at Pstart: in Fig. 7 (Carlon et
+    al. 2015, 3.2.2) the boiler restarted at 13 % load "maintained the maximum power output
+    during the start-up phase" and reached 85 C again, as Pmin alone would have too.
+    Assumption (the paper is silent): one rule for every start, so the physics does not
+    depend on how the boiler got to its start (the bench switching it on, a cut-out, a
+    replay switching the model on where the lab's burner restarted). Run on whatever the
+    load, the start-up took the 12-kW boiler from 55 C to 85 C within its 900 s at 28-39 %
+    load, and it cut out and restarted for ever."""
+    if mode != STARTUP or s[S_T] < c[K_SET]:
         return False
+    x_min = c[K_P_MIN] * 3600.0 / c[K_LHV]  # dry fuel at Pmin [kg/h]
+    lam = excess_air(c, x_min)
+    t_fg = flue_gas_temperature(c, water_in_C, water_flow_kg_h, x_min)
+    co = co_stationary_ppm(c, c[K_P_MIN]) + co_start
+    sens, lat, chem = flue_gas_loss_per_kg(c, lam, t_fg, room_C, co)
+    q_hx = x_min / 3600.0 * (c[K_HHV] * (1.0 - _ASH) - sens - lat - chem)
     ua = c[K_UA_ON]
-    q_hold = m_cp * (c[K_SET] - water_in_C) + ua * (c[K_SET] - room_C)
-    p_hold = fuel_power_for_heat_kW(c, s, q_hold, water_flow_kg_h, water_in_C, room_C, co_start)
-    return p_hold >= c[K_P_MIN]
+    t_eq = (q_hx + m_cp * water_in_C + ua * room_C) / (m_cp + ua)
+    return t_eq < c[K_HANDOVER_LIMIT]
 
 
 @njit(cache=True, inline="always")
@@ -555,7 +543,7 @@ def step_skeleton(
     m_cp = water_flow_kg_h * _CP_W_KWH
     since_flame = flame_clock(c, s, fc, fs, rows[P_FLAME_CLOCK], started)
     co_start = c[K_CO_START] * math.exp(-since_flame / c[K_CO_TAU])
-    if restart_hands_over(c, s, mode, m_cp, water_flow_kg_h, water_in_C, room_C, co_start):
+    if startup_hands_over(c, s, mode, m_cp, water_flow_kg_h, water_in_C, room_C, co_start):
         mode = MODULATING
         s[S_MODE_TIME] = 0.0
 

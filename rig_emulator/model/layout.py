@@ -68,6 +68,7 @@ CONSTANT_FIELDS = (
     "pel_off",  # [W]
     "set",  # [C]
     "shutoff",  # [C]
+    "handover_limit",  # [C] below which Pmin must hold the water for a start-up to hand over
     "restart",  # [C]
     "startup_s",  # [s]
     "co_pmin",  # [ppm]
@@ -113,6 +114,7 @@ K_PEL_MIN = K["pel_min"]
 K_PEL_OFF = K["pel_off"]
 K_SET = K["set"]
 K_SHUTOFF = K["shutoff"]
+K_HANDOVER_LIMIT = K["handover_limit"]
 K_RESTART = K["restart"]
 K_STARTUP_S = K["startup_s"]
 K_CO_PMIN = K["co_pmin"]
@@ -133,7 +135,6 @@ STATE_FIELDS = (
     "fuel_dry_kg",  # dry fuel burnt so far [kg]
     "electric_Wh",  # electricity drawn so far [Wh]
     "starts",  # ignitions so far
-    "restart",  # 1 while the start-up is a restart after a cut-out, else 0
 )
 S = index_of(STATE_FIELDS)
 S_T = S["t_boiler_C"]
@@ -145,7 +146,6 @@ S_SINCE_STOP = S["since_stop_s"]
 S_FUEL = S["fuel_dry_kg"]
 S_ELECTRIC = S["electric_Wh"]
 S_STARTS = S["starts"]
-S_RESTART = S["restart"]
 N_STATE = len(STATE_FIELDS)
 
 # --- boiler outputs of one step (temperatures at the end, heat flows as step means)
