@@ -106,8 +106,8 @@ def _build_parser() -> argparse.ArgumentParser:
         "--reply-timeout",
         type=finite_float(0.1, 600.0, "s"),
         default=RIG_TIMEOUT_S,
-        help="how long a Modbus rig waits for an instrument's reply before leaving its "
-        "fields empty for the row (a no_reply fault costs this per row in lockstep) "
+        help="how long a Modbus rig waits for an instrument's reply (and to connect) before "
+        "leaving its fields empty for the row (a no_reply fault costs this per row in lockstep) "
         f"[{RIG_TIMEOUT_S:g} s]",
     )
     run.add_argument(
@@ -269,15 +269,22 @@ def _logs_with_phases(
         logs = [read_log(path) for path in paths]
         found = [(log, find_phases(log)) for log in logs]
     _warn_tolerated(logs)
-    for log in logs:
-        recorded = log.meta.get("boiler")
-        if boiler is not None and isinstance(recorded, str) and recorded != boiler.name:
-            print(
-                f"hil-client: warning: {log.path} was recorded with boiler '{recorded}' (its "
-                f"meta file) and is analysed as '{boiler.name}' (--boiler)",
-                file=sys.stderr,
-            )
+    if boiler is not None:
+        for log in logs:
+            _warn_other_boiler(log, boiler)
     return found
+
+
+def _warn_other_boiler(log: LabLog, boiler: BoilerParams) -> None:
+    """A warning when the log's meta file names another boiler than the one it is analysed
+    with (by name: a calibrated file keeps its boiler's name)."""
+    recorded = log.meta.get("boiler")
+    if isinstance(recorded, str) and recorded != boiler.name:
+        print(
+            f"hil-client: warning: {log.path} was recorded with boiler '{recorded}' (its meta "
+            f"file) and is analysed as '{boiler.name}' (--boiler)",
+            file=sys.stderr,
+        )
 
 
 def _same_log(a: Path, b: Path) -> bool:
@@ -455,18 +462,15 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 
 def _boiler_for(log: LabLog, name: str | None):
     """The boiler named on the command line, else in the log's meta file."""
+    if name:
+        params = boiler_arg(name)
+        _warn_other_boiler(log, params)
+        return params
     recorded = log.meta.get("boiler")
-    if name and isinstance(recorded, str) and recorded != boiler_arg(name).name:
-        print(
-            f"hil-client: warning: {log.path} was recorded with boiler '{recorded}' (its meta "
-            f"file) and is analysed as '{boiler_arg(name).name}' (--boiler)",
-            file=sys.stderr,
-        )
-    name = name or recorded
-    if not isinstance(name, str):
+    if not isinstance(recorded, str):
         where = "in its meta file" if log.meta else f"(no meta file {meta_path(log.path).name})"
         raise UsageError(f"{log.path}: no boiler named {where}; give --boiler")
-    return boiler_arg(name)
+    return boiler_arg(recorded)
 
 
 def _json_nulls(value: Any) -> Any:

@@ -53,7 +53,9 @@ class RunSummary:
             if self._reading_prev is not None and reading - self._reading_prev > REFILL_STEP_KG:
                 self._refilled_kg += reading - self._reading_prev
             self._reading_prev = reading
-        mass = reading - self._refilled_kg
+            mass = reading - self._refilled_kg
+        else:  # the last reading stands for it (a dropout on a phase's last row)
+            mass = self._mass_prev if self._mass_prev is not None else reading
         phase: str = row[_PHASE]  # type: ignore[assignment]
         total = self.phases.get(phase)
         if total is None:

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import numbers
 import os
 import re
 import signal
@@ -222,8 +223,9 @@ class RigEmulator:
         one that is not finite is refused with ``ValueError`` before anything moves. A
         connection lost meanwhile is settled by the lockstep counter: each write happens
         exactly once."""
-        if isinstance(seconds, bool) or not isinstance(seconds, int | float):
+        if isinstance(seconds, bool) or not isinstance(seconds, numbers.Real):
             raise ValueError(f"advance({seconds!r}): expected a number of seconds")
+        seconds = float(seconds)  # numpy's numbers too
         if not math.isfinite(seconds) or seconds < 0 or seconds != int(seconds):
             raise ValueError(
                 f"advance({seconds!r}): the emulator advances whole seconds, 0 or more "
@@ -357,7 +359,7 @@ def marker_options(request: pytest.FixtureRequest) -> dict[str, Any]:
             pytest.fail(f"@pytest.mark.rig_emulator: {key}={options[key]!r} is no name or path",
                         pytrace=False)  # fmt: skip
     seed = options["seed"]
-    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**32:
+    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or not 0 <= seed < 2**32:
         pytest.fail(f"@pytest.mark.rig_emulator: seed={seed!r} is not an integer 0..2**32-1",
                     pytrace=False)  # fmt: skip
     faults = options["faults"]

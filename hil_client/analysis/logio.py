@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from hil_client.protocol.runner import LOG_COLUMNS
+from hil_client.protocol.rig import LOG_COLUMNS
 
 TEXT_COLUMNS = ("phase", "sequence")
 #: The columns the log format names (CONTRACT section 3 and the project's own logger's)

@@ -64,9 +64,10 @@ def model_run(log: LabLog, phases: Phases, params: BoilerParams) -> dict[str, np
 
 
 def fuel_rate_from_balance(log: LabLog, params: BoilerParams) -> np.ndarray:
-    """Dry fuel flow [kg/h] per row from the balance: slope of a centred linear fit."""
+    """Dry fuel flow [kg/h] per row from the balance, refills taken out: slope of a
+    centred linear fit."""
     t = log.t
-    m = fill_gaps(log["balance_mass_kg"], t)
+    m = fill_gaps(without_refills(log["balance_mass_kg"]), t)
     per_kg_dry = params.fuel.balance_loss_per_kg_dry
     # running sums give the least-squares slope over a centred window at every row
     cs, cm, ctt, ctm = (np.concatenate(([0.0], np.cumsum(a))) for a in (t, m, t * t, t * m))

@@ -67,3 +67,16 @@ class Rig(Protocol):
 
     def close(self) -> None:
         """Release the rig."""
+
+
+#: Columns of the lab log (CONTRACT section 3), in file order: the step's own, the
+#: readings, the flow setpoint spliced in before ``boiler_on``, and the rig's epoch.
+LOG_COLUMNS: tuple[str, ...] = (
+    "time_s",
+    "phase",
+    "sequence",
+    *READING_KEYS[: READING_KEYS.index("boiler_on")],
+    "water_flow_setpoint_kg_h",
+    *READING_KEYS[READING_KEYS.index("boiler_on") :],
+    "rig_epoch",
+)

@@ -34,21 +34,10 @@ from dataclasses import dataclass, field
 from operator import itemgetter
 
 from hil_client.protocol.definition import ProtocolDefinition, ProtocolError
+from hil_client.protocol.rig import LOG_COLUMNS as LOG_COLUMNS  # the log's, declared there
 from hil_client.protocol.rig import READING_KEYS, Rig, RigCommand, RigError
 from rig_emulator.emulator import CommandError, check_command
 from rig_emulator.model.water_heat import flow_for_heat_kg_h
-
-#: Columns of the lab log (CONTRACT section 3), in file order.
-LOG_COLUMNS: tuple[str, ...] = (
-    "time_s",
-    "phase",
-    "sequence",
-    *READING_KEYS[: READING_KEYS.index("boiler_on")],
-    "water_flow_setpoint_kg_h",
-    *READING_KEYS[READING_KEYS.index("boiler_on") :],
-    "rig_epoch",
-)
-
 
 #: The mark set when each phase starts (preheat starts with the record).
 _START_MARK = {"start_up": "t0_s", "test": "t1_s", "cooling_1": "t2_s", "cooling_2": "t3_s"}

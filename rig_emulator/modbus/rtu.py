@@ -261,9 +261,11 @@ class RtuLine:
             # delay); the emulator's own work overlaps its on-wire time (a reply that took
             # longer is handed over when ready)
             reply_end = max(ended + delay_s + wire_s, time.monotonic())
-            _sleep_until(reply_end)
+            if not self._wait_until(reply_end):
+                return reply_end  # the line is stopping: no reply
         else:  # a real line: its UART takes the reply's time itself
-            _sleep_until(ended + delay_s)
+            if not self._wait_until(ended + delay_s):
+                return ended
             reply_end = time.monotonic() + wire_s
         try:
             os.write(self._fd, out)
@@ -271,6 +273,17 @@ class RtuLine:
             log.warning("RTU %s: reply not written (%s)", self.path, exc.strerror)
         self.transactions += 1
         return reply_end + self.silence_s
+
+    def _wait_until(self, when: float) -> bool:
+        """Wait until the monotonic clock reads ``when`` (to about 0.1 ms); False if the
+        line is stopped meanwhile (a delay fault may hold a reply for minutes: the line's
+        fd must not be written once :meth:`stop` has closed it)."""
+        while True:
+            left = max(when - time.monotonic(), 0.0)
+            if select.select([self._stop_r], [], [], left)[0]:
+                return False
+            if time.monotonic() >= when:
+                return True
 
     async def _broadcast(self, pdu: bytes) -> None:
         for unit_id in sorted(self.server.units - set(EMULATOR_UNITS)):
@@ -287,12 +300,3 @@ class RtuLine:
             future.cancel()
             log.warning("RTU %s: request not answered (%s)", self.path, exc or type(exc).__name__)
             return None
-
-
-def _sleep_until(when: float) -> None:
-    """Sleep until the monotonic clock reads ``when`` (to about 0.1 ms)."""
-    while True:
-        left = when - time.monotonic()
-        if left <= 0:
-            return
-        time.sleep(left)

@@ -9,8 +9,8 @@ returns every output of every step, by name (:data:`~rig_emulator.model.layout.O
 The controller decides once per step (Section 3.1's ideal controller), so a row longer than
 :data:`MAX_STEP_S` (a gap in a lab log) is stepped in equal parts no longer than that: in one
 900-s step the burner would fire on past the shut-off (110 C at zero flow). Such a row gives
-the temperatures, mode and lambda at its end and the rest (flows, powers) as means over it,
-so the balance still closes over the row.
+what an instrument reads at its end (temperatures, mode, lambda and the gas composition) and
+the flows and powers as means over it, so the balance still closes over the row.
 """
 
 from __future__ import annotations
@@ -22,9 +22,14 @@ from rig_emulator.model.boiler import new_state, step
 from rig_emulator.model.layout import (
     N_OUTPUTS,
     OUTPUT_FIELDS,
+    Y_CO,
+    Y_CO2,
     Y_LAMBDA,
     Y_MODE,
+    Y_O2,
+    Y_SO2,
     Y_T_BOILER,
+    Y_T_FG,
     Y_T_OUT,
     named,
 )
@@ -32,7 +37,8 @@ from rig_emulator.model.layout import (
 #: Longest step the controller decides for [s]: at zero flow the 12-kW boiler heats by at
 #: most 0.061 K/s at Pstart, so the water passes the shut-off by at most about 4 K.
 MAX_STEP_S = 60.0
-_AT_END = np.array([Y_T_BOILER, Y_T_OUT, Y_MODE, Y_LAMBDA])
+#: what a long row gives at its end (the rest are means over it)
+_AT_END = np.array([Y_T_BOILER, Y_T_OUT, Y_T_FG, Y_MODE, Y_LAMBDA, Y_O2, Y_CO2, Y_SO2, Y_CO])
 
 
 @njit(cache=True)

@@ -335,3 +335,6 @@ def test_a_run_whose_commands_all_arrived_has_no_such_warning(tmp_path, capsys, 
     argv = ["run", str(SHORT), "--boiler", "windhager_12kw", "--rig", rig, "--quiet"]
     assert main([*argv, "--out", str(out)]) == 0
     assert "writes failed" not in capsys.readouterr().err
+    if slow:  # the writes were late indeed, and said so in the events file
+        events = [json.loads(line) for line in (tmp_path / "log.modbus_events.jsonl").open()]
+        assert any(e["event"] == "late" and e["function"] in (5, 6, 15, 16) for e in events)

@@ -28,3 +28,16 @@ def test_a_refill_is_taken_out_of_the_fuel_and_a_missing_reading_skipped():
     # the fuel burnt while the reading was missing is inside it, as in the balance command
     assert summary.phases["test"].fuel_kg == pytest.approx(2.0)
     assert summary.median_interval_s == 1.0
+
+
+def test_a_missing_reading_at_a_phase_boundary_costs_neither_phase_its_fuel():
+    """A dropout of the balance on a phase's last row made that phase's fuel, and the next
+    one's, NaN (a reviewer's finding)."""
+    summary = RunSummary()
+    for i, (phase, mass) in enumerate(
+        [("start_up", 250.0), ("start_up", 249.8), ("start_up", math.nan), ("test", 249.4),
+         ("test", 249.2)]
+    ):  # fmt: skip
+        summary(_row(float(i + 1), phase, mass))
+    assert summary.phases["start_up"].fuel_kg == pytest.approx(0.2)
+    assert summary.phases["test"].fuel_kg == pytest.approx(0.6)  # from 249.8, the last read

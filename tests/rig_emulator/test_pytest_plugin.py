@@ -203,6 +203,10 @@ def test_advance_and_inject_take_what_a_user_gives_or_say_why(tmp_path):
         assert rig.read("sim_time_s") == 0.0  # nothing moved
         rig.advance(2 * 86_400 + 5)
         assert rig.read("sim_time_s") == 2 * 86_400 + 5
+        import numpy as np
+
+        rig.advance(np.int64(10))  # a duration computed with numpy
+        assert rig.read("sim_time_s") == 2 * 86_400 + 15
         with pytest.raises(FaultError, match="99"):
             rig.inject({"kind": "no_reply", "unit": 99})
         with pytest.raises(FaultError, match="expected a dict"):

@@ -221,3 +221,35 @@ def test_one_implausible_value_does_not_throw_the_rest_away(round_trip, tmp_path
     # the rest is calibrated as before
     assert flags["ua_amb_off_W_K"]["implausible"] is False
     assert written["ua_amb_off_W_K"] == pytest.approx(flags["ua_amb_off_W_K"]["value"])
+
+
+def test_a_refill_changes_no_figure_of_validate(run_log, tmp_path):
+    """A +15 kg refill mid-test (the README's offset fault) made the balance's fuel flow
+    negative, clipped to 0: the lab's flue-gas loss read zero for 15 minutes."""
+    import csv
+    import shutil
+
+    rec = run_log("load_cycle", "windhager_12kw")
+    refilled = tmp_path / "refilled.csv"
+    with rec.path.open() as src, refilled.open("w", newline="") as dst:
+        reader, writer = csv.reader(src), csv.writer(dst)
+        header = next(reader)
+        writer.writerow(header)
+        col = header.index("balance_mass_kg")
+        for i, row in enumerate(reader):
+            if i >= 3 * 3600:  # three hours in: inside the test sequence
+                row[col] = f"{float(row[col]) + 15.0:.5f}"
+            writer.writerow(row)
+    shutil.copy(rec.path.with_name(rec.path.stem + ".meta.json"), tmp_path / "refilled.meta.json")
+    results = []
+    for path, out in ((rec.path, tmp_path / "plain"), (refilled, tmp_path / "refill")):
+        assert main(["validate", str(path), "--boiler", "windhager_12kw", "--out", str(out)]) == 0
+        results.append(json.loads((out / "validation.json").read_text()))
+    plain, refill = results
+    for segment in ("test", "test_stationary", "test_dynamic"):
+        a, b = (r["metrics"][segment]["flue_gas_loss_kW"]["rmsd"] for r in results)
+        assert b == pytest.approx(a, abs=1e-6), segment
+        # the refill's row hides that second's fuel (0.3 g): within half a balance step
+        assert refill["fuel"][segment]["balance_kg"] == pytest.approx(
+            plain["fuel"][segment]["balance_kg"], abs=0.01
+        )

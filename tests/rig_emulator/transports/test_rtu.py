@@ -140,24 +140,32 @@ def test_broadcast_write_no_reply_every_unit_acts(rtu_server, line):
 
 def test_broadcast_never_reaches_the_emulators_own_units(rtu_server, line):
     """A master's broadcast of a setpoint reaches the instruments, not the simulation
-    control at the same addresses (holding 0-1 of unit 100 is its speed factor, 6 its
-    reset): a broadcast used to re-clock and reset the simulation."""
+    control at the same addresses (holding 0-1 of unit 100 is its speed factor, 4-5 its
+    lockstep advance, 6 its reset): a broadcast used to re-clock, advance and reset the
+    simulation."""
     srv = rtu_server
     tcp = client(srv.port)
     try:
-        before = tcp.read_holding_registers(0, count=8, device_id=100).registers
-        # FC16 holding 0-1 = 50.0 (the bench PLC's flow setpoint), then FC6 holding 6 = 1
-        line.send(
-            rtu_frame(
-                0,
-                struct.pack(">BHHB2H", 16, 0, 2, 4, *struct.unpack(">2H", struct.pack(">f", 50.0))),
-            )
-        )
-        assert line.read(64, timeout_s=0.5) == b""
-        line.send(rtu_frame(0, struct.pack(">BHH", 6, 6, 1)))
-        assert line.read(64, timeout_s=0.5) == b""
-        assert srv.values()["water_flow_setpoint_kg_h"] == 50.0  # the instruments got the broadcast
-        assert tcp.read_holding_registers(0, count=8, device_id=100).registers == before
+        assert not tcp.write_registers(4, [0, 60], device_id=100).isError()  # 60 s in
+        before_holding = tcp.read_holding_registers(0, count=8, device_id=100).registers
+        before_input = tcp.read_input_registers(0, count=9, device_id=100).registers  # time, epoch
+        words = struct.unpack(">2H", struct.pack(">f", 50.0))
+        for pdu in (
+            struct.pack(">BHHB2H", 16, 0, 2, 4, *words),  # holding 0-1 = 50.0
+            struct.pack(">BHHB2H", 16, 4, 2, 4, 0, 100),  # holding 4-5 = 100
+            struct.pack(">BHH", 6, 6, 1),  # holding 6 = 1
+        ):
+            frame = rtu_frame(0, pdu)
+            line.send(frame)
+            # its time on the line and the silence after it, with room to spare: a frame
+            # sent sooner would be read as part of this one
+            time.sleep(2 * (len(frame) * character_s(BAUD) + silence_s(BAUD)))
+        # the line answers frames in order: this reply comes after every broadcast was done
+        line.send(rtu_frame(1, _fc4(0, 2)))
+        assert len(line.read(9)) == 9
+        assert srv.values()["water_flow_setpoint_kg_h"] == 50.0  # the instruments got them
+        assert tcp.read_holding_registers(0, count=8, device_id=100).registers == before_holding
+        assert tcp.read_input_registers(0, count=9, device_id=100).registers == before_input
     finally:
         tcp.close()
 
@@ -435,3 +443,29 @@ def test_device_path_served_through_a_socat_line(serve, tmp_path):
     finally:
         socat.terminate()
         socat.wait(timeout=10)
+
+
+def test_a_line_stopped_during_a_long_delay_writes_nothing_after(serve):
+    """A delay fault may hold an RTU reply for minutes; stopping the line meanwhile ends the
+    wait (it slept on, and then wrote to a file descriptor stop() had closed)."""
+    srv = serve()
+
+    async def setup():
+        transports = Transports(srv.server.modbus_server)
+        return transports, await transports.add_rtu("pty", BAUD, "E")
+
+    transports, rtu = srv.call(setup())
+    line = Line(rtu.path)
+    try:
+        srv.server.inject({"kind": "delay", "unit": 7, "delay_ms": 600_000})
+        line.send(rtu_frame(7, struct.pack(">BHH", 3, 0, 1)))
+        (fault,) = srv.server.faults.engine.active.values()
+        deadline = time.monotonic() + 30
+        while fault.requests == 0 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert fault.requests == 1  # the request is in, its reply held by the delay
+        srv.call(transports.stop())
+        assert not rtu._thread.is_alive()  # stop() joined it: the wait ended
+        assert rtu.transactions == 0  # and nothing was written
+    finally:
+        line.close()
