@@ -757,7 +757,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
         rig.close()
         if remote:  # what faulty units did, beside the log
             write_events(out, rig.comm_events)
-        _settle_previous(out, previous, written[0], getattr(rig, "gaps", []))
+        gaps = getattr(rig, "gaps", [])
+        if not written[0] and gaps and not previous:  # the meta that stays says why
+            meta["gaps"] = gaps
+            write_meta(out, meta)
+        _settle_previous(out, previous, written[0], gaps)
     if progress is not None:
         progress.done()
     wall = time.monotonic() - started
@@ -770,7 +774,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         if refused:  # the plant did not get them: the run is no test of this protocol
             result.notes.append(refused)
             print(f"hil-client: warning: {refused}", file=sys.stderr)
-    meta["sampling_median_s"] = summary.median_interval_s
+    median = summary.median_interval_s
+    meta["sampling_median_s"] = None if median is None else round(median, DECIMALS["time_s"])
     coarse = _coarse_sampling(summary.median_interval_s, protocol.acquisition_period_s, meta)
     if coarse:
         result.notes.append(coarse)
@@ -802,7 +807,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 #: Rows further apart than this many acquisition periods (median) are reported as coarse.
-COARSE_SAMPLING = 1.5
+COARSE_SAMPLING = 1.2
 
 
 def _coarse_sampling(median_s: float | None, period_s: float, meta: dict) -> str | None:
@@ -813,9 +818,9 @@ def _coarse_sampling(median_s: float | None, period_s: float, meta: dict) -> str
         return None
     return (
         f"rows came {median_s:g} s apart (median, simulated), not every {period_s:g} s: "
-        f"the server's clock ({meta['clock']}) ran faster than the client could read; "
-        "the log and its phase marks are that coarse (a slower --speed or --lockstep keeps "
-        "the period)"
+        f"the server's clock ({meta['clock']}) ran faster than the client could read, or "
+        "than its own tick (serve --tick-hz); the log and its phase marks are that coarse "
+        "(a slower --speed, a faster tick or --lockstep keeps the period)"
     )
 
 

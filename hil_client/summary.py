@@ -23,10 +23,15 @@ class PhaseTotal:
     mass_start_kg: float = float("nan")
     mass_end_kg: float = float("nan")
     t_boiler_end_C: float = float("nan")
+    #: rows of the phase with a balance reading
+    mass_readings: int = 0
 
     @property
     def fuel_kg(self) -> float:
-        """Fuel as received less ash, from the balance, refills taken out [kg]."""
+        """Fuel as received less ash, from the balance, refills taken out [kg]; NaN when the
+        balance read nothing in the phase (a dropout: unknown, not 0)."""
+        if not self.mass_readings:
+            return float("nan")
         return self.mass_start_kg - self.mass_end_kg
 
 
@@ -65,6 +70,7 @@ class RunSummary:
         q_water = heat_to_water_kW(row[_FLOW], row[_T_IN], row[_T_OUT])  # type: ignore[arg-type]
         total.heat_to_water_kWh += q_water * dt / 3600.0
         total.mass_end_kg = mass
+        total.mass_readings += reading == reading
         total.t_boiler_end_C = row[_T_BOILER]  # type: ignore[assignment]
         self._mass_prev = mass
 
@@ -81,9 +87,9 @@ class RunSummary:
         ]
         for name, p in self.phases.items():
             h, rem = divmod(round(p.duration_s), 3600)
+            fuel = f"{p.fuel_kg:>12.2f} kg" if p.fuel_kg == p.fuel_kg else f"{'-':>12}   "
             lines.append(
                 f"{name:<10} {h:>3d}:{rem // 60:02d}:{rem % 60:02d} "
-                f"{p.heat_to_water_kWh:>10.2f} kWh {p.fuel_kg:>12.2f} kg "
-                f"{p.t_boiler_end_C:>11.2f} C"
+                f"{p.heat_to_water_kWh:>10.2f} kWh {fuel} {p.t_boiler_end_C:>11.2f} C"
             )
         return "\n".join(lines)

@@ -381,7 +381,11 @@ def rig_emulator(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[Rig
     try:
         emulator = RigEmulator(workdir=tmp_path, **options)
     except RigEmulatorError as exc:  # the server's own one line, not the plugin's insides
-        pytest.fail(str(exc), pytrace=False)
+        failed = str(exc)
+    else:
+        failed = None
+    if failed is not None:
+        pytest.fail(failed, pytrace=False)
     try:
         yield emulator
     finally:

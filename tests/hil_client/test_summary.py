@@ -41,3 +41,14 @@ def test_a_missing_reading_at_a_phase_boundary_costs_neither_phase_its_fuel():
         summary(_row(float(i + 1), phase, mass))
     assert summary.phases["start_up"].fuel_kg == pytest.approx(0.2)
     assert summary.phases["test"].fuel_kg == pytest.approx(0.6)  # from 249.8, the last read
+
+
+def test_a_phase_the_balance_never_read_has_unknown_fuel_not_zero():
+    summary = RunSummary()
+    for i, (phase, mass) in enumerate(
+        [("start_up", 250.0), ("test", math.nan), ("test", math.nan), ("cooling_1", 249.0)]
+    ):
+        summary(_row(float(i + 1), phase, mass))
+    assert math.isnan(summary.phases["test"].fuel_kg)
+    line = next(x for x in summary.table().splitlines() if x.startswith("test"))
+    assert " - " in line and "0.00 kg" not in line

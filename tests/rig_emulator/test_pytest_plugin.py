@@ -269,3 +269,4 @@ def test_bad_marker_options_fail_in_one_line_each(tmp_path):
     assert "takes only the keywords boiler, profile, seed, faults; got speed" in out
     assert "unknown boiler 'no_such_boiler'" in out
     assert "_wait_listening" not in out and "Traceback" not in out
+    assert "During handling of the above exception" not in out  # the server's line, once
