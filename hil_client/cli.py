@@ -776,7 +776,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             print(f"hil-client: warning: {refused}", file=sys.stderr)
     median = summary.median_interval_s
     meta["sampling_median_s"] = None if median is None else round(median, DECIMALS["time_s"])
-    coarse = _coarse_sampling(summary.median_interval_s, protocol.acquisition_period_s, meta)
+    coarse = _coarse_sampling(median, protocol.acquisition_period_s, meta)
     if coarse:
         result.notes.append(coarse)
         print(f"hil-client: warning: {coarse}", file=sys.stderr)
