@@ -153,6 +153,9 @@ def _start_client(port: int, out: Path, *extra: str) -> subprocess.Popen:
         stderr=subprocess.PIPE,
         text=True,
         env={**os.environ, "PYTHONUNBUFFERED": "1"},
+        # Ctrl-C as a terminal gives it: a pytest-xdist worker ignores SIGINT, and a child
+        # that starts with SIGINT ignored keeps ignoring it (Python installs no handler)
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
 
 
