@@ -105,7 +105,7 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument(
         "--reply-timeout",
         type=finite_float(0.1, 600.0, "s"),
-        default=RIG_TIMEOUT_S,
+        default=None,
         help="how long a Modbus rig waits for an instrument's reply (and to connect) before "
         "leaving its fields empty for the row (a no_reply fault costs this per row in lockstep) "
         f"[{RIG_TIMEOUT_S:g} s]",
@@ -535,9 +535,12 @@ def _make_rig(args: argparse.Namespace, params: BoilerParams, register_map: Regi
     """The rig named by --rig; bad options (and a server running another boiler than
     ``params``) raise UsageError, an unreachable server RigError."""
     if register_map is None:
+        if args.reply_timeout is not None:  # nothing to wait for in-process
+            print("hil-client: warning: --reply-timeout applies to a Modbus rig", file=sys.stderr)
         with bad_input(ProfileError, prefix="--profile: "):
             profile = load_profile(args.profile or "clean")
         return LocalRig(params, profile, seed=args.seed or 0)
+    timeout_s = RIG_TIMEOUT_S if args.reply_timeout is None else args.reply_timeout
     ignored = [o for o, v in (("--profile", args.profile), ("--seed", args.seed)) if v is not None]
     if ignored:  # the server's own profile and seed make the readings
         print(
@@ -546,11 +549,11 @@ def _make_rig(args: argparse.Namespace, params: BoilerParams, register_map: Regi
             file=sys.stderr,
         )
     with bad_input(ValueError, prefix="--rig: "):
-        connect = connector(args.rig, args.reply_timeout, tls_files(args))
+        connect = connector(args.rig, timeout_s, tls_files(args))
     rig = ModbusRig(
         args.rig,
         register_map,
-        timeout_s=args.reply_timeout,
+        timeout_s=timeout_s,
         reconnect_timeout_s=args.reconnect_timeout,
         on_restart=args.on_restart,
         connect=connect,

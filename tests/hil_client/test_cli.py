@@ -78,3 +78,17 @@ def test_off_a_terminal_each_phase_mark_is_a_line_and_the_meta_has_the_logs_time
     times = set(read_log(out).t.tolist())
     for key in ("t0_s", "t1_s", "t2_s", "t3_s"):
         assert meta[key] in times and meta[key] == round(meta[key], 3)
+
+
+def test_a_modbus_option_given_to_a_local_run_is_named(tmp_path, capsys):
+    """--reply-timeout with --rig local waits for nothing: it was ignored silently, as
+    --profile with a Modbus rig was (that one warns too)."""
+    from pathlib import Path
+
+    short = Path(__file__).resolve().parents[1] / "data" / "short_protocol.yaml"
+    out = tmp_path / "log.csv"
+    argv = ["run", str(short), "--boiler", "windhager_12kw", "--quiet", "--out", str(out)]
+    assert main([*argv, "--reply-timeout", "0.5"]) == 0
+    assert "--reply-timeout applies to a Modbus rig" in capsys.readouterr().err
+    assert main(argv) == 0
+    assert capsys.readouterr().err == ""
