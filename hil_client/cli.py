@@ -36,7 +36,7 @@ from hil_client.analysis.validate import compare, validation_metrics
 from hil_client.fault_files import events_path, fault_report, write_events, write_report
 from hil_client.fault_files import summary as fault_summary
 from hil_client.lablog import DECIMALS, LabLogWriter, meta_path, write_meta
-from hil_client.progress import LiveView, ProgressLine
+from hil_client.progress import LiveView, ProgressLine, hms
 from hil_client.protocol.definition import ProtocolError, load_protocol
 from hil_client.protocol.rig import RigError
 from hil_client.protocol.runner import RunResult, check_setpoints, run_protocol
@@ -623,11 +623,6 @@ def _settle_previous(out: Path, moved: list[tuple[Path, Path]], rows: int, gaps:
             aside.unlink(missing_ok=True)
 
 
-def _hms(seconds: float) -> str:
-    h, rem = divmod(round(seconds), 3600)
-    return f"{h}:{rem // 60:02d}:{rem % 60:02d}"
-
-
 def _what_is_kept(rows: int, previous: list, gaps: list) -> str:
     """What a run that stopped leaves at ``--out`` (see :func:`_settle_previous`)."""
     if rows:
@@ -719,7 +714,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             for key in result.times.keys() - announced:
                 announced.add(key)
                 wall = time.monotonic() - started
-                mark = f"{key[:2]} at {_hms(result.times[key])} simulated"
+                mark = f"{key[:2]} at {hms(result.times[key])} simulated"
                 print(f"hil-client: {mark}, {wall:.0f} s into the run", file=sys.stderr)
         meta["notes"] = result.notes
         meta["gaps"] = getattr(rig, "gaps", [])

@@ -15,7 +15,8 @@ from rig_emulator.model.water_heat import heat_to_water_kW
 _I = {name: i for i, name in enumerate(LOG_COLUMNS)}
 
 
-def _hms(seconds: float) -> str:
+def hms(seconds: float) -> str:
+    """HH:MM:SS of a duration [s]."""
     h, rem = divmod(int(seconds), 3600)
     return f"{h:02d}:{rem // 60:02d}:{rem % 60:02d}"
 
@@ -44,7 +45,7 @@ class ProgressLine:
         width = 24
         bar = "#" * int(frac * width) + "-" * (width - int(frac * width))
         self.stream.write(
-            f"\r[{bar}] {frac * 100:5.1f}%  t={_hms(t)}  {row[1]:<9} {row[2]:<16} "
+            f"\r[{bar}] {frac * 100:5.1f}%  t={hms(t)}  {row[1]:<9} {row[2]:<16} "
             f"T_boiler={row[_I['boiler_water_temp_C']]:6.2f} C  "
             f"T_fg={row[_I['flue_gas_temp_C']]:6.1f} C "
         )
@@ -75,8 +76,8 @@ class LiveView(ProgressLine):
             v("water_flow_kg_h"), v("water_in_temp_C"), v("water_out_temp_C")
         )
         lines = [
-            f"phase {row[1]:<10} sequence {row[2] or '-':<18} simulated {_hms(t)} "
-            f"({min(t / self.expected_s, 1) * 100:4.1f} %), wall {_hms(wall)}",
+            f"phase {row[1]:<10} sequence {row[2] or '-':<18} simulated {hms(t)} "
+            f"({min(t / self.expected_s, 1) * 100:4.1f} %), wall {hms(wall)}",
             f"  boiler {'FIRING' if v('boiler_on') >= 0.5 else 'off   '}   T inside "
             f"{v('boiler_water_temp_C'):6.2f} C   forward {v('water_out_temp_C'):6.2f} C   "
             f"return {v('water_in_temp_C'):6.2f} C",
