@@ -588,10 +588,13 @@ def _refused_commands(events: list[dict]) -> str | None:
     if not failed:
         return None
     codes = sorted({f"exception {e['code']:02d}" for e in failed if "code" in e})
-    how = ", ".join(codes) or failed[0]["event"]
+    unanswered = sorted({e["event"].replace("_", " ") for e in failed if "code" not in e})
+    how = ", ".join(codes + unanswered)
+    # a refused write changed nothing; one never answered may have been carried out
+    got = "did not get" if not unanswered else "may not have got"
     return (
         f"{len(failed)} setpoint or switch writes failed ({how}; the first to unit "
-        f"{failed[0]['unit']}): the plant did not get those commands (see the events file)"
+        f"{failed[0]['unit']}): the plant {got} those commands (see the events file)"
     )
 
 

@@ -88,28 +88,39 @@ class Connection:
         """The reply PDU (function code first) of the oldest outstanding request."""
         tid, unit, function = self._expect.popleft()
         while True:
-            header = self._recv(7)
-            got_tid, _, length, _ = _HEADER.unpack(header)
-            body = self._recv(length - 1)
+            got_tid, body = self._frame()
             if got_tid == tid:
                 break  # a late reply to an earlier, timed-out request is skipped
         if body[0] == function | 0x80:
             raise ModbusExceptionResponse(unit, function, body[1])
         return body
 
-    def receive_all(self, count: int) -> tuple[list[Reply], list[float]]:
+    def receive_all(
+        self, count: int, own: range = range(0), patience_s: float = 0.0
+    ) -> tuple[list[Reply], list[float]]:
         """The outcome of each of the ``count`` oldest outstanding requests, in order, and
         the wall time [s, monotonic] each outcome was known. After a timeout the connection
-        may still carry late replies: close it (or let the transaction IDs skip them)."""
+        may still carry late replies: close it (or let the transaction IDs skip them).
+
+        The requests at the indices ``own`` (the caller's own, which an in-order server
+        answers only after those sent before them) are waited for up to ``patience_s`` in
+        all: a reply before them that comes more than the timeout after the last byte
+        before it is a timeout all the same (its unit's fields stay empty), but the
+        connection stays, so the caller's own requests are carried out once, on it, and
+        their outcome is known."""
         out: list[Reply] = []
         times: list[float] = []
+        deadline = time.monotonic() + patience_s
+        overdue: set[int] = set()  # transaction IDs whose reply came too late to count
         while len(out) < count:
             try:
-                header = self._recv(7)
-                got_tid, _, length, _ = _HEADER.unpack(header)
-                body = self._recv(length - 1)
+                got_tid, body = self._frame()
             except ReplyTimeout:
                 now = time.monotonic()
+                if own and len(out) <= own[-1] and now < deadline:
+                    if len(out) not in own:
+                        overdue.add(self._expect[0][0])
+                    continue
                 while len(out) < count:
                     _, unit, function = self._expect.popleft()
                     out.append(NoReply(unit, function, "timeout"))
@@ -124,32 +135,43 @@ class Connection:
                 out.append(NoReply(unit, function, "no reply"))
                 times.append(now)
             _, unit, function = self._expect.popleft()
-            if body[0] == function | 0x80:
+            if got_tid in overdue:
+                out.append(NoReply(unit, function, "timeout"))
+            elif body[0] == function | 0x80:
                 out.append(ModbusExceptionResponse(unit, function, body[1]))
             else:
                 out.append(body)
             times.append(now)
         return out, times
 
-    def _recv(self, n: int) -> bytes:
-        """``n`` bytes; reads whatever has arrived (several replies in one call, usually)."""
-        buffer = self._buffer
-        while len(buffer) < n:
+    def _frame(self) -> tuple[int, bytes]:
+        """(transaction ID, PDU) of the next reply; a timeout loses nothing already read."""
+        header = self._peek(7)
+        got_tid, _, length, _ = _HEADER.unpack(header)
+        frame = self._peek(6 + length)
+        self._buffer = self._buffer[6 + length :]
+        return got_tid, frame[7:]
+
+    def _peek(self, n: int) -> bytes:
+        """The first ``n`` bytes of what arrived, waiting for them; nothing is consumed."""
+        while len(self._buffer) < n:
             try:
                 chunk = self.sock.recv(65536)
             except TimeoutError:
-                self._buffer = b""  # a partial frame is lost: the caller reconnects
                 raise ReplyTimeout("no reply within the timeout") from None
             except OSError as exc:
                 raise ConnectionLost(f"receive failed ({exc})") from None
             if not chunk:
                 raise ConnectionLost("connection closed by the server")
-            buffer += chunk
-        self._buffer = buffer[n:]
-        return buffer[:n]
+            self._buffer += chunk
+        return self._buffer[:n]
 
-    def close(self) -> None:
+    def close(self, abort: bool = False) -> None:
+        """Close; ``abort``: with a reset, so the server drops what it has not carried out
+        yet (a request queued behind a slow one) rather than answering into the void."""
         with contextlib.suppress(OSError):
+            if abort:
+                self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
             self.sock.close()
 
 

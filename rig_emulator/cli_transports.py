@@ -18,7 +18,7 @@ import logging
 import ssl
 from dataclasses import dataclass
 
-from rig_emulator.cli_support import UsageError, int_in
+from rig_emulator.cli_support import UsageError, int_in, text_file
 from rig_emulator.modbus import BenchServer
 from rig_emulator.modbus.roles import DEFAULT_POLICY, RolePolicy, RolesError, load_policy
 from rig_emulator.modbus.rtu import SerialConfigError, check_line_options
@@ -37,7 +37,10 @@ def add_arguments(serve: argparse.ArgumentParser) -> None:
     tls.add_argument("--tls-key", default=None, help="its private key (PEM)")
     tls.add_argument("--tls-ca", default=None, help="CA certificate (PEM) of the clients")
     tls.add_argument(
-        "--roles", default=None, help="ROLES.yaml redefining the roles [observer/operator/engineer]"
+        "--roles",
+        default=None,
+        type=text_file,
+        help="ROLES.yaml redefining the roles [observer/operator/engineer]",
     )
     tls.add_argument(
         "--tcp-port",

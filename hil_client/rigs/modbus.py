@@ -292,8 +292,8 @@ class ModbusRig:
         self._n_reads = len(self._reads)
 
     # ------------------------------------------------------------------ connections
-    def _connect(self) -> None:
-        self.close()
+    def _connect(self, abort: bool = False) -> None:
+        self.close(abort)
         self._conn = self._open()
 
     def _reconnect(self, reason: str) -> dict[str, float]:
@@ -321,9 +321,9 @@ class ModbusRig:
         """Log time minus server time (constant between breaks)."""
         return self._offset
 
-    def close(self) -> None:
+    def close(self, abort: bool = False) -> None:
         if self._conn is not None:
-            self._conn.close()
+            self._conn.close(abort)
             self._conn = None
 
     # ------------------------------------------------------------------ primitives
@@ -338,16 +338,22 @@ class ModbusRig:
     def _event(self, event: str, unit: int, function: int, **extra: Any) -> None:
         self._step_events.append({"event": event, "unit": unit, "function": function, **extra})
 
-    def _exchange_tolerant(self, requests: list[tuple[int, bytes]]) -> list[Reply]:
+    def _exchange_tolerant(
+        self, requests: list[tuple[int, bytes]], own: range = range(0)
+    ) -> list[Reply]:
         """Like :meth:`_exchange`, but a unit's failure is its outcome, not an error; a
-        timeout reconnects (late replies left behind). Replies of instruments that came
-        :data:`LATE_S` after the one before are ``late`` events."""
+        timeout reconnects (late replies left behind, what the server has not carried out
+        dropped). Replies of instruments that came :data:`LATE_S` after the one before are
+        ``late`` events. The requests at the indices ``own`` (the lockstep advance and the
+        simulation control's reads) are waited for up to ``reconnect_timeout_s`` behind a
+        slow instrument: given up on, the advance might be carried out after the step was
+        settled as lost, and sent again."""
         assert self._conn is not None
         if not requests:
             return []
         sent = time.monotonic()
         self._conn.send(requests)
-        replies, times = self._conn.receive_all(len(requests))
+        replies, times = self._conn.receive_all(len(requests), own, self.reconnect_timeout_s)
         previous = sent
         for (unit, pdu), reply, at in zip(requests, replies, times, strict=True):
             late = at - previous > LATE_S
@@ -355,7 +361,7 @@ class ModbusRig:
                 self._event("late", unit, pdu[0], wait_s=round(at - previous, 3))
             previous = at
         if any(isinstance(r, NoReply) and r.reason == "timeout" for r in replies):
-            self._connect()
+            self._connect(abort=True)
         return replies
 
     def _failed(self, unit: int, function: int, reply: Reply, signals: list[str]) -> None:
@@ -644,7 +650,11 @@ class ModbusRig:
         pending = journal[self._applied :]
         requests = pending[0] if pending else []
         # (none pending: the server applied the step before the connection was lost)
-        replies = self._exchange_tolerant(requests + self._read_requests)
+        # the advance (the step's last request) and the simulation control's reads after it
+        own = range(
+            len(requests) - 1, len(requests) + (len(self._check_plan) if self.checks else 0)
+        )
+        replies = self._exchange_tolerant(requests + self._read_requests, own)
         self._commands_tolerant(requests, replies[: len(requests)])
         self._applied = len(journal)
         values = self.values

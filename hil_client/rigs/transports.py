@@ -134,7 +134,12 @@ def tls_client_context(files: TlsFiles) -> ssl.SSLContext:
     if not files.ca.is_file():
         raise ValueError(f"--tls-ca {files.ca}: no such file")
     try:
-        ctx.load_cert_chain(str(files.cert), str(files.key))
+        ctx.load_cert_chain(str(files.cert), str(files.key), password=_no_passphrase)
+    except _Encrypted:
+        raise ValueError(
+            f"--tls-key {files.key} is protected by a passphrase; give one without "
+            "(openssl pkey -in KEY -out KEY.pem)"
+        ) from None
     except (ssl.SSLError, ValueError) as exc:
         raise ValueError(f"--tls-cert/--tls-key {files.cert}: cannot be used ({exc})") from None
     try:
@@ -142,6 +147,15 @@ def tls_client_context(files: TlsFiles) -> ssl.SSLContext:
     except (ssl.SSLError, ValueError) as exc:
         raise ValueError(f"--tls-ca {files.ca}: cannot be used ({exc})") from None
     return ctx
+
+
+class _Encrypted(Exception):
+    """The key asks for a passphrase."""
+
+
+def _no_passphrase() -> bytes:
+    # OpenSSL would prompt on the terminal (or fail on a closed stdin with a traceback)
+    raise _Encrypted
 
 
 class TlsConnection(Connection):
@@ -193,8 +207,9 @@ class RtuConnection:
         """Queue ``(unit, pdu)`` requests; each :meth:`receive` carries out the oldest."""
         self._pending.extend(requests)
 
-    def receive(self) -> bytes:
-        """The reply PDU to the oldest queued request (sent now, on a quiet line)."""
+    def receive(self, timeout_s: float | None = None) -> bytes:
+        """The reply PDU to the oldest queued request (sent now, on a quiet line), waited
+        for ``timeout_s`` (None: the connection's timeout)."""
         unit, pdu = self._pending.popleft()
         wait = self._line_free - time.monotonic()
         if wait > 0:
@@ -205,7 +220,8 @@ class RtuConnection:
             os.write(self._fd, frame(unit, pdu))
         except OSError as exc:
             raise ConnectionLost(f"{self.path}: write failed ({exc.strerror})") from None
-        reply = self._read_reply(time.monotonic() + self.timeout_s)
+        wait_s = self.timeout_s if timeout_s is None else timeout_s
+        reply = self._read_reply(time.monotonic() + wait_s, wait_s)
         self._line_free = time.monotonic() + self.silence_s
         decoded = unframe(reply)
         if decoded is None or decoded[0] != unit:
@@ -215,16 +231,21 @@ class RtuConnection:
             raise ModbusExceptionResponse(unit, pdu[0], body[1])
         return body
 
-    def receive_all(self, count: int) -> tuple[list[Reply], list[float]]:
+    def receive_all(
+        self, count: int, own: range = range(0), patience_s: float = 0.0
+    ) -> tuple[list[Reply], list[float]]:
         """The outcome of each of the ``count`` oldest queued requests (the reply, the
         exception, or :class:`NoReply` after the timeout: a silent unit) and when each was
-        known; as :meth:`Connection.receive_all`, one transaction at a time."""
+        known; as :meth:`Connection.receive_all`, one transaction at a time (the requests
+        at the indices ``own`` waited for up to ``patience_s`` in all)."""
         out: list[Reply] = []
         times: list[float] = []
-        for _ in range(count):
+        deadline = time.monotonic() + patience_s
+        for k in range(count):
             unit, pdu = self._pending[0]
+            patient = max(deadline - time.monotonic(), self.timeout_s)
             try:
-                out.append(self.receive())
+                out.append(self.receive(patient if k in own else None))
             except ModbusExceptionResponse as exc:
                 out.append(exc)
             except ReplyTimeout:
@@ -233,7 +254,7 @@ class RtuConnection:
             times.append(time.monotonic())
         return out, times
 
-    def _read_reply(self, deadline: float) -> bytes:
+    def _read_reply(self, deadline: float, wait_s: float) -> bytes:
         reply = b""
         while True:
             needed = reply_length(reply)
@@ -242,13 +263,14 @@ class RtuConnection:
             left = deadline - time.monotonic()
             ready = select.select([self._fd], [], [], max(left, 0.0))[0] if left > 0 else []
             if not ready:
-                raise ReplyTimeout(f"{self.path}: no reply within {self.timeout_s:g} s")
+                raise ReplyTimeout(f"{self.path}: no reply within {wait_s:g} s")
             try:
                 reply += os.read(self._fd, 512)
             except OSError as exc:
                 raise ConnectionLost(f"{self.path}: read failed ({exc.strerror})") from None
 
-    def close(self) -> None:
+    def close(self, abort: bool = False) -> None:
+        """Close the line (``abort``: as :meth:`Connection.close`; a line has no reset)."""
         with contextlib.suppress(OSError):
             os.close(self._fd)
 

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import ssl
 import time
 import types
 from collections import deque
@@ -55,6 +56,9 @@ MAX_ANSWERS_PER_TURN = 64
 DEFAULT_IDLE_TIMEOUT_S = 300.0
 DEFAULT_MAX_CONNECTIONS = 100
 _LIMIT_LOG_INTERVAL_S = 10.0  # what the connection limit did: one line per interval at most
+#: a TLS handshake's bound where connections have no idle timeout (asyncio's own) [s]
+HANDSHAKE_TIMEOUT_S = 60.0
+HANDSHAKE_LOG_BURST = 20  # failed TLS handshakes logged a minute, the rest counted
 
 
 @dataclass(frozen=True)
@@ -100,8 +104,11 @@ def _resume(coro: Coroutine[Any, Any, Any], future: Any) -> Generator[Any, None,
 class RequestHandler(asyncio.Protocol):
     """One client connection (see the module docstring)."""
 
-    def __init__(self, server: BenchModbusServer) -> None:
+    def __init__(self, server: BenchModbusServer, tls: ssl.SSLContext | None = None) -> None:
         self.server = server
+        #: Modbus/TCP Security: the handshake this connection makes before any request
+        self._tls = tls
+        self._securing = False  # the handshake is under way: requests wait for its end
         self.transport: Any = None
         self.peer = "?"
         self.role: str | None = None  # set by a TLS transport when the connection is made
@@ -136,19 +143,63 @@ class RequestHandler(asyncio.Protocol):
             return
         server.handlers.add(self)
         self._registered = True
-        for hook in server.connection_hooks:
-            hook(self)
-        log.debug("client %s connected (%d open)", self.peer, len(server.handlers))
         self._arm_idle_timer(server.idle_timeout_s)
+        if self._tls is not None:
+            # the place is taken now, while the handshake runs (bounded by the idle timeout)
+            self._securing = True
+            transport.pause_reading()  # its bytes are the handshake's: start_tls reads them
+            task = asyncio.get_running_loop().create_task(self._secure(transport, self._tls))
+            _PENDING.add(task)
+            task.add_done_callback(_PENDING.discard)
+            return
+        self._greet()
 
-    def connection_lost(self, exc: Exception | None) -> None:
+    def _greet(self) -> None:
+        for hook in self.server.connection_hooks:
+            hook(self)
+        log.debug("client %s connected (%d open)", self.peer, len(self.server.handlers))
+
+    async def _secure(self, transport: Any, context: ssl.SSLContext) -> None:
+        """The TLS handshake; then the connection hooks (the role) and the requests that
+        came with the handshake's end. A failed handshake is logged (rate-limited), with
+        the reason, and frees the place."""
+        timeout_s = self.server.idle_timeout_s or HANDSHAKE_TIMEOUT_S
+        try:
+            secure = await asyncio.get_running_loop().start_tls(
+                transport, self, context, server_side=True, ssl_handshake_timeout=timeout_s
+            )
+        except asyncio.CancelledError:
+            transport.abort()
+            raise
+        except (OSError, ValueError, RuntimeError, TimeoutError) as exc:  # ssl.SSLError too
+            if not self._closed:  # else closed for a reason already logged
+                self.server.handshake_failed(self.peer, exc)
+            transport.abort()
+            self._forget()
+            return
+        if self._closed:  # closed meanwhile (the connection limit, the server stopping)
+            secure.abort()
+            return
+        self.transport = secure
+        self._securing = False
+        self._greet()
+        if self._buffer:
+            self._drain()
+
+    def _forget(self) -> None:
+        """Closed: cancel the idle timer and free the place."""
         self._closed = True
         if self._idle_timer is not None:
             self._idle_timer.cancel()
-        if not self._registered:
+        if self._registered:
+            self._registered = False
+            self.server.handlers.discard(self)
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        registered = self._registered
+        self._forget()
+        if not registered:
             return
-        self._registered = False
-        self.server.handlers.discard(self)
         reason = f" ({exc})" if exc else ""
         level = logging.INFO if self._spoke else logging.DEBUG
         log.log(
@@ -164,7 +215,9 @@ class RequestHandler(asyncio.Protocol):
         self._eof = True
         if not self.waiting:
             self.transport.close()
-        return True  # keep the transport open for the answers still to come
+        # keep the transport open for the answers still to come; TLS cannot (a close_notify
+        # closes both ways: asyncio closes it whatever this says, and warns if it is True)
+        return self.transport.get_extra_info("sslcontext") is None
 
     def close(self, reason: str) -> None:
         """Close the connection with one log line naming ``reason``."""
@@ -225,7 +278,8 @@ class RequestHandler(asyncio.Protocol):
             self._spoke = True
             log.info("client %s connected (%d open)", self.peer, len(self.server.handlers))
         self._buffer += data
-        self._drain()
+        if not self._securing:  # else the handshake's end drains it, once the role is known
+            self._drain()
 
     def _parse(self) -> int:
         """Take up to :data:`MAX_ANSWERS_PER_TURN` frames from the buffer into the queue
@@ -389,6 +443,8 @@ class BenchModbusServer:
         self.transport: asyncio.Server | None = None
         self._limit_events = 0
         self._limit_logged_s = -_LIMIT_LOG_INTERVAL_S
+        self._handshake_log_since = -60.0
+        self._handshakes_logged = self._handshakes_unlogged = 0
 
     @property
     def connections(self) -> int:
@@ -396,7 +452,7 @@ class BenchModbusServer:
         return len(self.handlers)
 
     def callback_new_connection(self) -> RequestHandler:
-        return RequestHandler(self)
+        return RequestHandler(self, self.ssl)
 
     async def serve_forever(self, *, background: bool = True) -> None:
         """Listen (raises ``RuntimeError`` when it cannot); with ``background=False`` also
@@ -411,20 +467,34 @@ class BenchModbusServer:
 
     async def listen(self, host: str, port: int, ssl_context: Any = None) -> asyncio.Server:
         """A listener for this server's connections on ``host:port``, TLS with
-        ``ssl_context``. A TLS handshake is bounded by the idle timeout as any silence is
-        (asyncio's own bound, 60 s, otherwise): a client that opens the port and stalls
-        its handshake holds no place for long (a connection counts once it is made)."""
-        tls = {}
-        if ssl_context is not None and self.idle_timeout_s > 0:
-            tls["ssl_handshake_timeout"] = self.idle_timeout_s
+        ``ssl_context``. A TLS connection counts from its first byte, not from the end of
+        its handshake (which the idle timeout bounds as any silence, else
+        :data:`HANDSHAKE_TIMEOUT_S`): a client that opens the port and stalls its handshake
+        holds one place of ``max_connections``, and not for long; a failed handshake is
+        logged with its reason."""
         return await asyncio.get_running_loop().create_server(
-            self.callback_new_connection,
-            host,
-            port,
-            ssl=ssl_context,
-            reuse_address=True,
-            **tls,
+            lambda: RequestHandler(self, ssl_context), host, port, reuse_address=True
         )
+
+    def handshake_failed(self, peer: str, exc: BaseException) -> None:
+        """Log a failed TLS handshake (a wrong certificate, an old TLS version, plain bytes
+        on the TLS port, a stall): one line each, at most :data:`HANDSHAKE_LOG_BURST` a
+        minute, the rest counted."""
+        now = time.monotonic()
+        if now - self._handshake_log_since >= 60.0:
+            if self._handshakes_unlogged:
+                log.warning(
+                    "%d more failed TLS handshakes in the last minute not logged",
+                    self._handshakes_unlogged,
+                )
+            self._handshake_log_since, self._handshakes_logged = now, 0
+            self._handshakes_unlogged = 0
+        if self._handshakes_logged >= HANDSHAKE_LOG_BURST:
+            self._handshakes_unlogged += 1
+            return
+        self._handshakes_logged += 1
+        reason = getattr(exc, "reason", None) or str(exc) or type(exc).__name__
+        log.warning("client %s: TLS handshake failed (%s); connection closed", peer, reason)
 
     async def shutdown(self) -> None:
         """Stop listening and close every connection."""

@@ -54,8 +54,8 @@ class Role:
     def refusal(self, unit_id: int, function_code: int) -> str | None:
         """Why this role may not send ``function_code`` to ``unit_id`` (None: it may)."""
         if function_code in READ_FUNCTIONS:
-            return None if unit_id in self.read_units else f"read unit {unit_id}"
-        return None if unit_id in self.write_units else f"write unit {unit_id}"
+            return None if unit_id in self.read_units else f"may not read unit {unit_id}"
+        return None if unit_id in self.write_units else f"may not write unit {unit_id}"
 
 
 @dataclass(frozen=True)
@@ -69,7 +69,7 @@ class RolePolicy:
         """Why ``role`` may not send ``function_code`` to ``unit_id`` (None: it may)."""
         known = self.roles.get(role)
         if known is None:
-            return f"unknown role '{role}'"
+            return f"unknown role '{role}', which may send nothing"
         return known.refusal(unit_id, function_code)
 
 

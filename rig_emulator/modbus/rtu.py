@@ -22,7 +22,9 @@ The same units and map as TCP: every request goes through
   character would have arrived, and the next request starts on the line no earlier than a
   silence after that. A transaction thus takes at least request + silence + reply +
   silence, as on a line;
-- a unit under a ``delay`` fault answers that much after its reply would have come.
+- a unit under a ``delay`` fault answers that much after its reply would have come, unless
+  the master speaks again first (it timed out): then the unit keeps its reply, which would
+  collide with the master's request on a line, and the new request is answered.
 
 The line is served by one thread with blocking I/O and ``select`` timeouts (microseconds,
 where the event loop's timers are good to about a millisecond); the requests run in the
@@ -254,6 +256,11 @@ class RtuLine:
         delay_s, reply = self._result(answer) or (0.0, None)
         if reply is None:
             return ended
+        if delay_s > 0 and not self._quiet_until(ended + delay_s):
+            # the master spoke again before the late reply (it timed out): the reply would
+            # collide with its request on a line, so the unit keeps it to itself
+            log.debug("RTU %s: unit %d's late reply dropped, the master spoke", self.path, unit_id)
+            return ended
         out = frame(unit_id, reply)
         wire_s = len(out) * self.character_s
         if self.paced:
@@ -281,6 +288,15 @@ class RtuLine:
         while True:
             left = max(when - time.monotonic(), 0.0)
             if select.select([self._stop_r], [], [], left)[0]:
+                return False
+            if time.monotonic() >= when:
+                return True
+
+    def _quiet_until(self, when: float) -> bool:
+        """Wait until ``when`` unless the line is stopped or a byte comes on it (False)."""
+        while True:
+            left = max(when - time.monotonic(), 0.0)
+            if select.select([self._stop_r, self._fd], [], [], left)[0]:
                 return False
             if time.monotonic() >= when:
                 return True

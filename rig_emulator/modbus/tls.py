@@ -69,7 +69,9 @@ def _load(ctx: ssl.SSLContext, cert: str | Path, key: str | Path, ca: str | Path
         if not Path(path).is_file():
             raise TlsConfigError(f"TLS {name} {path}: no such file")
     try:
-        ctx.load_cert_chain(str(cert), str(key))
+        ctx.load_cert_chain(str(cert), str(key), password=_no_passphrase(key))
+    except TlsConfigError:
+        raise
     except (ssl.SSLError, ValueError) as exc:
         raise TlsConfigError(
             f"TLS certificate {cert} / key {key}: cannot be used ({_reason(exc)})"
@@ -78,6 +80,20 @@ def _load(ctx: ssl.SSLContext, cert: str | Path, key: str | Path, ca: str | Path
         ctx.load_verify_locations(cafile=str(ca))
     except (ssl.SSLError, ValueError) as exc:
         raise TlsConfigError(f"TLS CA {ca}: cannot be used ({_reason(exc)})") from None
+
+
+def _no_passphrase(key: str | Path):
+    """The password callback of a key: a key protected by a passphrase is refused in one
+    line (a server started by a service has nobody to type it; OpenSSL would prompt on the
+    terminal, or fail on a closed stdin with a traceback)."""
+
+    def refuse() -> bytes:
+        raise TlsConfigError(
+            f"TLS key {key} is protected by a passphrase; give one without "
+            f"(openssl pkey -in {key} -out KEY.pem, kept readable by this user only)"
+        )
+
+    return refuse
 
 
 def _reason(exc: Exception) -> str:
@@ -97,13 +113,22 @@ def peer_of(ssl_object: ssl.SSLObject | ssl.SSLSocket, policy: RolePolicy) -> Pe
     der = ssl_object.getpeercert(binary_form=True)
     if not der:  # cannot happen with CERT_REQUIRED; refuse everything if it does
         return Peer("<no certificate>", INVALID_ROLE)
-    cert = x509.load_der_x509_certificate(der)
-    subject = cert.subject.rfc4514_string()
+    try:
+        cert = x509.load_der_x509_certificate(der)
+        subject = cert.subject.rfc4514_string()
+    except ValueError:  # verified by OpenSSL, yet beyond what cryptography parses
+        return Peer("<certificate not parsed>", INVALID_ROLE)
     try:
         role = role_of(cert)
-    except ValueError:
+    except (ValueError, x509.DuplicateExtension):  # not one UTF8String, or given twice
         return Peer(subject, INVALID_ROLE)
     return Peer(subject, policy.default_role if role is None else role)
+
+
+def shown(role: str) -> str:
+    """``role`` as a log shows it: control characters escaped (a certificate's role must
+    not write lines of its own into the log)."""
+    return role.encode("unicode_escape").decode("ascii")
 
 
 class Authorisation:
@@ -141,7 +166,9 @@ class Authorisation:
         handler.role = peer.role
         self._forget_closed()
         self._subjects[handler.peer] = peer.subject
-        log.info("client %s: TLS, subject %s, role %s", handler.peer, peer.subject, peer.role)
+        log.info(
+            "client %s: TLS, subject %s, role %s", handler.peer, peer.subject, shown(peer.role)
+        )
 
     def _forget_closed(self) -> None:
         if self._server is None:
@@ -165,14 +192,14 @@ class Authorisation:
             subject = self._subjects.get(info.peer, "no TLS")
             more = f"; {suppressed} refusals not logged before this" if suppressed else ""
             log.warning(
-                "refused function %d to unit %d of %s (subject %s, role %s): may not %s "
+                "refused function %d to unit %d of %s (subject %s, role %s): %s "
                 "(exception 01; further refusals of this kind on this connection not logged%s)",
                 info.function_code,
                 info.unit_id,
                 info.peer,
                 subject,
-                role,
-                reason,
+                shown(role),
+                shown(reason),
                 more,
             )
         return GateDecision(exception_code=ILLEGAL_FUNCTION)

@@ -102,6 +102,33 @@ def test_every_communication_fault_is_survived_and_recorded(serve):
     assert [g["action"] for g in rig.gaps] == ["resumed"]  # the disconnect, settled
 
 
+@needs_gates
+@pytest.mark.parametrize("unit", [1, 0])
+def test_a_delay_ahead_of_the_lockstep_advance_loses_no_step_and_adds_none(serve, unit):
+    """The bench PLC (unit 1) takes the setpoint writes, sent before the advance on one
+    connection; a server answers in order, so a delay there longer than the reply timeout
+    holds the advance back too. The rig gave up, settled the step as not done, sent it
+    again, and the first advance then came through late: the server stood a step ahead
+    and the run stopped as if another client had advanced it. Now the rig waits for its
+    own replies behind the slow unit: the unit's fields are empty for the row (a timeout),
+    and every step is done exactly once."""
+    faults = faults_from_list(
+        [{"kind": "delay", "unit": unit, "delay_ms": 1000, "at_s": 4, "for_s": 2}]
+    )
+    srv = serve(faults=faults)
+    rig, rows = _steps(srv, 9, timeout_s=0.3)
+    assert rig.gaps == []  # no break, no outage
+    assert sorted(rows) == [float(t) for t in range(1, 10)]  # every step once, in order
+    status = srv.values()
+    assert status["sim_time_s"] == 9.0 and status["lockstep_counter"] == 9  # no step twice
+    for t, row in rows.items():
+        assert math.isnan(row["water_flow_kg_h"]) == (4.0 <= t < 6.0), t
+    timeouts = [e for e in rig.comm_events if e["event"] == "timeout" and e["unit"] == 1]
+    # reads at the server's 4 and 5 s; the writes of the steps from 4 and from 5 s
+    assert {e["server_time_s"] for e in timeouts if e["function"] == 4} == {4.0, 5.0}
+    assert {e["server_time_s"] for e in timeouts if e["function"] != 4} == {5.0, 6.0}
+
+
 def _run_with_report(serve, tmp_path, faults: list[dict]):
     journal = tmp_path / "journal.jsonl"
     srv = serve(faults=faults_from_list(faults), fault_log=journal, profile="lab", seed=1)

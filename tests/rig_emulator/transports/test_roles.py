@@ -30,7 +30,7 @@ def test_default_roles(role, writable_units):
 
 
 def test_unknown_role_may_do_nothing():
-    assert DEFAULT_POLICY.refusal("admin", 1, 4) == "unknown role 'admin'"
+    assert DEFAULT_POLICY.refusal("admin", 1, 4) == "unknown role 'admin', which may send nothing"
 
 
 def test_unlisted_function_codes_need_write():
@@ -47,9 +47,9 @@ def test_file_redefines_roles(tmp_path):
     policy = load_policy(path)
     assert policy.default_role == "guest"
     assert policy.refusal("guest", 5, 4) is None
-    assert policy.refusal("guest", 1, 4) == "read unit 1"
+    assert policy.refusal("guest", 1, 4) == "may not read unit 1"
     assert policy.refusal("balance_tech", 5, 16) is None
-    assert policy.refusal("balance_tech", 1, 16) == "write unit 1"
+    assert policy.refusal("balance_tech", 1, 16) == "may not write unit 1"
     assert policy.refusal("operator", 1, 4) is not None  # the defaults are gone
 
 

@@ -190,6 +190,22 @@ def test_a_delay_fault_comes_on_top_of_the_line_time(rtu_server, line):
     assert fastest() >= least_s + 0.020
 
 
+def test_a_late_unit_keeps_its_reply_once_the_master_spoke_again(rtu_server, line):
+    """A master that timed out on a delayed unit goes on with the next request; the line
+    answers that one, and the late reply never comes (on a line it would collide with the
+    request). The line used to sit out the delay and then answer everything queued, each
+    reply one request late, so a master never matched a reply again."""
+    rtu_server.server.inject({"kind": "delay", "unit": 1, "delay_ms": 3000})
+    line.send(rtu_frame(1, _fc4(0, 2)))
+    assert line.read(64, timeout_s=0.2) == b""  # the master's timeout: 0.2 s
+    line.send(rtu_frame(4, _fc4(0, 2)))
+    reply = line.read(9, timeout_s=2.0)  # the old line answered 2.8 s after this request
+    assert reply[:3] == bytes([4, 4, 4]) and rtu_frame(4, reply[1:-2]) == reply
+    assert line.read(64, timeout_s=1.5) == b""  # the late reply is not sent afterwards
+    line.send(rtu_frame(1, _fc4(0, 2)))  # and the delayed unit still answers, late
+    assert line.read(9, timeout_s=5.0)[:3] == bytes([1, 4, 4])
+
+
 def test_transaction_takes_at_least_the_wire_time(rtu_server, line):
     # FC4 of 14 registers: request 8 characters, reply 33, t3.5 between them
     least_s = (8 + 33) * character_s(BAUD) + silence_s(BAUD)

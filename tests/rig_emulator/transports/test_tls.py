@@ -7,6 +7,7 @@ import logging
 import socket
 import ssl
 import struct
+import time
 
 import pytest
 from pymodbus.client import ModbusTcpClient, ModbusTlsClient
@@ -153,10 +154,17 @@ def _raw_exchange(ctx: ssl.SSLContext, port: int) -> bytes:
         return reply
 
 
-def test_good_client_gets_an_answer(tls_server, certs):
+def test_good_client_gets_an_answer(tls_server, certs, caplog):
     # the control for the refusals below: the same raw exchange with a valid certificate
+    caplog.set_level(logging.WARNING, logger="asyncio")
     reply = _raw_exchange(client_context(certs, "observer"), tls_server.port)
     assert reply[7] == 4 and reply[8] == 4
+    for _ in range(20):  # the server sees the close within a few ms
+        if not tls_server.server.modbus_server.connections:
+            break
+        time.sleep(0.05)
+    # every TLS close logged asyncio's "returning true from eof_received() has no effect"
+    assert not [r for r in caplog.records if "eof_received" in r.getMessage()]
 
 
 def test_no_client_certificate_refused(tls_server, certs):
@@ -189,6 +197,53 @@ def test_a_stalled_handshake_is_closed_at_the_idle_timeout(serve, certs, hello):
         stalled.sendall(hello)
         assert _raw_exchange(client_context(certs, "observer"), srv.port)[7] == 4
         assert closed_by_server(stalled, timeout=20)  # 60 s without the bound
+
+
+def test_stalled_handshakes_hold_places_of_the_connection_limit(serve, certs):
+    """A connection counts from its first byte, not from the end of its handshake: 200
+    stalled handshakes stayed open beside a limit of 10 (each until the idle timeout, 300 s
+    by default), every one a file descriptor an unauthenticated peer held. Now the limit
+    closes the oldest unused ones, so at most 10 stay open, and a good client is served."""
+    srv = serve(
+        ssl_context=server_context(certs / "server.pem", certs / "server.key", certs / "ca.pem"),
+        max_connections=10,
+    )
+    stalled = [socket.create_connection(("127.0.0.1", srv.port), timeout=5) for _ in range(30)]
+    try:
+        for sock in stalled:
+            sock.sendall(bytes.fromhex("16030102000100 01fc0303"))  # half a ClientHello
+        assert _raw_exchange(client_context(certs, "observer"), srv.port)[7] == 4
+        closed = sum(closed_by_server(sock, timeout=0.5) for sock in stalled)
+        assert closed >= 21, closed  # 30 stalled + 1 good, 10 places
+        assert srv.server.modbus_server.connections <= 10
+    finally:
+        for sock in stalled:
+            sock.close()
+
+
+def test_a_failed_handshake_is_logged_with_its_reason(tls_server, certs, tmp_path, caplog):
+    """A client certificate of another CA, and plain Modbus on the TLS port, were refused
+    without a line in the log: no audit trail of failed authentications."""
+    other = tmp_path / "other"
+    make_lab_certificates(other)
+    caplog.set_level(logging.WARNING, logger="rig_emulator.serve")
+    ctx = ssl.SSLContext(ssl.PROTOCOL_TLS_CLIENT)
+    ctx.load_verify_locations(cafile=str(certs / "ca.pem"))
+    ctx.load_cert_chain(str(other / "engineer.pem"), str(other / "engineer.key"))
+    with pytest.raises((ssl.SSLError, ConnectionError, OSError)):
+        _raw_exchange(ctx, tls_server.port)
+    with socket.create_connection(("127.0.0.1", tls_server.port), timeout=5) as plain:
+        plain.sendall(struct.pack(">HHHB", 1, 0, 6, 1) + struct.pack(">BHH", 4, 0, 2))
+        assert closed_by_server(plain, timeout=5)
+    for _ in range(40):
+        failed = [
+            r.getMessage() for r in caplog.records if "TLS handshake failed" in r.getMessage()
+        ]
+        if len(failed) >= 2:
+            break
+        time.sleep(0.05)
+    assert len(failed) == 2, failed
+    assert "CERTIFICATE_VERIFY_FAILED" in failed[0].upper().replace(" ", "_"), failed[0]
 
 
 @pytest.mark.filterwarnings("ignore:ssl.TLSVersion.TLSv1:DeprecationWarning")
@@ -261,6 +316,8 @@ def test_tls_port_defaults_to_802(certs):
         (["TLS", "--roles", "ROLES"], "roles.admin.write: 'x' is not a unit ID"),
         (["TLS", "--plain-role", "root"], "--plain-role: 'root' is not one of"),
         (["TLS-BAD-KEY"], "cannot be used"),
+        (["TLS-ENCRYPTED-KEY"], "is protected by a passphrase"),  # was a traceback or a prompt
+        (["TLS", "--roles", "BINARY"], "binary.yaml is not UTF-8 text"),  # named no file
     ],
 )
 def test_bad_tls_options_are_one_line(certs, tmp_path, capsys, extra, fault):
@@ -275,8 +332,14 @@ def test_bad_tls_options_are_one_line(certs, tmp_path, capsys, extra, fault):
         elif item == "TLS-BAD-KEY":
             args += [*_tls_options(certs)[:2], "--tls-key", str(certs / "ca.pem")]
             args += _tls_options(certs)[4:]
+        elif item == "TLS-ENCRYPTED-KEY":
+            args += [*_tls_options(certs)[:2], "--tls-key", str(_encrypted_key(certs, tmp_path))]
+            args += _tls_options(certs)[4:]
         elif item == "ROLES":
             args.append(str(roles))
+        elif item == "BINARY":
+            (tmp_path / "binary.yaml").write_bytes(b"\x00\xff\xfe")
+            args.append(str(tmp_path / "binary.yaml"))
         elif item == "server.pem":
             args.append(str(certs / "server.pem"))
         else:
@@ -284,6 +347,21 @@ def test_bad_tls_options_are_one_line(certs, tmp_path, capsys, extra, fault):
     assert main(["serve", "--boiler", "windhager_12kw", "--port", "0", *args]) == 2
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and fault in err, err
+
+
+def _encrypted_key(certs, tmp_path):
+    from cryptography.hazmat.primitives import serialization
+
+    key = serialization.load_pem_private_key((certs / "server.key").read_bytes(), None)
+    path = tmp_path / "encrypted.key"
+    path.write_bytes(
+        key.private_bytes(
+            serialization.Encoding.PEM,
+            serialization.PrivateFormat.PKCS8,
+            serialization.BestAvailableEncryption(b"secret"),
+        )
+    )
+    return path
 
 
 def test_cli_serves_tls_with_a_roles_file_and_plain_tcp(certs, tmp_path):
@@ -388,3 +466,93 @@ def test_engineer_clock_on_real_time_server_needs_allow_control(serve, certs, al
         assert srv.values()["speed_factor"] == (3.0 if allow_control else 1.0)
     finally:
         srv.call(transports.stop())
+
+
+# ---------------------------------------------------------------------- odd certificates
+class _Verified:
+    """What a verified TLS connection shows of its client certificate (``peer_of``'s input)."""
+
+    def __init__(self, der: bytes) -> None:
+        self.der = der
+
+    def getpeercert(self, binary_form: bool = False) -> bytes:
+        return self.der
+
+
+def _der_with_role_twice() -> bytes:
+    """A client certificate whose role extension comes twice (observer, then engineer): the
+    builder refuses that, so a second, unknown extension is renamed in the DER (the
+    signature no longer matters: OpenSSL verified the chain before ``peer_of`` is asked)."""
+    from cryptography import x509
+    from cryptography.hazmat.primitives import hashes, serialization
+
+    from rig_emulator.certs import ROLE_OID, utf8_string_der
+
+    ca = make_ca()
+    client = make_client(ca, "twice", "observer")
+    other = ROLE_OID[:-1] + "2"
+    builder = x509.CertificateBuilder(
+        client.cert.issuer,
+        client.cert.subject,
+        client.cert.public_key(),
+        client.cert.serial_number,
+        client.cert.not_valid_before_utc,
+        client.cert.not_valid_after_utc,
+        [
+            *client.cert.extensions,
+            x509.Extension(
+                x509.ObjectIdentifier(other),
+                False,
+                x509.UnrecognizedExtension(
+                    x509.ObjectIdentifier(other), utf8_string_der("engineer")
+                ),
+            ),
+        ],
+    )
+    der = builder.sign(ca.key, hashes.SHA256()).public_bytes(serialization.Encoding.DER)
+    # the OIDs' DER ends: 802 is 0x86 0x22, then the last arc
+    tail_other, tail_role = bytes([0x86, 0x22, 0x02]), bytes([0x86, 0x22, 0x01])
+    assert der.count(tail_other) == 1
+    return der.replace(tail_other, tail_role)
+
+
+def test_a_role_extension_given_twice_is_an_invalid_role_not_a_crash():
+    """It escaped ``peer_of`` as cryptography's DuplicateExtension: two tracebacks a
+    connection in the server's log, and the connection dropped."""
+    from rig_emulator.modbus.tls import INVALID_ROLE, peer_of
+
+    peer = peer_of(_Verified(_der_with_role_twice()), DEFAULT_POLICY)  # type: ignore[arg-type]
+    assert peer.role == INVALID_ROLE and "CN=twice" in peer.subject
+    assert DEFAULT_POLICY.refusal(peer.role, 1, 4) is not None  # it may read nothing
+
+
+def test_a_role_cannot_write_lines_of_its_own_into_the_log(serve, certs, tmp_path, caplog):
+    """A role holding a newline wrote a forged log line, verbatim, twice."""
+    ca = _ca_of(certs)
+    forged = "engineer\n2026-01-01 00:00:00,000 rig-emulator: client 10.0.0.9:4444: role engineer"
+    write_pair(make_client(ca, "forger", forged), tmp_path, "forger")
+    (tmp_path / "ca.pem").write_bytes((certs / "ca.pem").read_bytes())
+    srv = serve(
+        ssl_context=server_context(certs / "server.pem", certs / "server.key", certs / "ca.pem")
+    )
+
+    async def setup():
+        transports = Transports(srv.server.modbus_server)
+        transports.authorise(DEFAULT_POLICY)
+        return transports
+
+    transports = srv.call(setup())
+    caplog.set_level(logging.INFO, logger="rig_emulator.serve")
+    try:
+        c = tls_client(srv.port, tmp_path, "forger")
+        try:
+            r = _write(c, srv, "bench_plc", "flow_setpoint", 100.0)
+            assert r.isError() and r.exception_code == 1  # an unknown role may send nothing
+        finally:
+            c.close()
+    finally:
+        srv.call(transports.stop())
+    lines = [r.getMessage() for r in caplog.records if "forger" in r.getMessage()]
+    lines += [r.getMessage() for r in caplog.records if r.getMessage().startswith("refused")]
+    assert lines and all("\n" not in m for m in lines), lines
+    assert any("engineer\\n2026" in m for m in lines)  # shown, escaped
