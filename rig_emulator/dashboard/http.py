@@ -26,10 +26,12 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import ipaddress
 import itertools
 import json
 import logging
 import math
+import socket
 from importlib import resources
 from urllib.parse import parse_qs, urlsplit
 
@@ -54,6 +56,39 @@ class BadRequest(Exception):
     """A request the dashboard refuses with 400."""
 
 
+class CrossSite(Exception):
+    """A control request that may come from another web site (refused with 403)."""
+
+
+def _check_same_site(headers: dict[str, str]) -> None:
+    """Controls come from the page itself, never from another site the lab's browser has
+    open: the body must be declared JSON (a form, or a ``no-cors`` fetch of another site,
+    can only send text/plain, form or multipart bodies without asking the server first, and
+    the dashboard answers no preflight), an ``Origin`` must be this server's own, and the
+    ``Host`` must be an address, ``localhost`` or this machine's name (a site whose name
+    was made to point here, DNS rebinding, shows its own name)."""
+    kind = headers.get("content-type", "").split(";")[0].strip().lower()
+    if kind != "application/json":
+        raise CrossSite(f"Content-Type {kind or 'none'}: controls are sent as application/json")
+    host = headers.get("host", "")
+    origin = headers.get("origin")
+    if origin is not None and urlsplit(origin).netloc.lower() != host.lower():
+        raise CrossSite(f"Origin {origin} is not this dashboard ({host})")
+    name = urlsplit(f"//{host}").hostname or ""
+    if not _own_name(name):
+        raise CrossSite(f"Host {host or 'none'} is not an address or a name of this machine")
+
+
+def _own_name(name: str) -> bool:
+    try:
+        ipaddress.ip_address(name)
+        return True
+    except ValueError:
+        pass
+    own = {"localhost", socket.gethostname().lower(), socket.getfqdn().lower()}
+    return name.lower() in own or name.lower().endswith(".localhost")
+
+
 class Dashboard:
     """Serve the page and the state of ``server`` on ``host:port`` (port 0: any free)."""
 
@@ -66,7 +101,8 @@ class Dashboard:
         self.control = control
         self.trend = Trend()
         self._page = resources.files("rig_emulator.dashboard").joinpath("static/index.html")
-        self._streams: set[asyncio.Queue] = set()
+        #: the live streams, oldest first: each one's queue of events and its connection
+        self._streams: dict[asyncio.Queue, asyncio.StreamWriter] = {}
         self._srv: asyncio.AbstractServer | None = None
         self._task: asyncio.Task | None = None
         self._last: dict = {}
@@ -83,8 +119,9 @@ class Dashboard:
             self._task.cancel()
             with contextlib.suppress(asyncio.CancelledError):
                 await self._task
-        for queue in list(self._streams):
-            queue.put_nowait(None)
+        for queue, writer in list(self._streams.items()):
+            writer.transport.abort()
+            _end(queue)
         if self._srv is not None:
             self._srv.close()
             with contextlib.suppress(asyncio.TimeoutError):
@@ -136,10 +173,17 @@ class Dashboard:
     # ------------------------------------------------------------------ HTTP
     async def _handle(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         try:
-            method, target, body = await asyncio.wait_for(_read_request(reader), REQUEST_TIMEOUT_S)
+            method, target, headers, body = await asyncio.wait_for(
+                _read_request(reader), REQUEST_TIMEOUT_S
+            )
+            if method == "POST":
+                _check_same_site(headers)
             await self._route(method, target, body, writer)
         except BadRequest as exc:
             await _respond(writer, 400, {"error": str(exc)})
+        except CrossSite as exc:
+            log.warning("dashboard: refused a POST from another site (%s)", exc)
+            await _respond(writer, 403, {"error": str(exc)})
         except (TimeoutError, ConnectionError, asyncio.IncompleteReadError):
             pass
         finally:
@@ -174,10 +218,14 @@ class Dashboard:
 
     async def _stream(self, writer: asyncio.StreamWriter) -> None:
         if len(self._streams) >= MAX_STREAMS:
-            await _respond(writer, 503, {"error": "too many live streams"})
-            return
+            # the oldest gives way (it may be a connection that stopped reading): a new
+            # viewer is never locked out by streams nobody reads
+            oldest = next(iter(self._streams))
+            log.warning("dashboard: %d live streams, the oldest closed for a new one", MAX_STREAMS)
+            self._streams.pop(oldest).transport.abort()
+            _end(oldest)
         queue: asyncio.Queue = asyncio.Queue(maxsize=2)
-        self._streams.add(queue)
+        self._streams[queue] = writer
         try:
             writer.write(
                 b"HTTP/1.1 200 OK\r\nContent-Type: text/event-stream\r\n"
@@ -188,14 +236,14 @@ class Dashboard:
             await writer.drain()
             while True:
                 event = await queue.get()
-                if event is None:
+                if event is None:  # closed for a newer stream, or the server stops
                     break
                 writer.write(f"data: {event}\n\n".encode())
                 await writer.drain()
         except (ConnectionError, asyncio.CancelledError):
             pass
         finally:
-            self._streams.discard(queue)
+            self._streams.pop(queue, None)
 
     async def _control(self, body: bytes, writer: asyncio.StreamWriter) -> None:
         if not self.control:
@@ -203,7 +251,7 @@ class Dashboard:
             return
         try:
             request = json.loads(body or b"{}")
-        except (json.JSONDecodeError, UnicodeDecodeError, RecursionError):
+        except (ValueError, RecursionError):  # JSONDecodeError, UnicodeDecodeError too
             raise BadRequest("the body is not JSON") from None
         if not isinstance(request, dict):
             raise BadRequest('expected {"signal": NAME, "value": NUMBER}')
@@ -212,7 +260,13 @@ class Dashboard:
             raise BadRequest(f"signal: expected one of {', '.join(CONTROL_SIGNALS)}")
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise BadRequest("value: expected a number")
-        refused = await self.server.write_signal(signal, float(value))
+        try:
+            number = float(value)
+        except OverflowError:
+            raise BadRequest("value: too large a number") from None
+        if not math.isfinite(number):  # NaN and Infinity: JSON has neither, Python takes both
+            raise BadRequest("value: expected a finite number")
+        refused = await self.server.write_signal(signal, number)
         if refused is not None:
             log.info("dashboard control refused: %s = %r (%s)", signal, value, refused)
             await _respond(writer, 400, {"error": refused})
@@ -227,7 +281,7 @@ class Dashboard:
             return
         try:
             request = json.loads(body or b"{}")
-        except (json.JSONDecodeError, UnicodeDecodeError, RecursionError):
+        except (ValueError, RecursionError):  # JSONDecodeError, UnicodeDecodeError too
             raise BadRequest("the body is not JSON") from None
         usage = 'expected {"inject": {FAULT}}, {"clear": true} or both (clear, then inject)'
         if not isinstance(request, dict) or not request or set(request) - {"inject", "clear"}:
@@ -253,11 +307,18 @@ class Dashboard:
         await _respond(writer, 200, {"ok": True, "faults": self.server.active_faults()})
 
 
+def _end(queue: asyncio.Queue) -> None:
+    """Tell a stream's task to end (its samples dropped: nobody will read them)."""
+    while not queue.empty():
+        queue.get_nowait()
+    queue.put_nowait(None)
+
+
 def _num(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
-async def _read_request(reader: asyncio.StreamReader) -> tuple[str, str, bytes]:
+async def _read_request(reader: asyncio.StreamReader) -> tuple[str, str, dict[str, str], bytes]:
     try:
         head = await reader.readuntil(b"\r\n\r\n")
     except asyncio.LimitOverrunError:
@@ -283,7 +344,7 @@ async def _read_request(reader: asyncio.StreamReader) -> tuple[str, str, bytes]:
     if not 0 <= length <= MAX_BODY_BYTES:
         raise BadRequest(f"body of {length} bytes (at most {MAX_BODY_BYTES})")
     body = await reader.readexactly(length) if length else b""
-    return method, target, body
+    return method, target, headers, body
 
 
 async def _respond(writer: asyncio.StreamWriter, status: int, content: dict) -> None:

@@ -536,7 +536,9 @@ class BenchServer:
             for point in device.points:
                 if point.signal == signal and point.writable:
                     if point.table == "coil":
-                        registers: list = [bool(value >= 0.5)]
+                        if value not in (0.0, 1.0):  # FC5 takes FF00 or 0000, nothing else
+                            return f"{value!r} is not 0 or 1 (a switch): Modbus exception 03"
+                        registers: list = [value == 1.0]
                     else:
                         try:
                             registers = encode(point, value)

@@ -46,8 +46,18 @@ def _get(http: int, path: str):
         return r.status, r.headers.get("Content-Type"), r.read()
 
 
-def _post(http: int, body: bytes, path: str = "/api/control") -> tuple[int, dict]:
-    req = urllib.request.Request(f"http://127.0.0.1:{http}{path}", data=body, method="POST")
+JSON = {"Content-Type": "application/json"}  # what the page's own requests declare
+
+
+def _post(
+    http: int, body: bytes, path: str = "/api/control", headers: dict | None = None
+) -> tuple[int, dict]:
+    req = urllib.request.Request(
+        f"http://127.0.0.1:{http}{path}",
+        data=body,
+        method="POST",
+        headers=JSON if headers is None else headers,
+    )
     try:
         with urllib.request.urlopen(req, timeout=10) as r:
             return r.status, json.loads(r.read())
@@ -140,6 +150,76 @@ def test_controls_take_the_modbus_write_path(dashboard):
         assert read_point(c, dev, p) == 500.0
     finally:
         c.close()
+
+
+def test_another_site_cannot_drive_the_controls(dashboard):
+    """Any page open in the lab's browser could set the flow and inject faults: a no-cors
+    fetch sends text/plain without asking the server first, and nothing checked where a
+    POST came from. Now a control must be declared JSON, from this server's own origin and
+    host; a refused one changes nothing."""
+    port, http = dashboard("--http-control")
+    body = b'{"signal": "water_flow_setpoint_kg_h", "value": 1234}'
+    own = f"http://127.0.0.1:{http}"
+    for headers, why in (
+        ({"Content-Type": "text/plain"}, "Content-Type text/plain"),  # a no-cors fetch
+        ({}, "Content-Type application/x-www-form-urlencoded"),  # a form (urllib's default)
+        ({**JSON, "Origin": "http://127.0.0.1:18090"}, "Origin"),  # another site, same host
+        ({**JSON, "Host": "attacker.example", "Origin": "http://attacker.example"}, "Host"),
+    ):
+        status, answer = _post(http, body, headers=headers)
+        assert status == 403 and why in answer["error"], (headers, answer)
+        status, answer = _post(
+            http, b'{"inject": {"kind": "no_reply", "unit": 2}}', "/api/faults", headers
+        )
+        assert status == 403, (headers, answer)
+    assert _post(http, body, headers={**JSON, "Origin": own})[0] == 200  # the page's own
+    c = client(port)
+    try:
+        dev, p = point(MAP, "bench_plc", "flow_setpoint")
+        assert read_point(c, dev, p) == 1234.0
+    finally:
+        c.close()
+    state = json.loads(_get(http, "/api/state")[2])
+    assert state["faults"] == []  # no refused inject got through
+
+
+def test_a_switch_takes_0_or_1_only_and_numbers_beyond_floats_are_refused(dashboard):
+    """boiler_command took any number (7 switched it on, -7 off), and NaN or Infinity were
+    applied before the reply failed with a traceback; a 4001-digit integer got no reply."""
+    port, http = dashboard("--http-control")
+    c = client(port)
+    try:
+        dev, p = point(MAP, "boiler_controller", "on_command")
+        assert _post(http, b'{"signal": "boiler_command", "value": 1}')[0] == 200
+        for value in (b"NaN", b"-Infinity", b"Infinity", b"7", b"-7", b"0.5", b"1e308"):
+            status, answer = _post(http, b'{"signal": "boiler_command", "value": %s}' % value)
+            assert status == 400 and answer["error"], value
+            assert read_point(c, dev, p) == 1.0, value  # unchanged
+        huge = b'{"signal": "water_flow_setpoint_kg_h", "value": 1' + b"0" * 4000 + b"}"
+        status, answer = _post(http, huge)
+        assert status == 400 and "too large" in answer["error"]
+    finally:
+        c.close()
+
+
+def test_idle_streams_never_lock_a_new_viewer_out(dashboard):
+    """64 streams that never read held every place: new viewers got 503 for as long as
+    they stayed (and a browser's EventSource gives up after a 503). The oldest now gives
+    way to a new one."""
+    _, http = dashboard()
+    idle = []
+    try:
+        for _ in range(70):
+            s = socket.create_connection(("127.0.0.1", http), timeout=10)
+            s.sendall(b"GET /api/stream HTTP/1.1\r\n\r\n")
+            idle.append(s)
+        with urllib.request.urlopen(f"http://127.0.0.1:{http}/api/stream", timeout=10) as r:
+            assert r.status == 200
+            assert r.readline().startswith(b"data: ")
+    finally:
+        for s in idle:
+            s.close()
+    assert _get(http, "/api/state")[0] == 200
 
 
 @pytest.mark.parametrize(
