@@ -58,6 +58,9 @@ DEFAULT_MAX_CONNECTIONS = 100
 _LIMIT_LOG_INTERVAL_S = 10.0  # what the connection limit did: one line per interval at most
 #: a TLS handshake's bound where connections have no idle timeout (asyncio's own) [s]
 HANDSHAKE_TIMEOUT_S = 60.0
+#: how long a closed TLS connection waits for the peer's close_notify before its socket is
+#: freed (asyncio's own: 30 s, a file descriptor a silent peer holds that long) [s]
+TLS_SHUTDOWN_TIMEOUT_S = 2.0
 HANDSHAKE_LOG_BURST = 20  # failed TLS handshakes logged a minute, the rest counted
 
 
@@ -166,7 +169,12 @@ class RequestHandler(asyncio.Protocol):
         timeout_s = self.server.idle_timeout_s or HANDSHAKE_TIMEOUT_S
         try:
             secure = await asyncio.get_running_loop().start_tls(
-                transport, self, context, server_side=True, ssl_handshake_timeout=timeout_s
+                transport,
+                self,
+                context,
+                server_side=True,
+                ssl_handshake_timeout=timeout_s,
+                ssl_shutdown_timeout=TLS_SHUTDOWN_TIMEOUT_S,
             )
         except asyncio.CancelledError:
             transport.abort()
