@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test bench lint format clean tools
+.PHONY: demo test bench bench-diagnosis lint format clean tools
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -37,6 +37,7 @@ tools:
 test: $(STAMP) tools
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
+# speed and memory figures (a few minutes)
 bench: $(STAMP)
 	$(BIN)/python bench/run_bench.py
 	$(BIN)/python bench/bench_modbus.py
@@ -44,16 +45,15 @@ bench: $(STAMP)
 	$(BIN)/python bench/bench_clock.py
 	$(BIN)/python bench/bench_faults.py
 	$(BIN)/python bench/fuzz_modbus.py
+	$(BIN)/python bench/bench_transports.py
+
+# the gap diagnosis against the independent plants (about 30 min on 2 cores)
+bench-diagnosis: $(STAMP)
 	$(BIN)/python bench/reality_gap.py 20
 	$(BIN)/python bench/reality2_gap.py --cases 20
-	$(BIN)/python bench/reality2_gap.py --cases 20 --plant reality3
-	$(BIN)/python bench/reality2_gap.py --cases 20 --plant reality4
-	$(BIN)/python bench/reality2_gap.py --cases 20 --plant reality5
-	$(BIN)/python bench/reality2_gap.py --cases 20 --plant reality6
-	$(BIN)/python bench/reality2_gap.py --cases 20 --plant reality7
-	$(BIN)/python bench/reality2_gap.py --cases 20 --plant reality8
-	$(BIN)/python bench/reality2_gap.py --cases 20 --plant reality9
-	$(BIN)/python bench/bench_transports.py
+	for plant in reality3 reality4 reality5 reality6 reality7 reality8 reality9; do \
+		$(BIN)/python bench/reality2_gap.py --cases 20 --plant $$plant || exit 1; \
+	done
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

@@ -97,6 +97,16 @@ class Interval:
         return float(np.nanmean(self.log[name][self.i0 : self.i1]))
 
 
+def _mean_read(log: LabLog, column: str, mask: np.ndarray) -> float | None:
+    """The mean of ``column`` over the rows ``mask`` where it was read (None: the log has
+    no such column, or not one reading there: a dropout, a unit silent throughout)."""
+    if not log.has(column):
+        return None
+    values = log[column][mask]
+    values = values[~np.isnan(values)]
+    return float(np.mean(values)) if len(values) else None
+
+
 def _linfit(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float, float]:
     """(intercept, slope, se_intercept, se_slope) of an ordinary least-squares line."""
     n = len(x)
@@ -404,8 +414,8 @@ def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibrati
             _, slope_p, _, _ = _linfit(tt, np.log(dT + u_t))
             u_ua = math.hypot(se * cap * 1000.0, (slope - slope_p) * cap * 1000.0)
             ua_off_values.append((ua, u_ua, int(ok.sum())))
-            if log.has("flue_gas_velocity_m_s"):
-                v = float(np.nanmean(log["flue_gas_velocity_m_s"][mask]))
+            v = _mean_read(log, "flue_gas_velocity_m_s", mask)
+            if v is not None:
                 t_air = float(np.nanmean(tb)) + k.T_NORMAL_K
                 p_pa = (
                     float(np.nanmean(log["ambient_pressure_hPa"][mask])) * 100.0
@@ -415,8 +425,9 @@ def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibrati
                 rho = p_pa / (R_AIR * t_air)
                 per_K = rho * CP_AIR * 1000.0 * DUCT_AREA_M2  # W/K per m/s
                 ua_on_values.append((v * per_K, _u("flue_gas_velocity_m_s", v) * per_K))
-            if log.has("electric_power_W"):
-                pel_off.append(float(np.nanmean(log["electric_power_W"][mask])))
+            p_el = _mean_read(log, "electric_power_W", mask)
+            if p_el is not None:
+                pel_off.append(p_el)
         # start-up: Wel and Pstart from the first start, if the log holds it from the row
         # before t0 to the end of the start-up time
         i0 = int(np.searchsorted(t, ph.t0, side="right"))

@@ -253,3 +253,31 @@ def test_a_refill_changes_no_figure_of_validate(run_log, tmp_path):
         assert refill["fuel"][segment]["balance_kg"] == pytest.approx(
             plain["fuel"][segment]["balance_kg"], abs=0.01
         )
+
+
+def test_a_column_never_read_in_stand_by_leaves_its_value_documented(round_trip, tmp_path):
+    """A draught meter or power meter silent through every stand-by (a dropout) gave a mean
+    of nothing: a RuntimeWarning, then NaN for UA_on and Pel_off. Their documentation
+    values are kept, and the rest is fitted as before."""
+    import warnings
+
+    _, boiler, logs, _ = round_trip
+    silent = tmp_path / "silent.csv"
+    text = logs[0].read_text().splitlines()
+    header = text[0].split(",")
+    gone = [header.index("flue_gas_velocity_m_s"), header.index("electric_power_W")]
+    rows = [",".join("" if i in gone else v for i, v in enumerate(r.split(","))) for r in text[1:]]
+    silent.write_text("\n".join([text[0], *rows]) + "\n")
+    meta = logs[0].with_name(logs[0].stem + ".meta.json")
+    silent.with_name("silent.meta.json").write_text(meta.read_text())
+    out = tmp_path / "calibrated.yaml"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        assert main(["calibrate", str(silent), "--boiler", str(boiler), "--out", str(out)]) == 0
+    fitted = json.loads(out.with_suffix(".uncertainty.json").read_text())
+    assert "ua_amb_on_W_K" not in fitted and "p_el_off_W" not in fitted
+    documented = load_boiler(str(boiler))
+    calibrated = load_boiler(str(out))
+    assert calibrated.ua_amb_on_W_K == documented.ua_amb_on_W_K
+    assert calibrated.p_el_off_W == documented.p_el_off_W
+    assert "ua_amb_off_W_K" in fitted  # the water's cooling is still read
