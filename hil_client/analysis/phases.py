@@ -99,9 +99,9 @@ def _from_meta(log: LabLog) -> Phases | None:
     for key in MARKS:
         v = log.meta.get(key)
         bad = isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v)
-        if key in log.meta and bad:
+        if v is not None and bad:  # null: not reached (an interrupted run writes that)
             raise LogError(f"{meta_file}: {key} = {v!r} is not a finite number of seconds{fix}")
-    if any(key not in log.meta for key in MARKS):
+    if any(log.meta.get(key) is None for key in MARKS):
         return None
     values = [float(log.meta[key]) for key in MARKS]
     first, last = float(log.t[0]), float(log.t[-1])
@@ -190,4 +190,14 @@ def find_phases(log: LabLog, prefer_signals: bool = False) -> Phases:
             found = finder(log)
             if found is not None:
                 return found
-    return _from_signals(log)
+    reached = [key for key in MARKS if log.meta.get(key) is not None]
+    if reached == list(MARKS) or not any(key in log.meta for key in MARKS):
+        return _from_signals(log)
+    try:  # a run cut short: its meta file has the marks it reached, null for the rest
+        return _from_signals(log)
+    except LogError as exc:
+        known = ", ".join(reached) or "no mark"
+        raise LogError(
+            f"{exc}; the run was cut short (its meta file records {known}, the rest not "
+            "reached), so the log holds no whole test to analyse by phase"
+        ) from None

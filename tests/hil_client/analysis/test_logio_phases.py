@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from hil_client.analysis.logio import LogError, fill_gaps, read_log
-from hil_client.analysis.phases import find_phases, rise_rate_K_min
+from hil_client.analysis.phases import MARKS, find_phases, rise_rate_K_min
 
 HEADER = (
     "time_s,water_flow_kg_h,water_in_temp_C,water_out_temp_C,boiler_water_temp_C,"
@@ -196,3 +198,31 @@ def test_a_meta_file_nested_thousands_deep_is_one_line(tmp_path):
     path.with_name(path.stem + ".meta.json").write_text('{"a": ' + "[" * 3000 + "]" * 3000 + "}")
     with pytest.raises(LogError, match="nested too deeply"):
         read_log(path)
+
+
+def test_marks_an_interrupted_run_did_not_reach_are_unknown_not_errors(run_log, tmp_path):
+    """An interrupted run writes ``null`` for the marks it did not reach (CONTRACT section 3:
+    "where known"); every analysis refused its own client's meta file for it ("t1_s = None
+    is not a finite number of seconds; remove t0_s..t4_s"). Null is unknown: the phases come
+    from the signals where they show them, and a run cut before a whole test is named so."""
+    import json
+
+    rec = run_log("stationary", "windhager_12kw")
+    log = read_log(rec.path)
+    keep = [c for c in log.columns if c not in ("phase", "sequence")]
+
+    def write(rows: np.ndarray, name: str, reached: tuple[str, ...]) -> Path:
+        path = tmp_path / f"{name}.csv"
+        data = np.column_stack([log[c][rows] for c in keep])
+        np.savetxt(path, data, delimiter=",", header=",".join(keep), comments="", fmt="%.6f")
+        marks = {k: (rec.meta[k] if k in reached else None) for k in MARKS}
+        path.with_name(f"{name}.meta.json").write_text(json.dumps(marks))
+        return path
+
+    whole = write(log.t >= 0, "whole", ("t0_s", "t1_s"))  # marks lost, the record whole
+    found = find_phases(read_log(whole))
+    assert found.source == "signals"
+    assert found.t2 == pytest.approx(rec.meta["t2_s"], abs=60)
+    cut = write(log.t <= rec.meta["t0_s"] + 600.0, "cut", ("t0_s",))  # killed in start-up
+    with pytest.raises(LogError, match=r"the run was cut short .*records t0_s, the rest not"):
+        find_phases(read_log(cut))
