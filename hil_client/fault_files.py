@@ -89,7 +89,10 @@ def summary(report: dict[str, Any]) -> str:
         for kind, c in sorted(report["by_kind"].items())
     )
     unseen = len(report.get("unseen", ()))
-    never = f", {unseen} never served (inside one lockstep step)" if unseen else ""
+    never = f", {unseen} never served (between two of the server's steps)" if unseen else ""
+    outside = len(report.get("outside_run", ()))
+    if outside:
+        never += f", {outside} outside the run (before its first row or after its last)"
     return (
         f"faults: {report['detected']} detected, {report['missed']} missed, "
         f"{report['false']} false{never} ({kinds or 'none journalled'})"

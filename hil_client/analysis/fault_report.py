@@ -187,16 +187,30 @@ def compare(
     journal_name: str = "fault journal",
 ) -> dict[str, Any]:
     """The report: every fault detected or missed, and the client's false alarms
-    (``journal_name``: the journal's file, for its errors). A fault the server journalled
-    as never served (its window fell wholly inside one lockstep step) is neither: it is
-    listed under ``unseen``."""
+    (``journal_name``: the journal's file, for its errors). Neither detected nor missed:
+    a fault the server journalled as never served (its window fell wholly between two of
+    its evaluations, inside one lockstep step or one real-time tick), listed under
+    ``unseen``; and one whose window lies wholly before the log's first row or after its
+    last (``server_time``: a client that joined late or stopped early could not see it),
+    listed under ``outside_run``."""
     windows = fault_windows(journal, journal_name)
-    faults = [f for f in windows if f["seen"]]  # an unserved fault can be neither caught nor missed
+    served = [f for f in windows if f["seen"]]  # an unserved fault: neither caught nor missed
     end_of_run = max(
         [float(e.get("server_time_s", 0.0)) for e in client_events]
         + ([float(server_time[-1])] if server_time is not None and server_time.size else [])
         + [0.0]
     )
+    outside: list[dict[str, Any]] = []
+    faults = served
+    if server_time is not None and server_time.size:
+        first, last = float(server_time[0]), float(server_time[-1])
+
+        def in_run(fault: Mapping[str, Any]) -> bool:
+            ended = fault["end_s"] is not None and fault["end_s"] < first - 1e-9
+            return not ended and fault["start_s"] <= last + slack_s
+
+        faults = [f for f in served if in_run(f)]
+        outside = [f for f in served if not in_run(f)]
     explained: set[int] = set()
     rows_out = []
     for fault in faults:
@@ -249,6 +263,7 @@ def compare(
         "detected": sum(r["detected"] for r in rows_out),
         "missed": sum(not r["detected"] for r in rows_out),
         "unseen": [f for f in windows if not f["seen"]],
+        "outside_run": outside,
         "false": len(false_events),
         "false_events": false_events,
         "by_kind": by_kind,

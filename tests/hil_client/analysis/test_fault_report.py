@@ -49,6 +49,23 @@ def test_client_events_match_by_unit_kind_and_time():
     assert (report["detected"], report["missed"], report["false"]) == (2, 1, 2)
 
 
+def test_faults_before_the_first_row_or_after_the_last_are_outside_the_run():
+    """A client that joined a running server late, or stopped early, could not see faults
+    wholly outside its rows: they were counted missed (6 of 9 in a stranger's run)."""
+    journal = _journal(
+        {"start": 10.0, "end": 50.0, "what": {"kind": "no_reply", "unit": 2}},  # before
+        {"start": 90.0, "end": 110.0, "what": {"kind": "no_reply", "unit": 3}},  # overlaps
+        {"start": 150.0, "end": 160.0, "what": {"kind": "exception", "unit": 5, "code": 6}},
+        {"start": 130.0, "what": {"kind": "delay", "unit": 4}},  # after, never ended
+    )
+    server_time = np.arange(100.0, 121.0)  # the log's rows: 100..120 s
+    report = compare(journal, [], server_time=server_time)
+    assert [(f["kind"], f["start_s"]) for f in report["faults"]] == [("no_reply", 90.0)]
+    assert (report["detected"], report["missed"]) == (0, 1)  # the one it could have seen
+    outside = sorted((f["kind"], f["start_s"]) for f in report["outside_run"])
+    assert outside == [("delay", 130.0), ("exception", 150.0), ("no_reply", 10.0)]
+
+
 def test_log_detectors_find_spike_offset_and_stuck_only_where_they_are():
     rng = np.random.default_rng(0)
     t = np.arange(200.0)
