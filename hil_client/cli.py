@@ -33,7 +33,7 @@ from hil_client.analysis.logio import LabLog, LogError, read_log
 from hil_client.analysis.phases import Phases, find_phases
 from hil_client.analysis.report import validation_report
 from hil_client.analysis.validate import compare, validation_metrics
-from hil_client.fault_files import events_path, fault_report, write_events, write_report
+from hil_client.fault_files import EventsWriter, events_path, fault_report, write_report
 from hil_client.fault_files import summary as fault_summary
 from hil_client.lablog import DECIMALS, LabLogWriter, meta_path, write_meta
 from hil_client.progress import LiveView, ProgressLine, hms
@@ -725,6 +725,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     previous = _set_aside(out)
     written = [0]  # rows of this run in the log
+    events = EventsWriter(out) if remote else None  # what faulty units did, beside the log
     try:
         with LabLogWriter(out) as writer:
             write_meta(out, meta)
@@ -733,6 +734,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
                 writer(row)
                 written[0] += 1
                 summary(row)
+                if events is not None:
+                    events.catch_up(rig.comm_events)
 
             result = run_protocol(
                 protocol, params.p_nom_kW, rig, sink, progress, on_phase=save_meta
@@ -756,8 +759,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return 1
     finally:
         rig.close()
-        if remote:  # what faulty units did, beside the log
-            write_events(out, rig.comm_events)
+        if events is not None:
+            events.catch_up(rig.comm_events)
+            events.close()
         gaps = getattr(rig, "gaps", [])
         if not written[0] and gaps and not previous:  # the meta that stays says why
             meta["gaps"] = gaps

@@ -24,12 +24,25 @@ def events_path(log_path: Path) -> Path:
     return log_path.with_name(log_path.stem + ".modbus_events.jsonl")
 
 
-def write_events(log_path: Path, events: Sequence[dict[str, Any]]) -> Path:
-    path = events_path(log_path)
-    with path.open("w", encoding="utf-8") as fh:
-        for event in events:
-            fh.write(json.dumps(event, allow_nan=False) + "\n")
-    return path
+class EventsWriter:
+    """The Modbus events beside a log, written as they come (one flushed line each, as the
+    log's rows are), so a killed client leaves the events of every row it logged."""
+
+    def __init__(self, log_path: Path) -> None:
+        self.path = events_path(log_path)
+        self._file = self.path.open("w", encoding="utf-8")
+        self.written = 0
+
+    def catch_up(self, events: Sequence[dict[str, Any]]) -> None:
+        """Write those of ``events`` (the rig's whole list so far) not written yet."""
+        for event in events[self.written :]:
+            self._file.write(json.dumps(event, allow_nan=False) + "\n")
+        if len(events) > self.written:
+            self._file.flush()
+            self.written = len(events)
+
+    def close(self) -> None:
+        self._file.close()
 
 
 def read_jsonl(path: Path, what: str) -> list[dict[str, Any]]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -177,8 +178,16 @@ def _assert_valid_partial(out: Path) -> int:
     return len(log)
 
 
-def test_killed_client_leaves_a_valid_log(serve, tmp_path):
-    srv = serve(lockstep=True)
+def test_killed_client_leaves_a_valid_log_and_the_events_of_its_rows(serve, tmp_path):
+    """kill -9 leaves every row acquired, and (written as they come, as the rows are) the
+    Modbus events of those rows: the events file used to be written only at the end, so
+    fault-report refused a killed run's log."""
+    from rig_emulator.faults import faults_from_list
+
+    srv = serve(
+        lockstep=True,
+        faults=faults_from_list([{"kind": "exception", "unit": 5, "code": 6, "at_s": 50}]),
+    )
     out = tmp_path / "killed.csv"
     proc = _start_client(srv.port, out)
     _wait_rows(out, 300)
@@ -188,6 +197,13 @@ def test_killed_client_leaves_a_valid_log(serve, tmp_path):
     assert rows >= 300
     meta = read_log(out).meta
     assert meta["complete"] is False  # written at the start, updated at each phase
+    events = [
+        json.loads(line)
+        for line in (tmp_path / "killed.modbus_events.jsonl").read_text().splitlines()
+    ]
+    # one exception a row from 50 s (the balance, unit 5), up to the last row or so
+    times = {e["time_s"] for e in events if e["event"] == "exception" and e["unit"] == 5}
+    assert min(times) == 50.0 and max(times) >= 300.0
 
 
 @pytest.mark.parametrize("how", [signal.SIGINT, signal.SIGTERM])
