@@ -29,7 +29,7 @@ from hil_client.analysis.figures import (
     calibration_figures,
     validation_figures,
 )
-from hil_client.analysis.logio import LabLog, LogError, read_log
+from hil_client.analysis.logio import LabLog, LogError, one_plant, read_log
 from hil_client.analysis.phases import Phases, find_phases
 from hil_client.analysis.report import validation_report
 from hil_client.analysis.validate import compare, validation_metrics
@@ -266,7 +266,7 @@ def _logs_with_phases(
     another boiler than ``boiler`` (the one it is analysed with) gets a warning: one log of
     a 6-kW boiler analysed as the 12-kW one gave fits far from any boiler, silently."""
     with bad_input(LogError):
-        logs = [read_log(path) for path in paths]
+        logs = [one_plant(read_log(path)) for path in paths]
         found = [(log, find_phases(log)) for log in logs]
     _warn_tolerated(logs)
     if boiler is not None:
@@ -486,7 +486,7 @@ def _json_nulls(value: Any) -> Any:
 
 def _cmd_balance(args: argparse.Namespace) -> int:
     with bad_input(LogError):
-        log = read_log(args.log)
+        log = one_plant(read_log(args.log))
         params = _boiler_for(log, args.boiler)
         phases = find_phases(log)
     _warn_tolerated([log])

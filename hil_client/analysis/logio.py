@@ -261,6 +261,45 @@ def _is_number(text: str) -> bool:
     return True
 
 
+def one_plant(log: LabLog) -> LabLog:
+    """The rows of one plant: a log whose ``rig_epoch`` changes (a break the run went on
+    from, CONTRACT section 7: a restarted server, another client's reset or advance) holds
+    several plants, and a balance or a model run across a break joins them as if
+    continuous. The longest stretch of one epoch is kept (the run's marks outside it
+    dropped, its phases then read from its own rows), and a note names what is left out."""
+    if not log.has("rig_epoch"):
+        return log
+    epoch = log["rig_epoch"]
+    if np.all(np.isnan(epoch)) or len(np.unique(epoch[~np.isnan(epoch)])) < 2:
+        return log
+    change = np.flatnonzero(np.diff(epoch) != 0) + 1
+    starts = np.concatenate(([0], change))
+    ends = np.concatenate((change, [len(epoch)]))
+    k = int(np.argmax(ends - starts))
+    rows = slice(int(starts[k]), int(ends[k]))
+    t = log.t
+    breaks = ", ".join(f"{t[i - 1]:g} -> {t[i]:g}" for i in change)
+    kept = LabLog(
+        log.path,
+        {name: values[rows] for name, values in log.columns.items()},
+        {name: values[rows] for name, values in log.text.items()},
+        dict(log.meta),
+        list(log.notes),
+    )
+    first, last = float(kept.t[0]), float(kept.t[-1])
+    for key in ("t0_s", "t1_s", "t2_s", "t3_s", "t4_s"):
+        mark = kept.meta.get(key)
+        if isinstance(mark, int | float) and not first <= mark <= last:
+            kept.meta[key] = None
+    kept.notes.append(
+        f"{log.path}: the log holds {len(starts)} plants (rig_epoch changes at time_s "
+        f"{breaks}: a break the run went on from); only rig_epoch {epoch[rows.start]:g} "
+        f"(time_s {first:g}..{last:g}, {len(kept)} of {len(log)} rows, the longest) is "
+        "analysed, as a balance or a model run across a break would join two plants"
+    )
+    return kept
+
+
 def fill_gaps(values: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Missing values (NaN) linearly interpolated in time; ends held. All-NaN stays NaN."""
     ok = ~np.isnan(values)

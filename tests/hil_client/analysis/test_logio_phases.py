@@ -226,3 +226,32 @@ def test_marks_an_interrupted_run_did_not_reach_are_unknown_not_errors(run_log, 
     cut = write(log.t <= rec.meta["t0_s"] + 600.0, "cut", ("t0_s",))  # killed in start-up
     with pytest.raises(LogError, match=r"the run was cut short .*records t0_s, the rest not"):
         find_phases(read_log(cut))
+
+
+def test_a_log_of_two_plants_is_analysed_on_one(run_log, tmp_path, capsys):
+    """A run that went on after a break (``--on-restart continue``: a restarted server, a
+    time jump, ``rig_epoch`` one higher) holds two plants; the analyses joined them as if
+    continuous (a stranger's validate: start-up fuel +80 %, r = 0). Now they read the
+    longest plant's rows and say so."""
+    from hil_client.analysis.logio import one_plant
+    from hil_client.cli import main
+
+    rec = run_log("stationary", "windhager_12kw")
+    lines = rec.path.read_text().splitlines()
+    header = lines[0].split(",")
+    i_time, i_epoch = header.index("time_s"), header.index("rig_epoch")
+    rows = [line.split(",") for line in lines[1:]]
+    cut = 3000  # the first plant's rows; the second starts 600 s later (the outage)
+    for row in rows[cut:]:
+        row[i_time] = f"{float(row[i_time]) + 600.0:.3f}"
+        row[i_epoch] = "1"
+    two = tmp_path / "two.csv"
+    two.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    log = one_plant(read_log(two))
+    assert len(log) == len(rows) - cut and np.all(log["rig_epoch"] == 1)
+    assert log.t[0] == pytest.approx(float(rows[cut][i_time]))
+    assert main(["balance", str(two), "--boiler", "windhager_12kw"]) == 0
+    err = capsys.readouterr().err
+    assert "holds 2 plants" in err and "only rig_epoch 1" in err
+    single = one_plant(read_log(rec.path))  # one plant: the log as it is
+    assert len(single) == len(rows) and not single.notes
