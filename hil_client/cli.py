@@ -598,6 +598,19 @@ def _refused_commands(events: list[dict]) -> str | None:
     )
 
 
+def _overridden(events: list[dict]) -> str | None:
+    """One line on the rows where the boiler was not in the on/off state this run wrote
+    (another client, or a hand at the bench, switched it), or None."""
+    times = [e["time_s"] for e in events if e.get("event") == "overridden"]
+    if not times:
+        return None
+    return (
+        f"the boiler was switched against this run's command on {len(times)} row(s) (first at "
+        f"time_s {times[0]:g}; another client or a hand at the bench): each time the command "
+        "was written again, and those rows are not this protocol's (see the events file)"
+    )
+
+
 def _set_aside(out: Path) -> list[tuple[Path, Path]]:
     """Move the files of a previous run at ``out`` (log, meta, Modbus events) aside, so a
     run that fails before its first row (a server refusing this client's writes, Ctrl-C)
@@ -779,6 +792,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         if refused:  # the plant did not get them: the run is no test of this protocol
             result.notes.append(refused)
             print(f"hil-client: warning: {refused}", file=sys.stderr)
+        overridden = _overridden(rig.comm_events)
+        if overridden:
+            result.notes.append(overridden)
+            print(f"hil-client: warning: {overridden}", file=sys.stderr)
     median = summary.median_interval_s
     meta["sampling_median_s"] = None if median is None else round(median, DECIMALS["time_s"])
     coarse = _coarse_sampling(median, protocol.acquisition_period_s, meta)

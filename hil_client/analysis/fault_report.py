@@ -48,6 +48,10 @@ _COMM_MARKS = {
 }
 
 
+#: the client's events a fault may cause (what is left unexplained is a false alarm)
+_FAULT_MARKS = frozenset({"timeout", "no_reply", "exception", "late", "invalid", "disconnect"})
+
+
 def _journal_error(source: str, line: int, key: str, value: Any, what: str) -> ValueError:
     return ValueError(f"{source}: line {line}: field '{key}' = {value!r}: {what}")
 
@@ -253,7 +257,11 @@ def compare(
         if kind == "exception":
             row["code_match"] = bool(code_match)
         rows_out.append(row)
-    false_events = [e for i, e in enumerate(client_events) if i not in explained]
+    false_events = [  # an ``overridden`` switch is another client's doing, not a fault's
+        e
+        for i, e in enumerate(client_events)
+        if i not in explained and e.get("event") in _FAULT_MARKS
+    ]
     by_kind: dict[str, dict[str, int]] = {}
     for row in rows_out:
         counts = by_kind.setdefault(row["kind"], {"detected": 0, "missed": 0})

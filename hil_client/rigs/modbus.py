@@ -33,10 +33,12 @@ invalid reading (NaN, or an integer at its invalid code: the type's most negativ
 signed, its largest if unsigned) leaves its fields empty in that row, never the last value;
 a failed setpoint write is sent again next step. Each is an entry of :attr:`comm_events`
 (``time_s`` of the row, ``server_time_s``, ``event``: ``timeout``, ``no_reply``,
-``exception`` with its ``code``, ``late`` with ``wait_s``, ``invalid``, ``disconnect``;
-``unit``, ``function`` and ``signals``). After a timeout the rig reconnects, so later
-steps do not queue behind a slow unit (on an RTU line a silent unit costs one timeout per
-request, one transaction at a time). The simulation control (unit 100) must answer.
+``exception`` with its ``code``, ``late`` with ``wait_s``, ``invalid``, ``disconnect``,
+``overridden``: the boiler's controller shows another on/off state than this rig wrote,
+another client's doing, written again; ``unit``, ``function`` and ``signals``). After a
+timeout the rig reconnects, so later steps do not queue behind a slow unit (on an RTU
+line a silent unit costs one timeout per request, one transaction at a time). The
+simulation control (unit 100) must answer.
 
 Each break or outage is an entry of :attr:`gaps` in the log's own time base
 (``start_time_s``: the last row before, ``end_time_s``: the first row after, None if none).
@@ -398,6 +400,20 @@ class ModbusRig:
                     into[signal] = math.nan
                 self._event("invalid", read.unit, read.function, signals=invalid)
 
+    def _check_boiler_switch(self, values: dict[str, float]) -> None:
+        """Another client (or a hand at the bench) switched the boiler: its controller's
+        mode (0: off, the only mode of a boiler not switched on) disagrees with the command
+        this rig wrote. An ``overridden`` event, and the switches are written again next
+        step (the rig writes them only when they change)."""
+        mode = values.get("boiler_mode", math.nan)
+        cmd = self._command
+        if cmd is None or self._written_switches is None or math.isnan(mode):
+            return
+        if (mode != 0.0) != cmd.boiler_on:
+            unit, pdu = self._write_request("boiler_command", float(cmd.boiler_on))
+            self._event("overridden", unit, pdu[0], signals=["boiler_command"], mode=mode)
+            self._written_switches = None
+
     def _commands_tolerant(self, requests: list[tuple[int, bytes]], replies: list[Reply]) -> None:
         """Failed setpoint or switch writes: recorded, and written again next step."""
         for (unit, pdu), reply in zip(requests, replies, strict=True):
@@ -663,6 +679,7 @@ class ModbusRig:
             reason = self._same_plant(values)
             if reason is not None:
                 raise _Break(reason, dict(values))
+        self._check_boiler_switch(values)
         self._logged = len(journal)
         server_time = self._journal_time[-1]
         self.sim_time_s = server_time
@@ -690,6 +707,7 @@ class ModbusRig:
             reason = self._same_plant(values)
             if reason is not None:
                 raise _Break(reason, dict(values))
+        self._check_boiler_switch(values)
         server_time = values["sim_time_s"]
         self.sim_time_s = server_time
         self._row_server_time = server_time

@@ -220,3 +220,37 @@ def test_fault_report_options_are_checked(tmp_path, capsys):
     code = hil_client_main(["fault-report", str(log), "--journal", str(bad), "--out", "x.json"])
     err = capsys.readouterr().err
     assert code == 2 and "line 1 is not JSON" in err and err.count("\n") == 1
+
+
+def test_a_boiler_switched_off_by_another_client_is_noticed_and_switched_back(serve):
+    """A second client wrote the boiler's on/off coil off in the middle of a test: the run
+    logged hours of a cold boiler and ended "complete", without a word (the rig writes its
+    switches only when they change). The controller's mode now shows the command is not
+    this rig's: an ``overridden`` event, and the command is written again."""
+    from tests.modbus_helpers import client, write
+
+    srv = serve()
+    rig = ModbusRig(f"modbus://127.0.0.1:{srv.port}", srv.map, timeout_s=2.0)
+    rig.apply(RigCommand(600.0, 55.0, True, True))
+    modes = {}
+    other = client(srv.port)
+    try:
+        for step in range(8):
+            if step == 4:
+                assert not write(other, srv, "boiler_controller", "on_command", 0).isError()
+            rig.advance(1.0)
+            modes[rig.log_time_s] = rig.values["boiler_mode"]
+    finally:
+        other.close()
+        rig.close()
+    overridden = [e for e in rig.comm_events if e["event"] == "overridden"]
+    assert [e["server_time_s"] for e in overridden] == [5.0]  # the row after the write
+    assert modes[5.0] == 0.0 and all(modes[t] != 0.0 for t in (4.0, 6.0, 7.0, 8.0))
+
+
+def test_the_run_names_rows_where_the_boiler_was_switched_against_it():
+    from hil_client.cli import _overridden
+
+    assert _overridden([{"event": "timeout", "time_s": 3.0}]) is None
+    line = _overridden([{"event": "overridden", "time_s": 8814.0}] * 3)
+    assert line is not None and "3 row(s)" in line and "time_s 8814" in line
