@@ -54,6 +54,7 @@ class NoReply(Exception):
 Reply = bytes | ModbusExceptionResponse | NoReply
 
 _HEADER = struct.Struct(">HHHB")
+WRITE_FUNCTIONS = frozenset({5, 6, 15, 16, 23})
 
 
 class Connection:
@@ -104,10 +105,10 @@ class Connection:
 
         The requests at the indices ``own`` (the caller's own, which an in-order server
         answers only after those sent before them) are waited for up to ``patience_s`` in
-        all: a reply before them that comes more than the timeout after the last byte
-        before it is a timeout all the same (its unit's fields stay empty), but the
-        connection stays, so the caller's own requests are carried out once, on it, and
-        their outcome is known."""
+        all: a reading before them whose reply comes more than the timeout after the last
+        byte before it is a timeout all the same (its unit's fields stay empty; a write's
+        late reply says it was carried out, and stands), but the connection stays, so the
+        caller's own requests are carried out once, on it, and their outcome is known."""
         out: list[Reply] = []
         times: list[float] = []
         deadline = time.monotonic() + patience_s
@@ -135,7 +136,9 @@ class Connection:
                 out.append(NoReply(unit, function, "no reply"))
                 times.append(now)
             _, unit, function = self._expect.popleft()
-            if got_tid in overdue:
+            if got_tid in overdue and function not in WRITE_FUNCTIONS:
+                # a reading that came too late does not count (its fields stay empty); a
+                # write that came back was carried out, only slowly: its reply stands
                 out.append(NoReply(unit, function, "timeout"))
             elif body[0] == function | 0x80:
                 out.append(ModbusExceptionResponse(unit, function, body[1]))
