@@ -73,6 +73,7 @@ def fault_report(log_path: Path, journal_path: Path, slack_s: float = 2.0) -> di
             "hil-client run on a Modbus rig, so there is nothing to compare with the journal"
         )
     events = read_jsonl(events_file, "Modbus events")
+    _check_events(events, events_file)
     log = read_log(Path(log_path), as_read=True)
     offset = log.meta.get("server_time_offset_s", 0.0)
     offset = float(offset) if isinstance(offset, int | float) else 0.0
@@ -81,6 +82,21 @@ def fault_report(log_path: Path, journal_path: Path, slack_s: float = 2.0) -> di
     report["log"] = str(log_path)
     report["journal"] = str(journal_path)
     return report
+
+
+def _check_events(events: Sequence[dict[str, Any]], path: Path) -> None:
+    """Refuse an events line that is not what ``run`` writes: ValueError naming the file,
+    the line and the field (a NaN or text time was counted as a false alarm)."""
+    for number, event in enumerate(events, 1):
+        if not isinstance(event.get("event"), str):
+            raise ValueError(f"{path}: line {number}: field 'event' is missing or not text")
+        for key in ("time_s", "server_time_s"):
+            value = event.get(key)
+            number_ok = isinstance(value, int | float) and not isinstance(value, bool)
+            if not number_ok or not math.isfinite(value):
+                raise ValueError(
+                    f"{path}: line {number}: field '{key}' = {value!r} is not a finite number"
+                )
 
 
 def write_report(report: dict[str, Any], out: Path) -> None:

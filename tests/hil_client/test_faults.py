@@ -256,3 +256,25 @@ def test_the_run_names_rows_where_the_boiler_was_switched_against_it():
     assert _overridden([{"event": "timeout", "time_s": 3.0}]) is None
     line = _overridden([{"event": "overridden", "time_s": 8814.0}] * 3)
     assert line is not None and "3 row(s)" in line and "time_s 8814" in line
+
+
+@pytest.mark.parametrize(
+    ("line", "fault"),
+    [
+        ('{"event": "timeout", "unit": 2, "time_s": "abc", "server_time_s": 3}', "'time_s'"),
+        ('{"event": "timeout", "unit": 2, "time_s": NaN, "server_time_s": 3}', "'time_s'"),
+        ('{"event": "timeout", "unit": 2, "time_s": 3}', "'server_time_s' = None"),
+        ('{"unit": 2, "time_s": 3, "server_time_s": 3}', "'event' is missing"),
+    ],
+)
+def test_an_events_file_not_as_run_writes_it_is_one_line(tmp_path, capsys, line, fault):
+    """A NaN or text time in the events was taken, and counted a false alarm."""
+    log = tmp_path / "log.csv"
+    log.write_text("time_s,water_flow_kg_h\n0,1\n1,1\n")
+    (tmp_path / "log.modbus_events.jsonl").write_text(line + "\n")
+    journal = tmp_path / "j.jsonl"
+    journal.write_text("")
+    argv = ["fault-report", str(log), "--journal", str(journal), "--out", str(tmp_path / "r")]
+    assert hil_client_main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "line 1" in err and fault in err, err
