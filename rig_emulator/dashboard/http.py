@@ -337,6 +337,8 @@ async def _read_request(reader: asyncio.StreamReader) -> tuple[str, str, dict[st
         if ":" in line:
             name, value = line.split(":", 1)
             headers[name.strip().lower()] = value.strip()
+    if "transfer-encoding" in headers:  # a body of chunks: the length must be given
+        raise BadRequest("Transfer-Encoding is not accepted; send the body with Content-Length")
     try:
         length = int(headers.get("content-length", "0"))
     except ValueError:

@@ -348,3 +348,17 @@ def test_clear_and_inject_in_one_request_replaces_the_faults(dashboard):
     assert status == 400 and "clear, then inject" in body["error"]
     _, _, raw = _get(http, "/api/state")
     assert [f["kind"] for f in json.loads(raw)["faults"]] == ["exception"]  # nothing changed
+
+
+def test_a_chunked_body_is_refused_for_what_it_is(dashboard):
+    """A chunked body was read as no body, and refused as if the signal were missing."""
+    _, http = dashboard("--http-control")
+    with socket.create_connection(("127.0.0.1", http), timeout=10) as s:
+        s.sendall(
+            b"POST /api/control HTTP/1.1\r\nContent-Type: application/json\r\n"
+            b"Transfer-Encoding: chunked\r\n\r\n5\r\n"
+        )
+        answer = b""
+        while chunk := s.recv(4096):
+            answer += chunk
+    assert answer.split(b" ")[1] == b"400" and b"Transfer-Encoding" in answer
