@@ -393,6 +393,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             return commands[args.command](args)
     except UsageError as exc:
         return report(exc, "rig-emulator")
+    except KeyboardInterrupt:  # serve stops on its own; the other commands end here
+        print("rig-emulator: interrupted", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

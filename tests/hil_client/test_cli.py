@@ -92,3 +92,41 @@ def test_a_modbus_option_given_to_a_local_run_is_named(tmp_path, capsys):
     assert "--reply-timeout applies to a Modbus rig" in capsys.readouterr().err
     assert main(argv) == 0
     assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize("command", ["hil-client", "rig-emulator"])
+def test_ctrl_c_while_the_libraries_load_is_one_line(command, tmp_path):
+    """Ctrl-C in the first second or two (the imports of numpy, scipy, matplotlib, numba)
+    gave a traceback from the middle of an import; now one line, as later. Sent at several
+    moments: each lands in Python's start, the imports, or the command itself, and none
+    may print a traceback."""
+    import shutil
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    exe = Path(sys.executable).with_name(command)
+    if not exe.exists():
+        exe = Path(shutil.which(command) or command)
+    argv = {
+        "hil-client": ["run", "stationary", "--out", str(tmp_path / "x.csv"), "--quiet"],
+        "rig-emulator": ["steady", "--boiler", "windhager_12kw", "--load", "50"],
+    }[command]
+    if command == "hil-client":
+        argv += ["--boiler", "windhager_12kw"]
+    for after_s in (0.2, 0.5, 0.9):
+        proc = subprocess.Popen(
+            [str(exe), *argv],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+            # a pytest-xdist worker ignores SIGINT, and its children would too
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        )
+        time.sleep(after_s)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+        assert "Traceback" not in err, (after_s, err)
+        assert proc.returncode in (0, 1, -signal.SIGINT), (after_s, proc.returncode, err)
