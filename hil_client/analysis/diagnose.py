@@ -294,7 +294,8 @@ def diagnose(
     # a fuel-energy bias changes: the diagnosis keeps the documented start-up power
     params = replace(calibration.params, p_start_kW=doc.p_start_kW)
     cal = prepare(cal_log, cal_phases, params, ignition_charge_kg)
-    val = prepare(val_log, val_phases, params, ignition_charge_kg)
+    # the bench's sensors as the calibration log shows them: VAL stays held out
+    val = prepare(val_log, val_phases, params, ignition_charge_kg, cal.sensor_tau_s)
     assessments = {effect: cand.assess(cal) for effect, cand in CANDIDATES.items()}
     verdicts = {effect: a.verdict() for effect, a in assessments.items()}
     effect = _answer(verdicts, assessments)
@@ -359,6 +360,8 @@ def diagnose(
         "caveats": caveats(effect, assessments[effect].params) if effect != "none" else [],
         "ignition_charge_kg": ignition_charge_kg,
         "firing": {"calibration": cal.firing.source, "validation": val.firing.source},
+        # the sensors' response times the replay applied, as the calibration log shows them
+        "sensor_tau_s": cal.sensor_tau_s,
         "calibrated": {key: f.value for key, f in calibration.fitted.items()},
         "calibration_flags": dict(getattr(calibration, "flags", {})),
     }

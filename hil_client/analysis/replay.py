@@ -8,8 +8,11 @@ sequence are not the model's and are not what the diagnosis looks for. The model
 thermostat cut-out is lifted for the replay (shut-off 99 C) so it burns whenever the lab
 burned; within a burn it modulates to its set temperature as Type 869 does.
 
-Predictions include the response times of the bench's sensors (:data:`SENSOR_TAU_S`, data
-sheets), so a thermowell's lag is not mistaken for an effect.
+Predictions include the response times of the bench's sensors, so a thermowell's lag is
+not mistaken for an effect: each as the calibration log shows it, at most its data sheet's
+(:data:`SENSOR_TAU_S`; :func:`sensor_lags`). A probe faster than its data sheet (or a log
+with no lags at all, as the emulator's clean profile writes) was replayed with the sheet's
+lag, and its first seconds after each start read as a gap no effect explains.
 """
 
 from __future__ import annotations
@@ -35,7 +38,8 @@ SIGNALS = (
     "flue_gas_temp_C",
     "fuel_cum_kg",
 )
-#: Response times of the bench's sensors [s] (thermowells, duct probe; data sheets).
+#: Response times of the bench's sensors [s] (thermowells, duct probe; data sheets): the
+#: most a log's own can be (:func:`sensor_lags`).
 SENSOR_TAU_S = {
     "boiler_water_temp_C": 10.0,
     "water_out_temp_C": 4.0,
@@ -67,6 +71,8 @@ class Case:
     #: fuel the burner's start-up program feeds before the flame by design, as received
     #: (its manual) [kg]: not an ignition delay (0: not documented)
     ignition_charge_kg: float = 0.0
+    #: the response time of each sensor as the replay applies it [s] (:func:`sensor_lags`)
+    sensor_tau_s: dict[str, float] = field(default_factory=lambda: dict(SENSOR_TAU_S))
     _lag_cache: dict = field(default_factory=dict)
     _memo: dict = field(default_factory=dict)
 
@@ -98,12 +104,13 @@ class Case:
     def base_prediction(self) -> dict[str, np.ndarray]:
         """The calibrated model's prediction of every lab signal (sensor lags included)."""
         node = self.model["t_boiler_C"]
+        tau = self.sensor_tau_s
         return {
-            "boiler_water_temp_C": self.lagged("node", node, SENSOR_TAU_S["boiler_water_temp_C"]),
-            "water_out_temp_C": self.lagged("node", node, SENSOR_TAU_S["water_out_temp_C"]),
+            "boiler_water_temp_C": self.lagged("node", node, tau["boiler_water_temp_C"]),
+            "water_out_temp_C": self.lagged("node", node, tau["water_out_temp_C"]),
             "heat_to_water_kW": heat_to_water_kW(self.flow, self.t_in, node),
             "flue_gas_temp_C": self.lagged(
-                "t_fg", self.model["t_flue_gas_C"], SENSOR_TAU_S["flue_gas_temp_C"]
+                "t_fg", self.model["t_flue_gas_C"], tau["flue_gas_temp_C"]
             ),
             "fuel_cum_kg": self.fuel_cum(),
         }
@@ -127,10 +134,15 @@ def _step_lengths(t: np.ndarray) -> np.ndarray:
 
 
 def prepare(
-    log: LabLog, phases: Phases, params: BoilerParams, ignition_charge_kg: float = 0.0
+    log: LabLog,
+    phases: Phases,
+    params: BoilerParams,
+    ignition_charge_kg: float = 0.0,
+    sensor_tau_s: dict[str, float] | None = None,
 ) -> Case:
     """Fill gaps, observe the firing, and replay the log through the model
-    (``ignition_charge_kg``: :attr:`Case.ignition_charge_kg`)."""
+    (``ignition_charge_kg``: :attr:`Case.ignition_charge_kg`; ``sensor_tau_s``: the
+    sensors' response times, None: as this log shows them, :func:`sensor_lags`)."""
     t = log.t
     dt = _step_lengths(t)
     flow = np.clip(np.nan_to_num(fill_gaps(log["water_flow_kg_h"], t)), 0.0, None)
@@ -163,6 +175,8 @@ def prepare(
         settled &= flow > 0.3 * float(np.median(flow[test]))
     if settled.sum() < 60:
         settled = test if test.sum() >= 60 else np.ones(len(t), bool)
+    if sensor_tau_s is None:
+        sensor_tau_s = sensor_lags(lab, model, dt)
     return Case(
         log,
         phases,
@@ -178,4 +192,34 @@ def prepare(
         balance,
         settled,
         ignition_charge_kg,
+        dict(sensor_tau_s),
     )
+
+
+#: Where each lagged signal comes from in the replay's outputs.
+_LAGGED_FROM = {
+    "boiler_water_temp_C": "t_boiler_C",
+    "water_out_temp_C": "t_boiler_C",
+    "flue_gas_temp_C": "t_flue_gas_C",
+}
+
+
+def sensor_lags(
+    lab: dict[str, np.ndarray], model: dict[str, np.ndarray], dt: np.ndarray
+) -> dict[str, float]:
+    """Each sensor's response time as a log shows it [s]: of 0 to its data sheet's
+    (:data:`SENSOR_TAU_S`, in eighths), the one whose lag of the replay comes closest to
+    the reading (least squares over the log). Only the sheet's range is searched: what is
+    slower than the probe (a pipe, a store in the flue) is an effect, for the candidates to
+    read, not the sensor's."""
+    out = {}
+    for signal, tau_max in SENSOR_TAU_S.items():
+        source = _LAGGED_FROM.get(signal)
+        if source is None:  # the return's sensor: an input of the replay, not predicted
+            out[signal] = tau_max
+            continue
+        reading, x = lab[signal], model[source]
+        grid = np.linspace(0.0, tau_max, 9)
+        sse = [float(np.nansum((reading - first_order_lag(x, dt, tau)) ** 2)) for tau in grid]
+        out[signal] = float(grid[int(np.argmin(sse))])
+    return out

@@ -18,7 +18,7 @@ from hil_client.analysis.candidates.windows import (
     stop_ends,
     test_flow_kg_h,
 )
-from hil_client.analysis.replay import SENSOR_TAU_S, Case
+from hil_client.analysis.replay import Case
 
 #: What stored heat must show after stops [K], beyond what a real boiler's background
 #: reaches without it: the water rising above the model's, from the steady burn before the
@@ -51,7 +51,7 @@ def body_water(case: Case, tau_body_s: float) -> np.ndarray:
 def _body_predict(case: Case, theta: dict[str, float] | None) -> np.ndarray:
     # the base: the same two lumps tied by a 1-s conductance, i.e. the one node
     water = body_water(case, theta["tau_body_s"] if theta else 1.0)
-    return first_order_lag(water, case.dt, SENSOR_TAU_S["boiler_water_temp_C"])
+    return first_order_lag(water, case.dt, case.sensor_tau_s["boiler_water_temp_C"])
 
 
 def _warming_after_stops(case: Case, blocks: list, r: np.ndarray) -> dict[int, float]:
@@ -75,7 +75,7 @@ def _forward_residual(case: Case) -> np.ndarray:
     boiler water: its forward sensor's lag, less the mean on the settled rows)."""
     water = body_water(case, 1.0)
     r = case.lab["water_out_temp_C"] - first_order_lag(
-        water, case.dt, SENSOR_TAU_S["water_out_temp_C"]
+        water, case.dt, case.sensor_tau_s["water_out_temp_C"]
     )
     return r - float(np.mean(r[case.settled]))
 

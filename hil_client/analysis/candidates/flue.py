@@ -17,7 +17,7 @@ from hil_client.analysis.candidates.windows import (
     per_stop,
     stop_blocks,
 )
-from hil_client.analysis.replay import SENSOR_TAU_S, Case
+from hil_client.analysis.replay import Case
 
 #: What stored heat must show after stops [K], beyond what a real boiler's background
 #: reaches without it: the flue gas falling toward its idle level (the measured water's) by
@@ -128,7 +128,7 @@ def _flue_predict(case: Case, theta: dict[str, float] | None) -> np.ndarray:
         charge = case.memo(("flue_gas_store_charge",), lambda: _flue_gas_store_charge(case))
         lagged = case.lagged("flue_gas_store_charge", charge, theta["tau_fg_s"])
         gas = gas + theta["share"] * (lagged - charge)
-    return first_order_lag(gas, case.dt, SENSOR_TAU_S["flue_gas_temp_C"])
+    return first_order_lag(gas, case.dt, case.sensor_tau_s["flue_gas_temp_C"])
 
 
 FLUE = CurveCandidate(

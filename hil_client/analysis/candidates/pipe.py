@@ -11,7 +11,7 @@ import numpy as np
 from hil_client.analysis.augment import first_order_lag, pipe_sensor
 from hil_client.analysis.candidates.base import CurveCandidate
 from hil_client.analysis.candidates.windows import low_flow_blocks
-from hil_client.analysis.replay import SENSOR_TAU_S, Case
+from hil_client.analysis.replay import Case
 from rig_emulator.model.water_heat import heat_to_water_kW
 
 
@@ -33,7 +33,7 @@ def _pipe_predict(case: Case, theta: dict[str, float] | None) -> np.ndarray:
     if theta is None:
         return water
     pipe = _pipe_water(case, water, theta)
-    return first_order_lag(pipe, case.dt, SENSOR_TAU_S["water_out_temp_C"])
+    return first_order_lag(pipe, case.dt, case.sensor_tau_s["water_out_temp_C"])
 
 
 class PipeCandidate(CurveCandidate):
@@ -62,7 +62,9 @@ class PipeCandidate(CurveCandidate):
     def prediction(self, case: Case, theta: dict[str, float]) -> dict[str, np.ndarray]:
         pipe = _pipe_water(case, case.model["t_boiler_C"], theta)
         return {
-            "water_out_temp_C": first_order_lag(pipe, case.dt, SENSOR_TAU_S["water_out_temp_C"]),
+            "water_out_temp_C": first_order_lag(
+                pipe, case.dt, case.sensor_tau_s["water_out_temp_C"]
+            ),
             "heat_to_water_kW": heat_to_water_kW(case.flow, case.t_in, pipe),
         }
 

@@ -31,3 +31,48 @@ def test_the_replay_of_the_emulators_own_clean_load_cycle_is_the_log(run_log):
     # the log rounds temperatures to 1e-5 K and the replay reads them back as inputs
     residual = case.lab["boiler_water_temp_C"] - case.model["t_boiler_C"]
     assert np.abs(residual).max() < 1e-3
+
+
+def test_each_sensor_lag_is_the_logs_own_within_its_data_sheet():
+    """A probe faster than its data sheet, or none at all (the emulator's clean profile),
+    was replayed with the sheet's lag: 8 s on a flue gas that jumps 90 K at each start left
+    8 K of start-up RMSD that no effect explains. Now each lag is the log's own, found on
+    a grid up to the sheet's; anything slower is an effect's, not the probe's."""
+    from hil_client.analysis.augment import first_order_lag
+    from hil_client.analysis.replay import SENSOR_TAU_S, sensor_lags
+
+    dt = np.ones(1200)
+    t_fg = np.where(np.arange(1200) % 400 < 200, 140.0, 40.0)  # a burner on and off
+    node = 60.0 + 10.0 * np.sin(np.arange(1200) / 60.0)
+    model = {"t_boiler_C": node, "t_flue_gas_C": t_fg}
+    for true_fg, true_water, expected_fg in ((0.0, 0.0, 0.0), (3.0, 4.0, 3.0), (30.0, 2.0, 8.0)):
+        lab = {
+            "flue_gas_temp_C": first_order_lag(t_fg, dt, true_fg),
+            "boiler_water_temp_C": first_order_lag(node, dt, true_water),
+            "water_out_temp_C": first_order_lag(node, dt, true_water),
+        }
+        tau = sensor_lags(lab, model, dt)
+        # the grid: eighths of the data sheet's (8 s: whole seconds; 10 s: 1.25 s; 4 s: 0.5 s)
+        assert tau["flue_gas_temp_C"] == expected_fg  # 30 s: the sheet's 8 s at most
+        assert (
+            abs(tau["boiler_water_temp_C"] - true_water) <= SENSOR_TAU_S["boiler_water_temp_C"] / 16
+        )
+        assert tau["water_out_temp_C"] == min(true_water, SENSOR_TAU_S["water_out_temp_C"])
+        assert tau["water_in_temp_C"] == SENSOR_TAU_S["water_in_temp_C"]  # an input
+
+
+def test_the_emulators_own_clean_logs_leave_no_unexplained_gap(run_log, tmp_path):
+    """The diagnosis of the emulator's own clean pair (the README's first example): the
+    same model on both sides, so nothing to name and no gap; it reported an unexplained
+    flue-gas gap at start-up (the replay's assumed probe lag, a new user's probe)."""
+    import json
+
+    from hil_client.cli import main
+
+    cal = run_log("stationary", "windhager_12kw").path
+    val = run_log("load_cycle", "windhager_12kw").path
+    argv = ["diagnose", "--calibration", str(cal), "--validation", str(val)]
+    assert main([*argv, "--boiler", "windhager_12kw", "--out", str(tmp_path / "d")]) == 0
+    diagnosis = json.loads((tmp_path / "d" / "diagnosis.json").read_text())
+    assert diagnosis["effect"] == "none" and diagnosis["unexplained_gap"] is False
+    assert diagnosis["sensor_tau_s"]["flue_gas_temp_C"] == 0.0  # the clean profile's probe
