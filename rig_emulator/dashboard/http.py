@@ -193,7 +193,10 @@ class Dashboard:
     async def _route(self, method: str, target: str, body: bytes, writer) -> None:
         url = urlsplit(target)
         if url.path == "/" and method == "GET":
-            state = json.dumps(self.state(INITIAL_WINDOW_S), allow_nan=False).replace("</", "<\\/")
+            # inside the page's script: no "<" at all ("</script>", "<!--<script>" in a map's
+            # text would end or hide the script); JSON reads \u003c as "<"
+            state = json.dumps(self.state(INITIAL_WINDOW_S), allow_nan=False)
+            state = state.replace("<", "\\u003c")
             page = self._page.read_text(encoding="utf-8").replace("/*INITIAL_STATE*/null", state, 1)
             await _respond_raw(writer, 200, "text/html; charset=utf-8", page.encode())
         elif url.path == "/api/state" and method == "GET":

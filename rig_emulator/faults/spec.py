@@ -168,7 +168,10 @@ Entry = FaultSpec | RandomSpec
 def _number(where: str, value: Any, low: float, high: float, low_open: bool = False) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise FaultError(f"{where}: must be a number, not {value!r}")
-    value = float(value)
+    try:
+        value = float(value)
+    except OverflowError:  # an integer of hundreds of digits
+        raise FaultError(f"{where}: too large a number (at most {high:g})") from None
     too_low = value <= low if low_open else value < low
     if not math.isfinite(value) or too_low or value > high:
         bound = f"> {low:g}" if low_open else f">= {low:g}"

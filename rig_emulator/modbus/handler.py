@@ -185,8 +185,11 @@ class RequestHandler(asyncio.Protocol):
             transport.abort()
             self._forget()
             return
-        if self._closed:  # closed meanwhile (the connection limit, the server stopping)
-            secure.abort()
+        if self._closed or secure is None:  # closed meanwhile (the limit, the idle timer)
+            if secure is not None:
+                secure.abort()
+            transport.abort()
+            self._forget()
             return
         self.transport = secure
         self._securing = False

@@ -115,7 +115,7 @@ def peer_of(ssl_object: ssl.SSLObject | ssl.SSLSocket, policy: RolePolicy) -> Pe
         return Peer("<no certificate>", INVALID_ROLE)
     try:
         cert = x509.load_der_x509_certificate(der)
-        subject = cert.subject.rfc4514_string()
+        subject = shown(cert.subject.rfc4514_string())  # RFC 4514 leaves a newline as is
     except ValueError:  # verified by OpenSSL, yet beyond what cryptography parses
         return Peer("<certificate not parsed>", INVALID_ROLE)
     try:

@@ -362,3 +362,25 @@ def test_a_chunked_body_is_refused_for_what_it_is(dashboard):
         while chunk := s.recv(4096):
             answer += chunk
     assert answer.split(b" ")[1] == b"400" and b"Transfer-Encoding" in answer
+
+
+def test_map_text_cannot_end_or_hide_the_pages_script(dashboard, tmp_path):
+    """The page carries the state of the moment inside its script; a map whose text held
+    ``<!--<script>`` put the HTML parser in a state that swallowed the script's real end,
+    and the page never started (only ``</`` was escaped)."""
+    from rig_emulator.registers import MAP_DIR
+
+    text = (MAP_DIR / "wieselburg_bench.yaml").read_text(encoding="utf-8")
+    tricky = text.replace(
+        "instrument: flame-ionisation detector", "instrument: <!--<script> flame-ionisation"
+    )
+    assert tricky != text
+    (tmp_path / "map.yaml").write_text(tricky, encoding="utf-8")
+    _, http = dashboard("--map", str(tmp_path / "map.yaml"))
+    status, _, page = _get(http, "/")
+    assert status == 200
+    assert page.count(b"<script") == 1 and b"<!--" not in page  # the page's own script only
+    start = page.index(b"const INITIAL = ") + len(b"const INITIAL = ")
+    state = json.loads(page[start : page.index(b";\n", start)])
+    fid = next(u for u in state["units"] if u["name"] == "fid")
+    assert fid["instrument"].startswith("<!--<script>")  # the text itself is kept

@@ -41,6 +41,7 @@ def test_every_kind_parses_with_its_parameter():
         ({"kind": "lightning", "unit": 1}, "faults[0].kind"),
         ({"kind": "delay", "unit": 1}, "faults[0].delay_ms"),
         ({"kind": "delay", "unit": 1, "delay_ms": -5}, "faults[0].delay_ms"),
+        ({"kind": "delay", "unit": 1, "delay_ms": 10**400}, "faults[0].delay_ms"),  # traceback
         ({"kind": "exception", "unit": 1, "code": 0}, "faults[0].code"),
         ({"kind": "exception", "unit": 1, "code": 4.5}, "faults[0].code"),
         ({"kind": "no_reply", "unit": 100}, "faults[0].unit"),

@@ -230,7 +230,7 @@ def test_a_peer_that_never_answers_close_notify_is_let_go(serve, certs):
         assert ended
 
 
-def test_stalled_handshakes_hold_places_of_the_connection_limit(serve, certs):
+def test_stalled_handshakes_hold_places_of_the_connection_limit(serve, certs, caplog):
     """A connection counts from its first byte, not from the end of its handshake: 200
     stalled handshakes stayed open beside a limit of 10 (each until the idle timeout, 300 s
     by default), every one a file descriptor an unauthenticated peer held. Now the limit
@@ -250,6 +250,11 @@ def test_stalled_handshakes_hold_places_of_the_connection_limit(serve, certs):
     finally:
         for sock in stalled:
             sock.close()
+    import gc
+
+    gc.collect()  # a task's unretrieved exception is logged when the task goes
+    # each handshake the limit closed ended its task in an AttributeError, logged unlimited
+    assert not [r for r in caplog.records if "never retrieved" in r.getMessage()]
 
 
 def test_a_failed_handshake_is_logged_with_its_reason(tls_server, certs, tmp_path, caplog):
@@ -561,7 +566,8 @@ def test_a_role_cannot_write_lines_of_its_own_into_the_log(serve, certs, tmp_pat
     """A role holding a newline wrote a forged log line, verbatim, twice."""
     ca = _ca_of(certs)
     forged = "engineer\n2026-01-01 00:00:00,000 rig-emulator: client 10.0.0.9:4444: role engineer"
-    write_pair(make_client(ca, "forger", forged), tmp_path, "forger")
+    # the subject too: RFC 4514 escapes a comma, not a newline
+    write_pair(make_client(ca, "forger\n2026-01-01 rig-emulator: FAKE", forged), tmp_path, "forger")
     (tmp_path / "ca.pem").write_bytes((certs / "ca.pem").read_bytes())
     srv = serve(
         ssl_context=server_context(certs / "server.pem", certs / "server.key", certs / "ca.pem")
@@ -587,3 +593,4 @@ def test_a_role_cannot_write_lines_of_its_own_into_the_log(serve, certs, tmp_pat
     lines += [r.getMessage() for r in caplog.records if r.getMessage().startswith("refused")]
     assert lines and all("\n" not in m for m in lines), lines
     assert any("engineer\\n2026" in m for m in lines)  # shown, escaped
+    assert any("forger\\n2026-01-01 rig-emulator: FAKE" in m for m in lines)
