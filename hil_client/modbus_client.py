@@ -20,7 +20,7 @@ import socket
 import struct
 import time
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 
 class ConnectionLost(ConnectionError):
@@ -42,7 +42,8 @@ class ReplyTimeout(ConnectionLost):
 
 
 class NoReply(Exception):
-    """A request that got no reply (``reason``: ``no reply`` or ``timeout``)."""
+    """A request that got no reply (``reason``: ``no reply``, ``timeout``, or ``too late``:
+    it came, after the timeout, and is not used)."""
 
     def __init__(self, unit: int, function: int, reason: str) -> None:
         super().__init__(f"unit {unit}: function {function}: {reason}")
@@ -97,18 +98,26 @@ class Connection:
         return body
 
     def receive_all(
-        self, count: int, own: range = range(0), patience_s: float = 0.0
+        self,
+        count: int,
+        own: range = range(0),
+        patience_s: float = 0.0,
+        still_coming: Callable[[int, int], bool] | None = None,
     ) -> tuple[list[Reply], list[float]]:
         """The outcome of each of the ``count`` oldest outstanding requests, in order, and
         the wall time [s, monotonic] each outcome was known. After a timeout the connection
         may still carry late replies: close it (or let the transaction IDs skip them).
 
-        The requests at the indices ``own`` (the caller's own, which an in-order server
-        answers only after those sent before them) are waited for up to ``patience_s`` in
-        all: a reading before them whose reply comes more than the timeout after the last
-        byte before it is a timeout all the same (its unit's fields stay empty; a write's
-        late reply says it was carried out, and stands), but the connection stays, so the
-        caller's own requests are carried out once, on it, and their outcome is known."""
+        With ``patience_s``, the caller's own requests (the indices ``own``) are waited for,
+        up to ``patience_s`` in all: an in-order server answers each only after those sent
+        before it, so one slow unit ahead holds them back. A reading's reply before them
+        that comes more than the timeout after the last byte before it is ``too late`` all
+        the same (its unit's fields stay empty; a write's late reply says it was carried
+        out, and stands); the connection stays usable, and the caller's own requests are
+        carried out once, on it, and their outcome known. ``still_coming(unit, function)``,
+        asked at each silence of the timeout, says whether the request at the head of the
+        line is only slow (True) or the connection has died on the way (False: give up now,
+        as without patience)."""
         out: list[Reply] = []
         times: list[float] = []
         deadline = time.monotonic() + patience_s
@@ -118,9 +127,15 @@ class Connection:
                 got_tid, body = self._frame()
             except ReplyTimeout:
                 now = time.monotonic()
-                if own and len(out) <= own[-1] and now < deadline:
+                tid, unit, function = self._expect[0]
+                waiting_own = bool(own) and len(out) <= own[-1]
+                if (
+                    waiting_own
+                    and now < deadline
+                    and (still_coming is None or still_coming(unit, function))
+                ):
                     if len(out) not in own:
-                        overdue.add(self._expect[0][0])
+                        overdue.add(tid)
                     continue
                 while len(out) < count:
                     _, unit, function = self._expect.popleft()
@@ -137,9 +152,7 @@ class Connection:
                 times.append(now)
             _, unit, function = self._expect.popleft()
             if got_tid in overdue and function not in WRITE_FUNCTIONS:
-                # a reading that came too late does not count (its fields stay empty); a
-                # write that came back was carried out, only slowly: its reply stands
-                out.append(NoReply(unit, function, "timeout"))
+                out.append(NoReply(unit, function, "too late"))
             elif body[0] == function | 0x80:
                 out.append(ModbusExceptionResponse(unit, function, body[1]))
             else:

@@ -250,6 +250,8 @@ class ModbusRig:
         self._clock_plan = _read_plan(register_map, ("clock_mode", "speed_factor"))
         self._points = {s: register_map.point(s) for s in WRITES}
         self._conn: Connection | None = None
+        self._dead = False  # the last patient wait found its connection dead (_still_coming)
+        self._head_own = False  # ... and the request it was silent on was the rig's own
         self._command: RigCommand | None = None
         self._written_switches: tuple[bool, bool, bool] | None = None
         self.values: dict[str, float] = {}
@@ -329,42 +331,123 @@ class ModbusRig:
             self._conn = None
 
     # ------------------------------------------------------------------ primitives
-    def _exchange(self, requests: list[tuple[int, bytes]]) -> list[bytes]:
-        """Send ``(unit, pdu)`` requests pipelined; their replies, in order."""
+    def _exchange(self, requests: list[tuple[int, bytes]], patient: bool = False) -> list[bytes]:
+        """Send ``(unit, pdu)`` requests pipelined; their replies, in order (``patient``:
+        each waited for up to ``reconnect_timeout_s`` in all, as a replay's requests must
+        be carried out whatever a fault holds up: ConnectionLost after that)."""
         assert self._conn is not None
         if not requests:
             return []
         self._conn.send(requests)
-        return [self._conn.receive() for _ in requests]
+        if not patient:
+            return [self._conn.receive() for _ in requests]
+        everything = range(len(requests))
+        replies, _ = self._conn.receive_all(
+            len(requests), everything, self.reconnect_timeout_s, self._still_coming
+        )
+        for reply in replies:
+            if isinstance(reply, NoReply):
+                self._connect(abort=True)
+                raise ConnectionLost(f"{reply} while replaying this run onto the server")
+            if isinstance(reply, ModbusExceptionResponse):
+                raise reply
+        return replies  # type: ignore[return-value]
 
     def _event(self, event: str, unit: int, function: int, **extra: Any) -> None:
         self._step_events.append({"event": event, "unit": unit, "function": function, **extra})
 
     def _exchange_tolerant(
-        self, requests: list[tuple[int, bytes]], own: range = range(0)
+        self, requests: list[tuple[int, bytes]], own: range = range(0), patient: bool = False
     ) -> list[Reply]:
         """Like :meth:`_exchange`, but a unit's failure is its outcome, not an error; a
         timeout reconnects (late replies left behind, what the server has not carried out
         dropped). Replies of instruments that came :data:`LATE_S` after the one before are
-        ``late`` events. The requests at the indices ``own`` (the lockstep advance and the
-        simulation control's reads) are waited for up to ``reconnect_timeout_s`` behind a
-        slow instrument: given up on, the advance might be carried out after the step was
-        settled as lost, and sent again."""
+        ``late`` events. ``patient`` (lockstep): every reply is waited for, up to
+        ``reconnect_timeout_s``, a slow unit's counted as a timeout all the same; the rest,
+        the rig's own at the indices ``own`` (the advance, the simulation control's reads)
+        among them, come behind it on the same connection: given up on, the advance could be
+        carried out after the step was settled as lost, and sent again."""
         assert self._conn is not None
         if not requests:
             return []
         sent = time.monotonic()
         self._conn.send(requests)
-        replies, times = self._conn.receive_all(len(requests), own, self.reconnect_timeout_s)
+        patience = self.reconnect_timeout_s if patient else 0.0
+        self._dead = self._head_own = False
+        replies, times = self._conn.receive_all(
+            len(requests), own, patience, self._still_coming if patient else None
+        )
         previous = sent
         for (unit, pdu), reply, at in zip(requests, replies, times, strict=True):
             late = at - previous > LATE_S
             if late and unit not in self._own_units and not isinstance(reply, NoReply):
                 self._event("late", unit, pdu[0], wait_s=round(at - previous, 3))
             previous = at
-        if any(isinstance(r, NoReply) and r.reason == "timeout" for r in replies):
+        timed_out = [
+            i for i, r in enumerate(replies) if isinstance(r, NoReply) and r.reason == "timeout"
+        ]
+        if timed_out:
             self._connect(abort=True)
+            self._read_again(requests, replies, timed_out)
         return replies
+
+    def _read_again(
+        self, requests: list[tuple[int, bytes]], replies: list[Reply], timed_out: list[int]
+    ) -> None:
+        """The reads given up on behind a slow unit (an in-order server answers them only
+        after it), asked once more on the new connection, the slow unit's left out: only
+        its own fields stay empty, not those of every unit read after it."""
+        slow = requests[timed_out[0]][0]
+        again = [
+            i for i in timed_out[1:] if requests[i][0] != slow and requests[i][1][0] in (1, 2, 3, 4)
+        ]
+        if not again:
+            return
+        assert self._conn is not None
+        try:
+            self._conn.send([requests[i] for i in again])
+            second, _ = self._conn.receive_all(len(again))
+        except ConnectionLost:
+            return  # the connection is gone again: the next step finds out
+        for i, reply in zip(again, second, strict=True):
+            replies[i] = reply
+        if any(isinstance(r, NoReply) and r.reason == "timeout" for r in second):
+            self._connect(abort=True)
+
+    def _still_coming(self, unit: int, function: int) -> bool:
+        """Whether a reply the connection has been silent on is only slow rather than lost
+        with a connection that died on the way (a NAT or proxy that dropped it without a
+        word); asked on a connection of its own. An instrument at the head of the line is
+        asked again: an answer within the timeout means it is not slow, so the connection
+        is dead (False); none means it is (True). The rig's own request at the head (the
+        advance, being carried out) is dead only once the server's counter shows it done:
+        its reply was lost (False). A server that cannot be reached: an outage (False)."""
+        own = unit in self._own_units
+        self._head_own = own
+        read = next((r for r in self._reads if r.unit == unit), self._reads[0])
+        try:
+            probe = self._open()
+        except ConnectionLost:
+            self._dead = True
+            return False
+        try:
+            probe.send([(read.unit, read_pdu(read.function, read.start, read.count))])
+            reply = probe.receive_all(1)[0][0]
+        except ConnectionLost:
+            reply = NoReply(unit, function, "timeout")
+        finally:
+            probe.close(abort=True)
+        if own:
+            if not isinstance(reply, bytes) or not self.checks:
+                return True  # the server is busy, or the counter cannot tell: wait on
+            status: dict[str, float] = {}
+            self._decode([read], [reply], status)
+            done = status.get("lockstep_counter") == self._expected(len(self._journal))[0]
+            self._dead = bool(done)
+            return not done
+        slow = isinstance(reply, NoReply) and reply.reason == "timeout"
+        self._dead = not slow
+        return slow
 
     def _failed(self, unit: int, function: int, reply: Reply, signals: list[str]) -> None:
         """Record a unit's failure; the simulation control's is the rig's own error."""
@@ -375,7 +458,8 @@ class ModbusRig:
         if isinstance(reply, ModbusExceptionResponse):
             self._event("exception", unit, function, code=reply.code, signals=signals)
         else:
-            event = "timeout" if reply.reason == "timeout" else "no_reply"  # type: ignore[union-attr]
+            # "too late" counts as a timeout: the reply came, after --reply-timeout
+            event = "no_reply" if reply.reason == "no reply" else "timeout"  # type: ignore[union-attr]
             self._event(event, unit, function, signals=signals)
 
     def _decode_tolerant(
@@ -661,16 +745,30 @@ class ModbusRig:
                 batch += journal[k]
                 size += step_bytes
                 k += 1
-            self._exchange(batch)
+            self._exchange(batch, patient=True)
             self._applied = k
         pending = journal[self._applied :]
         requests = pending[0] if pending else []
         # (none pending: the server applied the step before the connection was lost)
         # the advance (the step's last request) and the simulation control's reads after it
-        own = range(
-            len(requests) - 1, len(requests) + (len(self._check_plan) if self.checks else 0)
-        )
-        replies = self._exchange_tolerant(requests + self._read_requests, own)
+        n_checks = len(self._check_plan) if self.checks else 0
+        own = range(max(len(requests) - 1, 0), len(requests) + n_checks)
+        replies = self._exchange_tolerant(requests + self._read_requests, own, patient=True)
+        if any(isinstance(replies[i], NoReply) for i in own) and self._head_own:
+            # the rig's own request unanswered for --reconnect-timeout, no slow unit ahead:
+            # the connection died under it (never a fault: the emulator's units have none)
+            self._dead = True
+        if not self._dead and any(isinstance(replies[i], NoReply) for i in own):
+            # held more than --reconnect-timeout behind a slow unit: sending the step again
+            # would meet the same wait for as long as the plant's time stands still (a dead
+            # connection instead goes the way of any lost one: reconnect and settle)
+            reason = (
+                f"the server did not answer this run's own requests (the clock's advance) "
+                f"within --reconnect-timeout {self.reconnect_timeout_s:g} s: a unit ahead of "
+                "them was slower than that (a delay fault?), or the server stalled"
+            )
+            self._gap(reason, "abort", {})
+            raise RigError(f"{self.url}: {reason}; stopped after time_s = {self.log_time_s:g} s")
         self._commands_tolerant(requests, replies[: len(requests)])
         self._applied = len(journal)
         values = self.values

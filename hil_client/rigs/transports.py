@@ -232,12 +232,18 @@ class RtuConnection:
         return body
 
     def receive_all(
-        self, count: int, own: range = range(0), patience_s: float = 0.0
+        self,
+        count: int,
+        own: range = range(0),
+        patience_s: float = 0.0,
+        still_coming: Callable[[int, int], bool] | None = None,
     ) -> tuple[list[Reply], list[float]]:
         """The outcome of each of the ``count`` oldest queued requests (the reply, the
         exception, or :class:`NoReply` after the timeout: a silent unit) and when each was
-        known; as :meth:`Connection.receive_all`, one transaction at a time (the requests
-        at the indices ``own`` waited for up to ``patience_s`` in all)."""
+        known; as :meth:`Connection.receive_all`, one transaction at a time: only the
+        requests at the indices ``own`` are waited for up to ``patience_s`` in all (on a
+        line a slow unit's late reply is dropped once the master speaks again, so it holds
+        up nothing after it; ``still_coming`` is not asked: a line has no second way in)."""
         out: list[Reply] = []
         times: list[float] = []
         deadline = time.monotonic() + patience_s

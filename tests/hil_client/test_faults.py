@@ -123,6 +123,9 @@ def test_a_delay_ahead_of_the_lockstep_advance_loses_no_step_and_adds_none(serve
     assert status["sim_time_s"] == 9.0 and status["lockstep_counter"] == 9  # no step twice
     for t, row in rows.items():
         assert math.isnan(row["water_flow_kg_h"]) == (4.0 <= t < 6.0), t
+        if unit == 1:  # the units read after the slow one were emptied with it
+            for signal in ("flue_gas_O2_pct", "flue_gas_temp_C", "balance_mass_kg"):
+                assert not math.isnan(row[signal]), (t, signal)  # units 2, 4, 5
     timeouts = [e for e in rig.comm_events if e["event"] == "timeout" and e["unit"] == 1]
     # the reads at the server's 4 and 5 s came too late to count
     assert {(e["function"], e["server_time_s"]) for e in timeouts} == {(4, 4.0), (4, 5.0)}
@@ -278,3 +281,27 @@ def test_an_events_file_not_as_run_writes_it_is_one_line(tmp_path, capsys, line,
     assert hil_client_main(argv) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "line 1" in err and fault in err, err
+
+
+@needs_gates
+def test_a_delay_longer_than_the_reconnect_timeout_stops_the_run_in_one_line(serve):
+    """Held behind a delay longer than --reconnect-timeout, the lockstep advance was given
+    up on, dropped with its connection and sent again into the same delay, for ever (the
+    plant's time, and so the fault, stood still): the run never ended. It stops now, saying
+    why."""
+    from hil_client.protocol.rig import RigError
+
+    faults = faults_from_list(
+        [{"kind": "delay", "unit": 1, "delay_ms": 4000, "at_s": 2, "for_s": 60}]
+    )
+    srv = serve(faults=faults)
+    rig = ModbusRig(
+        f"modbus://127.0.0.1:{srv.port}", srv.map, timeout_s=0.3, reconnect_timeout_s=1.5
+    )
+    rig.apply(RigCommand(600.0, 55.0, True, True))
+    rig.advance(1.0)
+    rig.advance(1.0)  # reads at 2 s: too late, only those of unit 1
+    with pytest.raises(RigError, match=r"within --reconnect-timeout 1\.5 s: a unit ahead"):
+        rig.advance(1.0)  # its setpoints held the advance back 4 s
+    rig.close()
+    assert rig.gaps[-1]["action"] == "abort"

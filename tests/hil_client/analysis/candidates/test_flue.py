@@ -21,7 +21,7 @@ from hil_client.analysis.candidates.flue import (
 )
 from hil_client.analysis.logio import read_log
 from hil_client.analysis.phases import Phases, find_phases
-from hil_client.analysis.replay import prepare
+from hil_client.analysis.replay import SENSOR_TAU_S, prepare
 from rig_emulator.model.params import params_from_mapping
 
 
@@ -37,6 +37,7 @@ def _idle_case(lab_water, t_fg_lab, o2, room, lam=None, t_fg_model=None, t3=1000
         memo=lambda key, compute: compute(),
         dt=np.full(len(t), 10.0),
         lagged=lambda name, x, tau: first_order_lag(x, np.full(len(t), 10.0), tau),
+        sensor_tau_s=dict(SENSOR_TAU_S),
     )
 
 
