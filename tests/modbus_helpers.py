@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from pymodbus.client import ModbusTcpClient
 
 from rig_emulator.registers import decode, encode
@@ -44,3 +46,18 @@ def start_boiler(c, srv, seconds: float = 1800) -> None:
         assert not write(c, srv, "bench_plc", name, value).isError()
     assert not write(c, srv, "boiler_controller", "on_command", 1).isError()
     assert not write(c, srv, *ADVANCE, seconds).isError()
+
+
+def encrypted_copy(key: Path, out: Path) -> Path:
+    """``key`` (PEM, unencrypted) written to ``out`` protected by a passphrase."""
+    from cryptography.hazmat.primitives import serialization
+
+    private = serialization.load_pem_private_key(key.read_bytes(), None)
+    out.write_bytes(
+        private.private_bytes(
+            serialization.Encoding.PEM,
+            serialization.PrivateFormat.PKCS8,
+            serialization.BestAvailableEncryption(b"secret"),
+        )
+    )
+    return out

@@ -63,21 +63,12 @@ def test_tls_options_all_or_none(tmp_path):
 def test_a_key_protected_by_a_passphrase_is_one_line(tmp_path):
     """OpenSSL asked for the passphrase on the terminal (or raised OSError through a
     traceback with stdin closed, as under CI)."""
-    from cryptography.hazmat.primitives import serialization
-
     from hil_client.rigs.transports import TlsFiles
     from rig_emulator.certs import make_lab_certificates
+    from tests.modbus_helpers import encrypted_copy
 
     make_lab_certificates(tmp_path)
-    key = serialization.load_pem_private_key((tmp_path / "engineer.key").read_bytes(), None)
-    encrypted = tmp_path / "encrypted.key"
-    encrypted.write_bytes(
-        key.private_bytes(
-            serialization.Encoding.PEM,
-            serialization.PrivateFormat.PKCS8,
-            serialization.BestAvailableEncryption(b"secret"),
-        )
-    )
+    encrypted = encrypted_copy(tmp_path / "engineer.key", tmp_path / "encrypted.key")
     files = TlsFiles(tmp_path / "engineer.pem", encrypted, tmp_path / "ca.pem")
     with pytest.raises(ValueError, match=r"encrypted\.key is protected by a passphrase"):
         connector("modbus+tls://127.0.0.1:802", 1.0, files)

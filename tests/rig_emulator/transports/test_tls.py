@@ -17,6 +17,7 @@ from rig_emulator.modbus.roles import DEFAULT_POLICY
 from rig_emulator.modbus.tls import server_context
 from rig_emulator.modbus.transports import Transports
 from rig_emulator.registers import decode, encode
+from tests.modbus_helpers import encrypted_copy
 from tests.rig_emulator.modbus.raw import closed_by_server
 
 ROLES = ("observer", "operator", "engineer", "norole")
@@ -369,7 +370,8 @@ def test_bad_tls_options_are_one_line(certs, tmp_path, capsys, extra, fault):
             args += [*_tls_options(certs)[:2], "--tls-key", str(certs / "ca.pem")]
             args += _tls_options(certs)[4:]
         elif item == "TLS-ENCRYPTED-KEY":
-            args += [*_tls_options(certs)[:2], "--tls-key", str(_encrypted_key(certs, tmp_path))]
+            encrypted = encrypted_copy(certs / "server.key", tmp_path / "encrypted.key")
+            args += [*_tls_options(certs)[:2], "--tls-key", str(encrypted)]
             args += _tls_options(certs)[4:]
         elif item == "ROLES":
             args.append(str(roles))
@@ -383,21 +385,6 @@ def test_bad_tls_options_are_one_line(certs, tmp_path, capsys, extra, fault):
     assert main(["serve", "--boiler", "windhager_12kw", "--port", "0", *args]) == 2
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and fault in err, err
-
-
-def _encrypted_key(certs, tmp_path):
-    from cryptography.hazmat.primitives import serialization
-
-    key = serialization.load_pem_private_key((certs / "server.key").read_bytes(), None)
-    path = tmp_path / "encrypted.key"
-    path.write_bytes(
-        key.private_bytes(
-            serialization.Encoding.PEM,
-            serialization.PrivateFormat.PKCS8,
-            serialization.BestAvailableEncryption(b"secret"),
-        )
-    )
-    return path
 
 
 def test_cli_serves_tls_with_a_roles_file_and_plain_tcp(certs, tmp_path):
@@ -562,33 +549,20 @@ def test_a_role_extension_given_twice_is_an_invalid_role_not_a_crash():
     assert DEFAULT_POLICY.refusal(peer.role, 1, 4) is not None  # it may read nothing
 
 
-def test_a_role_cannot_write_lines_of_its_own_into_the_log(serve, certs, tmp_path, caplog):
+def test_a_role_cannot_write_lines_of_its_own_into_the_log(tls_server, certs, tmp_path, caplog):
     """A role holding a newline wrote a forged log line, verbatim, twice."""
     ca = _ca_of(certs)
     forged = "engineer\n2026-01-01 00:00:00,000 rig-emulator: client 10.0.0.9:4444: role engineer"
     # the subject too: RFC 4514 escapes a comma, not a newline
     write_pair(make_client(ca, "forger\n2026-01-01 rig-emulator: FAKE", forged), tmp_path, "forger")
     (tmp_path / "ca.pem").write_bytes((certs / "ca.pem").read_bytes())
-    srv = serve(
-        ssl_context=server_context(certs / "server.pem", certs / "server.key", certs / "ca.pem")
-    )
-
-    async def setup():
-        transports = Transports(srv.server.modbus_server)
-        transports.authorise(DEFAULT_POLICY)
-        return transports
-
-    transports = srv.call(setup())
     caplog.set_level(logging.INFO, logger="rig_emulator.serve")
+    c = tls_client(tls_server.port, tmp_path, "forger")
     try:
-        c = tls_client(srv.port, tmp_path, "forger")
-        try:
-            r = _write(c, srv, "bench_plc", "flow_setpoint", 100.0)
-            assert r.isError() and r.exception_code == 1  # an unknown role may send nothing
-        finally:
-            c.close()
+        r = _write(c, tls_server, "bench_plc", "flow_setpoint", 100.0)
+        assert r.isError() and r.exception_code == 1  # an unknown role may send nothing
     finally:
-        srv.call(transports.stop())
+        c.close()
     lines = [r.getMessage() for r in caplog.records if "forger" in r.getMessage()]
     lines += [r.getMessage() for r in caplog.records if r.getMessage().startswith("refused")]
     assert lines and all("\n" not in m for m in lines), lines
