@@ -36,6 +36,7 @@ from hil_client.analysis.validate import compare, validation_metrics
 from hil_client.fault_files import EventsWriter, events_path, fault_report, write_report
 from hil_client.fault_files import summary as fault_summary
 from hil_client.lablog import DECIMALS, LabLogWriter, meta_path, write_meta
+from hil_client.modbus_client import WRITE_FUNCTIONS
 from hil_client.progress import LiveView, ProgressLine, hms
 from hil_client.protocol.definition import ProtocolError, load_protocol
 from hil_client.protocol.rig import RigError
@@ -568,10 +569,6 @@ def _make_rig(args: argparse.Namespace, params: BoilerParams, register_map: Regi
     return rig
 
 
-#: Modbus write functions: a command the rig sends
-_WRITE_FUNCTIONS = (5, 6, 15, 16, 23)
-
-
 #: What a write came back with when the plant did not (or may not) get it; a ``late`` reply
 #: was carried out, only slowly.
 _FAILED_EVENTS = ("exception", "timeout", "no_reply")
@@ -583,7 +580,7 @@ def _refused_commands(events: list[dict]) -> str | None:
     failed = [
         e
         for e in events
-        if e.get("function") in _WRITE_FUNCTIONS and e.get("event") in _FAILED_EVENTS
+        if e.get("function") in WRITE_FUNCTIONS and e.get("event") in _FAILED_EVENTS
     ]
     if not failed:
         return None

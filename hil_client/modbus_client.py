@@ -55,6 +55,9 @@ class NoReply(Exception):
 Reply = bytes | ModbusExceptionResponse | NoReply
 
 _HEADER = struct.Struct(">HHHB")
+#: Modbus function codes that read (coils, discrete inputs, holding, input registers) and
+#: that write (single and multiple coils and registers, read/write multiple)
+READ_FUNCTIONS = frozenset({1, 2, 3, 4})
 WRITE_FUNCTIONS = frozenset({5, 6, 15, 16, 23})
 
 

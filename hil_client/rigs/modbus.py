@@ -57,6 +57,7 @@ from typing import Any
 from urllib.parse import urlparse
 
 from hil_client.modbus_client import (
+    READ_FUNCTIONS,
     Connection,
     ConnectionLost,
     ModbusExceptionResponse,
@@ -399,7 +400,9 @@ class ModbusRig:
         its own fields stay empty, not those of every unit read after it."""
         slow = requests[timed_out[0]][0]
         again = [
-            i for i in timed_out[1:] if requests[i][0] != slow and requests[i][1][0] in (1, 2, 3, 4)
+            i
+            for i in timed_out[1:]
+            if requests[i][0] != slow and requests[i][1][0] in READ_FUNCTIONS
         ]
         if not again:
             return
