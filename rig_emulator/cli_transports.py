@@ -143,10 +143,9 @@ async def start(server: BenchServer, transport_plan: TransportPlan) -> Transport
             line = await transports.add_rtu(p.serial, p.baud, p.parity)
             print(f"serial: {line.path}", flush=True)
             log.info(
-                "Modbus RTU on %s (%d baud, parity %s, units %s)",
+                "Modbus RTU on %s (%s; units %s)",
                 line.path,
-                p.baud,
-                p.parity,
+                line.settings,
                 ", ".join(str(u) for u in sorted(modbus.units)),
             )
     except SerialConfigError as exc:

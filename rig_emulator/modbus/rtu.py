@@ -84,17 +84,18 @@ def check_line_options(baud: int, parity: str) -> None:
         raise SerialConfigError(f"--baud: {baud} is not a serial line speed ({known})")
 
 
-def open_line(path: str, baud: int, parity: str) -> tuple[int, int | None, str]:
-    """(fd the server uses, fd to keep open or None, path clients use) of ``path`` or, for
-    ``pty``, of a new pseudo-terminal; raw mode, 8 data bits, ``baud``, ``parity``."""
+def open_line(path: str, baud: int, parity: str) -> tuple[int, int | None, str, bool]:
+    """(fd the server uses, fd to keep open or None, path clients use, whether the line took
+    ``baud`` and ``parity``) of ``path`` or, for ``pty``, of a new pseudo-terminal; raw
+    mode, 8 data bits, ``baud``, ``parity``."""
     check_line_options(baud, parity)
     if path == "pty":
         server_fd, client_fd = os.openpty()
         # the server keeps the client side open too, so reads never fail with EIO while
         # no client has it open; clients configure it as they like
-        _configure(client_fd, baud, parity)
+        applied = _configure(client_fd, baud, parity)
         tty.setraw(server_fd)
-        return server_fd, client_fd, os.ttyname(client_fd)
+        return server_fd, client_fd, os.ttyname(client_fd), applied
     try:
         fd = os.open(path, os.O_RDWR | os.O_NOCTTY)
     except OSError as exc:
@@ -106,7 +107,7 @@ def open_line(path: str, baud: int, parity: str) -> tuple[int, int | None, str]:
         raise SerialConfigError(f"--serial {path}: not a serial line (a terminal)") from None
     if not configured:
         log.warning("RTU %s: the line refused %d baud, parity %s; served raw", path, baud, parity)
-    return fd, None, path
+    return fd, None, path, configured
 
 
 def is_pty(fd: int) -> bool:
@@ -118,8 +119,8 @@ def is_pty(fd: int) -> bool:
 
 
 def _configure(fd: int, baud: int, parity: str) -> bool:
-    """Raw mode, 8 data bits, ``baud`` and ``parity``; False if the line refused the speed
-    and parity (a pty has no line, and some kernels refuse parity on one): raw mode only."""
+    """Raw mode, 8 data bits, ``baud`` and ``parity``; False if the line did not take the
+    speed and parity (a pty has no line, and Linux drops parity on one): raw mode only."""
     tty.setraw(fd)
     attrs = termios.tcgetattr(fd)
     cflag = attrs[2] & ~(termios.PARENB | termios.PARODD | termios.CSTOPB | termios.CSIZE)
@@ -134,7 +135,11 @@ def _configure(fd: int, baud: int, parity: str) -> bool:
         termios.tcsetattr(fd, termios.TCSANOW, attrs)
     except termios.error:
         return False
-    return True
+    # tcsetattr succeeds when any of the changes was made (POSIX): Linux keeps a pty's
+    # speed and drops its parity bits without an error, so what it holds is read back
+    held = termios.tcgetattr(fd)
+    mask = termios.PARENB | termios.PARODD | termios.CSTOPB
+    return (held[2] & mask) == (cflag & mask) and held[4] == attrs[4] and held[5] == attrs[5]
 
 
 class RtuLine:
@@ -155,9 +160,18 @@ class RtuLine:
         self.parity = parity
         self.character_s = character_s(baud)
         self.silence_s = silence_s(baud)
-        self._fd, self._keep_fd, self.path = open_line(path, baud, parity)
+        self._fd, self._keep_fd, self.path, applied = open_line(path, baud, parity)
         #: keep the reply's on-wire time (a pty); a device's UART takes it itself
         self.paced = path == "pty" or is_pty(self._fd)
+        #: the line's settings in words for the start-up log: a pty carries bytes, not
+        #: characters, and Linux drops parity on one
+        self.settings = f"{baud} baud, parity {parity}"
+        if not applied:
+            why = "a pty has no line" if self.paced else "see the warning above"
+            self.settings += (
+                f" in the timing only: the line did not take its settings ({why}), so no parity"
+                " bit is checked"
+            )
         self.crc_errors = 0
         self.transactions = 0
         self._stop_r, self._stop_w = os.pipe()

@@ -18,6 +18,7 @@ from pathlib import Path
 import pytest
 from pymodbus.framer.rtu import FramerRTU
 
+from rig_emulator.modbus.rtu import open_line
 from rig_emulator.modbus.rtu_wire import character_s, silence_s
 from rig_emulator.modbus.transports import Transports
 from tests.modbus_helpers import client, read_point
@@ -485,3 +486,27 @@ def test_a_line_stopped_during_a_long_delay_writes_nothing_after(serve):
         assert rtu.transactions == 0  # and nothing was written
     finally:
         line.close()
+
+
+@pytest.mark.parametrize("parity", ["E", "N"])
+def test_the_line_says_whether_it_took_its_parity(parity):
+    """A pty carries bytes, not characters, and this machine's kernel refuses parity on one
+    (it drops PARENB and tcsetattr still succeeds): the start-up line said "parity E" all
+    the same. What the line reports now
+    agrees with what the kernel holds on the clients' side."""
+    fd, keep, _, applied = open_line("pty", BAUD, parity)
+    try:
+        held = termios.tcgetattr(keep)[2]
+        took = bool(held & termios.PARENB) == (parity != "N")
+        assert applied == took
+    finally:
+        os.close(fd)
+        os.close(keep)
+
+
+def test_the_start_up_log_names_a_parity_the_pty_refused(rtu_server):
+    line = rtu_server.line
+    if line.settings == f"{BAUD} baud, parity E":
+        pytest.skip("this kernel takes parity on a pty: nothing refused to report")
+    assert line.settings.startswith(f"{BAUD} baud, parity E in the timing only: the line did")
+    assert "no parity bit is checked" in line.settings
