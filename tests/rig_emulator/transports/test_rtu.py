@@ -492,8 +492,8 @@ def test_a_line_stopped_during_a_long_delay_writes_nothing_after(serve):
 def test_the_line_says_whether_it_took_its_parity(parity):
     """A pty carries bytes, not characters, and this machine's kernel refuses parity on one
     (it drops PARENB and tcsetattr still succeeds): the start-up line said "parity E" all
-    the same. What the line reports now
-    agrees with what the kernel holds on the clients' side."""
+    the same. What the line reports now agrees with what the kernel holds on the clients'
+    side."""
     fd, keep, _, applied = open_line("pty", BAUD, parity)
     try:
         held = termios.tcgetattr(keep)[2]
