@@ -97,7 +97,7 @@ READ = (
 def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[PhaseBalance]:
     """Per-phase energy balance of a lab log (see the module docstring)."""
     t = log.t
-    mass = without_refills(log["balance_mass_kg"])  # a refill is no fuel leaving
+    mass = without_refills(log["balance_mass_kg"], log.t)  # a refill is no fuel leaving
     raw = {name: log[name] for name in READ} | {"balance_mass_kg": mass}
     get = {name: fill_gaps(values, t) for name, values in raw.items()}
     co = (

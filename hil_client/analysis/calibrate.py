@@ -470,7 +470,7 @@ def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibrati
         tb = log["boiler_water_temp_C"]
         reach = np.flatnonzero(tb[i0:i_end] >= doc.set_temp_C - 0.5)
         i_stop = i0 + int(reach[0]) if len(reach) else i_end
-        mass = fill_gaps(without_refills(log["balance_mass_kg"]), t)
+        mass = fill_gaps(without_refills(log["balance_mass_kg"], t), t)
         per_kg_dry = doc.fuel.balance_loss_per_kg_dry
         dm = (mass[i0 - 1] - mass[i_stop - 1]) / per_kg_dry
         if i_stop - i0 >= 120 and dm > 0:  # NaN (no balance) compares False

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hil_client.analysis.logio import LabLog, fill_gaps
+from hil_client.analysis.logio import LabLog, fill_gaps, refills
 
 O2_BURNING_PCT = 19.0
 MIN_RUN_S = 90.0
@@ -39,9 +39,6 @@ STOP_FALL_K = 10.0
 #: Least fuel a burn of the burner feeds [kg]: two steps of the balance (0.02 kg, Section
 #: 2.2).
 NO_FEED_KG = 0.04
-#: A rise of the balance this large between two readings is a refill [kg]: the burn's feed
-#: cannot be read across it.
-REFILL_KG = 0.5
 
 
 @dataclass(frozen=True, slots=True)
@@ -129,14 +126,15 @@ def _drop_burnouts(
     starting again: the burner feeds at least Pmin's fuel, tenths of a kilogram in the
     minutes a burn lasts. It is not firing (the model's burner stays off); the burn at the
     record's start, burns where the balance has too few readings and burns across a refill
-    of the balance are kept."""
+    of the balance (:func:`~hil_client.analysis.logio.refills`: its feed cannot be read
+    across it) are kept."""
     keep_starts, keep_stops = [], []
     for i in starts:
         later = stops[stops > i]
         end = int(later[0]) if len(later) else len(t)
         readings = mass[i:end][np.isfinite(mass[i:end])]
         after_a_stop = i > 0 and np.any(stops < i) and len(readings) >= 10
-        refilled = len(readings) > 1 and float(np.max(np.diff(readings))) > REFILL_KG
+        refilled = bool(refills(mass[i:end], t[i:end]))
         lost = float(readings[:5].mean() - readings[-5:].mean()) if len(readings) else 0.0
         if after_a_stop and not refilled and lost < NO_FEED_KG:
             burning[i:end] = False

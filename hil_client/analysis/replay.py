@@ -123,8 +123,6 @@ def _filled(log: LabLog, name: str) -> np.ndarray:
     return fill_gaps(values, log.t)
 
 
-#: A rise of the balance bigger than this between two readings is a refill [kg]: fuel only
-#: leaves the boiler, and the balance resolves 0.02 kg (Section 2.2).
 def _step_lengths(t: np.ndarray) -> np.ndarray:
     """Each row's step [s]: the time since the row before (the first: the median step)."""
     if len(t) < 2:
@@ -150,7 +148,7 @@ def prepare(
     room = _filled(log, "room_temp_C")
     water = _filled(log, "boiler_water_temp_C")
     out_t = _filled(log, "water_out_temp_C")
-    balance = without_refills(log["balance_mass_kg"])
+    balance = without_refills(log["balance_mass_kg"], log.t)
     if np.isnan(balance).all():
         raise LogError(f"{log.path}: column 'balance_mass_kg' has no values")
     mass = fill_gaps(balance, t)

@@ -67,7 +67,7 @@ def fuel_rate_from_balance(log: LabLog, params: BoilerParams) -> np.ndarray:
     """Dry fuel flow [kg/h] per row from the balance, refills taken out: slope of a
     centred linear fit."""
     t = log.t
-    m = fill_gaps(without_refills(log["balance_mass_kg"]), t)
+    m = fill_gaps(without_refills(log["balance_mass_kg"], t), t)
     per_kg_dry = params.fuel.balance_loss_per_kg_dry
     # running sums give the least-squares slope over a centred window at every row
     cs, cm, ctt, ctm = (np.concatenate(([0.0], np.cumsum(a))) for a in (t, m, t * t, t * m))
@@ -163,7 +163,7 @@ def validation_metrics(comp: Comparison, log: LabLog, params: BoilerParams) -> d
     t = comp.t
     dt = np.diff(t, prepend=t[0] - (t[1] - t[0] if len(t) > 1 else 1.0))
     per_kg_dry = params.fuel.balance_loss_per_kg_dry
-    mass = fill_gaps(without_refills(log["balance_mass_kg"]), t)
+    mass = fill_gaps(without_refills(log["balance_mass_kg"], t), t)
     fuel = {}
     for name, mask in [*comp.segments.items(), ("total", np.ones(len(t), bool))]:
         idx = np.flatnonzero(mask)

@@ -3,16 +3,60 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
-from hil_client.analysis.logio import without_refills
+from hil_client.analysis.logio import POUR_PAUSE_S, refills, without_refills
 
 
 def test_a_refill_is_taken_out_of_the_balance_and_gaps_stay():
     mass = np.array([10.0, 9.98, 24.98, 24.96, np.nan, 24.9, 24.92])
-    out = without_refills(mass)
+    out = without_refills(mass, np.arange(7.0))
     expected = [10.0, 9.98, 9.98, 9.96, np.nan, 9.9, 9.92]  # +0.02: one step of noise stays
     np.testing.assert_allclose(out, expected, atol=1e-12)
-    assert np.isnan(without_refills(np.full(3, np.nan))).all()
+    assert np.isnan(without_refills(np.full(3, np.nan), np.arange(3.0))).all()
+
+
+def _burning(seconds: int, rng) -> tuple[np.ndarray, np.ndarray]:
+    """A balance read every second under a burner taking 2.7 kg/h, rounded to its 0.02-kg
+    steps with +-0.02 kg of noise (Section 2.2)."""
+    t = np.arange(float(seconds))
+    true = 250.0 - 2.7 * t / 3600.0
+    return t, np.round((true + rng.uniform(-0.02, 0.02, len(t))) / 0.02) * 0.02
+
+
+def test_a_hopper_topped_up_by_hand_over_a_minute_is_one_refill():
+    """15 kg poured from a bag over 60 s with two pauses of 6 s, read every second: the
+    balance rises 0.25 kg a reading, never the 0.5 kg the old rule needed between two
+    readings, so the whole pour was read as fuel going back into the bag (a stranger's
+    lab log, stop 32). Now it is one refill: the mass after it continues the mass before
+    it, and the readings while it was poured are missing, not fuel."""
+    rng = np.random.default_rng(7)
+    t, mass = _burning(3600, rng)
+    poured = np.clip(t - 1800.0, 0.0, 60.0)
+    poured -= np.clip(t - 1815.0, 0.0, 6.0) + np.clip(t - 1840.0, 0.0, 6.0)  # two pauses
+    mass = mass + poured * 15.0 / 48.0
+    assert np.diff(mass).max() < 0.5  # no jump a reading-to-reading rule would see
+    [(start, peak, rise)] = refills(mass, t)
+    assert 1795 <= start <= 1800 and 1858 <= peak <= 1862
+    # the 15 kg less the fuel burnt while pouring (2.7 kg/h for 60 s: 0.045 kg)
+    assert rise == pytest.approx(15.0 - 0.045, abs=0.06)
+    out = without_refills(mass, t)
+    assert np.isnan(out[start + 1 : peak]).all()
+    fuel = out[start] - out[-1]
+    assert fuel == pytest.approx(2.7 * (t[-1] - t[start]) / 3600.0, abs=0.06)
+
+
+def test_the_balances_noise_and_a_slow_drift_are_no_refill():
+    """Noise of a few steps and a balance that creeps up 0.4 kg over an hour (temperature)
+    are no refill, and the search stays short on an hour of readings every second."""
+    rng = np.random.default_rng(8)
+    t, mass = _burning(3600, rng)
+    assert refills(mass, t) == []
+    creeping = 250.0 + 0.4 * t / 3600.0 + rng.uniform(-0.02, 0.02, len(t))
+    assert refills(creeping, t) == []
+    # a refill read only every 30 s is still one jump between two readings
+    sparse = np.where(t >= 1800.0, mass + 15.0, mass)[::30]
+    assert len(refills(sparse, t[::30])) == 1 and POUR_PAUSE_S < 30.0
 
 
 def test_the_replay_of_the_emulators_own_clean_load_cycle_is_the_log(run_log):
