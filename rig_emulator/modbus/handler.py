@@ -322,6 +322,11 @@ class RequestHandler(asyncio.Protocol):
         )
 
     @property
+    def spoke(self) -> bool:
+        """Whether it ever sent a request (its handshake aside)."""
+        return self._spoke
+
+    @property
     def unused_since(self) -> float | None:
         """When it last sent or was answered (``time.monotonic()``), if no request of it
         waits and it is open; else None."""
@@ -528,15 +533,18 @@ class BenchModbusServer:
         """At the connection limit, close the oldest unused connection for the new one from
         ``peer``: "If the number of client and server connections is greater than the
         number of authorized connections the oldest unused connection is closed" (the
-        guide's 4.2.1.2). Unused: no request waiting; oldest: the longest since it last sent
-        or was answered (a client that connected and left without a word, whose end the
-        server has not read yet, goes first). With every connection busy the new one is
-        refused. Either is logged, at most once per interval, with a count."""
+        guide's 4.2.1.2). Unused: no request waiting. A connection that never sent a request
+        was never used and goes before any that was, the one open longest first (a port
+        scan, a client that connected and left without a word and whose end the server
+        has not read yet, a leaking tool: a burst of them closed a client polling every
+        second, whose last answer was older than their connects); among the used ones, the
+        one that sent or was answered longest ago. With every connection busy the new one
+        is refused. Either is logged, at most once per interval, with a count."""
         unused = [h for h in self.handlers if h.unused_since is not None]
         if not unused:
             self._log_limit(f"refused the connection of {peer}")
             return False
-        oldest = min(unused, key=lambda h: h.unused_since or 0.0)
+        oldest = min(unused, key=lambda h: (h.spoke, h.unused_since or 0.0))
         self._log_limit(f"closed the oldest unused connection ({oldest.peer}) for {peer}")
         oldest.close_quietly()
         return True

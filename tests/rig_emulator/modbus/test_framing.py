@@ -317,6 +317,27 @@ def test_at_the_limit_a_new_connection_closes_the_oldest_unused_one(serve, caplo
         s.close()
 
 
+def test_at_the_limit_silent_connections_go_before_a_client_that_polls(serve):
+    """A stranger's probe: a client polling every second, answered 0.1 s before a burst of
+    connections that never send a word, was the one closed at the limit (its last answer
+    was older than their connects), again and again while the burst stayed open. A
+    connection that never sent a request is the one left unused: those go first."""
+    srv = serve(max_connections=10)
+    poller = connect(srv.port)
+    replies = Replies(poller)
+    for tid in (1, 2):
+        good, counts = _reads(1, first_tid=tid)
+        poller.sendall(good)
+        _check_read_replies(replies.take(1), counts, first_tid=tid)
+        if tid == 1:
+            time.sleep(0.1)
+            silent = [connect(srv.port) for _ in range(30)]
+            time.sleep(0.2)  # the server has accepted them all
+    assert sum(closed_by_server(s, timeout=0.5) for s in silent) >= 20
+    for s in [poller, *silent]:
+        s.close()
+
+
 def test_at_the_limit_with_every_connection_waiting_the_new_one_is_refused(serve, caplog):
     """No connection is unused (each has a request waiting behind a 2-s gate): the new one
     is closed with a log line, and the waiting ones get their answers."""
