@@ -179,9 +179,14 @@ class Authorisation:
             self._refusal_log.forget(gone)
 
     def gate(self, info: RequestInfo) -> GateDecision | None:
-        """Exception 01 for a request the connection's role may not send."""
+        """Exception 01 for a request the connection's role may not send to a unit of the
+        bench; one to a unit the bench does not have is left to the server's 0B, whatever
+        the role (a write to unit 9 over TLS was told 01, "not allowed", as if the role
+        were at fault, while plain TCP said 0B: a stranger's probe)."""
         role = info.role if info.role is not None else self.plain_role
         if role is None:
+            return None
+        if self._server is not None and info.unit_id not in self._server.units:
             return None
         reason = self.policy.refusal(role, info.unit_id, info.function_code)
         if reason is None:

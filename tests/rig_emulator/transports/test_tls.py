@@ -127,6 +127,25 @@ def test_each_role_allowed_or_refused_with_01_and_no_change(tls_server, certs, s
         c.close()
 
 
+@pytest.mark.parametrize("stem", ROLES)
+def test_a_unit_the_bench_lacks_is_0b_whatever_the_role(tls_server, certs, stem):
+    """A stranger's probe: over TLS a write to a unit the bench does not have got 01 ("not
+    allowed"), even for the engineer, while plain TCP gave 0B: a client told its role is
+    at fault looks for a certificate problem, not for a wrong unit id. The unit is checked
+    first, for every role and every function."""
+    c = tls_client(tls_server.port, certs, stem)
+    try:
+        for request in (
+            lambda: c.write_register(0, 1, device_id=9),
+            lambda: c.write_registers(0, [1], device_id=200),
+            lambda: c.read_holding_registers(0, count=1, device_id=9),
+        ):
+            r = request()
+            assert r.isError() and r.exception_code == 0x0B, r
+    finally:
+        c.close()
+
+
 def test_plain_tcp_beside_tls_sees_the_same_plant(tls_server, certs):
     srv = tls_server
     c = tls_client(srv.port, certs, "operator")
