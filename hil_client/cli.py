@@ -280,6 +280,8 @@ def _warn_other_boiler(log: LabLog, boiler: BoilerParams) -> None:
     """A warning when the log's meta file names another boiler than the one it is analysed
     with (by name: a calibrated file keeps its boiler's name)."""
     recorded = log.meta.get("boiler")
+    if isinstance(recorded, dict):
+        recorded = recorded.get("name")
     if isinstance(recorded, str) and recorded != boiler.name:
         print(
             f"hil-client: warning: {log.path} was recorded with boiler '{recorded}' (its meta "
@@ -468,10 +470,22 @@ def _boiler_for(log: LabLog, name: str | None):
         _warn_other_boiler(log, params)
         return params
     recorded = log.meta.get("boiler")
+    meta = meta_path(log.path)
+    if isinstance(recorded, dict):  # inline parameters (CONTRACT section 3)
+        with bad_input(ParameterError):
+            return params_from_mapping(recorded, f"{meta}: boiler")
     if not isinstance(recorded, str):
-        where = "in its meta file" if log.meta else f"(no meta file {meta_path(log.path).name})"
+        if not log.meta:
+            where = f"(no meta file {meta.name})"
+        elif recorded is None:
+            where = "in its meta file"
+        else:
+            where = f"in its meta file ('boiler' is {type(recorded).__name__}, not a name or parameters)"
         raise UsageError(f"{log.path}: no boiler named {where}; give --boiler")
-    return boiler_arg(recorded)
+    try:
+        return boiler_arg(recorded)
+    except UsageError as exc:
+        raise UsageError(f"{meta}: {exc}") from None
 
 
 def _json_nulls(value: Any) -> Any:

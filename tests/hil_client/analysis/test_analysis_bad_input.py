@@ -328,3 +328,34 @@ def test_a_log_of_another_boiler_is_analysed_with_a_warning(run_log, tmp_path, c
     shutil.copy(log, bare)  # no meta file beside it
     assert main(["balance", str(bare)]) == 2
     assert "no boiler named (no meta file bare.meta.json); give --boiler" in capsys.readouterr().err
+
+
+def test_a_meta_file_may_hold_the_boilers_parameters_inline(run_log, tmp_path, capsys):
+    """CONTRACT section 3: the meta file's ``boiler`` is "parameter file name or inline
+    parameters". Inline parameters were refused as "no boiler named" (a stranger's probe);
+    they are now the boiler, and a bad one names the meta file and the key."""
+    import shutil
+
+    from rig_emulator.boilers import load_boiler
+
+    src = run_log("stationary", "windhager_12kw").path
+    named = tmp_path / "named.json"
+    assert main(["balance", str(src), "--out", str(named)]) == 0
+    inline = tmp_path / "inline.csv"
+    shutil.copy(src, inline)
+    meta = json.loads(src.with_name(src.stem + ".meta.json").read_text())
+    meta["boiler"] = load_boiler("windhager_12kw").to_mapping()
+    inline.with_name("inline.meta.json").write_text(json.dumps(meta))
+    out = tmp_path / "inline.json"
+    assert main(["balance", str(inline), "--out", str(out)]) == 0
+    assert json.loads(out.read_text())["balance"] == json.loads(named.read_text())["balance"]
+    capsys.readouterr()
+    for boiler, said in (
+        ({**meta["boiler"], "p_max_kW": "lots"}, "inline.meta.json: boiler"),
+        (123, "('boiler' is int, not a name or parameters)"),
+        ("windhager_99kw", "inline.meta.json: unknown boiler 'windhager_99kw'"),
+    ):
+        inline.with_name("inline.meta.json").write_text(json.dumps({**meta, "boiler": boiler}))
+        assert main(["balance", str(inline)]) == 2
+        err = capsys.readouterr().err
+        assert said in err and len(err.strip().splitlines()) == 1, err
