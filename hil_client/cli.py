@@ -480,7 +480,8 @@ def _boiler_for(log: LabLog, name: str | None):
         elif recorded is None:
             where = "in its meta file"
         else:
-            where = f"in its meta file ('boiler' is {type(recorded).__name__}, not a name or parameters)"
+            kind = type(recorded).__name__
+            where = f"in its meta file ('boiler' is {kind}, not a name or parameters)"
         raise UsageError(f"{log.path}: no boiler named {where}; give --boiler")
     try:
         return boiler_arg(recorded)
