@@ -19,6 +19,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from hil_client.analysis.balance import as_json as balance_json
 from hil_client.analysis.balance import energy_balance
 from hil_client.analysis.balance import table as balance_table
@@ -298,6 +300,28 @@ def _same_log(a: Path, b: Path) -> bool:
         return False
 
 
+#: A held-out log that repeats more than this share of the calibration log's rows, the
+#: time aside, is the calibration log again (re-exported with absolute times, or cut):
+#: two runs of one plant share at most their preheat's rows (the clean emulator's
+#: stationary and load-cycle pair: under a fifth).
+SHARED_ROWS_MAX = 0.5
+
+
+def _shared_rows(cal: LabLog, val: LabLog) -> float:
+    """The share of ``val``'s rows whose readings (every numeric column but the time) are
+    a row of ``cal``'s as well."""
+    names = sorted(n for n in cal.columns.keys() & val.columns.keys() if n != "time_s")
+    if not names or not len(val):
+        return 0.0
+
+    def rows(log: LabLog) -> list[bytes]:
+        table = np.column_stack([log[n] for n in names]).round(9)
+        return [r.tobytes() for r in np.ascontiguousarray(table)]
+
+    seen = set(rows(cal))
+    return sum(r in seen for r in rows(val)) / len(val)
+
+
 def _check_out_dir(out: Path) -> None:
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out: '{out}' exists and is not a directory")
@@ -322,6 +346,13 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
             " (CONTRACT section 4: nothing is fitted or selected on it)"
         )
     cal, val = _logs_with_phases([args.calibration, args.validation], doc)
+    shared = _shared_rows(cal[0], val[0])
+    if shared > SHARED_ROWS_MAX:
+        raise UsageError(
+            f"--validation: {shared:.0%} of its rows repeat rows of --calibration, the time"
+            " aside (the same log with other times?); the held-out log must be another"
+            " (CONTRACT section 4: nothing is fitted or selected on it)"
+        )
     _check_out_dir(args.out)
     with bad_input(LogError):
         result = diagnose(*cal, *val, doc, args.ignition_charge_kg)

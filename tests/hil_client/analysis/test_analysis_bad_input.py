@@ -359,3 +359,32 @@ def test_a_meta_file_may_hold_the_boilers_parameters_inline(run_log, tmp_path, c
         assert main(["balance", str(inline)]) == 2
         err = capsys.readouterr().err
         assert said in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_the_held_out_log_may_not_be_the_calibration_log_again(run_log, tmp_path, capsys):
+    """CONTRACT section 4: nothing is fitted or selected on the held-out log. The same file,
+    a copy, and (a stranger's probe) the same log re-exported with absolute times (+100000
+    s), which diagnose took as held out and scored at 98 % shrinkage, are refused in one
+    line; the emulator's own stationary and load-cycle pair shares only its preheat."""
+    import shutil
+
+    from hil_client.analysis.logio import read_log
+    from hil_client.cli import SHARED_ROWS_MAX, _shared_rows
+
+    cal = run_log("load_cycle", "windhager_12kw").path
+    copy = tmp_path / "copy.csv"
+    shutil.copy(cal, copy)
+    shifted = tmp_path / "shifted.csv"
+    lines = cal.read_text().splitlines()
+    col = lines[0].split(",").index("time_s")
+    rows = [r.split(",") for r in lines[1:]]
+    for r in rows:
+        r[col] = f"{float(r[col]) + 100000.0:g}"
+    shifted.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    for val in (cal, copy, shifted):
+        argv = ["diagnose", "--calibration", str(cal), "--validation", str(val)]
+        code = main([*argv, "--boiler", "windhager_12kw", "--out", str(tmp_path / "d")])
+        err = capsys.readouterr().err
+        assert code == 2 and "--validation:" in err and len(err.strip().splitlines()) == 1
+    other = run_log("stationary", "windhager_12kw").path
+    assert _shared_rows(read_log(cal), read_log(other)) < SHARED_ROWS_MAX
