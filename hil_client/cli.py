@@ -34,6 +34,7 @@ from hil_client.analysis.figures import (
 from hil_client.analysis.logio import LabLog, LogError, one_plant, read_log
 from hil_client.analysis.phases import Phases, find_phases
 from hil_client.analysis.report import validation_report
+from hil_client.analysis.sanity import suspicious
 from hil_client.analysis.validate import compare, validation_metrics
 from hil_client.fault_files import EventsWriter, events_path, fault_report, write_report
 from hil_client.fault_files import summary as fault_summary
@@ -275,7 +276,15 @@ def _logs_with_phases(
     if boiler is not None:
         for log in logs:
             _warn_other_boiler(log, boiler)
+            _warn_suspicious(log, boiler)
     return found
+
+
+def _warn_suspicious(log: LabLog, boiler: BoilerParams) -> None:
+    """A warning line for each thing in ``log`` that looks like a wrong unit or a broken
+    sensor (:func:`hil_client.analysis.sanity.suspicious`)."""
+    for line in suspicious(log, boiler):
+        print(f"hil-client: warning: {line}", file=sys.stderr)
 
 
 def _warn_other_boiler(log: LabLog, boiler: BoilerParams) -> None:
@@ -537,6 +546,7 @@ def _cmd_balance(args: argparse.Namespace) -> int:
         params = _boiler_for(log, args.boiler)
         phases = find_phases(log)
     _warn_tolerated([log])
+    _warn_suspicious(log, params)
     rows = energy_balance(log, params, phases)
     out = output_file(args.out or args.log.with_name(args.log.stem + ".balance.json"))
     # strict JSON: a figure a phase does not define (NaN, e.g. no fuel burnt) is null

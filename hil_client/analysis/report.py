@@ -108,6 +108,12 @@ def diagnosis_report(result: dict, figures: list[Path], cal: str, val: str) -> s
         ]
     for caveat in result.get("caveats", []):
         lines += [f"*Caveat:* {caveat}", ""]
+    warnings = result.get("log_warnings") or []
+    if warnings:
+        lines += ["**What in the logs looks like a wrong unit or a broken sensor** (read the "
+                  "answer with these in mind):", ""]  # fmt: skip
+        lines += [f"- {w}" for w in warnings]
+        lines.append("")
     if result.get("ignition_charge_kg"):
         lines += [
             f"The burner's documented ignition charge, {result['ignition_charge_kg']:g} kg as "

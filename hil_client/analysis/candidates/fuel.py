@@ -80,6 +80,15 @@ BLOCK_END_S = 300.0
 BIAS_MIN = 0.03  # the calorific value of a lab analysis is known to about 2-3 %
 
 
+#: The farthest a fuel's energy per kilogram as the balance counts it lies from the
+#: nominal [-]: pellets of 15 % moisture as received instead of 6 % (+11 %), 7 % fines and
+#: unburnt carbon (+8 %), a calorific value 5 % off, together under +30 %, and bone-dry
+#: pellets of a high calorific value -15 %; a closure farther off (the balance losing 3.4
+#: times the fuel the heat needs, after a forward sensor stuck at 60 C, or 48 times, with a
+#: flow logged in l/min: a stranger's probes) is a unit or a sensor, not a fuel.
+BIAS_MAX = 0.5
+
+
 def _forward_return_offset(case: Case) -> float | None:
     """Forward minus return sensor error [K] from the last 3 min of the preheat, where the
     idle boiler only passes the bench's water through (Section 2.3): there the true
@@ -314,6 +323,15 @@ def _decide_bias(units: Sequence[tuple]) -> tuple[bool, float, str]:
         if drift:
             why += f" at the sensors' check (it drifts {drift:+.1%}/h after it)"
         return False, z, why
+    if abs(bias) > BIAS_MAX:
+        return (
+            False,
+            z,
+            (
+                f"closure off by {bias:+.0%}, beyond any fuel's +-{BIAS_MAX:.0%}: a unit or a "
+                "sensor (the flow in kg/h? the forward and return temperatures? the balance?)"
+            ),
+        )
     if z < Z_MIN:
         return False, z, f"evidence {z:.1f} < {Z_MIN:g} standard errors"
     return True, z, "named"

@@ -189,3 +189,16 @@ def test_an_answer_that_may_be_the_plants_normal_start_is_at_most_even_odds():
 
     assert _confidence({"ignition_delay": ignition(150.0)}, "ignition_delay") == 0.5
     assert _confidence({"ignition_delay": ignition(400.0)}, "ignition_delay") > 0.9
+
+
+def test_an_effect_the_held_out_log_does_not_confirm_leaves_the_gap_unexplained():
+    """A named effect whose held-out RMSD grows is no explanation of the gap: with a gap
+    left, unexplained_gap says so (it said false beside a 2631 % worse held-out RMSD)."""
+    from hil_client.analysis.diagnose import unexplained
+
+    confirmed, refuted = {"confirmed": True}, {"confirmed": False}
+    assert unexplained("fuel_energy_bias", refuted, gap_left=True)
+    assert not unexplained("fuel_energy_bias", confirmed, gap_left=True)
+    assert unexplained("none", None, gap_left=True)
+    assert not unexplained("none", None, gap_left=False)
+    assert not unexplained("fuel_energy_bias", refuted, gap_left=False)

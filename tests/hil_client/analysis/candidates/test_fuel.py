@@ -140,3 +140,16 @@ def test_a_stationary_test_reads_the_closure_at_one_load_and_a_load_cycle_at_sev
     assert _load_levels(at([12.1, 11.9, 12.3, 11.8, 12.0, 12.2])) == 1
     assert _load_levels(at([12.0, 5.8, 5.7, 3.6, 1.6, 1.5, 11.9])) == 4
     assert _load_levels([]) == 0
+
+
+@pytest.mark.parametrize("closure", [2.37, 47.0, -0.6])
+def test_a_closure_no_fuel_can_give_is_a_unit_or_a_sensor(closure):
+    """A stranger's probes: a forward sensor stuck at 60 C gave a fuel 237 % richer than
+    nominal, a flow logged in l/min 4800 %, both named fuel_energy_bias. No pellet's
+    moisture, fines or calorific value moves the closure by half; such a closure is not
+    named, and the reason says where to look. Well within it (+20 %: pellets of 15 %
+    moisture with fines), a clear closure still is."""
+    hours = _hours([closure + d for d in (0.001, -0.001, 0.0, 0.002, -0.002, 0.0)])
+    named, _, why = _decide_bias(hours)
+    assert not named and "a unit or a sensor" in why
+    assert _decide_bias(_hours([0.2 + d for d in (0.001, -0.001, 0.0, 0.002, -0.002, 0.0)]))[0]

@@ -1,0 +1,211 @@
+"""What in a lab log looks like a wrong unit or a broken sensor rather than a boiler: one
+warning line each, naming the file, the column and the figure, for every analysis.
+
+Real logs come with their units mixed up and their sensors stuck, and an analysis run on
+them ends in confident, absurd figures (a direct efficiency of 1.3 % from a flow logged
+in l/min; a fuel 237 % richer than nominal behind a forward sensor stuck at 60 C). The
+readings stay as they are, since a warning cannot know the right unit; what it says is
+where to look:
+
+- a water or room temperature whose median is that of water or air in kelvin;
+- oxygen above air's, or read as a fraction rather than vol-%;
+- a temperature or the oxygen that never moves in a log where the boiler burns fuel;
+- a flow that is negative through most of the log;
+- heat to the water that is not 35-110 % of the energy of the fuel the balance lost
+  (a boiler's direct efficiency, Eq. 7 against the balance and the nominal calorific
+  value; the water's stored heat counted);
+- a balance that gains mass while the burner is off (refills taken out first).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hil_client.analysis.firing import observe_firing
+from hil_client.analysis.logio import LabLog, fill_gaps, without_refills
+from rig_emulator.model.params import BoilerParams
+from rig_emulator.model.water_heat import heat_to_water_kW
+
+#: Water inside, into and out of the boiler, and the room, as a lab reads them [C]; a
+#: median above these is water or air in kelvin (273.15 K is 0 C).
+WATER_MEDIAN_MAX_C = 150.0
+
+
+ROOM_MEDIAN_MAX_C = 60.0
+
+
+KELVIN_OFFSET = 273.15
+
+
+#: Air's oxygen [vol-%, dry] and how far above it an analyser's zero and span may read.
+O2_AIR_PCT = 20.95
+
+
+O2_ABOVE_AIR_PCT = 0.5
+
+
+#: A boiler's direct efficiency, heat to water over the fuel's energy at the nominal
+#: calorific value [-]: the paper's boilers reach 85 % at nominal load, a cold start or a
+#: long stand-by far less; below or above this band the flow, the temperatures or the
+#: balance are in another unit (a flow in l/min reads 1/60 of the heat).
+DIRECT_EFFICIENCY_RANGE = (0.35, 1.10)
+
+
+#: The least fuel [kg] the efficiency is read over: twenty steps of the balance.
+CLOSURE_FUEL_MIN_KG = 0.4
+
+
+#: A balance that gains more than this [kg] over a stretch of at least
+#: :data:`QUIET_STRETCH_MIN_S` with the burner off drifts: the fuel only leaves.
+QUIET_GAIN_MAX_KG = 0.1
+
+
+QUIET_STRETCH_MIN_S = 1800.0
+
+
+#: A column that never moves over at least this many readings is stuck [-].
+STUCK_MIN_READINGS = 100
+
+
+_WATER = ("water_in_temp_C", "water_out_temp_C", "boiler_water_temp_C")
+_MUST_MOVE = ("water_out_temp_C", "boiler_water_temp_C", "flue_gas_temp_C", "flue_gas_O2_pct")
+
+
+def _readings(log: LabLog, name: str) -> np.ndarray:
+    if name not in log.columns:
+        return np.array([])
+    x = log[name]
+    return x[np.isfinite(x)]
+
+
+def _temperatures(log: LabLog) -> list[str]:
+    out = []
+    for name, limit in [
+        *((n, WATER_MEDIAN_MAX_C) for n in _WATER),
+        ("room_temp_C", ROOM_MEDIAN_MAX_C),
+    ]:
+        x = _readings(log, name)
+        if not len(x):
+            continue
+        median = float(np.median(x))
+        if median > limit:
+            like = " (kelvin?)" if -30.0 < median - KELVIN_OFFSET < limit else ""
+            out.append(f"column '{name}' reads a median of {median:.1f} C{like}")
+    return out
+
+
+def _oxygen(log: LabLog) -> list[str]:
+    x = _readings(log, "flue_gas_O2_pct")
+    if not len(x):
+        return []
+    top = float(np.max(x))
+    above = float(np.mean(x > O2_AIR_PCT + O2_ABOVE_AIR_PCT))
+    if above > 0.01:
+        return [
+            f"column 'flue_gas_O2_pct' reads above air's {O2_AIR_PCT} vol-% in {above:.0%} of"
+            f" its readings (up to {top:.2f}): an offset, or another unit?"
+        ]
+    if top <= 1.0 and len(x) >= STUCK_MIN_READINGS:
+        return [
+            f"column 'flue_gas_O2_pct' reads at most {top:.3g}: a fraction, not vol-%"
+            f" (air is {O2_AIR_PCT})?"
+        ]
+    return []
+
+
+def _fuel_lost_kg(log: LabLog) -> float:
+    if "balance_mass_kg" not in log.columns:
+        return float("nan")
+    mass = without_refills(log["balance_mass_kg"], log.t)
+    x = mass[np.isfinite(mass)]
+    return float(x[0] - x[-1]) if len(x) >= 2 else float("nan")
+
+
+def _stuck(log: LabLog) -> list[str]:
+    if not _fuel_lost_kg(log) > CLOSURE_FUEL_MIN_KG:
+        return []  # a boiler that burns nothing may hold its temperatures
+    out = []
+    for name in _MUST_MOVE:
+        x = _readings(log, name)
+        if len(x) >= STUCK_MIN_READINGS and float(np.ptp(x)) == 0.0:
+            out.append(
+                f"column '{name}' reads {x[0]:g} throughout while the boiler burns fuel:"
+                " a stuck sensor?"
+            )
+    return out
+
+
+def _flow(log: LabLog) -> list[str]:
+    x = _readings(log, "water_flow_kg_h")
+    if len(x) and float(np.median(x)) < 0.0:
+        return [
+            f"column 'water_flow_kg_h' reads a median of {float(np.median(x)):.1f} kg/h:"
+            " negative (the meter's direction, or its sign?)"
+        ]
+    return []
+
+
+def _closure(log: LabLog, params: BoilerParams) -> list[str]:
+    fuel_kg = _fuel_lost_kg(log)
+    if not fuel_kg > CLOSURE_FUEL_MIN_KG:
+        return []
+    t = log.t
+    q = heat_to_water_kW(
+        np.clip(fill_gaps(log["water_flow_kg_h"], t), 0.0, None),
+        fill_gaps(log["water_in_temp_C"], t),
+        fill_gaps(log["water_out_temp_C"], t),
+    )
+    water = fill_gaps(log["boiler_water_temp_C"], t)
+    ok = np.isfinite(q)
+    if ok.sum() < 2 or not np.isfinite(water[[0, -1]]).all():
+        return []
+    heat_kJ = float(np.sum(0.5 * (q[1:] + q[:-1])[ok[1:] & ok[:-1]] * np.diff(t)[ok[1:] & ok[:-1]]))
+    heat_kJ += params.c_therm_kJ_K * float(water[-1] - water[0])
+    fuel = params.fuel
+    energy_kJ = fuel_kg / fuel.balance_loss_per_kg_dry * fuel.lhv_dry_kJ_kg
+    eta = heat_kJ / energy_kJ
+    low, high = DIRECT_EFFICIENCY_RANGE
+    if low <= eta <= high:
+        return []
+    return [
+        f"the heat to the water is {eta:.0%} of the energy of the {fuel_kg:.2f} kg of fuel"
+        f" the balance lost ({low:.0%}-{high:.0%} for a boiler): is the flow in kg/h, are the"
+        " forward and return temperatures right, and is the balance in kg?"
+    ]
+
+
+def _quiet_gain(log: LabLog) -> list[str]:
+    if "balance_mass_kg" not in log.columns:
+        return []
+    t = log.t
+    mass = without_refills(log["balance_mass_kg"], t)
+    burning = observe_firing(log).burning
+    edges = np.flatnonzero(np.diff(np.r_[0, (~burning).astype(np.int8), 0]))
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        rows = np.arange(a, b)
+        rows = rows[np.isfinite(mass[rows])]
+        if len(rows) < 10 or t[rows[-1]] - t[rows[0]] < QUIET_STRETCH_MIN_S:
+            continue
+        slope = float(np.polyfit(t[rows], mass[rows], 1)[0])
+        span_s = float(t[rows[-1]] - t[rows[0]])
+        if slope * span_s > QUIET_GAIN_MAX_KG:
+            return [
+                f"column 'balance_mass_kg' gains {slope * span_s:.2f} kg over"
+                f" {span_s / 60:.0f} min from time_s = {t[rows[0]]:g} with the burner off"
+                f" ({slope * 3600:+.2f} kg/h): a drifting balance?"
+            ]
+    return []
+
+
+def suspicious(log: LabLog, params: BoilerParams) -> list[str]:
+    """One line per thing in ``log`` that looks like a wrong unit or a broken sensor (see
+    the module docstring), each naming the log's file."""
+    found = [
+        *_temperatures(log),
+        *_oxygen(log),
+        *_stuck(log),
+        *_flow(log),
+        *_closure(log, params),
+        *_quiet_gain(log),
+    ]
+    return [f"{log.path}: {line}" for line in found]

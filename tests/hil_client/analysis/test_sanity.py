@@ -1,0 +1,85 @@
+"""Warnings for what in a log looks like a wrong unit or a broken sensor
+(hil_client.analysis.sanity): each mutation a stranger's probe made of a lab log (a flow in
+l/min, temperatures in kelvin, a stuck forward sensor, oxygen offset or read as a fraction,
+a negative flow, a drifting balance) gave confident figures without a word. Each is now
+named in one line by every analysis; the emulator's own logs get none."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from hil_client.analysis.logio import LabLog, read_log
+from hil_client.analysis.sanity import suspicious
+from hil_client.cli import main
+from rig_emulator.boilers import load_boiler
+
+BOILER = "windhager_12kw"
+
+
+def _mutated(log: LabLog, **changes) -> LabLog:
+    columns = dict(log.columns)
+    for name, change in changes.items():
+        columns[name] = change(columns[name].copy(), log.t)
+    return LabLog(log.path, columns, log.text, log.meta)
+
+
+def _drift(mass, t):
+    return mass + 0.2e-3 * (t - t[0])  # +0.72 kg/h, a balance creeping up
+
+
+_WATER_AND_ROOM = ("water_in_temp_C", "water_out_temp_C", "boiler_water_temp_C", "room_temp_C")
+
+
+MUTATIONS = {
+    "flow in l/min": ({"water_flow_kg_h": lambda x, t: x / 60.0}, "is the flow in kg/h"),
+    "kelvin": ({n: lambda x, t: x + 273.15 for n in _WATER_AND_ROOM}, "(kelvin?)"),
+    "stuck forward": (
+        {"water_out_temp_C": lambda x, t: np.full_like(x, 60.0)},
+        "'water_out_temp_C' reads 60 throughout while the boiler burns fuel",
+    ),
+    "O2 offset": ({"flue_gas_O2_pct": lambda x, t: x + 5.0}, "reads above air's"),
+    "O2 fraction": ({"flue_gas_O2_pct": lambda x, t: x / 100.0}, "a fraction, not vol-%"),
+    "negative flow": ({"water_flow_kg_h": lambda x, t: -x}, "negative"),
+    "drifting balance": ({"balance_mass_kg": _drift}, "a drifting balance?"),
+}
+
+
+@pytest.fixture(scope="module")
+def logs(run_log):
+    return {p: read_log(run_log(p, BOILER).path) for p in ("stationary", "load_cycle")}
+
+
+def test_the_emulators_own_logs_raise_no_warning(logs):
+    for log in logs.values():
+        assert suspicious(log, load_boiler(BOILER)) == []
+
+
+@pytest.mark.parametrize("mutation", MUTATIONS)
+def test_each_wrong_unit_or_broken_sensor_is_named_in_one_line(logs, mutation):
+    changes, said = MUTATIONS[mutation]
+    found = suspicious(_mutated(logs["stationary"], **changes), load_boiler(BOILER))
+    assert any(said in line for line in found), found
+    assert all(line.startswith(str(logs["stationary"].path)) for line in found)
+    assert all("\n" not in line for line in found)
+
+
+def test_balance_prints_the_warning_and_still_gives_its_figures(logs, tmp_path, capsys):
+    """A flow in l/min: the direct efficiency of 1.3 % came without a word; the figures stay
+    (a warning cannot know the right unit), the warning names where to look."""
+    src = logs["stationary"]
+    lines = src.path.read_text().splitlines()
+    header = lines[0].split(",")
+    col = header.index("water_flow_kg_h")
+    rows = [r.split(",") for r in lines[1:]]
+    for r in rows:
+        r[col] = f"{float(r[col]) / 60.0:.5f}" if r[col] else r[col]
+    path = tmp_path / "lmin.csv"
+    path.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    out = tmp_path / "b.json"
+    assert main(["balance", str(path), "--boiler", BOILER, "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert f"hil-client: warning: {path}: the heat to the water is" in err
+    assert json.loads(out.read_text())["balance"]
