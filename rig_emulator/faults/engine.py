@@ -239,7 +239,7 @@ class FaultEngine:
             if _over(fault, t_sim_s):
                 unseen.append(fault)
             else:
-                started.append(self._start(fault, t_sim_s, instrument))
+                started.append(self._start(fault, t_sim_s))
         if ended or started:
             self._rebuild()
         if readings is not None and self._instrument:
@@ -269,9 +269,7 @@ class FaultEngine:
         self._next_id += 1
         return fault
 
-    def _start(
-        self, fault: ActiveFault, t_sim_s: float, instrument: Mapping[str, float]
-    ) -> ActiveFault:
+    def _start(self, fault: ActiveFault, t_sim_s: float) -> ActiveFault:
         """Make ``fault`` act; the evaluation is at ``t_sim_s`` (a disconnect happens then)."""
         spec = fault.spec
         if spec.kind == "disconnect":
@@ -281,8 +279,8 @@ class FaultEngine:
             self._journal("start", fault, t_sim_s, None, served={"connections_closed": closed})
             self._journal("end", fault, t_sim_s, None, reason="once")
             return fault
-        if spec.kind == "stuck":
-            fault.held = instrument.get(spec.signal, math.nan)
+        # a stuck reading is held at what the first evaluation serves, the faults started
+        # before it applied (:meth:`_transform`): an active offset or drift stays in it
         self.active[fault.id] = fault
         return fault
 

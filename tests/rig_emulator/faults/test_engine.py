@@ -58,6 +58,33 @@ def test_instrument_faults_never_touch_the_plant(params_12kw, tmp_path):
     assert {"analyser_status", "balance_stable"} <= differed
 
 
+@pytest.mark.parametrize(
+    "before",
+    [
+        {"kind": "offset", "signal": "balance_mass_kg", "value": 15.0, "at_s": 10},
+        {"kind": "drift", "signal": "balance_mass_kg", "rate_per_h": 360.0, "at_s": 10},
+    ],
+)
+def test_a_stuck_reading_freezes_what_was_served_with_the_faults_before_it(params_12kw, before):
+    """CONTRACT section 5: "the reading freezes at its value when the fault starts". A stuck
+    fault set over an active offset (+15 kg, a refill) or drift froze the instrument's own
+    reading instead: the served balance jumped back 15 kg (a stranger's probe)."""
+    emu = _emulator(params_12kw, "clean")
+    stuck = {"kind": "stuck", "signal": "balance_mass_kg", "at_s": 60, "for_s": 30}
+    engine = FaultEngine(faults_from_list([before, stuck]))
+    emu.reading_hook = engine.apply
+    seen: dict[float, float] = {}
+    true: dict[float, float] = {}
+    for _ in range(100):
+        emu.advance(1.0)
+        seen[emu.sim_time_s] = emu.values()["balance_mass_kg"]
+        true[emu.sim_time_s] = emu.values()["true_balance_mass_kg"]
+    # held at the reading served at 60 s, one step (0.1 kg of the drift) from the one before
+    assert seen[60.0] == pytest.approx(seen[59.0], abs=0.15)
+    assert all(seen[t] == seen[60.0] for t in np.arange(60.0, 90.0))
+    assert seen[60.0] - true[60.0] > 4.0  # the offset or the drift's 5 kg stays in it
+
+
 def test_each_kind_acts_on_the_reading_from_its_step(params_12kw):
     emu = _emulator(params_12kw, "clean")
     engine = FaultEngine(faults_from_list(INSTRUMENT_FAULTS))
