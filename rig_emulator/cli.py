@@ -35,9 +35,10 @@ from rig_emulator.cli_support import (
 )
 from rig_emulator.dashboard import Dashboard
 from rig_emulator.emulator import CommandError, Emulator, check_command
-from rig_emulator.faults import FaultError, check_units, load_faults
+from rig_emulator.faults import FaultError, check_spikes, check_units, load_faults
 from rig_emulator.instruments import ProfileError, load_profile
 from rig_emulator.modbus import BenchServer
+from rig_emulator.modbus.fault_control import reading_ranges
 from rig_emulator.model import pack_constants, steady_state
 from rig_emulator.registers import MapError, load_map
 from rig_emulator.registers.reference import markdown
@@ -286,8 +287,10 @@ def _cmd_serve(args: argparse.Namespace) -> int:
         faults = load_faults(args.faults) if args.faults is not None else []
         units = {d.unit_id for d in register_map.devices}
         check_units(faults, units, f"{args.faults}: faults")
+        check_spikes(faults, reading_ranges(register_map), f"{args.faults}: faults")
     with bad_input(FaultError, prefix="--profile: "):
         check_units(profile.faults, units, f"{args.profile}: faults")
+        check_spikes(profile.faults, reading_ranges(register_map), f"{args.profile}: faults")
     if args.fault_log is not None:
         try:
             output_file(args.fault_log)

@@ -223,6 +223,7 @@ class RigEmulator:
         one that is not finite is refused with ``ValueError`` before anything moves. A
         connection lost meanwhile is settled by the lockstep counter: each write happens
         exactly once."""
+        __tracebackhide__ = True  # a bad duration fails the user's line, not the plugin's
         if isinstance(seconds, bool) or not isinstance(seconds, numbers.Real):
             raise ValueError(f"advance({seconds!r}): expected a number of seconds")
         seconds = float(seconds)  # numpy's numbers too
@@ -260,18 +261,24 @@ class RigEmulator:
         "flue_gas_CO_ppm", "for_s": 60}``); without ``at_s`` it starts now. A fault that is
         none (a field missing or wrong, a unit the bench does not have) raises
         :class:`~rig_emulator.faults.FaultError` naming the field, and nothing is set."""
-        from rig_emulator.faults.spec import FaultError, check_units
+        from rig_emulator.faults.spec import FaultError, check_spikes, check_units
         from rig_emulator.faults.wire import block_values, fault_dict_to_spec
+        from rig_emulator.modbus.fault_control import reading_ranges
         from rig_emulator.registers import encode
 
+        __tracebackhide__ = True  # a bad fault fails the user's line, not the plugin's
         if not isinstance(fault, Mapping):
             raise FaultError(
                 f"inject({fault!r}): expected a dict as in FAULTS.yaml, e.g. "
                 '{"kind": "no_reply", "unit": 2, "for_s": 30}'
             )
-        spec = fault_dict_to_spec(fault)
-        # the server's own check (the emulator's units are refused with the spec above)
-        check_units([spec], {d.unit_id for d in self.map.devices}, "fault")
+        try:
+            spec = fault_dict_to_spec(fault)
+            # the server's own checks (the emulator's units are refused with the spec above)
+            check_units([spec], {d.unit_id for d in self.map.devices}, "fault")
+            check_spikes([spec], reading_ranges(self.map), "fault")
+        except FaultError as exc:
+            raise FaultError(str(exc)) from None
         values = block_values(spec)
         _, first = self.map.point("fault_kind")
         registers: list[int] = []
@@ -291,7 +298,7 @@ class RigEmulator:
 
     def read(self, signal_name: str) -> float:
         """A signal's published value (reading, status or command) by name."""
-        from rig_emulator.registers import decode
+        from rig_emulator.registers import decode, invalid_value
 
         device, point = self.map.point(signal_name)
         method = {
@@ -306,7 +313,9 @@ class RigEmulator:
         if reply.isError():
             raise RigEmulatorError(f"read of {signal_name} refused: {reply}")
         words = reply.bits[:1] if point.table in ("coil", "discrete") else reply.registers
-        return decode(point, list(words))
+        value = decode(point, list(words))
+        # an integer at its invalid code is no reading, as a float's NaN is
+        return math.nan if value == invalid_value(point) else value
 
     def write(self, signal_name: str, value: float) -> None:
         """Write a command (a setpoint, a switch) by signal name, e.g.
@@ -331,8 +340,11 @@ class RigEmulator:
         unit."""
         from rig_emulator.signals import MEASURED
 
+        __tracebackhide__ = True
         if signal_name not in MEASURED:
-            raise ValueError(f"'{signal_name}' is not a measured signal")
+            raise ValueError(
+                f"truth({signal_name!r}): not a measured signal (one of {', '.join(MEASURED)})"
+            )
         return self.read("true_" + signal_name)
 
     def active_fault_count(self) -> int:

@@ -71,7 +71,7 @@ from hil_client.modbus_client import (
 )
 from hil_client.protocol.rig import READING_KEYS, RigCommand, RigError
 from hil_client.rigs.transports import url_port
-from rig_emulator.registers import MapError, Point, RegisterMap, encode, run_decoder
+from rig_emulator.registers import MapError, Point, RegisterMap, encode, invalid_value, run_decoder
 
 _READ_FUNCTION = {"coil": 1, "discrete": 2, "holding": 3, "input": 4}
 
@@ -97,14 +97,6 @@ NEEDED = (*READING_KEYS, *STATUS_KEYS, "clock_mode", "speed_factor", *WRITES)
 _REPLAY_SEGMENT_BYTES = 240
 _TIME_TOLERANCE_S = 1e-6  # the server's float64 time against the rig's sum of the same steps
 LATE_S = 0.25  # an instrument's reply this much after the one before it: a "late" event
-_INVALID_RAW = {"int16": -(2**15), "int32": -(2**31), "uint16": 2**16 - 1, "uint32": 2**32 - 1}
-
-
-def invalid_reading(point: Point) -> float | None:
-    """The value an integer point carries at its invalid code (None: a float point, whose
-    invalid reading is NaN)."""
-    raw = _INVALID_RAW.get(point.datatype)
-    return None if raw is None else raw * point.scale + point.offset
 
 
 class _Break(Exception):
@@ -241,7 +233,7 @@ class ModbusRig:
             p.signal: v
             for d in register_map.devices
             for p in d.points
-            if p.signal in READING_KEYS and (v := invalid_reading(p)) is not None
+            if p.signal in READING_KEYS and (v := invalid_value(p)) is not None
         }
         #: the ``rig_epoch`` column: 0, one higher after each break the rig went on from
         self.epoch = 0

@@ -223,7 +223,6 @@ class FaultEngine:
     def _update(self, t_sim_s: float, readings: MutableMapping[str, float] | None) -> None:
         if readings is not None:
             self._last_instrument = dict(readings)
-        instrument = self._last_instrument
         ended = [f for f in self.active.values() if _over(f, t_sim_s)]
         due = [p for p in self._pending if p[0].at_s is None or p[0].at_s <= t_sim_s + _EPS_S]
         if due:
@@ -351,8 +350,8 @@ class FaultEngine:
             "source": fault.source,
         }
         name = PARAMETER[spec.kind]
-        if name is not None:
-            line[name] = spec.parameter
+        if name is not None:  # an exception code is a whole number, as served
+            line[name] = int(spec.parameter or 0) if spec.kind == "exception" else spec.parameter
         if served is None:
             served = self._served(event, fault, readings)
         line["served"] = served
@@ -373,6 +372,8 @@ class FaultEngine:
         if spec.kind == "exception":
             code = int(spec.parameter or 0)
             return {"exception_code": code} if event == "start" else {"exception_code": None}
+        if spec.kind == "disconnect":  # its start says how many it closed; its end nothing
+            return {}
         signal = str(spec.signal)
         truth = math.nan
         if self.plant is not None:

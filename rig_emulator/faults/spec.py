@@ -30,10 +30,13 @@ A bad entry raises :class:`FaultError` naming the file, the entry and the field.
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from rig_emulator.signals import MEASURED
 from rig_emulator.yamlio import read_yaml
@@ -166,7 +169,8 @@ Entry = FaultSpec | RandomSpec
 
 
 def _number(where: str, value: Any, low: float, high: float, low_open: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float):
+    """A number (numpy's too: a value taken from an array or a table)."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real):
         raise FaultError(f"{where}: must be a number, not {value!r}")
     try:
         value = float(value)
@@ -180,8 +184,10 @@ def _number(where: str, value: Any, low: float, high: float, low_open: bool = Fa
 
 
 def _integer(where: str, value: Any, low: int, high: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int):
+    """A whole number (numpy's integers too)."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Integral):
         raise FaultError(f"{where}: must be a whole number, not {value!r}")
+    value = int(value)
     if not low <= value <= high:
         raise FaultError(f"{where}: {value} is outside {low}..{high}")
     return value
@@ -233,6 +239,11 @@ def fault_from_mapping(data: Any, where: str) -> Entry:
     unit = signal = parameter = None
     if kind in COMM_KINDS:
         unit = _unit(f"{where}.unit", data.get("unit", 0 if kind == "disconnect" else None))
+        if kind == "disconnect" and unit != 0:
+            raise FaultError(
+                f"{where}.unit: {unit}: a disconnect closes every connection, of every unit"
+                " (a TCP connection carries them all); give 0 or none"
+            )
     else:
         if "signal" not in data:
             raise FaultError(f"{where}.signal: missing (an instrument fault names a signal)")
@@ -302,14 +313,23 @@ def faults_from_list(data: Any, source: str = "<faults>", key: str = "faults") -
     return [fault_from_mapping(item, f"{source}: {key}[{i}]") for i, item in enumerate(data)]
 
 
+def _field(where: str, i: int, entries: Sequence[Entry], name: str) -> str:
+    """``where[i].name`` in a list of faults, ``where.name`` for one fault on its own."""
+    return (
+        f"{where}[{i}].{name}"
+        if len(entries) > 1 or where.endswith("faults")
+        else (f"{where}.{name}")
+    )
+
+
 def check_units(entries: Sequence[Entry], units: frozenset[int] | set[int], where: str) -> None:
     """Each communication fault names a unit the bench has, or 0 (every unit): a fault on a
     unit nobody polls would hit nothing, silently (a typo, 99 for 9)."""
     for i, entry in enumerate(entries):
         if isinstance(entry, RandomSpec):
-            named = [(f"{where}[{i}].units", u) for u in entry.units]
+            named = [(_field(where, i, entries, "units"), u) for u in entry.units]
         elif entry.is_comm:
-            named = [(f"{where}[{i}].unit", entry.unit)]
+            named = [(_field(where, i, entries, "unit"), entry.unit)]
         else:
             named = []
         for field_name, unit in named:
@@ -318,6 +338,26 @@ def check_units(entries: Sequence[Entry], units: frozenset[int] | set[int], wher
                 raise FaultError(
                     f"{field_name}: unit {unit} is not on the bench (units {known}, 0: all)"
                 )
+
+
+def check_spikes(
+    entries: Sequence[Entry], ranges: Mapping[str, tuple[float, float, str]], where: str
+) -> None:
+    """Each spike's value is one its signal's register can serve (``ranges``: per signal
+    published as an integer, the lowest and highest reading and the register in words): an
+    int16 in hundredths of a kelvin clipped a -999 spike onto its invalid code, which
+    acquisition software reads as a dropout."""
+    for i, entry in enumerate(entries):
+        if isinstance(entry, RandomSpec) or entry.kind != "spike":
+            continue
+        known = ranges.get(str(entry.signal))
+        value = float(entry.parameter or 0.0)
+        if known is not None and not known[0] <= value <= known[1]:
+            lo, hi, register = known
+            raise FaultError(
+                f"{_field(where, i, entries, 'value')}: {value:g} is outside what"
+                f" {entry.signal}'s register serves ({lo:g}..{hi:g}: {register})"
+            )
 
 
 def load_faults(path: str | Path) -> list[Entry]:

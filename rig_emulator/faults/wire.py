@@ -102,5 +102,8 @@ def fault_dict_to_spec(fault: Mapping[str, Any]) -> FaultSpec:
     """A fault given as a dict (``{"kind": "no_reply", "unit": 2, "for_s": 30}``)."""
     spec = fault_from_mapping(dict(fault), "fault")
     if not isinstance(spec, FaultSpec):
-        raise FaultError("fault: kind random cannot be set through the command block")
+        raise FaultError(
+            "fault.kind: random faults come from a fault file or a profile (serve --faults,"
+            " the marker's faults=), not one at a time"
+        )
     return spec

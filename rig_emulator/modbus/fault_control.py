@@ -26,7 +26,14 @@ from typing import Any
 from pymodbus.constants import ExcCodes
 
 from rig_emulator.emulator import Emulator
-from rig_emulator.faults import Entry, FaultEngine, FaultError, FaultJournal, check_units
+from rig_emulator.faults import (
+    Entry,
+    FaultEngine,
+    FaultError,
+    FaultJournal,
+    check_spikes,
+    check_units,
+)
 from rig_emulator.faults.wire import (
     BLOCK_SIGNALS,
     COMMAND_CLEAR,
@@ -34,7 +41,7 @@ from rig_emulator.faults.wire import (
     fault_dict_to_spec,
     spec_from_block,
 )
-from rig_emulator.registers import RegisterMap
+from rig_emulator.registers import RegisterMap, reading_range
 from rig_emulator.signals import MEASURED
 
 #: Command signals of the fault block (written by clients, never plant commands).
@@ -62,6 +69,22 @@ def invalid_values(register_map: RegisterMap) -> dict[str, float]:
     return out
 
 
+def reading_ranges(register_map: RegisterMap) -> dict[str, tuple[float, float, str]]:
+    """Per measured signal published as an integer: the lowest and highest reading its
+    register serves, its invalid code left out, and the register in words."""
+    out: dict[str, tuple[float, float, str]] = {}
+    for device in register_map.devices:
+        for point in device.points:
+            if point.signal in MEASURED and point.signal not in out:
+                lo, hi = reading_range(point)
+                if math.isfinite(lo):
+                    where = (
+                        f"unit {device.unit_id} {point.name}, {point.datatype} x {point.scale:g}"
+                    )
+                    out[point.signal] = (lo, hi, where)
+    return out
+
+
 class ServerFaults:
     """The faults of one server (see the module docstring)."""
 
@@ -81,6 +104,7 @@ class ServerFaults:
         emulator.reading_hook = self.engine.apply
         self.block: dict[str, float] = dict.fromkeys(BLOCK_SIGNALS, 0.0)
         self._invalid = invalid_values(register_map)
+        self._ranges = reading_ranges(register_map)
         #: the units a communication fault may name (the bench's; 0: all of them)
         self.units = frozenset(d.unit_id for d in register_map.devices)
 
@@ -133,8 +157,13 @@ class ServerFaults:
         out["active_fault_count"] = float(len(self.engine.active))
         for signal, invalid in self._invalid.items():
             value = out.get(signal)
-            if value is not None and math.isnan(value):
+            if value is None:
+                continue
+            if math.isnan(value):
                 out[signal] = invalid
+            else:  # an instrument clips at its range's ends, never at its invalid code
+                lo, hi, _ = self._ranges[signal]
+                out[signal] = min(max(value, lo), hi)
 
     def truth(self, signal: str) -> float:
         """The plant's true value of a measured signal."""
@@ -149,6 +178,7 @@ class ServerFaults:
         against this bench's units; :class:`FaultError` names what is wrong."""
         entry = fault if not isinstance(fault, Mapping) else fault_dict_to_spec(fault)
         check_units([entry], self.units, "fault")
+        check_spikes([entry], self._ranges, "fault")
         return entry
 
     def inject(self, fault: Mapping[str, Any] | Entry, source: str = "python") -> None:
@@ -164,6 +194,7 @@ class ServerFaults:
             spec = spec_from_block(block) if command == COMMAND_SET else None
             if spec is not None:
                 check_units([spec], self.units, "fault")
+                check_spikes([spec], self._ranges, "fault")
         except FaultError:
             return ExcCodes.ILLEGAL_VALUE
         if command not in (0, COMMAND_SET, COMMAND_CLEAR):

@@ -1,6 +1,14 @@
 """Register maps as data (schema, validation, codec, Markdown reference); no protocol code."""
 
-from rig_emulator.registers.codec import decode, encode, precision, run_decoder, run_encoder
+from rig_emulator.registers.codec import (
+    decode,
+    encode,
+    invalid_value,
+    precision,
+    reading_range,
+    run_decoder,
+    run_encoder,
+)
 from rig_emulator.registers.schema import (
     MAP_DIR,
     Device,
@@ -19,9 +27,11 @@ __all__ = [
     "RegisterMap",
     "decode",
     "encode",
+    "invalid_value",
     "load_map",
     "map_from_mapping",
     "precision",
+    "reading_range",
     "run_decoder",
     "run_encoder",
 ]

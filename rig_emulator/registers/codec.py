@@ -33,6 +33,26 @@ def _structs_of(datatype: str, word_order: str) -> tuple[struct.Struct, struct.S
     return struct.Struct(order + code), struct.Struct(order + "H" * width)
 
 
+def invalid_value(point: Point) -> float | None:
+    """The value an integer point carries at its type's invalid code
+    (:attr:`~rig_emulator.registers.datatypes.DataType.invalid_raw`; None: a float point,
+    whose invalid reading is NaN, or a bit)."""
+    raw = DATATYPES[point.datatype].invalid_raw
+    return None if raw is None else raw * point.scale + point.offset
+
+
+def reading_range(point: Point) -> tuple[float, float]:
+    """The lowest and highest value an integer point serves as a reading, its invalid code
+    left out (a float point: any)."""
+    datatype = DATATYPES[point.datatype]
+    if datatype.invalid_raw is None:
+        return -math.inf, math.inf
+    lo, hi = datatype.int_range
+    lo, hi = (lo + 1, hi) if datatype.invalid_raw == lo else (lo, hi - 1)
+    ends = sorted((lo * point.scale + point.offset, hi * point.scale + point.offset))
+    return ends[0], ends[1]
+
+
 def _raw(point: Point, value: float) -> int:
     lo, hi = DATATYPES[point.datatype].int_range
     if math.isnan(value):

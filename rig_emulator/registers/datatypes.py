@@ -40,6 +40,16 @@ class DataType:
         return -(2 ** (bits - 1)), 2 ** (bits - 1) - 1
 
     @property
+    def invalid_raw(self) -> int | None:
+        """An integer type's invalid code, what an instrument serves for no reading: the
+        most negative raw value if signed (0x8000, 0x80000000), the largest if unsigned
+        (0xFFFF, 0xFFFFFFFF); None for a float (NaN) or a bit."""
+        if self.is_float or self.is_bit:
+            return None
+        lo, hi = self.int_range
+        return lo if lo < 0 else hi
+
+    @property
     def relative_precision(self) -> float:
         """Half a unit in the last place of a float type, relative."""
         return {"e": 2.0**-11, "f": 2.0**-24, "d": 2.0**-53}[self.code]

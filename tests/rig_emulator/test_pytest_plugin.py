@@ -214,6 +214,43 @@ def test_advance_and_inject_take_what_a_user_gives_or_say_why(tmp_path):
         assert rig.active_fault_count() == 0
 
 
+def test_inject_takes_numpy_numbers_and_read_gives_nan_for_any_dropout(tmp_path):
+    """A stranger's probes: inject refused numpy's numbers (values taken from an array or
+    a table); a spike of -999 on an int16 register in hundredths landed on its invalid code
+    (read as a dropout) and 400 C clipped to 327.67, both accepted; read() gave a dropout
+    on an integer register as -327.68 while a float's was NaN; an unknown unit was named
+    'fault[0].unit'."""
+    import math
+
+    import numpy as np
+
+    from rig_emulator.faults import FaultError
+    from rig_emulator.pytest_plugin import RigEmulator
+
+    with RigEmulator(workdir=tmp_path) as rig:
+        rig.inject({"kind": "no_reply", "unit": np.int64(3), "for_s": np.float32(2.0)})
+        assert rig.active_fault_count() == 1
+        rig.clear_faults()
+        for value in (-999.0, 400.0):
+            with pytest.raises(FaultError, match=r"fault.value: .* outside .*-327.67..327.67"):
+                rig.inject({"kind": "spike", "signal": "flue_gas_temp_C", "value": value})
+        rig.inject({"kind": "spike", "signal": "flue_gas_temp_C", "value": -327.0})
+        with pytest.raises(FaultError, match=r"^fault.unit: unit 9 is not on the bench"):
+            rig.inject({"kind": "no_reply", "unit": 9})
+        with pytest.raises(ValueError, match=r"one of .*flue_gas_temp_C"):
+            rig.truth("flue_gas_tmp_C")
+        rig.clear_faults()
+        for signal in ("flue_gas_temp_C", "balance_mass_kg", "flue_gas_O2_pct"):
+            rig.inject({"kind": "dropout", "signal": signal, "for_s": 5})
+        rig.advance(1)
+        for signal in ("flue_gas_temp_C", "balance_mass_kg", "flue_gas_O2_pct"):
+            assert math.isnan(rig.read(signal)), signal
+        rig.clear_faults()
+        rig.inject({"kind": "offset", "signal": "balance_mass_kg", "value": 3e6})
+        rig.advance(1)  # beyond the int32's range: clipped at its end, not its invalid code
+        assert rig.read("balance_mass_kg") > 2e6
+
+
 BAD_MARKERS = """
 import pytest
 
