@@ -387,11 +387,15 @@ def marker_options(request: pytest.FixtureRequest) -> dict[str, Any]:
 
 
 @pytest.fixture
-def rig_emulator(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[RigEmulator]:
-    """A lockstep ``rig-emulator serve`` on a free port, stopped when the test ends."""
+def rig_emulator(
+    request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[RigEmulator]:
+    """A lockstep ``rig-emulator serve`` on a free port, stopped when the test ends; its
+    fault journal (:attr:`RigEmulator.journal`) in a folder of its own, so the test's
+    ``tmp_path`` holds only what the test writes."""
     options = marker_options(request)
     try:
-        emulator = RigEmulator(workdir=tmp_path, **options)
+        emulator = RigEmulator(workdir=tmp_path_factory.mktemp("rig_emulator"), **options)
     except RigEmulatorError as exc:  # the server's own one line, not the plugin's insides
         failed = str(exc)
     else:

@@ -42,6 +42,13 @@ def test_api(rig_emulator):
         fh.write(f"{rig_emulator.port} {rig_emulator.process.pid}\\n")
 
 
+def test_the_fixture_leaves_tmp_path_to_the_test(rig_emulator, tmp_path):
+    rig_emulator.inject({"kind": "no_reply", "unit": 2, "for_s": 1})
+    rig_emulator.advance(2)
+    assert list(tmp_path.iterdir()) == []
+    assert rig_emulator.journal.read_text().count("\\n") == 2  # the start and the end
+
+
 def test_failing_test_still_stops_the_server(rig_emulator):
     with open(PORTS_FILE, "a") as fh:
         fh.write(f"{rig_emulator.port} {rig_emulator.process.pid}\\n")
@@ -93,7 +100,7 @@ def test_user_suite_runs_and_servers_stop_even_on_failure(tmp_path):
         text=True,
         timeout=600,
     )
-    assert "1 failed, 1 passed" in proc.stdout, proc.stdout + proc.stderr
+    assert "1 failed, 2 passed" in proc.stdout, proc.stdout + proc.stderr
     assert "12345" in proc.stdout  # the failure is the user's assertion, not the fixture's
     started = [line.split() for line in ports.read_text().splitlines()]
     assert len(started) == 2
