@@ -181,9 +181,11 @@ def stationary_intervals(log: LabLog, phases: Phases) -> list[Interval]:
 
 
 def _fuel_rate_dry(iv: Interval, params: BoilerParams) -> tuple[float, float]:
-    """(dry fuel flow [kg/h], its standard uncertainty) from a linear fit of the balance."""
+    """(dry fuel flow [kg/h], its standard uncertainty) from a linear fit of the balance,
+    refills taken out (one refill in a 6-h test read as fuel going back: no fuel flow, and
+    four parameters left at their documentation values)."""
     t = iv.log.t[iv.i0 : iv.i1]
-    m = iv.log["balance_mass_kg"][iv.i0 : iv.i1]
+    m = without_refills(iv.log["balance_mass_kg"], iv.log.t)[iv.i0 : iv.i1]
     ok = ~np.isnan(m)
     if ok.sum() < 2:
         return math.nan, math.nan
@@ -284,6 +286,11 @@ STATIONARY_KEYS = (
 )
 
 
+#: Steady intervals whose mean firing lies within this share of Pmax are at nominal load:
+#: their mean electric power is Pel,MAX.
+NOMINAL_LOAD_BAND = 0.15
+
+
 def _fit_stationary(
     intervals: list[Interval], doc: BoilerParams, fitted: dict[str, Fitted]
 ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
@@ -378,10 +385,23 @@ def _fit_stationary(
                     "electric vs firing power, stationary intervals, at " + key[5:8],
                     len(pel),
                 )
-        else:
+        elif abs(float(np.mean(firing)) / doc.p_max_kW - 1.0) <= NOMINAL_LOAD_BAND:
             fitted["p_el_max_W"] = Fitted(
                 float(np.mean(pel)), u_pel, "mean at nominal load", len(pel)
             )
+        else:
+            # one part load (a load cycle's steady steps span 5-7 kW of a 13-kW boiler):
+            # the documented line moved through the mean, its slope kept (as facB is
+            # above); the mean alone was read as Pel,MAX, 30 W against 50
+            slope = (doc.p_el_max_W - doc.p_el_min_W) / (doc.p_max_kW - doc.p_min_kW)
+            at = float(np.mean(firing))
+            for key, p in (("p_el_max_W", doc.p_max_kW), ("p_el_min_W", doc.p_min_kW)):
+                fitted[key] = Fitted(
+                    float(np.mean(pel)) + slope * (p - at),
+                    u_pel,
+                    f"mean at {at:.1f} kW along the documented slope, at " + key[5:8],
+                    len(pel),
+                )
     return {"x": x, "y": y}, {"fuel": fuel[:, 0], "lambda": lam}
 
 
