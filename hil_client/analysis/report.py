@@ -64,6 +64,13 @@ def validation_report(result: dict, figures: list[Path]) -> str:
             f"| {name} | {_f(f['model_kg'])} | {_f(f['balance_kg'])} | "
             f"{_f(f['deviation_pct'], 1)} |"
         )
+    left_out = (result["fuel"].get("total") or {}).get("gaps_left_out_s") or 0.0
+    if left_out:
+        lines += [
+            "",
+            f"The record has gaps ({left_out / 60:.0f} min in all): what the plant burnt in "
+            "them is counted on neither side (the replay does not know their inputs).",
+        ]
     lines += ["", "## Figures", ""]
     lines += [f"![{p.stem}]({p.name})" for p in figures]
     return "\n".join(lines) + "\n"

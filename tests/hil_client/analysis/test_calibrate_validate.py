@@ -334,3 +334,28 @@ def test_a_column_never_read_in_stand_by_leaves_its_value_documented(round_trip,
     assert calibrated.ua_amb_on_W_K == documented.ua_amb_on_W_K
     assert calibrated.p_el_off_W == documented.p_el_off_W
     assert "ua_amb_off_W_K" in fitted  # the water's cooling is still read
+
+
+def test_a_gap_in_the_record_is_counted_on_neither_side_of_the_fuel(run_log, tmp_path):
+    """Two hours cut out of a load cycle: the balance counted the fuel burnt in the gap,
+    the model its own one-step guess, and the deviation went from -9 % to -18 % (a
+    stranger's probe). Neither side counts it now; the deviation stays within a percentage
+    point of the whole record's, and the gap is reported."""
+    import shutil
+
+    rec = run_log("load_cycle", "windhager_12kw")
+    lines = rec.path.read_text().splitlines()
+    tcol = lines[0].split(",").index("time_s")
+    kept = [r for r in lines[1:] if not 10000.0 <= float(r.split(",")[tcol]) < 17200.0]
+    cut = tmp_path / "cut.csv"
+    cut.write_text("\n".join([lines[0], *kept]) + "\n")
+    shutil.copy(rec.path.with_name(rec.path.stem + ".meta.json"), tmp_path / "cut.meta.json")
+    results = []
+    for path, out in ((rec.path, tmp_path / "whole"), (cut, tmp_path / "cut")):
+        assert main(["validate", str(path), "--boiler", "windhager_12kw", "--out", str(out)]) == 0
+        results.append(json.loads((out / "validation.json").read_text())["fuel"]["total"])
+    whole, gapped = results
+    assert gapped["deviation_pct"] == pytest.approx(whole["deviation_pct"], abs=1.0)
+    assert gapped["gaps_left_out_s"] == pytest.approx(7200.0, abs=2.0)
+    assert whole["gaps_left_out_s"] == 0.0
+    assert "gaps (120 min in all)" in (tmp_path / "cut" / "report.md").read_text()
