@@ -271,13 +271,26 @@ def _logs_with_phases(
     a 6-kW boiler analysed as the 12-kW one gave fits far from any boiler, silently."""
     with bad_input(LogError):
         logs = [one_plant(read_log(path)) for path in paths]
-        found = [(log, find_phases(log)) for log in logs]
+        found = [(log, _phases_or_why(log, boiler)) for log in logs]
     _warn_tolerated(logs)
     if boiler is not None:
         for log in logs:
             _warn_other_boiler(log, boiler)
             _warn_suspicious(log, boiler)
     return found
+
+
+def _phases_or_why(log: LabLog, boiler: BoilerParams | None) -> Phases:
+    """The log's phases; where they cannot be found, the error says too what in the log
+    looks like a wrong unit or a broken sensor (a time in milliseconds, a negative flow:
+    "the water never circulates" alone sent the user looking at the pump)."""
+    try:
+        return find_phases(log)
+    except LogError as exc:
+        hints = [line.split(": ", 1)[1] for line in suspicious(log, boiler)]
+        if not hints:
+            raise
+        raise LogError(f"{exc} (and {'; '.join(hints)})") from None
 
 
 def _warn_suspicious(log: LabLog, boiler: BoilerParams) -> None:
@@ -544,7 +557,7 @@ def _cmd_balance(args: argparse.Namespace) -> int:
     with bad_input(LogError):
         log = one_plant(read_log(args.log))
         params = _boiler_for(log, args.boiler)
-        phases = find_phases(log)
+        phases = _phases_or_why(log, params)
     _warn_tolerated([log])
     _warn_suspicious(log, params)
     rows = energy_balance(log, params, phases)

@@ -7,6 +7,7 @@ in l/min; a fuel 237 % richer than nominal behind a forward sensor stuck at 60 C
 readings stay as they are, since a warning cannot know the right unit; what it says is
 where to look:
 
+- a time that advances minutes per row (milliseconds?);
 - a water or room temperature whose median is that of water or air in kelvin;
 - oxygen above air's, or read as a fraction rather than vol-%;
 - a temperature or the oxygen that never moves in a log where the boiler burns fuel;
@@ -61,6 +62,11 @@ QUIET_GAIN_MAX_KG = 0.1
 
 
 QUIET_STRETCH_MIN_S = 1800.0
+
+
+#: A log whose median step is longer than this [s] is in other units than seconds: a lab
+#: logs every 1-10 s (CONTRACT section 4), a coarse export every minute.
+TIME_STEP_MAX_S = 120.0
 
 
 #: A column that never moves over at least this many readings is stuck [-].
@@ -197,15 +203,28 @@ def _quiet_gain(log: LabLog) -> list[str]:
     return []
 
 
-def suspicious(log: LabLog, params: BoilerParams) -> list[str]:
+def _time_step(log: LabLog) -> list[str]:
+    t = log.t
+    step = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
+    if step > TIME_STEP_MAX_S:
+        return [
+            f"column 'time_s' advances a median of {step:g} s per row (a lab logs every"
+            " 1-10 s): milliseconds?"
+        ]
+    return []
+
+
+def suspicious(log: LabLog, params: BoilerParams | None = None) -> list[str]:
     """One line per thing in ``log`` that looks like a wrong unit or a broken sensor (see
-    the module docstring), each naming the log's file."""
+    the module docstring), each naming the log's file (without ``params``, the energy
+    closure is not checked)."""
     found = [
+        *_time_step(log),
         *_temperatures(log),
         *_oxygen(log),
         *_stuck(log),
         *_flow(log),
-        *_closure(log, params),
+        *(_closure(log, params) if params is not None else []),
         *_quiet_gain(log),
     ]
     return [f"{log.path}: {line}" for line in found]

@@ -83,3 +83,29 @@ def test_balance_prints_the_warning_and_still_gives_its_figures(logs, tmp_path, 
     err = capsys.readouterr().err
     assert f"hil-client: warning: {path}: the heat to the water is" in err
     assert json.loads(out.read_text())["balance"]
+
+
+def _rewritten(src, tmp_path, name: str, column: str, change) -> object:
+    """``src`` with ``column`` changed, without its phase columns (a lab's own log, whose
+    phases are found from the signals) and without its meta file."""
+    lines = src.read_text().splitlines()
+    header = lines[0].split(",")
+    col = header.index(column)
+    keep = [i for i, h in enumerate(header) if h not in ("phase", "sequence")]
+    rows = [r.split(",") for r in lines[1:]]
+    for r in rows:
+        if r[col]:
+            r[col] = f"{change(float(r[col])):.6g}"
+    path = tmp_path / name
+    text = [",".join(r[i] for i in keep) for r in [header, *rows]]
+    path.write_text("\n".join(text) + "\n")
+    return path
+
+
+def test_where_the_phases_cannot_be_found_the_error_says_what_looks_wrong(logs, tmp_path, capsys):
+    """A time in milliseconds gave "the flue-gas temperature never settles": true, and no
+    help. The one error line now says what in the log looks like a wrong unit as well."""
+    path = _rewritten(logs["stationary"].path, tmp_path, "ms.csv", "time_s", lambda v: v * 1e3)
+    assert main(["balance", str(path), "--boiler", BOILER]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "milliseconds?" in err and "cannot find" in err and len(err.splitlines()) == 1, err
