@@ -73,3 +73,20 @@ def test_balance_cli_on_a_run(run_log, capsys):
     test = next(r for r in data["balance"] if r["phase"] == "test")
     # Section 3.2.1: about 85 % of Q_fuel to water in the 12 kW stationary test
     assert test["eta_direct"] == pytest.approx(0.85, abs=0.01)
+
+
+def test_no_efficiency_from_a_step_of_the_balance(params_12kw):
+    """A phase that loses one 0.02-kg step of the balance gave an indirect efficiency of
+    99.98 % and a direct one of -0.04 % (a stranger's probe); under ten steps the
+    efficiencies are unknown, the fuel itself still given."""
+    log, _ = _steady_log(params_12kw, hours=1.0)
+    mass = log["balance_mass_kg"]
+    log.columns["balance_mass_kg"] = np.where(log.t < 1800.0, mass[0], mass[0] - 0.02)
+    log.columns["flue_gas_O2_pct"] = np.full(len(mass), 20.95)  # no combustion
+    log.columns["water_flow_kg_h"] = np.full(len(mass), 300.0)
+    log.columns["water_out_temp_C"] = log["water_in_temp_C"] - 0.01
+    t_end = float(log.t[-1])
+    phases = Phases(0.0, 0.5, t_end, t_end + 1, t_end + 2, "test")
+    test = next(r for r in energy_balance(log, params_12kw, phases) if r.phase == "test")
+    assert test.fuel_as_received_kg == pytest.approx(0.02)
+    assert np.isnan(test.eta_direct) and np.isnan(test.eta_indirect)
