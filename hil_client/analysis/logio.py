@@ -135,8 +135,9 @@ def read_log(
         for name in required:
             if name not in header:
                 raise LogError(f"{path}: missing required column '{name}'")
-        if len(set(header)) != len(header):
-            dup = next(h for h in header if header.count(h) > 1)
+        named = [h for h in header if h]  # unnamed columns: a spreadsheet's trailing ones
+        if len(set(named)) != len(named):
+            dup = next(h for h in named if named.count(h) > 1)
             raise LogError(f"{path}: column '{dup}' appears twice")
         raw: list[list[str]] = []
         odd: tuple[int, int] | None = None  # (line, fields) of a row of the wrong width
@@ -175,6 +176,10 @@ def read_log(
     text: dict[str, list[str]] = {}
     for j, name in enumerate(header):
         values = [r[j] for r in raw]
+        if not name:  # a column without a name (Excel's trailing empty ones): not a reading
+            if any(v.strip() for v in values):
+                notes.append(f"{path}: column {j + 1} has no name; not analysed")
+            continue
         if name in TEXT_COLUMNS:
             text[name] = values
             continue

@@ -107,6 +107,18 @@ def test_a_labs_own_text_column_is_kept_and_not_analysed(tmp_path):
     assert any("'operator_note' is text" in note for note in log.notes)
 
 
+def test_a_spreadsheets_trailing_unnamed_columns_are_no_readings(tmp_path):
+    """Excel writes empty columns after the last one it was given: two of them were
+    refused as "column '' appears twice" (a stranger's probe). Unnamed columns are no
+    readings; one that holds values is named in the notes."""
+    rows = "\n".join(f"{i},1,1,1,1,1,1,1,1,," for i in range(1, 4))
+    log = read_log(_write(tmp_path, HEADER + ",,\n" + rows + "\n"))
+    assert "" not in log.columns and len(log) == 3 and not log.notes
+    rows = "\n".join(f"{i},1,1,1,1,1,1,1,1,7," for i in range(1, 4))
+    log = read_log(_write(tmp_path, HEADER + ",,\n" + rows + "\n"))
+    assert log.notes == [f"{tmp_path / 'log.csv'}: column 10 has no name; not analysed"]
+
+
 def test_a_spreadsheets_byte_order_mark_is_not_part_of_the_first_name(tmp_path):
     """A CSV saved by a spreadsheet starts with a UTF-8 byte-order mark: its first column
     is still ``time_s`` (it was once refused as missing)."""
