@@ -44,7 +44,7 @@ from hil_client.progress import LiveView, ProgressLine, hms
 from hil_client.protocol.definition import ProtocolError, load_protocol
 from hil_client.protocol.rig import RigError
 from hil_client.protocol.runner import RunResult, check_setpoints, run_protocol
-from hil_client.rigs.local import LocalRig
+from hil_client.rigs.local import LocalRig, wire_only_faults
 from hil_client.rigs.modbus import WRITES, ModbusRig, check_map
 from hil_client.rigs.transports import RIG_TIMEOUT_S, connector, tls_files
 from hil_client.summary import RunSummary
@@ -609,6 +609,14 @@ def _make_rig(args: argparse.Namespace, params: BoilerParams, register_map: Regi
             print("hil-client: warning: --reply-timeout applies to a Modbus rig", file=sys.stderr)
         with bad_input(ProfileError, prefix="--profile: "):
             profile = load_profile(args.profile or "clean")
+        wire_only = wire_only_faults(profile.faults)
+        if wire_only:
+            print(
+                "hil-client: warning: --rig local has no wire: the profile's"
+                f" {', '.join(wire_only)} faults act on a Modbus rig only (its instrument"
+                " faults act here)",
+                file=sys.stderr,
+            )
         return LocalRig(params, profile, seed=args.seed or 0)
     timeout_s = RIG_TIMEOUT_S if args.reply_timeout is None else args.reply_timeout
     ignored = [o for o, v in (("--profile", args.profile), ("--seed", args.seed)) if v is not None]

@@ -79,6 +79,10 @@ class _SlopeWindow:
         self.st = self.sy = self.stt = self.sty = 0.0
 
     def add(self, t: float, y: float) -> None:
+        """Add a reading at ``t``; a missing one (NaN: a dropout) is skipped, not summed (it
+        made every later slope NaN, and t1 waited for the start-up's time-out)."""
+        if not math.isfinite(y):
+            return
         self.points.append((t, y))
         self.st += t
         self.sy += y
@@ -192,7 +196,8 @@ def run_protocol(
     phase = "preheat"
     phase_start = 0.0
     hold_since: float | None = None
-    slope = _SlopeWindow(su.t1_window_s)
+    # the slope needs three readings: a period over half the window widens it to two periods
+    slope = _SlopeWindow(max(su.t1_window_s, 2.0 * dt))
     seq_index = 0
     seq_start = 0.0
     t = 0.0

@@ -1,0 +1,74 @@
+"""The in-process rig under a profile's faults, and the runner's phase rules through a
+missing reading (a stranger's probes: a 3-s flue-gas dropout in the start-up pushed t1 to
+the start-up's time-out, 51 min late; `--profile lab_faulty` on `--rig local` injected
+nothing, without a word)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+
+import pytest
+import yaml
+
+from hil_client.cli import main
+from hil_client.protocol.runner import _SlopeWindow
+
+
+def test_a_missing_reading_is_no_point_of_the_slope():
+    window = _SlopeWindow(300.0)
+    for t in range(301):
+        window.add(float(t), math.nan if t == 150 else 0.1 * t)
+    assert window.full() and window.slope() == pytest.approx(0.1)
+
+
+def _marks(out) -> dict:
+    return json.loads(out.with_name(out.stem + ".meta.json").read_text())
+
+
+def test_a_profiles_instrument_faults_act_on_the_local_rig_and_t1_holds(tmp_path, capsys):
+    """A profile with a 3-s flue-gas dropout in the start-up and a silent analyser unit:
+    the dropout reads empty in the log, t1 comes within a few seconds of the clean run's
+    (the burner's own rule; its slope skips the missing readings), and the unit fault is
+    named as one the local rig cannot act."""
+    profile = tmp_path / "dropout.yaml"
+    faults = [
+        {"kind": "dropout", "signal": "flue_gas_temp_C", "at_s": 1400, "for_s": 3},
+        {"kind": "no_reply", "unit": 2, "at_s": 2000, "for_s": 60},
+    ]
+    profile.write_text(yaml.safe_dump({"name": "dropout", "faults": faults}))
+    runs = {}
+    for name, extra in (("clean", []), ("dropout", ["--profile", str(profile)])):
+        out = tmp_path / f"{name}.csv"
+        argv = ["run", "stationary", "--boiler", "windhager_12kw", "--rig", "local"]
+        assert main([*argv, *extra, "--out", str(out), "--quiet"]) == 0
+        runs[name] = out
+    assert "the profile's no_reply faults act on a Modbus rig only" in capsys.readouterr().err
+    clean, dropped = _marks(runs["clean"]), _marks(runs["dropout"])
+    assert dropped["t0_s"] < 1400 < dropped["t1_s"]  # the dropout fell in the start-up
+    assert dropped["t1_s"] == pytest.approx(clean["t1_s"], abs=5.0)
+    with runs["dropout"].open() as fh:
+        empty = [float(r["time_s"]) for r in csv.DictReader(fh) if not r["flue_gas_temp_C"]]
+    assert empty == [1400.0, 1401.0, 1402.0]
+
+
+def test_a_coarse_acquisition_period_still_finds_t1(tmp_path):
+    """A period of 200 s is accepted (0.1-600 s), but the 5-min slope of t1 never held the
+    three readings it needs: t1 waited for the start-up's time-out (a stranger's probe).
+    The window now takes two periods at least; t1 comes within three periods of the 1-s
+    run's (it falls on a row; the window spans two periods, one more than the rule's 5 min;
+    and the rule wants three readings in it), not at the 2-h time-out."""
+    from hil_client.protocol.definition import DEFINITION_DIR
+
+    data = yaml.safe_load((DEFINITION_DIR / "stationary.yaml").read_text())
+    marks = {}
+    for period in (1, 200):
+        protocol = tmp_path / f"p{period}.yaml"
+        protocol.write_text(yaml.safe_dump({**data, "acquisition_period_s": period}))
+        out = tmp_path / f"p{period}.csv"
+        argv = ["run", str(protocol), "--boiler", "windhager_12kw", "--rig", "local"]
+        assert main([*argv, "--out", str(out), "--quiet"]) == 0
+        marks[period] = _marks(out)
+    assert not any("t1" in note for note in marks[200]["notes"])
+    assert marks[200]["t1_s"] == pytest.approx(marks[1]["t1_s"], abs=3 * 200.0)
