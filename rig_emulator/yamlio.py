@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Hashable
 from pathlib import Path
@@ -47,6 +48,19 @@ def _mapping_without_duplicates(loader: _Loader, node: yaml.MappingNode, deep: b
 
 
 _Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _mapping_without_duplicates)
+
+
+def finite_number(value: Any) -> float | None:
+    """``value`` as a float if it is a finite number (an integer of hundreds of digits is
+    not: it has no float, and ``math.isfinite`` raised OverflowError on it), else None;
+    True and False are no numbers."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    try:
+        number = float(value)
+    except OverflowError:
+        return None
+    return number if math.isfinite(number) else None
 
 
 def read_yaml(path: Path, error: type[Exception]) -> Any:

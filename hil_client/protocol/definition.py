@@ -45,7 +45,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from rig_emulator.yamlio import read_yaml, resolve_named
+from rig_emulator.yamlio import finite_number, read_yaml, resolve_named
 
 DEFINITION_DIR = Path(__file__).parent / "definitions"
 
@@ -150,9 +150,11 @@ def parse_duration(value: Any, key: str, source: str) -> float:
 
 
 def _number(value: Any, key: str, source: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise ProtocolError(f"{source}: key '{key}' must be a finite number, got {value!r}")
-    return float(value)
+    number = finite_number(value)
+    if number is None:
+        shown = f"{value!r}" if len(repr(value)) <= 40 else f"{repr(value)[:20]}..."
+        raise ProtocolError(f"{source}: key '{key}' must be a finite number, got {shown}")
+    return number
 
 
 def _section(data: Mapping[str, Any], key: str, source: str) -> Mapping[str, Any]:

@@ -39,7 +39,6 @@ random faults at a low rate).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -48,7 +47,7 @@ from typing import Any
 from rig_emulator.bench.effects import EffectError, check_effects
 from rig_emulator.faults.spec import Entry, FaultError, faults_from_list
 from rig_emulator.signals import MEASURED
-from rig_emulator.yamlio import read_yaml, resolve_named
+from rig_emulator.yamlio import finite_number, read_yaml, resolve_named
 
 PROFILE_DIR = Path(__file__).resolve().parent.parent / "profiles"
 
@@ -147,9 +146,10 @@ def profile_from_mapping(data: Any, source: str = "<profile>") -> Profile:
             if isinstance(value, bool) or not isinstance(value, int | float):
                 raise ProfileError(f"{source}: key '{full}' must be a number")
             high = INSTRUMENT_BOUNDS[key]
-            if not math.isfinite(value) or not 0 <= value <= high:
+            number = finite_number(value)
+            if number is None or not 0 <= number <= high:
                 raise ProfileError(f"{source}: key '{full}' must be finite, in 0..{high:g}")
-            values[key] = float(value)
+            values[key] = number
         instruments[signal] = InstrumentSpec(**values)
     try:
         effects = check_effects(data.get("effects"))

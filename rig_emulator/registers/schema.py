@@ -30,7 +30,6 @@ A broken map is refused with the file, device and point named.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,7 +37,7 @@ from typing import Any
 
 from rig_emulator.registers.datatypes import DATATYPES
 from rig_emulator.signals import SIGNALS
-from rig_emulator.yamlio import read_yaml
+from rig_emulator.yamlio import finite_number, read_yaml
 
 #: The shipped maps, package data (the checkout's top-level ``register_maps/`` links here,
 #: so an installed package has them too)
@@ -120,9 +119,11 @@ class RegisterMap:
 
 
 def _num(value: Any, where: str, key: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise MapError(f"{where}: '{key}' must be a finite number, got {value!r}")
-    return float(value)
+    number = finite_number(value)
+    if number is None:
+        shown = f"{value!r}" if len(repr(value)) <= 40 else f"{repr(value)[:20]}..."
+        raise MapError(f"{where}: '{key}' must be a finite number, got {shown}")
+    return number
 
 
 def _point(raw: Any, where: str, default_order: str) -> Point:

@@ -95,6 +95,8 @@ def test_log_columns_are_the_contract_columns_then_optional_ones():
         (lambda d: d["start_up"].pop("t1_window_s"), "'start_up.t1_window_s'"),
         (lambda d: d.update(acquisition_period_s=0), "must be > 0"),
         (lambda d: d.update(extra=1), "unknown key 'extra'"),
+        # an integer of 400 digits has no float: OverflowError, a traceback (a probe)
+        (lambda d: d["start_up"].update(max_duration_s=10**400), "must be a finite number"),
     ],
 )
 def test_broken_protocol_files_name_the_key(tmp_path: Path, mutate, message):

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from rig_emulator.model.boiler import STAGE_POINTS
+from rig_emulator.yamlio import finite_number
 
 #: Stage points of the bench around the boiler's step: ``forward_sensor`` (the forward
 #: reading from the boiler's outlet, a compiled stage) and ``balance`` (what the balance
@@ -74,12 +75,12 @@ def number(key: str, value: Any, lo: float, hi: float, integer: bool = False) ->
     """``value`` as float if it is a finite number within ``lo..hi`` (whole if ``integer``)."""
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise EffectError(key, "must be a number")
-    value = float(value)
-    if not math.isfinite(value) or not lo <= value <= hi:
+    number = finite_number(value)
+    if number is None or not lo <= number <= hi:
         raise EffectError(key, f"must be finite and within {lo:g}..{hi:g}")
-    if integer and value != int(value):
+    if integer and number != int(number):
         raise EffectError(key, "must be a whole number")
-    return value
+    return number
 
 
 Values = Mapping[str, float]

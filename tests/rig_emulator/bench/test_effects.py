@@ -392,6 +392,7 @@ def test_effects_at_builds_a_profile_for_drawn_strengths(params_12kw):
             "'effects.body_heat_diffusion.nodes' must be finite",
         ),
         ({"fuel_energy_bias": {"relative_bias": 0.5}}, "relative_bias' must be finite and within"),
+        ({"fuel_energy_bias": {"relative_bias": 10**400}}, "relative_bias' must be finite"),
         ({"outlet_sensor_pipe": [1, 2]}, "'effects.outlet_sensor_pipe' must be a mapping"),
         ([1], "'effects' must be a mapping"),
     ],

@@ -112,6 +112,8 @@ def test_lab_profile_covers_every_measured_signal_and_is_reproducible():
             "delay_s' must be finite, in 0..3600",
         ),
         ({"name": "x", "instruments": {"room_temp_C": {"noise_rel": 2}}}, "in 0..1"),
+        # an integer of 400 digits has no float (OverflowError, a traceback: a probe)
+        ({"name": "x", "instruments": {"room_temp_C": {"lag_s": 10**400}}}, "0..3600"),
         ({"name": "x", "extra": 1}, "unknown key 'extra'"),
     ],
 )

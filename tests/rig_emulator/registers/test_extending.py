@@ -34,7 +34,7 @@ def test_an_instrument_added_in_the_map_alone_is_served(serve):
     data = yaml.safe_load((MAP_DIR / "wieselburg_bench.yaml").read_text())
     data["devices"].append(EXTRA_DEVICE)
     srv = serve(register_map=map_from_mapping(data, "extended map"))
-    c = client(srv.port)
+    c = client(srv.port, timeout_s=30.0)  # an 1800-s advance on a loaded machine
     try:
         start_boiler(c, srv)
         assert not write(c, srv, *ADVANCE, 1800).isError()

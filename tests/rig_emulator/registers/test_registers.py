@@ -173,6 +173,10 @@ def _broken(mutate) -> dict:
             lambda d: d["devices"][0]["points"][0].update(scale=0.5),
             "'scale'/'offset' apply to integer types only",
         ),
+        (  # an integer of 400 digits has no float (OverflowError, a traceback: a probe)
+            lambda d: d["devices"][0]["points"][7].update(max=10**400),
+            "'max' must be a finite number, got 10000000000000000000...",
+        ),
     ],
 )
 def test_broken_maps_name_file_device_and_point(mutate, message):
