@@ -70,18 +70,22 @@ def invalid_values(register_map: RegisterMap) -> dict[str, float]:
 
 
 def reading_ranges(register_map: RegisterMap) -> dict[str, tuple[float, float, str]]:
-    """Per measured signal published as an integer: the lowest and highest reading its
-    register serves, its invalid code left out, and the register in words."""
+    """Per measured signal published as an integer: the lowest and highest reading every
+    register of it serves, its invalid code left out, and the narrowest register in
+    words."""
     out: dict[str, tuple[float, float, str]] = {}
     for device in register_map.devices:
         for point in device.points:
-            if point.signal in MEASURED and point.signal not in out:
-                lo, hi = reading_range(point)
-                if math.isfinite(lo):
-                    where = (
-                        f"unit {device.unit_id} {point.name}, {point.datatype} x {point.scale:g}"
-                    )
-                    out[point.signal] = (lo, hi, where)
+            if point.signal not in MEASURED:
+                continue
+            lo, hi = reading_range(point)
+            if not math.isfinite(lo):
+                continue
+            where = f"unit {device.unit_id} {point.name}, {point.datatype} x {point.scale:g}"
+            known = out.get(point.signal)
+            if known is not None and known[1] - known[0] <= hi - lo:
+                lo, hi, where = max(lo, known[0]), min(hi, known[1]), known[2]
+            out[point.signal] = (lo, hi, where)
     return out
 
 
@@ -157,13 +161,8 @@ class ServerFaults:
         out["active_fault_count"] = float(len(self.engine.active))
         for signal, invalid in self._invalid.items():
             value = out.get(signal)
-            if value is None:
-                continue
-            if math.isnan(value):
+            if value is not None and math.isnan(value):
                 out[signal] = invalid
-            else:  # an instrument clips at its range's ends, never at its invalid code
-                lo, hi, _ = self._ranges[signal]
-                out[signal] = min(max(value, lo), hi)
 
     def truth(self, signal: str) -> float:
         """The plant's true value of a measured signal."""

@@ -1,7 +1,8 @@
 """Encoding signal values into Modbus registers and back, as a point of a map says.
 
 Integers are scaled: raw = round((value - offset) / scale), saturated to the type's range
-(the way instruments clip at their range ends); a NaN reads as 0. Floats are IEEE 754,
+(the way instruments clip at their range ends) short of its invalid code, which only an
+infinite value (a dropout) takes; a NaN reads as 0. Floats are IEEE 754,
 big-endian within each 16-bit word; ``ABCD`` sends the most significant word first, ``CDAB``
 the least significant first (word-swapped, as many PLCs and analysers do).
 
@@ -54,9 +55,19 @@ def reading_range(point: Point) -> tuple[float, float]:
 
 
 def _raw(point: Point, value: float) -> int:
-    lo, hi = DATATYPES[point.datatype].int_range
+    """The raw integer of ``value``: saturated at the type's range, its invalid code left
+    to an infinite value (a dropout), so that a finite reading beyond the range clips at
+    its end and never reads as a dropout (a -999 spike on an int16 in hundredths did)."""
+    datatype = DATATYPES[point.datatype]
+    lo, hi = datatype.int_range
     if math.isnan(value):
         return 0
+    if math.isinf(value):
+        return lo if value < 0 else hi
+    if datatype.invalid_raw == lo:
+        lo += 1
+    elif datatype.invalid_raw == hi:
+        hi -= 1
     scaled = (value - point.offset) / point.scale
     return lo if scaled <= lo else hi if scaled >= hi else round(scaled)
 

@@ -15,6 +15,7 @@ from rig_emulator.registers import (
     MapError,
     decode,
     encode,
+    invalid_value,
     load_map,
     map_from_mapping,
     precision,
@@ -82,12 +83,14 @@ def test_scaled_integer_round_trip_and_saturation(datatype, order):
     p = _point(datatype, order, scale=0.01, offset=20.0)
     for value in (20.0, 20.004, 25.37, 300.0):
         assert abs(decode(p, encode(p, value)) - value) <= 0.005 + 1e-12
-    top = decode(p, encode(p, 1e12))
-    assert top == pytest.approx(
-        {"int16": 2**15 - 1, "uint16": 2**16 - 1, "int32": 2**31 - 1, "uint32": 2**32 - 1}[datatype]
-        * 0.01
-        + 20.0
-    )
+    # saturated at the type's ends short of its invalid code (the most negative value if
+    # signed, the largest if unsigned), which only an infinite value, a dropout, takes
+    top, bottom = decode(p, encode(p, 1e12)), decode(p, encode(p, -1e12))
+    lo, hi = {"int16": (-(2**15) + 1, 2**15 - 1), "uint16": (0, 2**16 - 2),
+              "int32": (-(2**31) + 1, 2**31 - 1), "uint32": (0, 2**32 - 2)}[datatype]  # fmt: skip
+    assert (bottom, top) == pytest.approx((lo * 0.01 + 20.0, hi * 0.01 + 20.0))
+    invalid = -math.inf if datatype.startswith("int") else math.inf
+    assert decode(p, encode(p, invalid)) == pytest.approx(invalid_value(p))
     assert decode(p, encode(p, math.nan)) == 20.0  # NaN reads as raw 0
 
 
