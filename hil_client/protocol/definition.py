@@ -31,7 +31,9 @@ ever and fill the disk); the acquisition period within :data:`ACQUISITION_PERIOD
 again, and the phase rules look at minutes, the t1 slope over 5 min, the preheat hold of
 1 min, which a logger slower than 10 min cannot follow); tolerances and the t1 rise positive,
 hold times not negative, each minimum duration at most its maximum. Sequence names are
-written into the lab log, so they may not hold a comma, a quote or control characters.
+written into the lab log, so they are unique, not blank, and may not hold a comma, a quote
+or control characters; a sequence lasts one acquisition period at least (a shorter one
+was never logged nor its setpoint written); ``HH:MM:SS`` has minutes and seconds under 60.
 What the setpoints of a protocol make of a given boiler is checked against the emulator's
 command limits by :func:`hil_client.protocol.runner.check_setpoints`.
 """
@@ -131,7 +133,7 @@ def parse_duration(value: Any, key: str, source: str) -> float:
             if len(parts) != 3:
                 raise ValueError
             h, m, s = (float(x) for x in parts)
-            if not all(math.isfinite(x) and x >= 0 for x in (h, m, s)):
+            if not all(math.isfinite(x) and x >= 0 for x in (h, m, s)) or m >= 60 or s >= 60:
                 raise ValueError
         except ValueError:
             raise ProtocolError(
@@ -294,8 +296,13 @@ def protocol_from_mapping(data: Any, source: str = "<protocol>") -> ProtocolDefi
             raise ProtocolError(f"{source}: key '{prefix}' must be a mapping")
         _check_keys(raw, {"name", "load_pct", "duration"}, prefix, source)
         name = raw.get("name")
-        if not isinstance(name, str) or not name:
+        if not isinstance(name, str) or not name.strip():
             raise ProtocolError(f"{source}: missing required key '{prefix}.name'")
+        if name in (s.name for s in sequences):
+            raise ProtocolError(
+                f"{source}: key '{prefix}.name' {name!r} names an earlier sequence too (the"
+                " log's sequence column tells the steps apart by their names)"
+            )
         if not _log_text(name):
             raise ProtocolError(
                 f"{source}: key '{prefix}.name' {name!r} may not hold a comma, a quote or "
@@ -312,6 +319,11 @@ def protocol_from_mapping(data: Any, source: str = "<protocol>") -> ProtocolDefi
         else:
             a = b = _get(raw, prefix, "load_pct", source, "load")
         duration = _get(raw, prefix, "duration", source, "duration")
+        if duration < period:
+            raise ProtocolError(
+                f"{source}: key '{prefix}.duration' is {duration:g} s, less than one"
+                f" acquisition period ({period:g} s): no row would log it"
+            )
         sequences.append(Sequence(name, a, b, duration))
     c1 = _section(data, "cooling_1", source)
     _check_keys(

@@ -331,6 +331,12 @@ def run_protocol(
                     on_phase(result)
         elif t - times["t2_s"] >= t4_after - 1e-9:
             times["t4_s"] = t
+            if times["t3_s"] - times["t2_s"] >= t4_after - 1e-9:
+                result.notes.append(
+                    f"t4: cooling_2.until_after_t2_s ({t4_after:g} s) had passed when the first"
+                    f" cooling ended ({times['t3_s'] - times['t2_s']:g} s after t2); the second"
+                    " cooling lasted one row"
+                )
             if on_phase is not None:
                 on_phase(result)
             break

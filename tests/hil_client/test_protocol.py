@@ -95,6 +95,23 @@ def test_log_columns_are_the_contract_columns_then_optional_ones():
         (lambda d: d["start_up"].pop("t1_window_s"), "'start_up.t1_window_s'"),
         (lambda d: d.update(acquisition_period_s=0), "must be > 0"),
         (lambda d: d.update(extra=1), "unknown key 'extra'"),
+        # a stranger's probes: a repeated or blank name, a step shorter than a period (never
+        # logged, its setpoint never written), a time of 99 minutes
+        (
+            lambda d: d["test_sequence"]["sequences"].append(
+                dict(d["test_sequence"]["sequences"][0])
+            ),
+            "names an earlier sequence",
+        ),
+        (lambda d: d["test_sequence"]["sequences"][0].update(name=" "), ".name'"),
+        (
+            lambda d: (
+                d.update(acquisition_period_s=10)
+                or d["test_sequence"]["sequences"][0].update(duration=3)
+            ),
+            "less than one acquisition period",
+        ),
+        (lambda d: d["test_sequence"]["sequences"][0].update(duration="00:99:99"), "HH:MM:SS"),
         # an integer of 400 digits has no float: OverflowError, a traceback (a probe)
         (lambda d: d["start_up"].update(max_duration_s=10**400), "must be a finite number"),
     ],

@@ -72,3 +72,22 @@ def test_a_coarse_acquisition_period_still_finds_t1(tmp_path):
         marks[period] = _marks(out)
     assert not any("t1" in note for note in marks[200]["notes"])
     assert marks[200]["t1_s"] == pytest.approx(marks[1]["t1_s"], abs=3 * 200.0)
+
+
+def test_a_second_cooling_shorter_than_the_first_is_noted(tmp_path):
+    """cooling_2.until_after_t2_s of 10 min, while the first cooling takes an hour: t4 came
+    one row after t3, silently (a stranger's probe). The meta's notes say so."""
+    from hil_client.protocol.definition import DEFINITION_DIR
+
+    data = yaml.safe_load((DEFINITION_DIR / "stationary.yaml").read_text())
+    data["cooling_2"] = {"until_after_t2_s": 600}
+    protocol = tmp_path / "short.yaml"
+    protocol.write_text(yaml.safe_dump(data))
+    out = tmp_path / "short.csv"
+    argv = ["run", str(protocol), "--boiler", "windhager_12kw", "--rig", "local"]
+    assert main([*argv, "--out", str(out), "--quiet"]) == 0
+    meta = _marks(out)
+    assert meta["t4_s"] - meta["t3_s"] <= 1.0
+    assert any(
+        n.startswith("t4: cooling_2.until_after_t2_s (600 s) had passed") for n in meta["notes"]
+    )
