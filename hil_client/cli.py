@@ -842,6 +842,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
         if progress is not None:
             progress.done()
         kept = _what_is_kept(written[0], previous, getattr(rig, "gaps", []))
+        if written[0]:  # the meta says why the run is not complete (it said nothing)
+            meta["notes"] = [
+                *meta["notes"],
+                f"interrupted (Ctrl-C or SIGTERM) after {written[0]} rows",
+            ]
+            meta["interrupted"] = True
+            write_meta(out, meta)
         print(f"hil-client: interrupted; {kept}", file=sys.stderr)
         return 1
     finally:

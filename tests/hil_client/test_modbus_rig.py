@@ -219,8 +219,13 @@ def test_a_stopped_client_keeps_its_log_and_its_events(serve, tmp_path, how):
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 1
     assert err.count("\n") == 1 and "interrupted" in err and "Traceback" not in err
-    assert _assert_valid_partial(out) >= 100
+    rows = _assert_valid_partial(out)
+    assert rows >= 100
     assert (tmp_path / "stopped.modbus_events.jsonl").exists()
+    # the meta says why the run is not complete (it said nothing: a stranger's probe)
+    meta = read_log(out).meta
+    assert meta["complete"] is False and meta["interrupted"] is True
+    assert f"interrupted (Ctrl-C or SIGTERM) after {rows} rows" in meta["notes"]
 
 
 def test_killed_server_ends_the_client_cleanly(tmp_path):
