@@ -877,6 +877,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
         if overridden:
             result.notes.append(overridden)
             print(f"hil-client: warning: {overridden}", file=sys.stderr)
+    if summary.empty_at_s is not None:  # the balance went on losing fuel it did not hold
+        empty = (
+            f"the balance read below 0 kg from time_s = {summary.empty_at_s:g}: the pellet"
+            " store ran empty, and a real boiler would have gone out there (refill it with an"
+            " offset fault on balance_mass_kg, or run shorter)"
+        )
+        result.notes.append(empty)
+        print(f"hil-client: warning: {empty}", file=sys.stderr)
     median = summary.median_interval_s
     meta["sampling_median_s"] = None if median is None else round(median, DECIMALS["time_s"])
     coarse = _coarse_sampling(median, protocol.acquisition_period_s, meta)

@@ -47,6 +47,8 @@ class RunSummary:
     #: refills so far (rises of the balance between two readings), taken out of the mass
     _refilled_kg: float = 0.0
     _reading_prev: float | None = None
+    #: the first time the balance read below 0 kg (the pellet store empty), None: never
+    empty_at_s: float | None = None
 
     def __call__(self, row: Row) -> None:
         t: float = row[_T]  # type: ignore[assignment]
@@ -55,6 +57,8 @@ class RunSummary:
         self.intervals_s.append(dt)
         reading: float = row[_MASS]  # type: ignore[assignment]
         if reading == reading:  # a reading (NaN: none this row)
+            if reading < 0.0 and self.empty_at_s is None:
+                self.empty_at_s = t
             if self._reading_prev is not None and reading - self._reading_prev > REFILL_STEP_KG:
                 self._refilled_kg += reading - self._reading_prev
             self._reading_prev = reading

@@ -91,3 +91,27 @@ def test_a_second_cooling_shorter_than_the_first_is_noted(tmp_path):
     assert any(
         n.startswith("t4: cooling_2.until_after_t2_s (600 s) had passed") for n in meta["notes"]
     )
+
+
+def test_a_run_that_empties_the_pellet_store_says_so(tmp_path, capsys):
+    """Six days at 63 % burn more than the 250 kg the balance holds: it read negative from
+    the fifth day on, without a word (a stranger's probe). A warning and the meta's notes
+    now say when the store ran empty."""
+    from hil_client.protocol.definition import DEFINITION_DIR
+
+    data = yaml.safe_load((DEFINITION_DIR / "stationary.yaml").read_text())
+    data["acquisition_period_s"] = 60
+    data["test_sequence"]["sequences"] = [{"name": "long", "load_pct": 63, "duration": 518400}]
+    data["cooling_2"] = {"until_after_t2_s": 3600}
+    protocol = tmp_path / "long.yaml"
+    protocol.write_text(yaml.safe_dump(data))
+    out = tmp_path / "long.csv"
+    argv = ["run", str(protocol), "--boiler", "windhager_12kw", "--rig", "local"]
+    assert main([*argv, "--out", str(out), "--quiet"]) == 0
+    assert "the pellet store ran empty" in capsys.readouterr().err
+    with out.open() as fh:
+        first_negative = next(
+            float(r["time_s"]) for r in csv.DictReader(fh) if float(r["balance_mass_kg"]) < 0
+        )
+    note = f"the balance read below 0 kg from time_s = {first_negative:g}"
+    assert any(n.startswith(note) for n in _marks(out)["notes"])
