@@ -58,6 +58,7 @@ from rig_emulator.cli_support import (
     input_errors,
     int_in,
     output_file,
+    path_arg,
     report,
     text_file,
     text_input,
@@ -92,7 +93,7 @@ def _build_parser() -> argparse.ArgumentParser:
         ("--tls-key", "its private key (PEM)"),
         ("--tls-ca", "CA certificate (PEM) that signed the server's certificate"),
     ):
-        run.add_argument(option, type=Path, default=None, help=what)
+        run.add_argument(option, type=path_arg, default=None, help=what)
     run.add_argument(
         "--profile",
         default=None,
@@ -132,7 +133,7 @@ def _build_parser() -> argparse.ArgumentParser:
         "(rig_epoch, gaps in the meta file). A restarted lockstep server with the same "
         "boiler, profile and seed is rebuilt by replay whatever this says [abort]",
     )
-    run.add_argument("--out", required=True, type=Path, help="lab log to write (CSV)")
+    run.add_argument("--out", required=True, type=path_arg, help="lab log to write (CSV)")
     run.add_argument(
         "--live", action="store_true", help="live view of phase, sequence, time and key values"
     )
@@ -146,7 +147,7 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     run.add_argument(
         "--fault-report",
-        type=Path,
+        type=path_arg,
         default=None,
         metavar="REPORT.json",
         help="after the run, compare what the client saw with the fault journal: "
@@ -166,7 +167,7 @@ def _build_parser() -> argparse.ArgumentParser:
         type=text_input,
         help="boiler NAME or PATH (its fuel) [the meta file's boiler]",
     )
-    bal.add_argument("--out", type=Path, default=None, help="JSON to write [LOG.balance.json]")
+    bal.add_argument("--out", type=path_arg, default=None, help="JSON to write [LOG.balance.json]")
     cal = sub.add_parser(
         "calibrate",
         help="fit the model's parameters from lab logs (Section 3.1 of the paper)",
@@ -178,7 +179,7 @@ def _build_parser() -> argparse.ArgumentParser:
     cal.add_argument(
         "--boiler", required=True, type=text_input, help="documentation values: NAME or PATH"
     )
-    cal.add_argument("--out", required=True, type=Path, help="parameter file to write (YAML)")
+    cal.add_argument("--out", required=True, type=path_arg, help="parameter file to write (YAML)")
     val = sub.add_parser(
         "validate",
         help="simulate the model with a log's measured inputs and compare (Table 4)",
@@ -191,17 +192,17 @@ def _build_parser() -> argparse.ArgumentParser:
     val.add_argument(
         "--boiler", required=True, type=text_input, help="parameters: NAME or PATH (calibrated)"
     )
-    val.add_argument("--out", required=True, type=Path, help="output directory")
+    val.add_argument("--out", required=True, type=path_arg, help="output directory")
     dia = sub.add_parser(
         "diagnose",
         help="where the model departs from the lab, which unmodelled effect, how far it shrinks",
         description="Calibrate on CAL, diagnose the sim-to-real gap, and check the chosen "
         "effect on the held-out VAL log. Writes diagnosis.json, report.md and figures.",
     )
-    dia.add_argument("--calibration", required=True, type=Path, help="CAL.csv (fitted on)")
-    dia.add_argument("--validation", required=True, type=Path, help="VAL.csv (held out)")
+    dia.add_argument("--calibration", required=True, type=path_arg, help="CAL.csv (fitted on)")
+    dia.add_argument("--validation", required=True, type=path_arg, help="VAL.csv (held out)")
     dia.add_argument("--boiler", required=True, help="documentation values: NAME or PATH")
-    dia.add_argument("--out", required=True, type=Path, help="output directory")
+    dia.add_argument("--out", required=True, type=path_arg, help="output directory")
     dia.add_argument(
         "--ignition-charge-kg",
         type=finite_float(0.0, 10.0, "kg"),
@@ -218,7 +219,7 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     frep.add_argument("log", type=text_file, help="lab log (CSV) of a Modbus run")
     frep.add_argument("--journal", required=True, type=text_file, help="fault journal (JSONL)")
-    frep.add_argument("--out", required=True, type=Path, help="report to write (JSON)")
+    frep.add_argument("--out", required=True, type=path_arg, help="report to write (JSON)")
     gap = sub.add_parser(
         "gap-benchmark",
         help="blind benchmark of the diagnosis on generated cases",
@@ -241,7 +242,7 @@ def _build_parser() -> argparse.ArgumentParser:
     gap.add_argument(
         "--seed", type=int_in(0, 2**32 - 1), default=0, help="seed of the case generator [0]"
     )
-    gap.add_argument("--out", required=True, type=Path, help="output directory")
+    gap.add_argument("--out", required=True, type=path_arg, help="output directory")
     gap.add_argument(
         "--workers", type=int_in(1, 256), default=2, help="parallel processes, 1..256 [2]"
     )

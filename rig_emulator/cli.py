@@ -29,6 +29,7 @@ from rig_emulator.cli_support import (
     int_in,
     listen_host,
     output_file,
+    path_arg,
     report,
     text_file,
     text_input,
@@ -120,7 +121,7 @@ def _build_parser() -> argparse.ArgumentParser:
     serve.add_argument(
         "--fault-log",
         default=None,
-        type=Path,
+        type=path_arg,
         metavar="JOURNAL.jsonl",
         help="write one JSON line per fault start and end [none]",
     )
@@ -147,7 +148,7 @@ def _build_parser() -> argparse.ArgumentParser:
         "and norole (no role extension) certificates (.pem) and keys (.key) into DIR, for "
         "Modbus/TCP Security tests and demos.",
     )
-    certs.add_argument("--out", required=True, type=Path, help="directory to write")
+    certs.add_argument("--out", required=True, type=path_arg, help="directory to write")
     certs.add_argument(
         "--server-name",
         action="append",

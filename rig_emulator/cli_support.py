@@ -49,6 +49,14 @@ def report(exc: UsageError, default_prog: str) -> int:
     return 2
 
 
+def path_arg(text: str) -> Path:
+    """An argparse ``type`` for a file or directory path: an empty one is refused (it was
+    taken as '.', and the error named '.')."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty path")
+    return Path(text)
+
+
 def finite_float(low: float, high: float, unit: str = "") -> Callable[[str], float]:
     """An argparse ``type`` for a finite number in ``low..high`` (its error names the range)."""
     where = f"{low:g}..{high:g}{' ' + unit if unit else ''}"

@@ -129,6 +129,10 @@ def test_out_below_a_file_is_refused(tmp_path, capsys):
         argv = ["gap-benchmark", "--cases", "1", "--out", str(tmp_path / out)]
         _refused(capsys, argv, "--out: ")
     assert (tmp_path / "p.sh").read_text() == "#!/bin/sh\n"
+    # an empty path was taken as '.', and the error named '.' (a stranger's probe)
+    _refused(
+        capsys, ["run", "stationary", "--boiler", "windhager_6kw", "--out", ""], "an empty path"
+    )
 
 
 @pytest.mark.parametrize(
