@@ -27,6 +27,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -313,44 +314,108 @@ def fill_gaps(values: np.ndarray, t: np.ndarray) -> np.ndarray:
     return np.interp(t, t[ok], values[ok])
 
 
-#: A rise of the balance bigger than this is a refill [kg]: fuel only leaves a boiler, and
-#: the balance's noise and steps are a few hundredths of a kilogram.
+#: A rise of the balance's level bigger than this is a refill [kg]: fuel only leaves a
+#: boiler, and the balance's noise and steps are a few hundredths of a kilogram.
 REFILL_STEP_KG = 0.5
 
 
-#: A refill poured by hand goes on as long as the balance reaches a new high within this
-#: many seconds of the last one [s]: a hopper topped up from a bag rises over 20-60 s, by
-#: tenths of a kilogram per reading at 1 s, with pauses of a few seconds between pours.
-POUR_PAUSE_S = 10.0
+#: The balance's level is the median of its readings over this long before a refill
+#: began and over :data:`LEVEL_AFTER_S` after it ended [s]: noise, a single wild reading or
+#: someone leaning on the balance for up to half a minute moves no level (each was counted
+#: as a refill: a balance with 0.1 kg of noise gave 127 "refills" and three times the
+#: fuel, a stranger's probe).
+LEVEL_S = 30.0
 
 
-#: ... and for at most this long [s] (a bag after a bag).
+LEVEL_AFTER_S = 60.0
+
+
+#: A refill is looked for where the smoothed reading (a median of
+#: :data:`SMOOTH_READINGS` readings) stands :data:`REFILL_STEP_KG` above its lowest of the
+#: last :data:`POUR_DETECT_S` [s]: a hopper topped up from a bag over one or two minutes,
+#: by scoops or a slow pour of a few hundredths of a kilogram per reading.
+POUR_DETECT_S = 120.0
+
+
+SMOOTH_READINGS = 5
+
+
+#: A pour goes on as long as the smoothed reading reaches a new high within this many
+#: seconds of the last one [s] (scoops a few seconds apart), for at most
+#: :data:`POUR_MAX_S` [s] (a bag after a bag).
+POUR_PAUSE_S = 30.0
+
+
 POUR_MAX_S = 600.0
 
 
-#: A pour is looked for where the balance rises by more than this between two readings
-#: [kg]: five steps of the balance's resolution, beyond its noise; the pour is then
-#: followed back to the reading it rose from and on to its highest.
-POUR_SIGN_KG = 0.1
+#: The reading the pour rose from is the last within this much of the lowest [kg]: two
+#: steps of the balance.
+POUR_FOOT_KG = 0.04
 
 
-def refills(mass_kg: np.ndarray, t: np.ndarray) -> list[tuple[int, int, float]]:
-    """Every refill of the balance, as (row of the last reading before it, row of its
-    highest reading, rise [kg]): a rise of more than :data:`REFILL_STEP_KG` from one valid
-    reading to another, between two of which it rose by more than :data:`POUR_SIGN_KG`,
-    followed back to where it rose from and on to its highest reading as long as the
-    balance rises or reaches a new high within :data:`POUR_PAUSE_S` (one jump between two
-    readings, or a pour spread over many; a pour lasts at most :data:`POUR_MAX_S`)."""
+@dataclass(frozen=True, slots=True)
+class Refill:
+    """One refill of the balance: rows of the last reading before it and of its highest
+    reading, its rise between the levels before and after [kg], and the times the levels
+    stand for [s] (their windows' middles)."""
+
+    start: int
+    peak: int
+    rise_kg: float
+    before_s: float
+    after_s: float
+
+
+def _smoothed(m: np.ndarray) -> np.ndarray:
+    """The running median of :data:`SMOOTH_READINGS` readings (ends kept as they are)."""
+    n, k = len(m), SMOOTH_READINGS
+    if n < k:
+        return m.copy()
+    out = m.copy()
+    half = k // 2
+    out[half : n - half] = np.median(np.lib.stride_tricks.sliding_window_view(m, k), axis=1)
+    return out
+
+
+def _rolling_min_before(x: np.ndarray, t: np.ndarray, span_s: float) -> np.ndarray:
+    """Per row, the lowest of ``x`` over the ``span_s`` before it (itself included)."""
+    out = np.empty_like(x)
+    window: deque[int] = deque()
+    for i in range(len(x)):
+        while window and x[window[-1]] >= x[i]:
+            window.pop()
+        window.append(i)
+        while t[window[0]] < t[i] - span_s:
+            window.popleft()
+        out[i] = x[window[0]]
+    return out
+
+
+def refills(mass_kg: np.ndarray, t: np.ndarray) -> list[Refill]:
+    """Every refill of the balance (:class:`Refill`): where the smoothed reading stands
+    :data:`REFILL_STEP_KG` above its lowest of the last :data:`POUR_DETECT_S`, the pour is
+    followed back to the last reading near that lowest and on to its highest as long as
+    the smoothed reading reaches a new high within :data:`POUR_PAUSE_S`; it is a refill if
+    the level after it (the median of :data:`LEVEL_AFTER_S` of readings from its highest) stands
+    :data:`REFILL_STEP_KG` above the level before it (of the :data:`LEVEL_S` to its foot).
+    One jump between two readings, scoops, a slow pour: a rise that stays; a reading
+    that jumps and comes back is none."""
     ok = np.flatnonzero(~np.isnan(mass_kg))
     m, tt = mass_kg[ok], t[ok]
-    found: list[tuple[int, int, float]] = []
+    if len(m) < 2:
+        return []
+    smooth = _smoothed(m)
+    low = _rolling_min_before(smooth, tt, POUR_DETECT_S)
+    found: list[Refill] = []
     done = 0  # readings up to here belong to a refill found already
-    for k in np.flatnonzero(np.diff(m) > POUR_SIGN_KG) + 1:
+    for k in np.flatnonzero(smooth - low > REFILL_STEP_KG):
         if k <= done:
             continue
-        start = k - 1
-        while start > done and m[start - 1] < m[start] and tt[k] - tt[start - 1] <= POUR_PAUSE_S:
-            start -= 1
+        lo = max(done, int(np.searchsorted(tt, tt[k] - POUR_DETECT_S)))
+        foot = lo + int(np.argmin(smooth[lo : k + 1]))
+        near = np.flatnonzero(smooth[foot : k + 1] <= smooth[foot] + POUR_FOOT_KG)
+        start = foot + int(near[-1])
         peak = j = k
         while (
             j + 1 < len(m)
@@ -358,12 +423,33 @@ def refills(mass_kg: np.ndarray, t: np.ndarray) -> list[tuple[int, int, float]]:
             and tt[j + 1] - tt[start] <= POUR_MAX_S
         ):
             j += 1
-            if m[j] > m[peak]:
+            if smooth[j] > smooth[peak]:
                 peak = j
-        rise = float(m[peak] - m[start])
+        before = (tt >= tt[start] - LEVEL_S) & (tt <= tt[start])
+        before[: done + 1 if done else 0] = False
+        after = (tt >= tt[peak]) & (tt <= tt[peak] + LEVEL_AFTER_S)
+        if not before.any():  # the last refill ended where this one begins
+            before[start] = True
+        level_after = float(np.median(m[after]))
+        rise = level_after - float(np.median(m[before]))
+        # the pour ended at the first reading at the level after it (one jump: the first
+        # reading after it), not where the smoothed reading, a few readings late, tops
+        top = np.flatnonzero(m[start + 1 : peak + 1] >= level_after - POUR_FOOT_KG)
+        if len(top):
+            peak = start + 1 + int(top[0])
         if rise > REFILL_STEP_KG:
-            found.append((int(ok[start]), int(ok[peak]), rise))
-            done = peak
+            found.append(
+                Refill(
+                    int(ok[start]),
+                    int(ok[peak]),
+                    rise,
+                    float(np.median(tt[before])),
+                    float(np.median(tt[after])),
+                )
+            )
+            done = int(np.flatnonzero(after)[-1])
+        else:
+            done = k
     return found
 
 
@@ -389,15 +475,15 @@ def _fuel_rate_before(mass_kg: np.ndarray, t: np.ndarray, row: int, since: int) 
 
 def without_refills(mass_kg: np.ndarray, t: np.ndarray) -> np.ndarray:
     """The balance reading with every refill (:func:`refills`) taken out, so that it only
-    ever shows fuel leaving: the readings after a refill less its rise and the fuel burnt
-    while it was poured (at the rate the balance fell before it), the readings while it
-    was poured missing (the mass on a balance being filled is no reading of the fuel);
-    gaps stay."""
+    ever shows fuel leaving: the readings after a refill less its rise between the levels
+    and the fuel burnt between the times they stand for (at the rate the balance fell
+    before it), the readings while it was poured missing (the mass on a balance being
+    filled is no reading of the fuel); gaps stay."""
     out = mass_kg.astype(float)
     since = 0
-    for start, peak, rise in refills(mass_kg, t):
-        burnt = _fuel_rate_before(mass_kg, t, start, since) * float(t[peak] - t[start])
-        out[start + 1 : peak] = np.nan
-        out[peak:] -= rise + burnt
-        since = peak
+    for refill in refills(mass_kg, t):
+        rate = _fuel_rate_before(mass_kg, t, refill.start, since)
+        out[refill.start + 1 : refill.peak] = np.nan
+        out[refill.peak :] -= refill.rise_kg + rate * (refill.after_s - refill.before_s)
+        since = refill.peak
     return out
