@@ -44,6 +44,11 @@ MUTATIONS = {
     "O2 fraction": ({"flue_gas_O2_pct": lambda x, t: x / 100.0}, "a fraction, not vol-%"),
     "negative flow": ({"water_flow_kg_h": lambda x, t: -x}, "negative"),
     "drifting balance": ({"balance_mass_kg": _drift}, "a drifting balance?"),
+    "balance drifting down": (
+        {"balance_mass_kg": lambda x, t: x - 0.5 / 3600.0 * (t - t[0])},
+        "loses",
+    ),  # stand-by 'fuel' of 3 kg (a re-probe)
+    "flue gas in kelvin": ({"flue_gas_temp_C": lambda x, t: x + 273.15}, "below"),
 }
 
 
@@ -109,3 +114,21 @@ def test_where_the_phases_cannot_be_found_the_error_says_what_looks_wrong(logs, 
     assert main(["balance", str(path), "--boiler", BOILER]) == 2
     err = capsys.readouterr().err.strip()
     assert "milliseconds?" in err and "cannot find" in err and len(err.splitlines()) == 1, err
+
+
+def test_a_short_part_load_test_is_no_wrong_unit(tmp_path):
+    """A re-probe: a clean run of a 25-min test at 35 % read 19 % "direct efficiency" over
+    the whole log (the preheat's bench-heated water, the stand-by's losses) and warned of
+    wrong units. Only the firing is read now, and only over a kilogram of fuel."""
+    import yaml
+
+    from hil_client.protocol.definition import DEFINITION_DIR
+
+    data = yaml.safe_load((DEFINITION_DIR / "stationary.yaml").read_text())
+    data["test_sequence"]["sequences"] = [{"name": "short", "load_pct": 35, "duration": 1500}]
+    protocol = tmp_path / "short.yaml"
+    protocol.write_text(yaml.safe_dump(data))
+    out = tmp_path / "short.csv"
+    argv = ["run", str(protocol), "--boiler", "windhager_6kw", "--rig", "local", "--quiet"]
+    assert main([*argv, "--out", str(out)]) == 0
+    assert suspicious(read_log(out), load_boiler("windhager_6kw")) == []
