@@ -242,6 +242,8 @@ def test_inject_takes_numpy_numbers_and_read_gives_nan_for_any_dropout(tmp_path)
             with pytest.raises(FaultError, match=r"fault.value: .* outside .*-327.67..327.67"):
                 rig.inject({"kind": "spike", "signal": "flue_gas_temp_C", "value": value})
         rig.inject({"kind": "spike", "signal": "flue_gas_temp_C", "value": -327.0})
+        for end in (327.67, -327.67, np.float32(327.67)):  # the register's own ends
+            rig.inject({"kind": "spike", "signal": "flue_gas_temp_C", "value": end})
         with pytest.raises(FaultError, match=r"^fault.unit: unit 9 is not on the bench"):
             rig.inject({"kind": "no_reply", "unit": 9})
         with pytest.raises(ValueError, match=r"one of .*flue_gas_temp_C"):
