@@ -359,3 +359,26 @@ def test_a_gap_in_the_record_is_counted_on_neither_side_of_the_fuel(run_log, tmp
     assert gapped["gaps_left_out_s"] == pytest.approx(7200.0, abs=2.0)
     assert whole["gaps_left_out_s"] == 0.0
     assert "gaps (120 min in all)" in (tmp_path / "cut" / "report.md").read_text()
+
+
+def test_a_stationary_test_below_full_load_reads_pel_along_the_line(tmp_path):
+    """A clean stationary test at 87 %: inside a 15 % band around Pmax its mean (45.7 W) was
+    written as Pel,MAX (50 W), while 80 % gave 50 exactly (a re-probe: a cliff). Any part
+    load now goes along the documented slope; the clean plant's line is the documented
+    one, so both ends land on it to the meter's resolution."""
+    import yaml
+
+    from hil_client.protocol.definition import DEFINITION_DIR
+
+    data = yaml.safe_load((DEFINITION_DIR / "stationary.yaml").read_text())
+    data["test_sequence"]["sequences"] = [{"name": "st87", "load_pct": 87, "duration": 7200}]
+    protocol = tmp_path / "st87.yaml"
+    protocol.write_text(yaml.safe_dump(data))
+    log, out = tmp_path / "st87.csv", tmp_path / "st87_cal.yaml"
+    argv = ["run", str(protocol), "--boiler", "windhager_12kw", "--rig", "local", "--quiet"]
+    assert main([*argv, "--out", str(log)]) == 0
+    assert main(["calibrate", str(log), "--boiler", "windhager_12kw", "--out", str(out)]) == 0
+    fitted = json.loads(out.with_suffix(".uncertainty.json").read_text())
+    doc = load_boiler("windhager_12kw")
+    assert fitted["p_el_max_W"]["value"] == pytest.approx(doc.p_el_max_W, abs=0.5)
+    assert fitted["p_el_min_W"]["value"] == pytest.approx(doc.p_el_min_W, abs=0.5)
