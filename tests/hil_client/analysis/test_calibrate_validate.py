@@ -371,7 +371,8 @@ def test_a_stationary_test_below_full_load_reads_pel_along_the_line(tmp_path):
     from hil_client.protocol.definition import DEFINITION_DIR
 
     data = yaml.safe_load((DEFINITION_DIR / "stationary.yaml").read_text())
-    data["test_sequence"]["sequences"] = [{"name": "st87", "load_pct": 87, "duration": 7200}]
+    steady = {"name": "stationary_87", "load_pct": 87, "duration": 10800}  # named as steady
+    data["test_sequence"]["sequences"] = [steady]
     protocol = tmp_path / "st87.yaml"
     protocol.write_text(yaml.safe_dump(data))
     log, out = tmp_path / "st87.csv", tmp_path / "st87_cal.yaml"
