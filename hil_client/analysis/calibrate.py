@@ -258,7 +258,7 @@ def _plausible(doc: BoilerParams, fitted: dict[str, Fitted]) -> tuple[BoilerPara
         if not math.isfinite(f.value):
             flags[key] = f"fitted value {f.value} is not a number"
         elif rule is not None and not rule[1](f.value, doc):
-            flags[key] = f"fitted {f.value:.4g} is not {rule[0]} ({f.method})"
+            flags[key] = f"fitted {f.value:.4g}, where it must be {rule[0]} ({f.method})"
         else:
             values[key] = f.value
     params = replace(doc, **values, dt_hx_fg_K=0.0)

@@ -169,7 +169,8 @@ def validation_metrics(comp: Comparison, log: LabLog, params: BoilerParams) -> d
             continue
         metrics[name] = {s: table4_metrics(comp.model[s][mask], comp.lab[s][mask]) for s in SIGNALS}
     t = comp.t
-    dt = np.diff(t, prepend=t[0] - (t[1] - t[0] if len(t) > 1 else 1.0))
+    # the first row's step is the usual one (the one after it was a gap counted twice)
+    dt = np.diff(t, prepend=t[0] - (float(np.median(np.diff(t))) if len(t) > 1 else 1.0))
     per_kg_dry = params.fuel.balance_loss_per_kg_dry
     mass = fill_gaps(without_refills(log["balance_mass_kg"], t), t)
     # a gap in the record: what the plant burnt in it is unknown to the replay (its inputs

@@ -262,7 +262,7 @@ def test_one_implausible_value_does_not_throw_the_rest_away(round_trip, tmp_path
     for key in ("ua_amb_on_W_K", "w_el_Wh"):
         assert flags[key]["implausible"] is True and flags[key]["value"] < 0
         assert written[key] == flags[key]["kept"] == doc[key]
-        assert f"warning: {key}" in printed
+        assert f"warning: {key}: fitted" in printed and "must be not negative" in printed
     # the rest is calibrated as before
     assert flags["ua_amb_off_W_K"]["implausible"] is False
     assert written["ua_amb_off_W_K"] == pytest.approx(flags["ua_amb_off_W_K"]["value"])
