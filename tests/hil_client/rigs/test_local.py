@@ -27,6 +27,20 @@ def _marks(out) -> dict:
     return json.loads(out.with_name(out.stem + ".meta.json").read_text())
 
 
+def _run_stationary_as(tmp_path, name: str, **changes):
+    """The shipped stationary protocol with top-level keys ``changes``, run on the local
+    rig; the log's path."""
+    from hil_client.protocol.definition import DEFINITION_DIR
+
+    data = yaml.safe_load((DEFINITION_DIR / "stationary.yaml").read_text())
+    protocol = tmp_path / f"{name}.yaml"
+    protocol.write_text(yaml.safe_dump({**data, **changes}))
+    out = tmp_path / f"{name}.csv"
+    argv = ["run", str(protocol), "--boiler", "windhager_12kw", "--rig", "local", "--quiet"]
+    assert main([*argv, "--out", str(out)]) == 0
+    return out
+
+
 def test_a_profiles_instrument_faults_act_on_the_local_rig_and_t1_holds(tmp_path, capsys):
     """A profile with a 3-s flue-gas dropout in the start-up and a silent analyser unit:
     the dropout reads empty in the log, t1 comes within a few seconds of the clean run's
@@ -59,17 +73,8 @@ def test_a_coarse_acquisition_period_still_finds_t1(tmp_path):
     The window now takes two periods at least; t1 comes within three periods of the 1-s
     run's (it falls on a row; the window spans two periods, one more than the rule's 5 min;
     and the rule wants three readings in it), not at the 2-h time-out."""
-    from hil_client.protocol.definition import DEFINITION_DIR
-
-    data = yaml.safe_load((DEFINITION_DIR / "stationary.yaml").read_text())
-    marks = {}
-    for period in (1, 200):
-        protocol = tmp_path / f"p{period}.yaml"
-        protocol.write_text(yaml.safe_dump({**data, "acquisition_period_s": period}))
-        out = tmp_path / f"p{period}.csv"
-        argv = ["run", str(protocol), "--boiler", "windhager_12kw", "--rig", "local"]
-        assert main([*argv, "--out", str(out), "--quiet"]) == 0
-        marks[period] = _marks(out)
+    marks = {p: _marks(_run_stationary_as(tmp_path, f"p{p}", acquisition_period_s=p))
+             for p in (1, 200)}  # fmt: skip
     assert not any("t1" in note for note in marks[200]["notes"])
     assert marks[200]["t1_s"] == pytest.approx(marks[1]["t1_s"], abs=3 * 200.0)
 
@@ -77,15 +82,7 @@ def test_a_coarse_acquisition_period_still_finds_t1(tmp_path):
 def test_a_second_cooling_shorter_than_the_first_is_noted(tmp_path):
     """cooling_2.until_after_t2_s of 10 min, while the first cooling takes an hour: t4 came
     one row after t3, silently (a stranger's probe). The meta's notes say so."""
-    from hil_client.protocol.definition import DEFINITION_DIR
-
-    data = yaml.safe_load((DEFINITION_DIR / "stationary.yaml").read_text())
-    data["cooling_2"] = {"until_after_t2_s": 600}
-    protocol = tmp_path / "short.yaml"
-    protocol.write_text(yaml.safe_dump(data))
-    out = tmp_path / "short.csv"
-    argv = ["run", str(protocol), "--boiler", "windhager_12kw", "--rig", "local"]
-    assert main([*argv, "--out", str(out), "--quiet"]) == 0
+    out = _run_stationary_as(tmp_path, "short", cooling_2={"until_after_t2_s": 600})
     meta = _marks(out)
     assert meta["t4_s"] - meta["t3_s"] <= 1.0
     assert any(
@@ -97,17 +94,12 @@ def test_a_run_that_empties_the_pellet_store_says_so(tmp_path, capsys):
     """Six days at 63 % burn more than the 250 kg the balance holds: it read negative from
     the fifth day on, without a word (a stranger's probe). A warning and the meta's notes
     now say when the store ran empty."""
-    from hil_client.protocol.definition import DEFINITION_DIR
-
-    data = yaml.safe_load((DEFINITION_DIR / "stationary.yaml").read_text())
-    data["acquisition_period_s"] = 60
-    data["test_sequence"]["sequences"] = [{"name": "long", "load_pct": 63, "duration": 518400}]
-    data["cooling_2"] = {"until_after_t2_s": 3600}
-    protocol = tmp_path / "long.yaml"
-    protocol.write_text(yaml.safe_dump(data))
-    out = tmp_path / "long.csv"
-    argv = ["run", str(protocol), "--boiler", "windhager_12kw", "--rig", "local"]
-    assert main([*argv, "--out", str(out), "--quiet"]) == 0
+    long = {"return_setpoint_C": 55, "sequences": [
+        {"name": "long", "load_pct": 63, "duration": 518400}]}  # fmt: skip
+    out = _run_stationary_as(
+        tmp_path, "long", acquisition_period_s=60, test_sequence=long,
+        cooling_2={"until_after_t2_s": 3600},
+    )  # fmt: skip
     assert "the pellet store ran empty" in capsys.readouterr().err
     with out.open() as fh:
         first_negative = next(
