@@ -140,6 +140,11 @@ def read_log(
         if len(set(named)) != len(named):
             dup = next(h for h in named if named.count(h) > 1)
             raise LogError(f"{path}: column '{dup}' appears twice")
+        # rows may end before the header's trailing unnamed columns (a spreadsheet wrote
+        # them in the header only): such a row is whole, its missing fields empty
+        named_width = len(header)
+        while named_width and not header[named_width - 1]:
+            named_width -= 1
         raw: list[list[str]] = []
         odd: tuple[int, int] | None = None  # (line, fields) of a row of the wrong width
         try:
@@ -148,6 +153,8 @@ def read_log(
                     continue
                 if odd is not None:
                     break  # a row follows the odd one: refused below
+                if named_width <= len(row) < len(header):
+                    row = row + [""] * (len(header) - len(row))
                 if len(row) != len(header):
                     odd = (reader.line_num, len(row))
                     continue

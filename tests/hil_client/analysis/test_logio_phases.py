@@ -117,6 +117,10 @@ def test_a_spreadsheets_trailing_unnamed_columns_are_no_readings(tmp_path):
     rows = "\n".join(f"{i},1,1,1,1,1,1,1,1,7," for i in range(1, 4))
     log = read_log(_write(tmp_path, HEADER + ",,\n" + rows + "\n"))
     assert log.notes == [f"{tmp_path / 'log.csv'}: column 10 has no name; not analysed"]
+    # the header's trailing unnamed columns alone, the rows without them (a re-probe)
+    rows = "\n".join(f"{i},1,1,1,1,1,1,1,1" for i in range(1, 4))
+    log = read_log(_write(tmp_path, HEADER + ",,\n" + rows + "\n"))
+    assert len(log) == 3 and not log.notes
 
 
 def test_a_spreadsheets_byte_order_mark_is_not_part_of_the_first_name(tmp_path):
