@@ -29,7 +29,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from hil_client.analysis.logio import LabLog, fill_gaps, without_refills
+from hil_client.analysis.logio import LabLog, fill_gaps
 from hil_client.analysis.phases import NAMES, Phases
 from rig_emulator.model import constants as k
 from rig_emulator.model.fuel import stoichiometry
@@ -101,7 +101,7 @@ READ = (
 def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[PhaseBalance]:
     """Per-phase energy balance of a lab log (see the module docstring)."""
     t = log.t
-    mass = without_refills(log["balance_mass_kg"], log.t)  # a refill is no fuel leaving
+    mass = log.balance_without_refills()  # a refill is no fuel leaving
     raw = {name: log[name] for name in READ} | {"balance_mass_kg": mass}
     get = {name: fill_gaps(values, t) for name, values in raw.items()}
     co = (

@@ -37,7 +37,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from hil_client.analysis.logio import LabLog, LogError, fill_gaps, without_refills
+from hil_client.analysis.logio import LabLog, LogError, fill_gaps
 from hil_client.analysis.phases import Phases
 from rig_emulator.model import constants as k
 from rig_emulator.model.fuel import stoichiometry
@@ -185,7 +185,7 @@ def _fuel_rate_dry(iv: Interval, params: BoilerParams) -> tuple[float, float]:
     refills taken out (one refill in a 6-h test read as fuel going back: no fuel flow, and
     four parameters left at their documentation values)."""
     t = iv.log.t[iv.i0 : iv.i1]
-    m = without_refills(iv.log["balance_mass_kg"], iv.log.t)[iv.i0 : iv.i1]
+    m = iv.log.balance_without_refills()[iv.i0 : iv.i1]
     ok = ~np.isnan(m)
     if ok.sum() < 2:
         return math.nan, math.nan
@@ -487,7 +487,7 @@ def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibrati
         tb = log["boiler_water_temp_C"]
         reach = np.flatnonzero(tb[i0:i_end] >= doc.set_temp_C - 0.5)
         i_stop = i0 + int(reach[0]) if len(reach) else i_end
-        mass = fill_gaps(without_refills(log["balance_mass_kg"], t), t)
+        mass = fill_gaps(log.balance_without_refills(), t)
         per_kg_dry = doc.fuel.balance_loss_per_kg_dry
         dm = (mass[i0 - 1] - mass[i_stop - 1]) / per_kg_dry
         if i_stop - i0 >= 120 and dm > 0:  # NaN (no balance) compares False

@@ -91,10 +91,24 @@ class LabLog:
     meta: dict[str, Any] = field(default_factory=dict)
     #: what was tolerated on reading (a last row cut short), one line each, for the user
     notes: list[str] = field(default_factory=list)
+    #: (the balance column and time it was computed from, the balance without refills)
+    _unrefilled: tuple[np.ndarray, np.ndarray, np.ndarray] | None = field(
+        default=None, repr=False, compare=False
+    )
 
     @property
     def t(self) -> np.ndarray:
         return self.columns["time_s"]
+
+    def balance_without_refills(self) -> np.ndarray:
+        """The balance's reading with its refills taken out (:func:`without_refills`),
+        computed once per log however many analyses and checks read it (again if the
+        column is replaced)."""
+        mass, t = self.columns["balance_mass_kg"], self.t
+        cached = self._unrefilled
+        if cached is None or cached[0] is not mass or cached[1] is not t:
+            cached = self._unrefilled = (mass, t, without_refills(mass, t))
+        return cached[2]
 
     def has(self, name: str) -> bool:
         return name in self.columns or name in self.text

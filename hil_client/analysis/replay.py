@@ -23,7 +23,7 @@ import numpy as np
 
 from hil_client.analysis.augment import first_order_lag
 from hil_client.analysis.firing import Firing, observe_firing
-from hil_client.analysis.logio import LabLog, LogError, fill_gaps, without_refills
+from hil_client.analysis.logio import LabLog, LogError, fill_gaps
 from hil_client.analysis.phases import Phases
 from rig_emulator.model import pack_constants
 from rig_emulator.model.layout import K_SHUTOFF
@@ -148,7 +148,7 @@ def prepare(
     room = _filled(log, "room_temp_C")
     water = _filled(log, "boiler_water_temp_C")
     out_t = _filled(log, "water_out_temp_C")
-    balance = without_refills(log["balance_mass_kg"], log.t)
+    balance = log.balance_without_refills()
     if np.isnan(balance).all():
         raise LogError(f"{log.path}: column 'balance_mass_kg' has no values")
     mass = fill_gaps(balance, t)

@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from hil_client.analysis.firing import observe_firing
-from hil_client.analysis.logio import LabLog, fill_gaps, without_refills
+from hil_client.analysis.logio import LabLog, fill_gaps
 from rig_emulator.model.params import BoilerParams
 from rig_emulator.model.water_heat import heat_to_water_kW
 
@@ -148,7 +148,7 @@ def _oxygen(log: LabLog) -> list[str]:
 def _fuel_lost_kg(log: LabLog) -> float:
     if "balance_mass_kg" not in log.columns:
         return float("nan")
-    mass = without_refills(log["balance_mass_kg"], log.t)
+    mass = log.balance_without_refills()
     x = mass[np.isfinite(mass)]
     return float(x[0] - x[-1]) if len(x) >= 2 else float("nan")
 
@@ -177,7 +177,7 @@ def _flow(log: LabLog) -> list[str]:
     return []
 
 
-def _closure(log: LabLog, params: BoilerParams) -> list[str]:
+def _closure(log: LabLog, params: BoilerParams, burning: np.ndarray) -> list[str]:
     """Heat to water over the fuel's energy from the first firing row to the last (the
     preheat's bench-heated water and a stand-by's losses are no part of it: a clean run of
     a short part-load test read 19 % over the whole log), the water's stored heat counted;
@@ -185,11 +185,11 @@ def _closure(log: LabLog, params: BoilerParams) -> list[str]:
     if "balance_mass_kg" not in log.columns:
         return []
     t = log.t
-    firing = np.flatnonzero(observe_firing(log).burning)
+    firing = np.flatnonzero(burning)
     if len(firing) < 2:
         return []
     span = slice(int(firing[0]), int(firing[-1]) + 1)
-    mass = without_refills(log["balance_mass_kg"], t)[span]
+    mass = log.balance_without_refills()[span]
     read = mass[np.isfinite(mass)]
     fuel_kg = float(read[0] - read[-1]) if len(read) >= 2 else float("nan")
     if not fuel_kg > CLOSURE_FUEL_MIN_KG:
@@ -221,12 +221,11 @@ def _closure(log: LabLog, params: BoilerParams) -> list[str]:
     ]
 
 
-def _quiet_gain(log: LabLog) -> list[str]:
+def _quiet_gain(log: LabLog, burning: np.ndarray) -> list[str]:
     if "balance_mass_kg" not in log.columns:
         return []
     t = log.t
-    mass = without_refills(log["balance_mass_kg"], t)
-    burning = observe_firing(log).burning
+    mass = log.balance_without_refills()
     edges = np.flatnonzero(np.diff(np.r_[0, (~burning).astype(np.int8), 0]))
     for a, b in zip(edges[::2], edges[1::2], strict=True):
         rows = np.arange(a, b)
@@ -265,6 +264,7 @@ def suspicious(log: LabLog, params: BoilerParams | None = None) -> list[str]:
     """One line per thing in ``log`` that looks like a wrong unit or a broken sensor (see
     the module docstring), each naming the log's file (without ``params``, the energy
     closure is not checked)."""
+    burning = observe_firing(log).burning
     found = [
         *_time_step(log),
         *_temperatures(log),
@@ -272,7 +272,7 @@ def suspicious(log: LabLog, params: BoilerParams | None = None) -> list[str]:
         *_oxygen(log),
         *_stuck(log),
         *_flow(log),
-        *(_closure(log, params) if params is not None else []),
-        *_quiet_gain(log),
+        *(_closure(log, params, burning) if params is not None else []),
+        *_quiet_gain(log, burning),
     ]
     return [f"{log.path}: {line}" for line in found]

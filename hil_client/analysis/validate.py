@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hil_client.analysis.balance import flue_gas_loss_per_kg
-from hil_client.analysis.logio import LabLog, LogError, fill_gaps, without_refills
+from hil_client.analysis.logio import LabLog, LogError, fill_gaps
 from hil_client.analysis.metrics import table4_metrics
 from hil_client.analysis.phases import Phases
 from rig_emulator.model import pack_constants
@@ -67,7 +67,7 @@ def fuel_rate_from_balance(log: LabLog, params: BoilerParams) -> np.ndarray:
     """Dry fuel flow [kg/h] per row from the balance, refills taken out: slope of a
     centred linear fit."""
     t = log.t
-    m = fill_gaps(without_refills(log["balance_mass_kg"], t), t)
+    m = fill_gaps(log.balance_without_refills(), t)
     per_kg_dry = params.fuel.balance_loss_per_kg_dry
     # running sums give the least-squares slope over a centred window at every row
     cs, cm, ctt, ctm = (np.concatenate(([0.0], np.cumsum(a))) for a in (t, m, t * t, t * m))
@@ -172,7 +172,7 @@ def validation_metrics(comp: Comparison, log: LabLog, params: BoilerParams) -> d
     # the first row's step is the usual one (the one after it was a gap counted twice)
     dt = np.diff(t, prepend=t[0] - (float(np.median(np.diff(t))) if len(t) > 1 else 1.0))
     per_kg_dry = params.fuel.balance_loss_per_kg_dry
-    mass = fill_gaps(without_refills(log["balance_mass_kg"], t), t)
+    mass = fill_gaps(log.balance_without_refills(), t)
     # a gap in the record: what the plant burnt in it is unknown to the replay (its inputs
     # were not logged), so neither side counts it (the balance counted the 2.8 kg a 2-h gap
     # burnt, the model its own guess of 0.7 kg: -18 % instead of -9 %, a stranger's probe)

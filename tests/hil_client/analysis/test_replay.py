@@ -167,3 +167,21 @@ def test_a_hopper_topped_up_slowly_or_by_scoops_is_one_refill(how, kg):
     fuel = without_refills(mass, t)
     burnt = fuel[0] - fuel[-1]
     assert burnt == pytest.approx(2.7 * 2.0, abs=0.08), (refill, burnt)  # two steps and noise
+
+
+def test_a_logs_balance_without_refills_is_computed_once_and_again_when_replaced():
+    """Every analysis and check reads the balance without its refills: once per log (the
+    refill search was run three times a log by the checks, once per steady interval by
+    calibrate), again when the column is replaced."""
+    from pathlib import Path
+
+    from hil_client.analysis.logio import LabLog
+
+    t = np.arange(0.0, 600.0)
+    mass = np.where(t >= 300.0, 265.0, 250.0) - 1e-4 * t
+    log = LabLog(Path("x.csv"), {"time_s": t, "balance_mass_kg": mass}, {})
+    first = log.balance_without_refills()
+    assert log.balance_without_refills() is first
+    assert np.nanmax(first) <= 250.0  # the +15 kg taken out
+    log.columns["balance_mass_kg"] = mass + 1.0
+    assert log.balance_without_refills()[0] == pytest.approx(251.0)
