@@ -315,11 +315,8 @@ def faults_from_list(data: Any, source: str = "<faults>", key: str = "faults") -
 
 def _field(where: str, i: int, entries: Sequence[Entry], name: str) -> str:
     """``where[i].name`` in a list of faults, ``where.name`` for one fault on its own."""
-    return (
-        f"{where}[{i}].{name}"
-        if len(entries) > 1 or where.endswith("faults")
-        else (f"{where}.{name}")
-    )
+    listed = len(entries) > 1 or where.endswith("faults")
+    return f"{where}[{i}].{name}" if listed else f"{where}.{name}"
 
 
 def check_units(entries: Sequence[Entry], units: frozenset[int] | set[int], where: str) -> None:
@@ -351,13 +348,15 @@ def check_spikes(
         if isinstance(entry, RandomSpec) or entry.kind != "spike":
             continue
         known = ranges.get(str(entry.signal))
+        if known is None:
+            continue
+        lo, hi, register = known
         value = float(entry.parameter or 0.0)
         # within a millionth of the ends is the end itself: the command block carries the
         # value as a float32 of 7 digits (327.67 is 327.6700134 there, and the register's
         # own end was refused; a re-probe)
-        slack = 1e-6 * max(abs(known[0]), abs(known[1]), 1.0) if known is not None else 0.0
-        if known is not None and not known[0] - slack <= value <= known[1] + slack:
-            lo, hi, register = known
+        slack = 1e-6 * max(abs(lo), abs(hi), 1.0)
+        if not lo - slack <= value <= hi + slack:
             raise FaultError(
                 f"{_field(where, i, entries, 'value')}: {value:g} is outside what"
                 f" {entry.signal}'s register serves ({lo:g}..{hi:g}: {register})"

@@ -42,12 +42,11 @@ from rig_emulator.faults.wire import (
     spec_from_block,
 )
 from rig_emulator.registers import RegisterMap, reading_range
+from rig_emulator.registers.datatypes import DATATYPES
 from rig_emulator.signals import MEASURED
 
 #: Command signals of the fault block (written by clients, never plant commands).
 FAULT_COMMANDS = BLOCK_SIGNALS
-_SIGNED = ("int16", "int32")
-_UNSIGNED = ("uint16", "uint32")
 
 try:  # the shared gate interface of rig_emulator/modbus/handler.py
     from rig_emulator.modbus.handler import GateDecision
@@ -57,15 +56,18 @@ except ImportError:  # pragma: no cover - a handler without gates: no communicat
 
 def invalid_values(register_map: RegisterMap) -> dict[str, float]:
     """Per measured signal published as an integer: the value that encodes as its invalid
-    code (-inf saturates a signed type to its minimum, +inf an unsigned one to its maximum)."""
+    code (:attr:`~rig_emulator.registers.datatypes.DataType.invalid_raw`: -inf saturates a
+    signed type to its minimum, +inf an unsigned one to its maximum)."""
     out: dict[str, float] = {}
     for device in register_map.devices:
         for point in device.points:
-            if point.signal in MEASURED and point.signal not in out:
-                if point.datatype in _SIGNED:
-                    out[point.signal] = -math.inf
-                elif point.datatype in _UNSIGNED:
-                    out[point.signal] = math.inf
+            datatype = DATATYPES[point.datatype]
+            if (
+                point.signal in MEASURED
+                and point.signal not in out
+                and datatype.invalid_raw is not None
+            ):
+                out[point.signal] = -math.inf if datatype.invalid_raw < 0 else math.inf
     return out
 
 
