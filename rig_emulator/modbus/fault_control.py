@@ -8,9 +8,8 @@
   datastore; ``disconnect`` calls the server's ``close_all_connections``;
 - the engine is the emulator's reading hook, so instrument faults change the readings only;
 - :meth:`values` adds the command block and the active fault count to the published
-  values (the emulator adds the truth, ``true_NAME``), and turns a dropout (NaN) of
-  a signal published as an integer into the instrument's invalid code: the type's most
-  negative value if signed (0x8000, 0x80000000), its largest if unsigned (0xFFFF...);
+  values (the emulator adds the truth, ``true_NAME``); a dropout is a NaN, which a float
+  register serves as NaN and an integer register as its type's invalid code (the codec);
 - :meth:`write` handles a client's write of the command block
   (:mod:`rig_emulator.faults.wire`).
 """
@@ -42,7 +41,6 @@ from rig_emulator.faults.wire import (
     spec_from_block,
 )
 from rig_emulator.registers import RegisterMap, reading_range
-from rig_emulator.registers.datatypes import DATATYPES
 from rig_emulator.signals import MEASURED
 
 #: Command signals of the fault block (written by clients, never plant commands).
@@ -52,23 +50,6 @@ try:  # the shared gate interface of rig_emulator/modbus/handler.py
     from rig_emulator.modbus.handler import GateDecision
 except ImportError:  # pragma: no cover - a handler without gates: no communication faults
     GateDecision = None  # type: ignore[assignment,misc]
-
-
-def invalid_values(register_map: RegisterMap) -> dict[str, float]:
-    """Per measured signal published as an integer: the value that encodes as its invalid
-    code (:attr:`~rig_emulator.registers.datatypes.DataType.invalid_raw`: -inf saturates a
-    signed type to its minimum, +inf an unsigned one to its maximum)."""
-    out: dict[str, float] = {}
-    for device in register_map.devices:
-        for point in device.points:
-            datatype = DATATYPES[point.datatype]
-            if (
-                point.signal in MEASURED
-                and point.signal not in out
-                and datatype.invalid_raw is not None
-            ):
-                out[point.signal] = -math.inf if datatype.invalid_raw < 0 else math.inf
-    return out
 
 
 def reading_ranges(register_map: RegisterMap) -> dict[str, tuple[float, float, str]]:
@@ -109,7 +90,6 @@ class ServerFaults:
         self.engine.add_initial(entries, "file")
         emulator.reading_hook = self.engine.apply
         self.block: dict[str, float] = dict.fromkeys(BLOCK_SIGNALS, 0.0)
-        self._invalid = invalid_values(register_map)
         self._ranges = reading_ranges(register_map)
         #: the units a communication fault may name (the bench's; 0: all of them)
         self.units = frozenset(d.unit_id for d in register_map.devices)
@@ -158,13 +138,9 @@ class ServerFaults:
 
     # ------------------------------------------------------------------ values
     def values(self, out: dict[str, float]) -> None:
-        """Add the block and the count to ``out``; invalid codes for dropouts."""
+        """Add the block and the count to ``out``."""
         out.update(self.block)
         out["active_fault_count"] = float(len(self.engine.active))
-        for signal, invalid in self._invalid.items():
-            value = out.get(signal)
-            if value is not None and math.isnan(value):
-                out[signal] = invalid
 
     def truth(self, signal: str) -> float:
         """The plant's true value of a measured signal."""

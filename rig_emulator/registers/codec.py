@@ -1,8 +1,8 @@
 """Encoding signal values into Modbus registers and back, as a point of a map says.
 
 Integers are scaled: raw = round((value - offset) / scale), saturated to the type's range
-(the way instruments clip at their range ends) short of its invalid code, which only an
-infinite value (a dropout) takes; a NaN reads as 0. Floats are IEEE 754,
+(the way instruments clip at their range ends) short of its invalid code, which only a
+missing reading (NaN: a dropout) takes, as a float reading's NaN. Floats are IEEE 754,
 big-endian within each 16-bit word; ``ABCD`` sends the most significant word first, ``CDAB``
 the least significant first (word-swapped, as many PLCs and analysers do).
 
@@ -55,15 +55,14 @@ def reading_range(point: Point) -> tuple[float, float]:
 
 
 def _raw(point: Point, value: float) -> int:
-    """The raw integer of ``value``: saturated at the type's range, its invalid code left
-    to an infinite value (a dropout), so that a finite reading beyond the range clips at
+    """The raw integer of ``value``: its type's invalid code for no reading (NaN: a
+    dropout; it read as 0, a silently wrong reading), else saturated at the type's range
+    short of the invalid code, so that a reading beyond the range, however far, clips at
     its end and never reads as a dropout (a -999 spike on an int16 in hundredths did)."""
     datatype = DATATYPES[point.datatype]
     lo, hi = datatype.int_range
     if math.isnan(value):
-        return 0
-    if math.isinf(value):
-        return lo if value < 0 else hi
+        return 0 if datatype.invalid_raw is None else datatype.invalid_raw
     if datatype.invalid_raw == lo:
         lo += 1
     elif datatype.invalid_raw == hi:

@@ -84,14 +84,17 @@ def test_scaled_integer_round_trip_and_saturation(datatype, order):
     for value in (20.0, 20.004, 25.37, 300.0):
         assert abs(decode(p, encode(p, value)) - value) <= 0.005 + 1e-12
     # saturated at the type's ends short of its invalid code (the most negative value if
-    # signed, the largest if unsigned), which only an infinite value, a dropout, takes
-    top, bottom = decode(p, encode(p, 1e12)), decode(p, encode(p, -1e12))
+    # signed, the largest if unsigned), however far beyond: infinities too
     lo, hi = {"int16": (-(2**15) + 1, 2**15 - 1), "uint16": (0, 2**16 - 2),
               "int32": (-(2**31) + 1, 2**31 - 1), "uint32": (0, 2**32 - 2)}[datatype]  # fmt: skip
-    assert (bottom, top) == pytest.approx((lo * 0.01 + 20.0, hi * 0.01 + 20.0))
-    invalid = -math.inf if datatype.startswith("int") else math.inf
-    assert decode(p, encode(p, invalid)) == pytest.approx(invalid_value(p))
-    assert decode(p, encode(p, math.nan)) == 20.0  # NaN reads as raw 0
+    for far in (1e12, math.inf):
+        top, bottom = decode(p, encode(p, far)), decode(p, encode(p, -far))
+        assert (bottom, top) == pytest.approx((lo * 0.01 + 20.0, hi * 0.01 + 20.0))
+    # no reading (NaN, a dropout) takes the invalid code: it read as raw 0 (20.00 here), a
+    # reading, and a signal on an int16 and a uint16 at once got the first one's code
+    invalid = {"int16": 0x8000, "uint16": 0xFFFF, "int32": 0x8000, "uint32": 0xFFFF}[datatype]
+    assert encode(p, math.nan)[0 if order == "ABCD" else -1] == invalid
+    assert decode(p, encode(p, math.nan)) == pytest.approx(invalid_value(p))
 
 
 def test_word_orders_are_mirror_images():
