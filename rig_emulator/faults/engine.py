@@ -144,6 +144,9 @@ class FaultEngine:
         self._decisions: dict[int, CommDecision] = {}
         self._instrument: list[ActiveFault] = []
         self._last_instrument: dict[str, float] = {}
+        #: per signal, the (lowest, highest) reading its register serves (an integer one
+        #: clips there): the journal writes readings as served (set by the server)
+        self.reading_ranges: Mapping[str, tuple[float, float]] = {}
         self._arm(self._initial)
 
     # ------------------------------------------------------------------ setting faults
@@ -382,11 +385,11 @@ class FaultEngine:
             reading = self._last_instrument.get(signal, math.nan) if event == "end" else math.nan
         else:
             reading = readings.get(signal, math.nan)
-        return {
-            "reading": reading,
-            "instrument": self._last_instrument.get(signal, math.nan),
-            "truth": truth,
-        }
+        instrument = self._last_instrument.get(signal, math.nan)
+        if signal in self.reading_ranges:  # as served: a spike of 9999 on 327.67 at most
+            lo, hi = self.reading_ranges[signal]
+            reading, instrument = (min(max(v, lo), hi) for v in (reading, instrument))
+        return {"reading": reading, "instrument": instrument, "truth": truth}
 
 
 _UNSEEN = {"seen": False, "why": "its whole window fell between two evaluations"}

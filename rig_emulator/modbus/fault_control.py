@@ -91,6 +91,7 @@ class ServerFaults:
         emulator.reading_hook = self.engine.apply
         self.block: dict[str, float] = dict.fromkeys(BLOCK_SIGNALS, 0.0)
         self._ranges = reading_ranges(register_map)
+        self.engine.reading_ranges = {s: (lo, hi) for s, (lo, hi, _) in self._ranges.items()}
         #: the units a communication fault may name (the bench's; 0: all of them)
         self.units = frozenset(d.unit_id for d in register_map.devices)
 

@@ -235,3 +235,22 @@ def test_a_fault_on_every_unit_leaves_a_unit_the_bench_lacks_answering_0B(serve)
             c.read_input_registers(0, count=2, device_id=1)
     finally:
         c.close()
+
+
+def test_the_journal_writes_a_reading_as_its_register_serves_it(serve, tmp_path):
+    """An offset beyond what the flue-gas probe's int16 in hundredths can carry clips at
+    327.67 C on the wire; the journal wrote the engine's 1000-K-high value, which no client
+    ever read (a stranger's probe)."""
+    journal = tmp_path / "j.jsonl"
+    faults = faults_from_list(
+        [{"kind": "offset", "signal": "flue_gas_temp_C", "value": 1000.0, "at_s": 60}]
+    )
+    srv = serve(faults=faults, fault_log=journal)
+    c = client(srv.port)
+    assert not write(c, srv, *ADVANCE, 120).isError()
+    served = read_point(c, *point(srv, "flue_gas_probe", "flue_gas_temp"))
+    c.close()
+    (start,) = [e for e in read_journal(journal) if e["event"] == "start"]
+    assert served == pytest.approx(327.67)  # int16 x 0.01: 32767, its invalid code 0x8000
+    assert start["served"]["reading"] == pytest.approx(served)
+    assert start["served"]["truth"] < 100.0  # the plant's own flue gas, unclipped
