@@ -36,13 +36,6 @@ def _pipe_predict(case: Case, theta: dict[str, float] | None) -> np.ndarray:
     return first_order_lag(pipe, case.dt, case.sensor_tau_s["water_out_temp_C"])
 
 
-#: How far the forward and boiler-water sensors' offsets may drift apart over a run of low
-#: flow [K]: what two class-A Pt100s at 80 C (0.15 K + 0.002 T: 0.31 K each) can disagree
-#: by, sqrt(2) 0.31 K (the same figure as the pipe's ``ABS_MIN``). A separation beyond it
-#: is no sensor's drift: a stem conducting to the room or a pipe cooling toward it.
-DRIFT_K = 0.44
-
-
 class PipeCandidate(CurveCandidate):
     """The exit pipe. Its residual is taken relative to a straight line per run of low
     flow (offset and drift of the two sensors over the run, which a lab's Pt100s have and
@@ -62,12 +55,8 @@ class PipeCandidate(CurveCandidate):
             rows = np.concatenate(pieces)
             ok = rows[np.isfinite(r[rows])]
             if len(ok) >= 3 and np.ptp(case.t[ok]) > 0:
-                x = case.t[ok] - case.t[ok[0]]
-                slope, intercept = np.polyfit(x, r[ok], 1)
-                # the sensors' drift stays within what they can disagree by
-                start, end = np.clip([intercept, intercept + slope * x[-1]], -DRIFT_K, DRIFT_K)
-                slope = (end - start) / x[-1]
-                r[rows] = r[rows] - (start + slope * (case.t[rows] - case.t[ok[0]]))
+                slope, intercept = np.polyfit(case.t[ok] - case.t[ok[0]], r[ok], 1)
+                r[rows] = r[rows] - (intercept + slope * (case.t[rows] - case.t[ok[0]]))
         return r
 
     def prediction(self, case: Case, theta: dict[str, float]) -> dict[str, np.ndarray]:
