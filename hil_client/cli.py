@@ -282,12 +282,13 @@ def _logs_with_phases(
     return found
 
 
-def _phases_or_why(log: LabLog, boiler: BoilerParams | None) -> Phases:
-    """The log's phases; where they cannot be found, the error says too what in the log
-    looks like a wrong unit or a broken sensor (a time in milliseconds, a negative flow:
-    "the water never circulates" alone sent the user looking at the pump)."""
+def _phases_or_why(log: LabLog, boiler: BoilerParams | None, partial: bool = False) -> Phases:
+    """The log's phases (with ``partial``, those a run cut short recorded); where they
+    cannot be found, the error says too what in the log looks like a wrong unit or a broken
+    sensor (a time in milliseconds, a negative flow: "the water never circulates" alone
+    sent the user looking at the pump)."""
     try:
-        return find_phases(log)
+        return find_phases(log, partial=partial)
     except LogError as exc:
         hints = [line.split(": ", 1)[1] for line in suspicious(log, boiler)]
         if not hints:
@@ -565,7 +566,7 @@ def _cmd_balance(args: argparse.Namespace) -> int:
     with bad_input(LogError):
         log = one_plant(read_log(args.log))
         params = _boiler_for(log, args.boiler)
-        phases = _phases_or_why(log, params)
+        phases = _phases_or_why(log, params, partial=True)
     _warn_tolerated([log])
     _warn_suspicious(log, params)
     rows = energy_balance(log, params, phases)

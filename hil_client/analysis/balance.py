@@ -133,6 +133,11 @@ def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[Ph
         warn: list[str] = []
         idx = np.flatnonzero(mask)
         duration = float(dt[idx].sum())
+        if name == phases.cut_in:
+            warn.append(
+                f"the run was cut short in this phase: its figures cover the "
+                f"{duration / 60:.0f} min recorded, not the whole phase"
+            )
         first = max(idx[0] - 1, 0)
         fuel_ar = float(get["balance_mass_kg"][first] - get["balance_mass_kg"][idx[-1]])
         burn = idx[firing[idx]]

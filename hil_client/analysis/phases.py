@@ -29,6 +29,7 @@ import numpy as np
 from hil_client.analysis.logio import LabLog, LogError, fill_gaps
 
 NAMES = ("preheat", "start_up", "test", "cooling_1", "cooling_2")
+MARKS = ("t0_s", "t1_s", "t2_s", "t3_s", "t4_s")
 
 
 @dataclass(frozen=True, slots=True)
@@ -41,6 +42,8 @@ class Phases:
     t3: float
     t4: float
     source: str
+    #: marks reached (5: all; fewer: a run cut short, its later marks at its last row)
+    reached: int = 5
 
     def bounds(self, name: str) -> tuple[float, float]:
         """(start, end] of a phase; ``preheat`` starts at -inf."""
@@ -52,8 +55,18 @@ class Phases:
         lo, hi = self.bounds(name)
         return (t > lo) & (t <= hi)
 
-    def as_dict(self) -> dict[str, float]:
-        return {"t0_s": self.t0, "t1_s": self.t1, "t2_s": self.t2, "t3_s": self.t3, "t4_s": self.t4}
+    def as_dict(self) -> dict[str, float | None]:
+        """The marks; one a run cut short did not reach is None."""
+        values = (self.t0, self.t1, self.t2, self.t3, self.t4)
+        return {
+            key: v if i < self.reached else None
+            for i, (key, v) in enumerate(zip(MARKS, values, strict=True))
+        }
+
+    @property
+    def cut_in(self) -> str | None:
+        """The phase a run cut short ended in (None: every mark reached)."""
+        return None if self.reached == 5 else NAMES[self.reached]
 
 
 def _from_column(log: LabLog) -> Phases | None:
@@ -77,9 +90,6 @@ def _from_column(log: LabLog) -> Phases | None:
     )
 
 
-MARKS = ("t0_s", "t1_s", "t2_s", "t3_s", "t4_s")
-
-
 def _from_meta(log: LabLog) -> Phases | None:
     """The marks t0_s..t4_s of the meta file; None unless it gives all five (CONTRACT
     section 3: "where known"; an interrupted run's meta file keeps the marks it reached),
@@ -94,6 +104,12 @@ def _from_meta(log: LabLog) -> Phases | None:
     Refused: a mark that is no finite number, marks out of order (t0 < t1 < t2 < t3 <=
     t4), t0..t3 outside the record. A t4_s after the last row is the record's end (its
     last row cut short and left out)."""
+    return _meta_marks(log, partial=False)
+
+
+def _meta_marks(log: LabLog, partial: bool) -> Phases | None:
+    """:func:`_from_meta`; with ``partial``, also the marks an interrupted run reached (at
+    least t0_s, then each up to the first null), the rest at the record's last row."""
     meta_file = log.path.with_name(log.path.stem + ".meta.json") if log.path else "meta file"
     fix = "; remove t0_s..t4_s from it to find the phases from the signals"
     for key in MARKS:
@@ -101,25 +117,30 @@ def _from_meta(log: LabLog) -> Phases | None:
         bad = isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v)
         if v is not None and bad:  # null: not reached (an interrupted run writes that)
             raise LogError(f"{meta_file}: {key} = {v!r} is not a finite number of seconds{fix}")
-    if any(log.meta.get(key) is None for key in MARKS):
+    present = [key for key in MARKS if log.meta.get(key) is not None]
+    reached = next((i for i, key in enumerate(MARKS) if log.meta.get(key) is None), 5)
+    if reached < 5 and not (partial and reached and present == list(MARKS[:reached])):
         return None
-    values = [float(log.meta[key]) for key in MARKS]
     first, last = float(log.t[0]), float(log.t[-1])
+    values = [float(log.meta[key]) for key in MARKS[:reached]] + [last] * (5 - reached)
     name = log.path.name if log.path else "the log"
-    for key, v in zip(MARKS[:4], values[:4], strict=True):
+    for key, v in zip(MARKS[:reached], values[:4], strict=False):
         if not first <= v <= last:
             raise LogError(
                 f"{meta_file}: {key} = {v:g} lies outside the record of {name} (time_s "
                 f"{first:g}..{last:g}): marks of another log, or the log cut short{fix}"
             )
-    for i in range(1, len(MARKS)):
+    for i in range(1, reached):
         if not (values[i - 1] < values[i] or (i == 4 and values[3] == values[4])):
             raise LogError(
                 f"{meta_file}: {MARKS[i]} = {values[i]:g} is not after "
                 f"{MARKS[i - 1]} = {values[i - 1]:g}{fix}"
             )
     values[4] = min(values[4], last)
-    return Phases(*values, source="meta file")  # type: ignore[arg-type]
+    if reached == 5:
+        return Phases(*values, source="meta file")  # type: ignore[arg-type]
+    source = f"meta file, the run cut short in its {NAMES[reached]} phase"
+    return Phases(*values, source=source, reached=reached)  # type: ignore[arg-type]
 
 
 def rise_rate_K_min(t: np.ndarray, y: np.ndarray, window_s: float = 300.0) -> np.ndarray:
@@ -183,8 +204,11 @@ def _from_signals(log: LabLog) -> Phases:
     return Phases(t0, t1, t2, t3, float(t[-1]), "signals")
 
 
-def find_phases(log: LabLog, prefer_signals: bool = False) -> Phases:
-    """Phase boundaries from the phase column, the meta file, or the signals (see above)."""
+def find_phases(log: LabLog, prefer_signals: bool = False, partial: bool = False) -> Phases:
+    """Phase boundaries from the phase column, the meta file, or the signals (see above).
+    With ``partial``, a run cut short (its meta file's marks up to those it reached) gives
+    the phases it recorded, the one it was cut in ending at its last row (see
+    :attr:`Phases.reached`), where the signals do not find all five."""
     if not prefer_signals:
         for finder in (_from_column, _from_meta):
             found = finder(log)
@@ -196,6 +220,9 @@ def find_phases(log: LabLog, prefer_signals: bool = False) -> Phases:
     try:  # a run cut short: its meta file has the marks it reached, null for the rest
         return _from_signals(log)
     except LogError as exc:
+        cut = _meta_marks(log, partial=True) if partial else None
+        if cut is not None:
+            return cut
         known = ", ".join(reached) or "no mark"
         raise LogError(
             f"{exc}; the run was cut short (its meta file records {known}, the rest not "

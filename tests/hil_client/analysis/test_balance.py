@@ -90,3 +90,45 @@ def test_no_efficiency_from_a_step_of_the_balance(params_12kw):
     test = next(r for r in energy_balance(log, params_12kw, phases) if r.phase == "test")
     assert test.fuel_as_received_kg == pytest.approx(0.02)
     assert np.isnan(test.eta_direct) and np.isnan(test.eta_indirect)
+
+
+def test_a_run_cut_short_gets_the_balance_of_the_phases_it_recorded(run_log, tmp_path, capsys):
+    """A run interrupted half an hour into its test (Ctrl-C; its meta file: t0_s and t1_s,
+    the rest null) was refused whole ("no whole test to analyse by phase"). Its start-up is
+    whole and the test so far is worth a figure: the start-up's balance is the whole run's,
+    and the test's row says it covers only what was recorded."""
+    import json
+
+    from hil_client.analysis.logio import read_log
+    from hil_client.cli import main
+
+    rec = run_log("stationary", "windhager_12kw")
+    assert main(["balance", str(rec.path), "--out", str(tmp_path / "whole.json")]) == 0
+    whole = json.loads((tmp_path / "whole.json").read_text())["balance"]
+    log = read_log(rec.path)
+    lines = rec.path.read_text().splitlines()
+    header = lines[0].split(",")
+    keep = [i for i, c in enumerate(header) if c not in ("phase", "sequence")]
+    cut_s = rec.meta["t1_s"] + 1800.0
+    rows = [lines[0]] + [line for t, line in zip(log.t, lines[1:], strict=True) if t <= cut_s]
+    cut = tmp_path / "cut.csv"
+    cut.write_text(
+        "\n".join(",".join(r.split(",")[i] for i in keep) for r in rows) + "\n", encoding="utf-8"
+    )
+    meta = dict(rec.meta) | {"t2_s": None, "t3_s": None, "t4_s": None, "complete": False}
+    cut.with_name("cut.meta.json").write_text(json.dumps(meta))
+    capsys.readouterr()
+    assert main(["balance", str(cut), "--out", str(tmp_path / "cut.json")]) == 0
+    out = capsys.readouterr().out
+    assert "cut short in its test phase" in out and "cut short in this phase" in out
+    data = json.loads((tmp_path / "cut.json").read_text())
+    assert data["phases"]["t2_s"] is None and data["phases"]["t1_s"] == rec.meta["t1_s"]
+    by_phase = {r["phase"]: r for r in data["balance"]}
+    assert set(by_phase) == {"preheat", "start_up", "test"}
+    assert by_phase["start_up"] == next(r for r in whole if r["phase"] == "start_up")
+    assert by_phase["test"]["duration_s"] == pytest.approx(1800.0, abs=1.0)
+    assert "cut short" in by_phase["test"]["warnings"][0]
+    # the half hour of steady firing reads as the whole test does, within the balance's
+    # resolution over 0.9 kg of fuel (0.02-kg steps at both ends, 4 %)
+    full_test = next(r for r in whole if r["phase"] == "test")
+    assert by_phase["test"]["eta_direct"] == pytest.approx(full_test["eta_direct"], rel=0.05)

@@ -242,6 +242,15 @@ def test_marks_an_interrupted_run_did_not_reach_are_unknown_not_errors(run_log, 
     cut = write(log.t <= rec.meta["t0_s"] + 600.0, "cut", ("t0_s",))  # killed in start-up
     with pytest.raises(LogError, match=r"the run was cut short .*records t0_s, the rest not"):
         find_phases(read_log(cut))
+    # what the balance takes: the phases it recorded, the one cut in ending at its last row
+    partial = find_phases(read_log(cut), partial=True)
+    assert (partial.t0, partial.reached, partial.cut_in) == (rec.meta["t0_s"], 1, "start_up")
+    assert partial.t1 == partial.t4 == log.t[log.t <= rec.meta["t0_s"] + 600.0][-1]
+    assert partial.as_dict() == {"t0_s": rec.meta["t0_s"]} | dict.fromkeys(MARKS[1:])
+    # a mark after a null, or none at all, is no record of a run cut short
+    gapped = write(log.t <= rec.meta["t1_s"] + 600.0, "gapped", ("t0_s", "t2_s"))
+    with pytest.raises(LogError):
+        find_phases(read_log(gapped), partial=True)
 
 
 def test_a_log_of_two_plants_is_analysed_on_one(run_log, tmp_path, capsys):
