@@ -1,17 +1,28 @@
 """The ``hil-client`` command. Its libraries take a second or two to load (numpy, scipy,
-matplotlib); Ctrl-C meanwhile ends it with one line, as Ctrl-C does later, instead of a
-traceback from the middle of an import."""
+matplotlib); Ctrl-C meanwhile ends it with one line once they are loaded, as Ctrl-C does
+later, instead of a traceback from the middle of an import."""
 
 from __future__ import annotations
 
+import signal
 import sys
+import threading
 from collections.abc import Sequence
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    # Ctrl-C is held until the imports are done: raised inside one, it can land in
+    # importlib's own callbacks, which print it as an ignored exception with a traceback
+    held: list[int] = []
+    main_thread = threading.current_thread() is threading.main_thread()
+    if main_thread:
+        previous = signal.signal(signal.SIGINT, lambda signum, frame: held.append(signum))
     try:
         from hil_client.cli import main as cli_main
-    except KeyboardInterrupt:
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGINT, signal.SIG_DFL if previous is None else previous)
+    if held:
         print("hil-client: interrupted", file=sys.stderr)
         return 1
     return cli_main(argv)

@@ -130,5 +130,7 @@ def test_ctrl_c_while_the_libraries_load_is_one_line(command, tmp_path):
         time.sleep(after_s)
         proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=60)
+        if "init_import_site" in err:  # a machine so loaded the signal came in Python's own
+            continue  # start, before any of this project's code ran: not what is tested
         assert "Traceback" not in err, (after_s, err)
         assert proc.returncode in (0, 1, -signal.SIGINT), (after_s, proc.returncode, err)
