@@ -11,6 +11,7 @@ import contextlib
 import filecmp
 import json
 import math
+import os
 import signal
 import sys
 import threading
@@ -50,6 +51,7 @@ from hil_client.rigs.modbus import WRITES, ModbusRig, check_map
 from hil_client.rigs.transports import RIG_TIMEOUT_S, connector, tls_files
 from hil_client.summary import RunSummary
 from rig_emulator.boilers import BOILER_DIR, dump_boiler, load_boiler
+from rig_emulator.boilers import resolve as resolve_boiler
 from rig_emulator.cli_support import (
     Parser,
     UsageError,
@@ -317,6 +319,30 @@ def _warn_other_boiler(log: LabLog, boiler: BoilerParams) -> None:
         )
 
 
+def _refuse_overwriting(out: Path, inputs: dict[str, Path]) -> None:
+    """Refuse an ``--out`` that names one of the command's inputs (``inputs``: what each
+    is, as the message says it); ``balance --out LOG.csv`` wrote its JSON over the lab log
+    and exited 0, as ``fault-report`` did over its journal (a stranger's probe)."""
+    for what, path in inputs.items():
+        try:
+            same = out.resolve() == path.resolve() or (
+                out.exists() and path.exists() and os.path.samefile(out, path)
+            )
+        except OSError:  # a path that cannot be resolved is reported where it is used
+            continue
+        if same:
+            raise UsageError(f"--out: '{out}' is {what}, which it would overwrite; name another")
+
+
+def _log_files(log: Path) -> dict[str, Path]:
+    """A lab log's own files, by what they are (for :func:`_refuse_overwriting`)."""
+    return {
+        "the lab log": log,
+        "the lab log's meta file": meta_path(log),
+        "the lab log's Modbus events file": events_path(log),
+    }
+
+
 def _same_log(a: Path, b: Path) -> bool:
     """Whether two paths hold the same log (the same file, or the same bytes)."""
     try:
@@ -464,6 +490,9 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     doc = boiler_arg(args.boiler)
     if args.out.suffix not in (".yaml", ".yml"):
         raise UsageError(f"--out: '{args.out}' must name a .yaml file")
+    with bad_input(ParameterError):
+        documentation = resolve_boiler(args.boiler)
+    _refuse_overwriting(args.out, {"the --boiler file (the documentation values)": documentation})
     logs = _logs_with_phases(args.logs, doc)
     with bad_input(LogError, ParameterError):
         result = calibrate(logs, doc)
@@ -570,7 +599,9 @@ def _cmd_balance(args: argparse.Namespace) -> int:
     _warn_tolerated([log])
     _warn_suspicious(log, params)
     rows = energy_balance(log, params, phases)
-    out = output_file(args.out or args.log.with_name(args.log.stem + ".balance.json"))
+    out = args.out or args.log.with_name(args.log.stem + ".balance.json")
+    _refuse_overwriting(out, _log_files(args.log))
+    out = output_file(out)
     # strict JSON: a figure a phase does not define (NaN, e.g. no fuel burnt) is null
     text = json.dumps(_json_nulls(balance_json(rows, phases)), indent=2, allow_nan=False)
     out.write_text(text + "\n", encoding="utf-8")
@@ -946,6 +977,7 @@ def _coarse_sampling(median_s: float | None, period_s: float, meta: dict) -> str
 
 
 def _cmd_fault_report(args: argparse.Namespace) -> int:
+    _refuse_overwriting(args.out, _log_files(args.log) | {"the fault journal": args.journal})
     with bad_input(ValueError, LogError):
         rep = fault_report(args.log, args.journal)
     write_report(rep, output_file(args.out))

@@ -407,3 +407,40 @@ def test_the_held_out_log_may_not_be_the_calibration_log_again(run_log, tmp_path
     other = run_log("stationary", "windhager_12kw").path
     assert not _same_record(read_log(cal), read_log(other))
     assert not _same_record(read_log(other), read_log(cal))
+
+
+@pytest.mark.parametrize("target", ["short.csv", "short.meta.json", "short.modbus_events.jsonl"])
+def test_balance_may_not_write_over_its_own_log(tmp_path, capsys, target):
+    """``balance --out LOG.csv`` (or its meta file) wrote its JSON over the lab log and
+    exited 0 (a stranger's probe): refused in one line, the files as they were."""
+    path = _short_log(tmp_path)
+    (tmp_path / "short.modbus_events.jsonl").write_text("")
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    assert main(["balance", str(path), "--out", str(tmp_path / target)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "would overwrite" in err and target in err
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+
+
+def test_fault_report_and_calibrate_may_not_write_over_their_inputs(tmp_path, capsys):
+    """``fault-report --out`` over its journal, and ``calibrate --out`` over the boiler file
+    it takes the documentation values from, are refused and change nothing."""
+    import shutil
+
+    from rig_emulator.boilers import resolve
+
+    path = _short_log(tmp_path)
+    journal = tmp_path / "j.jsonl"
+    journal.write_text("")
+    boiler = tmp_path / "mine.yaml"
+    shutil.copy(resolve("windhager_6kw"), boiler)
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    for argv in (
+        ["fault-report", str(path), "--journal", str(journal), "--out", str(journal)],
+        ["fault-report", str(path), "--journal", str(journal), "--out", str(path)],
+        ["calibrate", str(path), "--boiler", str(boiler), "--out", str(boiler)],
+    ):
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "would overwrite" in err, argv
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
