@@ -40,6 +40,7 @@ from hil_client.analysis.sanity import suspicious
 from hil_client.analysis.validate import compare, validation_metrics
 from hil_client.fault_files import EventsWriter, events_path, fault_report, write_report
 from hil_client.fault_files import summary as fault_summary
+from hil_client.jsonio import strict_json
 from hil_client.lablog import DECIMALS, LabLogWriter, meta_path, write_meta
 from hil_client.modbus_client import WRITE_FUNCTIONS
 from hil_client.progress import LiveView, ProgressLine, hms
@@ -468,7 +469,7 @@ def _cmd_validate(args: argparse.Namespace) -> int:
         "phases": phases.as_dict() | {"source": phases.source},
         **result,
     }
-    (args.out / "validation.json").write_text(json.dumps(result, indent=2) + "\n")
+    (args.out / "validation.json").write_text(strict_json(result, indent=2) + "\n")
     figures = validation_figures(
         comp, phases, args.out / "validation", f"{args.log.name}: model ({params.name}) against lab"
     )
@@ -580,17 +581,6 @@ def _boiler_for(log: LabLog, name: str | None):
         raise UsageError(f"{meta}: {exc}") from None
 
 
-def _json_nulls(value: Any) -> Any:
-    """``value`` with every non-finite float replaced by None (JSON null)."""
-    if isinstance(value, dict):
-        return {k: _json_nulls(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_json_nulls(v) for v in value]
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
-
-
 def _cmd_balance(args: argparse.Namespace) -> int:
     with bad_input(LogError):
         log = one_plant(read_log(args.log))
@@ -603,7 +593,7 @@ def _cmd_balance(args: argparse.Namespace) -> int:
     _refuse_overwriting(out, _log_files(args.log))
     out = output_file(out)
     # strict JSON: a figure a phase does not define (NaN, e.g. no fuel burnt) is null
-    text = json.dumps(_json_nulls(balance_json(rows, phases)), indent=2, allow_nan=False)
+    text = strict_json(balance_json(rows, phases), indent=2)
     out.write_text(text + "\n", encoding="utf-8")
     print(f"energy balance of {args.log} ({params.name}; phases from the {phases.source})")
     print(balance_table(rows))

@@ -16,6 +16,7 @@ from typing import Any
 
 from hil_client.analysis.fault_report import check_journal, compare
 from hil_client.analysis.logio import read_log
+from hil_client.jsonio import strict_json
 
 
 def events_path(log_path: Path) -> Path:
@@ -100,16 +101,7 @@ def _check_events(events: Sequence[dict[str, Any]], path: Path) -> None:
 
 
 def write_report(report: dict[str, Any], out: Path) -> None:
-    def clean(value: Any) -> Any:
-        if isinstance(value, dict):
-            return {k: clean(v) for k, v in value.items()}
-        if isinstance(value, list):
-            return [clean(v) for v in value]
-        if isinstance(value, float) and not math.isfinite(value):
-            return None
-        return value
-
-    out.write_text(json.dumps(clean(report), indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    out.write_text(strict_json(report, indent=2) + "\n", encoding="utf-8")
 
 
 def summary(report: dict[str, Any]) -> str:

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import math
 import os
 import re
@@ -20,6 +19,7 @@ from operator import itemgetter
 from pathlib import Path
 from typing import Any
 
+from hil_client.jsonio import strict_json
 from hil_client.protocol.runner import LOG_COLUMNS, Row
 
 #: Decimals written per column: finer than any instrument's resolution.
@@ -121,7 +121,7 @@ def write_meta(log_path: Path, meta: dict[str, Any]) -> Path:
     path = meta_path(log_path)
     tmp = path.with_name(path.name + ".tmp")
     with tmp.open("w", encoding="utf-8") as fh:
-        fh.write(json.dumps(meta, indent=2, sort_keys=False) + "\n")
+        fh.write(strict_json(meta, indent=2) + "\n")
         fh.flush()
         os.fsync(fh.fileno())
     os.replace(tmp, path)

@@ -30,7 +30,6 @@ from __future__ import annotations
 import csv
 import importlib
 import itertools
-import json
 import multiprocessing as mp
 import statistics
 import sys
@@ -47,6 +46,7 @@ from hil_client.analysis.diagnosis_files import write_diagnosis
 from hil_client.analysis.figures import benchmark_figure
 from hil_client.analysis.logio import read_log
 from hil_client.analysis.phases import find_phases
+from hil_client.jsonio import strict_json
 from rig_emulator.boilers import BOILER_DIR
 from rig_emulator.model.params import params_from_mapping
 
@@ -394,7 +394,7 @@ def run_benchmark(
     out.mkdir(parents=True, exist_ok=True)
     (out / "sealed").mkdir(exist_ok=True)
     cases = make_cases(n, seed, reality, plants)
-    (out / "sealed" / "truth.json").write_text(json.dumps(cases, indent=2) + "\n")
+    (out / "sealed" / "truth.json").write_text(strict_json(cases, indent=2) + "\n")
     started = time.monotonic()
     results = []
     jobs = [(c, str(out)) for c in cases]
@@ -423,7 +423,7 @@ def run_benchmark(
         "seed": seed,
         "results": results,
     }
-    (out / "scores.json").write_text(json.dumps(scores, indent=2) + "\n")
+    (out / "scores.json").write_text(strict_json(scores, indent=2) + "\n")
     figure = benchmark_figure(scores, out / "benchmark.png")
     (out / "report.md").write_text(_report(scores, cases, figure.name))
     _print_scores(scores, n, wall)
