@@ -1,8 +1,10 @@
 """Encoding signal values into Modbus registers and back, as a point of a map says.
 
-Integers are scaled: raw = round((value - offset) / scale), saturated to the type's range
-(the way instruments clip at their range ends) short of its invalid code, which only a
-missing reading (NaN: a dropout) takes, as a float reading's NaN. Floats are IEEE 754,
+Integers are scaled: raw = round((value - offset) / scale), saturated to the type's range;
+a measured signal's (an instrument's reading) saturates short of the type's invalid code,
+the way instruments clip at their range ends, as only a missing reading (NaN: a dropout)
+takes that code, as a float reading's NaN. A counter or an identifier (the lockstep counter,
+the plant's ids) uses the type's whole range: 0xFFFF is one of its values. Floats are IEEE 754,
 big-endian within each 16-bit word; ``ABCD`` sends the most significant word first, ``CDAB``
 the least significant first (word-swapped, as many PLCs and analysers do).
 
@@ -19,6 +21,9 @@ from functools import cache
 
 from rig_emulator.registers.datatypes import DATATYPES
 from rig_emulator.registers.schema import Point
+from rig_emulator.signals import MEASURED
+
+_READINGS = frozenset(MEASURED)
 
 
 def _structs(point: Point) -> tuple[struct.Struct, struct.Struct]:
@@ -34,11 +39,17 @@ def _structs_of(datatype: str, word_order: str) -> tuple[struct.Struct, struct.S
     return struct.Struct(order + code), struct.Struct(order + "H" * width)
 
 
+def _invalid_raw(point: Point) -> int | None:
+    """The raw code an integer point keeps for no reading: its type's invalid code
+    (:attr:`~rig_emulator.registers.datatypes.DataType.invalid_raw`) on a measured signal;
+    None on a float point (NaN), a bit, or a signal that is no reading (a counter, an id)."""
+    return DATATYPES[point.datatype].invalid_raw if point.signal in _READINGS else None
+
+
 def invalid_value(point: Point) -> float | None:
-    """The value an integer point carries at its type's invalid code
-    (:attr:`~rig_emulator.registers.datatypes.DataType.invalid_raw`; None: a float point,
-    whose invalid reading is NaN, or a bit)."""
-    raw = DATATYPES[point.datatype].invalid_raw
+    """The value an integer point of a measured signal carries at its type's invalid code
+    (None: a float point, whose invalid reading is NaN, a bit, or no reading)."""
+    raw = _invalid_raw(point)
     return None if raw is None else raw * point.scale + point.offset
 
 
@@ -46,10 +57,11 @@ def reading_range(point: Point) -> tuple[float, float]:
     """The lowest and highest value an integer point serves as a reading, its invalid code
     left out (a float point: any)."""
     datatype = DATATYPES[point.datatype]
-    if datatype.invalid_raw is None:
+    if datatype.is_float or datatype.is_bit:
         return -math.inf, math.inf
     lo, hi = datatype.int_range
-    lo, hi = (lo + 1, hi) if datatype.invalid_raw == lo else (lo, hi - 1)
+    invalid = _invalid_raw(point)
+    lo, hi = (lo + 1, hi) if invalid == lo else (lo, hi - 1) if invalid == hi else (lo, hi)
     ends = sorted((lo * point.scale + point.offset, hi * point.scale + point.offset))
     return ends[0], ends[1]
 
@@ -61,11 +73,12 @@ def _raw(point: Point, value: float) -> int:
     its end and never reads as a dropout (a -999 spike on an int16 in hundredths did)."""
     datatype = DATATYPES[point.datatype]
     lo, hi = datatype.int_range
+    invalid = _invalid_raw(point)
     if math.isnan(value):
-        return 0 if datatype.invalid_raw is None else datatype.invalid_raw
-    if datatype.invalid_raw == lo:
+        return datatype.invalid_raw if invalid is None else invalid
+    if invalid == lo:
         lo += 1
-    elif datatype.invalid_raw == hi:
+    elif invalid == hi:
         hi -= 1
     scaled = (value - point.offset) / point.scale
     return lo if scaled <= lo else hi if scaled >= hi else round(scaled)

@@ -80,6 +80,21 @@ def test_modbus_lockstep_run_equals_the_local_run(serve, tmp_path, local_log):
     assert_logs_equal(local_log, remote)
 
 
+def test_a_lockstep_run_goes_on_across_the_counters_wrap(serve, tmp_path):
+    """The lockstep counter (uint16) wraps at 65536 advances. It was served 65534 where it
+    stood at 65535 (0xFFFF, kept for a dropout of a reading), so every lockstep run stopped at
+    its 65,535th step with "another client advanced the server" (a stranger's probe): any
+    protocol over 18.2 simulated hours, or a second run on a used server."""
+    srv = serve(lockstep=True)
+    srv.server.lockstep_counter = 65536 - 200  # a used server: the wrap 200 steps in
+    srv.call(srv.server.publish())
+    out = tmp_path / "wrap.csv"
+    assert _run(["--rig", f"modbus://127.0.0.1:{srv.port}", "--out", str(out)]) == 0
+    log = read_log(out)
+    assert log.meta["complete"] is True and log.meta["gaps"] == []
+    assert len(log) > 400 and srv.server.lockstep_counter > 65536
+
+
 def test_a_server_faster_than_the_client_reads_is_a_coarse_log_said_so(serve, tmp_path, capsys):
     """At x2000 a client cannot read every simulated second: the rows come tens of seconds
     apart. The meta said "acquisition_period_s: 1" and nothing else; now it gives the rows'

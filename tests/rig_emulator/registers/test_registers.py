@@ -19,6 +19,7 @@ from rig_emulator.registers import (
     load_map,
     map_from_mapping,
     precision,
+    reading_range,
     run_decoder,
     run_encoder,
 )
@@ -95,6 +96,16 @@ def test_scaled_integer_round_trip_and_saturation(datatype, order):
     invalid = {"int16": 0x8000, "uint16": 0xFFFF, "int32": 0x8000, "uint32": 0xFFFF}[datatype]
     assert encode(p, math.nan)[0 if order == "ABCD" else -1] == invalid
     assert decode(p, encode(p, math.nan)) == pytest.approx(invalid_value(p))
+
+
+@pytest.mark.parametrize(("datatype", "top"), [("uint16", 0xFFFF), ("uint32", 0xFFFFFFFF)])
+def test_a_counter_uses_its_types_whole_range(datatype, top):
+    """Only a reading keeps a code for no reading: the lockstep counter at 65535 was served
+    65534, and every lockstep client stopped there (its 65,535th step)."""
+    counter = replace(_point(datatype), signal="lockstep_counter")
+    assert decode(counter, encode(counter, top)) == top
+    assert decode(counter, encode(counter, top + 5)) == top  # beyond: clipped at the end
+    assert invalid_value(counter) is None and reading_range(counter) == (0, top)
 
 
 def test_word_orders_are_mirror_images():
