@@ -41,8 +41,9 @@ from rig_emulator.instruments import ProfileError, load_profile
 from rig_emulator.modbus import BenchServer
 from rig_emulator.modbus.fault_control import reading_ranges
 from rig_emulator.model import pack_constants, steady_state
-from rig_emulator.registers import MapError, load_map
+from rig_emulator.registers import MapError, RegisterMap, load_map
 from rig_emulator.registers.reference import markdown
+from rig_emulator.signals import MEASURED
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -277,6 +278,23 @@ def _cmd_map_doc(args: argparse.Namespace) -> int:
     return 0
 
 
+def _warn_unpublished(register_map: RegisterMap) -> None:
+    """A warning naming the measured signals ``register_map`` publishes nowhere: a client
+    reading them by the shipped map gets exception 02 or, where another point sits at
+    their address, that point's value (a map whose humidity point was given the flow's
+    signal served the flow as humidity; a stranger's probe)."""
+    published = {p.signal for d in register_map.devices for p in d.points}
+    missing = [s for s in MEASURED if s not in published]
+    if missing:
+        logging.warning(
+            "warning: %s publishes no point for %s: a client reading %s by another map gets "
+            "exception 02, or the value of a point at that address",
+            register_map.source,
+            ", ".join(missing),
+            "it" if len(missing) == 1 else "them",
+        )
+
+
 def _cmd_serve(args: argparse.Namespace) -> int:
     params = boiler_arg(args.boiler)
     with bad_input(MapError, ProfileError):
@@ -306,6 +324,7 @@ def _cmd_serve(args: argparse.Namespace) -> int:
         level=logging.INFO, format="%(asctime)s rig-emulator: %(message)s", stream=sys.stderr
     )
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
+    _warn_unpublished(register_map)
     emulator = Emulator(params, profile, seed=args.seed)
     server = BenchServer(
         emulator,

@@ -174,6 +174,11 @@ def _read_plan(
     return plan
 
 
+def _request(read: _Read) -> tuple[int, bytes]:
+    """The (unit, PDU) of one read."""
+    return read.unit, read_pdu(read.function, read.start, read.count)
+
+
 def _make_read(unit: int, table: str, run: list[Point]) -> _Read:
     start = run[0].address
     count = run[-1].address + run[-1].width - start
@@ -251,6 +256,7 @@ class ModbusRig:
         try:
             self._connect()
             status = self._read_status()
+            self._check_server_map(url, plan, register_map)
         except ConnectionLost as exc:
             hint = ""
             if url.startswith("modbus://") and "closed by the server" in str(exc):
@@ -287,6 +293,39 @@ class ModbusRig:
             (r.unit, read_pdu(r.function, r.start, r.count)) for r in self._reads
         ]
         self._n_reads = len(self._reads)
+
+    def _check_server_map(self, url: str, plan: list[_Read], register_map: RegisterMap) -> None:
+        """Read every block of readings once before the first row: one the server answers
+        with 01 or 02 (no such function or register) is a server running another register
+        map, and the run stops here naming it. It ran blind instead: every row's fields
+        empty, exit 0 (a stranger's probe). A server with faults active from its start
+        (an exception may be one of them) is not asked."""
+        try:
+            _, point = register_map.point("active_fault_count")
+        except KeyError:
+            point = None
+        if point is not None:
+            (status,) = _read_plan(register_map, ("active_fault_count",), trim=True)
+            values: dict[str, float] = {}
+            try:
+                self._decode([status], self._exchange([_request(status)]), values)
+            except ModbusExceptionResponse:
+                values = {}
+            if values.get("active_fault_count", 0.0) > 0:
+                return
+        for read in plan:
+            try:
+                self._exchange([_request(read)])
+            except ModbusExceptionResponse as exc:
+                if exc.code not in (1, 2):
+                    continue  # busy, failed: an instrument's state, not the map
+                names = ", ".join(p.signal for p in read.points)
+                raise RigError(
+                    f"{url}: unit {read.unit} answers exception {exc.code:02X} to the read of "
+                    f"{names} (function {read.function}, address {read.start}, {read.count} "
+                    f"registers of {register_map.source}): the server runs another register "
+                    "map; give the client the server's (--map)"
+                ) from None
 
     # ------------------------------------------------------------------ connections
     def _connect(self, abort: bool = False) -> None:

@@ -95,6 +95,27 @@ def test_a_lockstep_run_goes_on_across_the_counters_wrap(serve, tmp_path):
     assert len(log) > 400 and srv.server.lockstep_counter > 65536
 
 
+def test_a_server_running_another_map_is_named_before_the_first_row(serve, tmp_path, capsys):
+    """A server whose map lacks the forward temperature answers 02 to the client's read of
+    unit 1: the client ran the whole protocol blind (27,521 rows of empty columns, exit 0; a
+    stranger's probe). It stops before the first row, naming the unit, the signals and the
+    fix."""
+    import yaml
+
+    from rig_emulator.registers import map_from_mapping
+    from rig_emulator.registers.schema import MAP_DIR
+
+    data = yaml.safe_load((MAP_DIR / "wieselburg_bench.yaml").read_text())
+    plc = next(d for d in data["devices"] if d["unit_id"] == 1)
+    plc["points"] = [p for p in plc["points"] if p["signal"] != "water_out_temp_C"]
+    srv = serve(register_map=map_from_mapping(data, "theirs.yaml"))
+    out = tmp_path / "blind.csv"
+    assert _run(["--rig", f"modbus://127.0.0.1:{srv.port}", "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "answers exception 02" in err
+    assert "water_out_temp_C" in err and "--map" in err and not out.exists()
+
+
 def test_a_server_faster_than_the_client_reads_is_a_coarse_log_said_so(serve, tmp_path, capsys):
     """At x2000 a client cannot read every simulated second: the rows come tens of seconds
     apart. The meta said "acquisition_period_s: 1" and nothing else; now it gives the rows'

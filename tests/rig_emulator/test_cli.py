@@ -107,3 +107,29 @@ def test_map_doc_writes_the_reference(tmp_path):
     out = tmp_path / "map.md"
     assert main(["map-doc", "--out", str(out)]) == 0
     assert "## Unit 2: `flue_gas_analyser`" in out.read_text()
+
+
+def test_serve_warns_of_a_measured_signal_its_map_publishes_nowhere(caplog):
+    """A map whose humidity point was given the flow's signal served the flow where clients
+    read humidity, without a word (a stranger's probe): serve names what it publishes
+    nowhere; the shipped map publishes everything."""
+    import logging
+
+    import yaml
+
+    from rig_emulator.cli import _warn_unpublished
+    from rig_emulator.registers import load_map, map_from_mapping
+    from rig_emulator.registers.schema import MAP_DIR
+
+    with caplog.at_level(logging.WARNING):
+        _warn_unpublished(load_map())
+    assert not caplog.records
+    data = yaml.safe_load((MAP_DIR / "wieselburg_bench.yaml").read_text())
+    for device in data["devices"]:
+        for point in device["points"]:
+            if point["signal"] == "relative_humidity_pct":
+                point["signal"] = "water_flow_kg_h"
+    with caplog.at_level(logging.WARNING):
+        _warn_unpublished(map_from_mapping(data, "theirs.yaml"))
+    (record,) = caplog.records
+    assert "theirs.yaml publishes no point for relative_humidity_pct" in record.getMessage()
