@@ -230,12 +230,14 @@ class RequestHandler(asyncio.Protocol):
         # closes both ways: asyncio closes it whatever this says, and warns if it is True)
         return self.transport.get_extra_info("sslcontext") is None
 
-    def close(self, reason: str) -> None:
-        """Close the connection with one log line naming ``reason``."""
+    def close(self, reason: str, kind: str) -> None:
+        """Close the connection with a log line naming ``reason``: for each ``kind`` of
+        reason at most one a :data:`_LIMIT_LOG_INTERVAL_S`, with a count (120 silent
+        connections timing out together wrote 98 lines in 2 s; a stranger's probe)."""
         if self._closed or self.transport is None:
             return
         self._closed = True
-        log.warning("closing the connection of %s: %s", self.peer, reason)
+        self.server.log_close(kind, self.peer, reason)
         self.transport.close()
 
     def close_quietly(self) -> None:
@@ -258,7 +260,7 @@ class RequestHandler(asyncio.Protocol):
         if self._busy or idle_s < timeout_s:
             self._arm_idle_timer(max(timeout_s - idle_s, 0.01) if not self._busy else timeout_s)
             return
-        self.close(f"idle for {idle_s:.0f} s (--idle-timeout {timeout_s:g})")
+        self.close(f"idle for {idle_s:.0f} s (--idle-timeout {timeout_s:g})", "idle")
 
     # ------------------------------------------------------------------ flow control
     def pause_writing(self) -> None:
@@ -381,7 +383,7 @@ class RequestHandler(asyncio.Protocol):
         self._send(out)
         if not self.waiting and not self._yielding:
             if self._close_after is not None:
-                self.close(self._close_after)
+                self.close(self._close_after, "framing")
                 return
             if self._eof and not self._closed:
                 self._closed = True
@@ -459,6 +461,8 @@ class BenchModbusServer:
         self.transport: asyncio.Server | None = None
         self._limit_events = 0
         self._limit_logged_s = -_LIMIT_LOG_INTERVAL_S
+        #: per kind of close: (when last logged, closes since then not logged)
+        self._closes: dict[str, tuple[float, int]] = {}
         self._handshake_log_since = -60.0
         self._handshakes_logged = self._handshakes_unlogged = 0
 
@@ -523,10 +527,10 @@ class BenchModbusServer:
         self.handlers.clear()
 
     def close_all_connections(self, reason: str) -> int:
-        """Close every open connection (one log line each); returns how many."""
+        """Close every open connection (logged as :meth:`log_close` does); how many."""
         handlers = list(self.handlers)
         for handler in handlers:
-            handler.close(reason)
+            handler.close(reason, "disconnect")
         return len(handlers)
 
     def make_room(self, peer: str) -> bool:
@@ -548,6 +552,18 @@ class BenchModbusServer:
         self._log_limit(f"closed the oldest unused connection ({oldest.peer}) for {peer}")
         oldest.close_quietly()
         return True
+
+    def log_close(self, kind: str, peer: str, reason: str) -> None:
+        """Log a connection closed for ``reason``: at most one line of each ``kind`` a
+        :data:`_LIMIT_LOG_INTERVAL_S`, saying how many of that kind it did not log."""
+        now = time.monotonic()
+        logged_s, unlogged = self._closes.get(kind, (-_LIMIT_LOG_INTERVAL_S, 0))
+        if now - logged_s < _LIMIT_LOG_INTERVAL_S:
+            self._closes[kind] = (logged_s, unlogged + 1)
+            return
+        more = f" ({unlogged} more closed so since the last such line)" if unlogged else ""
+        log.warning("closing the connection of %s: %s%s", peer, reason, more)
+        self._closes[kind] = (now, 0)
 
     def _log_limit(self, what: str) -> None:
         """Log what the connection limit did: one line per interval, with a count."""

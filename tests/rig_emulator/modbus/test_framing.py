@@ -292,6 +292,26 @@ def test_idle_connections_are_closed_with_a_log_line_and_busy_ones_are_not(serve
     busy.close()
 
 
+def test_many_connections_closed_at_once_are_logged_in_a_line_with_a_count(serve, caplog):
+    """30 silent connections timing out together wrote 30 lines (120 on TLS: 98 lines in
+    2 s; a stranger's probe). One line per kind of close a 10 s, saying how many more."""
+    srv = serve(idle_timeout_s=0.5)
+    caplog.set_level(logging.WARNING, logger="rig_emulator.serve")
+    silent = [connect(srv.port) for _ in range(30)]
+    assert all(closed_by_server(s, timeout=10) for s in silent)
+    lines = [r.getMessage() for r in caplog.records if "idle for" in r.getMessage()]
+    assert len(lines) == 1, lines
+    for s in silent:
+        s.close()
+    # the next, 10 s on, says how many the interval left out
+    srv.server._server._closes["idle"] = (time.monotonic() - 11.0, 29)
+    last = connect(srv.port)
+    assert closed_by_server(last, timeout=10)
+    lines = [r.getMessage() for r in caplog.records if "idle for" in r.getMessage()]
+    assert len(lines) == 2 and "(29 more closed so since the last such line)" in lines[1]
+    last.close()
+
+
 def test_at_the_limit_a_new_connection_closes_the_oldest_unused_one(serve, caplog):
     """The guide's 4.2.1.2: "If the number of client and server connections is greater
     than the number of authorized connections the oldest unused connection is closed." The
