@@ -53,6 +53,7 @@ from hil_client.rigs.transports import RIG_TIMEOUT_S, connector, tls_files
 from hil_client.summary import RunSummary
 from rig_emulator.boilers import BOILER_DIR, dump_boiler, load_boiler
 from rig_emulator.boilers import resolve as resolve_boiler
+from rig_emulator.certs import validity_problem
 from rig_emulator.cli_support import (
     Parser,
     UsageError,
@@ -657,7 +658,13 @@ def _make_rig(args: argparse.Namespace, params: BoilerParams, register_map: Regi
             file=sys.stderr,
         )
     with bad_input(ValueError, prefix="--rig: "):
-        connect = connector(args.rig, timeout_s, tls_files(args))
+        tls = tls_files(args)
+        connect = connector(args.rig, timeout_s, tls)
+        if tls is not None and (problem := validity_problem(tls.cert)):
+            print(
+                f"hil-client: warning: --tls-cert {tls.cert} {problem}: a server refuses it",
+                file=sys.stderr,
+            )
     rig = ModbusRig(
         args.rig,
         register_map,

@@ -205,3 +205,19 @@ def make_lab_certificates(
         written.append(write_pair(make_client(ca, f"{role} client", role), out, role)[0])
     written.append(write_pair(make_client(ca, "client without role", None), out, NO_ROLE)[0])
     return written
+
+
+def validity_problem(path: str | Path, now: datetime.datetime | None = None) -> str | None:
+    """What makes the certificate in ``path`` (PEM) invalid today: "expired on DATE" or
+    "not valid before DATE"; None if it is valid, or cannot be read (whoever loads it
+    says why)."""
+    try:
+        cert = x509.load_pem_x509_certificate(Path(path).read_bytes())
+    except (OSError, ValueError):
+        return None
+    now = now or datetime.datetime.now(datetime.UTC)
+    if now > cert.not_valid_after_utc:
+        return f"expired on {cert.not_valid_after_utc:%Y-%m-%d %H:%M} UTC"
+    if now < cert.not_valid_before_utc:
+        return f"not valid before {cert.not_valid_before_utc:%Y-%m-%d %H:%M} UTC"
+    return None

@@ -18,7 +18,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from rig_emulator import cli_transports as transport_options
-from rig_emulator.certs import make_lab_certificates
+from rig_emulator.certs import make_lab_certificates, validity_problem
 from rig_emulator.cli_support import (
     Parser,
     UsageError,
@@ -325,6 +325,8 @@ def _cmd_serve(args: argparse.Namespace) -> int:
     )
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
     _warn_unpublished(register_map)
+    if args.tls_cert is not None and (problem := validity_problem(args.tls_cert)):
+        logging.warning("warning: --tls-cert %s %s: clients refuse it", args.tls_cert, problem)
     emulator = Emulator(params, profile, seed=args.seed)
     server = BenchServer(
         emulator,

@@ -261,6 +261,11 @@ class ModbusRig:
             hint = ""
             if url.startswith("modbus://") and "closed by the server" in str(exc):
                 hint = " (a Modbus/TCP Security port closes plain connections: modbus+tls://?)"
+            elif url.startswith("modbus+tls://") and "closed by the server" in str(exc):
+                hint = (
+                    " (a Modbus/TCP Security server closes the connection of a client "
+                    "certificate it refuses: expired, not signed by its CA; its log says why)"
+                )
             raise RigError(f"cannot reach {url}: {exc}{hint}") from None
         except ModbusExceptionResponse as exc:
             raise RigError(f"{url}: {exc} (not a rig-emulator with this map?)") from None

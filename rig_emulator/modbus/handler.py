@@ -514,6 +514,9 @@ class BenchModbusServer:
             return
         self._handshakes_logged += 1
         reason = getattr(exc, "reason", None) or str(exc) or type(exc).__name__
+        verify = getattr(exc, "verify_message", None)  # why a certificate was refused
+        if verify:
+            reason = f"{reason}: the client's certificate: {verify}"
         log.warning("client %s: TLS handshake failed (%s); connection closed", peer, reason)
 
     async def shutdown(self) -> None:

@@ -300,6 +300,25 @@ def test_a_failed_handshake_is_logged_with_its_reason(tls_server, certs, tmp_pat
         time.sleep(0.05)
     assert len(failed) == 2, failed
     assert "CERTIFICATE_VERIFY_FAILED" in failed[0].upper().replace(" ", "_"), failed[0]
+    # and why OpenSSL refused it (the log said only CERTIFICATE_VERIFY_FAILED for an expired
+    # certificate and one of another CA alike; a stranger's probe)
+    assert "the client's certificate: unable to get local issuer certificate" in failed[0]
+
+
+def test_a_certificate_out_of_its_dates_is_named(certs):
+    """``validity_problem``: what serve and hil-client warn of at start (an expired server
+    certificate was taken without a word, and an expired client certificate gave only
+    "connection closed by the server")."""
+    import datetime
+
+    from rig_emulator.certs import validity_problem
+
+    assert validity_problem(certs / "engineer.pem") is None
+    later = datetime.datetime.now(datetime.UTC) + datetime.timedelta(days=3700)
+    assert validity_problem(certs / "engineer.pem", now=later).startswith("expired on ")
+    earlier = datetime.datetime.now(datetime.UTC) - datetime.timedelta(days=2)
+    assert validity_problem(certs / "server.pem", now=earlier).startswith("not valid before ")
+    assert validity_problem(certs / "engineer.key") is None  # no certificate: its loader says
 
 
 @pytest.mark.filterwarnings("ignore:ssl.TLSVersion.TLSv1:DeprecationWarning")
