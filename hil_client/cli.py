@@ -854,10 +854,17 @@ def _cmd_run(args: argparse.Namespace) -> int:
         with LabLogWriter(out) as writer:
             write_meta(out, meta)
 
+            told = [0]  # breaks told on stderr
+
             def sink(row: tuple[object, ...]) -> None:
                 with _signals_held():  # a row in the log is a row in the count
                     writer(row)
                     written[0] += 1
+                gaps = getattr(rig, "gaps", ())
+                if len(gaps) > told[0]:  # a break: said as it happens, not only at the end
+                    for gap in gaps[told[0] :]:
+                        print(f"hil-client: {_gap_line(gap)}", file=sys.stderr)
+                    told[0] = len(gaps)
                 summary(row)
                 if events is not None:
                     events.catch_up(rig.comm_events)
@@ -946,13 +953,33 @@ def _cmd_run(args: argparse.Namespace) -> int:
         for note in result.notes:
             print(f"note: {note}")
         for gap in meta["gaps"]:
-            print(f"gap: {gap}")
+            print(_gap_line(gap))
         print(
             f"simulated {result.duration_s / 3600:.2f} h in {wall:.2f} s "
             f"({result.duration_s / max(wall, 1e-9):,.0f} x real time)"
         )
         print(f"log: {out}\nmeta: {meta_path(out)}")
     return 0
+
+
+_GAP_ACTIONS = {
+    "replayed": "the run's commands were replayed on the new plant, the log goes on as one",
+    "resumed": "resumed where it was",
+    "reconnected": "reconnected",
+    "restart-phase": "the phase starts again on the new plant",
+    "continue": "the run goes on, on the new plant",
+    "abort": "stopped",
+}
+
+
+def _gap_line(gap: dict[str, Any]) -> str:
+    """A break of the record as a sentence (the meta file's ``gaps`` entry)."""
+    start, end = gap.get("start_time_s"), gap.get("end_time_s")
+    where = "before the first row" if start is None else f"after time_s = {start:g} s"
+    if end is not None:
+        where += f", rows again from {end:g} s"
+    action = _GAP_ACTIONS.get(str(gap.get("action")), str(gap.get("action")))
+    return f"break {where}: {gap.get('reason')}; {action} (rig_epoch {gap.get('rig_epoch')})"
 
 
 #: Rows further apart than this many acquisition periods (median) are reported as coarse.

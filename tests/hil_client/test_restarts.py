@@ -119,7 +119,7 @@ def local(tmp_path_factory):
 
 
 def test_lockstep_server_killed_twice_is_replayed_into_an_equal_log(
-    servers, tmp_path, uninterrupted, local
+    servers, tmp_path, uninterrupted, local, capsys
 ):
     port = free_port()
     current = [servers(port, "--lockstep")]
@@ -144,6 +144,11 @@ def test_lockstep_server_killed_twice_is_replayed_into_an_equal_log(
     replays = [g for g in meta["gaps"] if g["action"] == "replayed"]
     assert len(replays) == 2, meta["gaps"]
     assert meta["complete"] is True
+    # each break said on stderr as it came (only a dict on stdout at the end said it; a
+    # stranger's probe), in a sentence
+    told = [line for line in capsys.readouterr().err.splitlines() if "break after" in line]
+    assert len(told) == 2 and all("the server restarted" in line for line in told), told
+    assert all("replayed" in line and "{" not in line for line in told), told
     # the log equals the uninterrupted Modbus run byte for byte, and the in-process run to
     # encoding precision (the tolerance of test_modbus_rig)
     assert out.read_text() == uninterrupted[1]
