@@ -59,6 +59,7 @@ from rig_emulator.cli_support import (
     UsageError,
     bad_input,
     boiler_arg,
+    data_file,
     finite_float,
     input_errors,
     int_in,
@@ -165,7 +166,7 @@ def _build_parser() -> argparse.ArgumentParser:
         "(cumulative), lambda from O2, flue-gas losses, heat to water; direct and indirect "
         "efficiency. Printed as a table and written as JSON.",
     )
-    bal.add_argument("log", type=text_file, help="lab log (CSV)")
+    bal.add_argument("log", type=data_file, help="lab log (CSV)")
     bal.add_argument(
         "--boiler",
         default=None,
@@ -180,7 +181,7 @@ def _build_parser() -> argparse.ArgumentParser:
         "stationary-test and/or a load-cycle log, starting from the boiler's documentation "
         "values. Writes a parameter file, its uncertainties and the Fig. 4/5 regressions.",
     )
-    cal.add_argument("logs", nargs="+", type=text_file, help="lab logs (CSV)")
+    cal.add_argument("logs", nargs="+", type=data_file, help="lab logs (CSV)")
     cal.add_argument(
         "--boiler", required=True, type=text_input, help="documentation values: NAME or PATH"
     )
@@ -193,7 +194,7 @@ def _build_parser() -> argparse.ArgumentParser:
         "deviation, correlation, RMSD; flue-gas loss; cumulative fuel). Writes "
         "validation.json, report.md and figures to DIR.",
     )
-    val.add_argument("log", type=text_file, help="lab log (CSV)")
+    val.add_argument("log", type=data_file, help="lab log (CSV)")
     val.add_argument(
         "--boiler", required=True, type=text_input, help="parameters: NAME or PATH (calibrated)"
     )
@@ -222,7 +223,7 @@ def _build_parser() -> argparse.ArgumentParser:
         "the server's fault journal (serve --fault-log): each fault detected or missed, "
         "and the client's false alarms. Writes REPORT.json.",
     )
-    frep.add_argument("log", type=text_file, help="lab log (CSV) of a Modbus run")
+    frep.add_argument("log", type=data_file, help="lab log (CSV) of a Modbus run")
     frep.add_argument("--journal", required=True, type=text_file, help="fault journal (JSONL)")
     frep.add_argument("--out", required=True, type=path_arg, help="report to write (JSON)")
     gap = sub.add_parser(

@@ -112,6 +112,8 @@ def text_input(text: str) -> str:
         return text
     if path.is_dir():
         raise argparse.ArgumentTypeError(f"{text} is a directory, not a file")
+    if not path.is_file():  # a device (/dev/zero) would be read until memory runs out
+        raise argparse.ArgumentTypeError(f"{text} is not a regular file")
     try:
         path.read_bytes().decode("utf-8")
     except OSError as exc:
@@ -128,6 +130,21 @@ def text_file(text: str) -> Path:
     if not Path(text).exists():
         raise argparse.ArgumentTypeError(f"{text}: no such file")
     return Path(text_input(text))
+
+
+def data_file(text: str) -> Path:
+    """An argparse ``type`` for a data file its reader decodes itself (a lab log, which may
+    come from a spreadsheet in Windows-1252): it must exist and be a regular file."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("empty (a PATH)")
+    path = Path(text)
+    if not path.exists():
+        raise argparse.ArgumentTypeError(f"{text}: no such file")
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text} is a directory, not a file")
+    if not path.is_file():
+        raise argparse.ArgumentTypeError(f"{text} is not a regular file")
+    return path
 
 
 def output_file(path: Path) -> Path:

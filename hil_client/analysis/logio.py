@@ -25,6 +25,7 @@ The optional ``NAME.meta.json`` beside the log is read when present.
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 from collections import deque
@@ -127,55 +128,37 @@ def read_log(
     reading as the log has it (no finiteness or range check: a fault report compares
     injected values, error codes included, with what was logged)."""
     path = Path(path)
-    try:
-        fh = path.open(newline="", encoding="utf-8-sig")  # a spreadsheet's byte-order mark
-    except OSError as exc:
-        raise LogError(f"{path}: cannot read ({exc.strerror})") from None
-    with fh:
-        reader = csv.reader(fh)
-        try:
-            header = next(reader)
-        except StopIteration:
-            raise LogError(f"{path}: empty file (no header row)") from None
-        except csv.Error as exc:
-            raise LogError(f"{path}: not a CSV file ({exc})") from None
-        header = [h.strip() for h in header]
-        if len(header) == 1:
-            for sep, what in ((";", "semicolons"), ("\t", "tabs")):
-                if sep in header[0]:
-                    raise LogError(
-                        f"{path}: fields separated by {what}, not commas (CONTRACT section 3: "
-                        "a CSV with '.' as the decimal point)"
-                    )
-        for name in required:
-            if name not in header:
-                raise LogError(f"{path}: missing required column '{name}'")
-        named = [h for h in header if h]  # unnamed columns: a spreadsheet's trailing ones
-        if len(set(named)) != len(named):
-            dup = next(h for h in named if named.count(h) > 1)
-            raise LogError(f"{path}: column '{dup}' appears twice")
-        # rows may end before the header's trailing unnamed columns (a spreadsheet wrote
-        # them in the header only): such a row is whole, its missing fields empty
-        named_width = len(header)
-        while named_width and not header[named_width - 1]:
-            named_width -= 1
-        raw: list[list[str]] = []
-        odd: tuple[int, int] | None = None  # (line, fields) of a row of the wrong width
-        try:
-            for row in reader:
-                if not row:
-                    continue
-                if odd is not None:
-                    break  # a row follows the odd one: refused below
-                if named_width <= len(row) < len(header):
-                    row = row + [""] * (len(header) - len(row))
-                if len(row) != len(header):
-                    odd = (reader.line_num, len(row))
-                    continue
-                raw.append(row)
-        except csv.Error as exc:
-            raise LogError(f"{path}: line {reader.line_num}: {exc}") from None
     notes: list[str] = []  # what was tolerated, one line each
+    reader = csv.reader(io.StringIO(_text_of(path, notes), newline=""))
+    header = _header(path, reader, notes)
+    for name in required:
+        if name not in header:
+            raise LogError(f"{path}: missing required column '{name}'")
+    named = [h for h in header if h]  # unnamed columns: a spreadsheet's trailing ones
+    if len(set(named)) != len(named):
+        dup = next(h for h in named if named.count(h) > 1)
+        raise LogError(f"{path}: column '{_shown(dup)}' appears twice")
+    # rows may end before the header's trailing unnamed columns (a spreadsheet wrote
+    # them in the header only): such a row is whole, its missing fields empty
+    named_width = len(header)
+    while named_width and not header[named_width - 1]:
+        named_width -= 1
+    raw: list[list[str]] = []
+    odd: tuple[int, int] | None = None  # (line, fields) of a row of the wrong width
+    try:
+        for row in reader:
+            if not any(field.strip() for field in row):  # a blank line, or a spreadsheet's
+                continue  # row of empty fields (",,,,")
+            if odd is not None:
+                break  # a row follows the odd one: refused below
+            if named_width <= len(row) < len(header):
+                row = row + [""] * (len(header) - len(row))
+            if len(row) != len(header):
+                odd = (reader.line_num, len(row))
+                continue
+            raw.append(row)
+    except csv.Error as exc:
+        raise LogError(f"{path}: line {reader.line_num}: {exc}") from None
     if odd is not None:
         line, fields = odd
         if fields < len(header) and reader.line_num == line and _ends_unterminated(path):
@@ -188,7 +171,8 @@ def read_log(
     elif len(raw) >= 2 and _ends_unterminated(path) and not _whole(raw[-1][-1], raw[-2][-1]):
         notes.append(
             f"{path}: the last row (line {reader.line_num}) has no line end and its last "
-            f"field '{raw[-1][-1]}' is shorter than the row before's '{raw[-2][-1]}' (the "
+            f"field '{_shown(raw[-1][-1])}' is shorter than the row before's "
+            f"'{_shown(raw[-2][-1])}' (the "
             "acquisition stopped while writing it); ignored"
         )
         raw.pop()
@@ -206,14 +190,19 @@ def read_log(
             text[name] = values
             continue
         try:
-            out = np.array([v if v.strip() else "nan" for v in values], dtype=float)
+            out = np.array(
+                [v if v.strip() and v.strip() not in _NO_READING else "nan" for v in values],
+                dtype=float,
+            )
         except ValueError:
             if name not in KNOWN_COLUMNS:  # a column of the lab's own: kept, not analysed
                 text[name] = values
                 notes.append(f"{path}: column '{name}' is text, not a reading; not analysed")
                 continue
             i, v = next((i, v) for i, v in enumerate(values) if v.strip() and not _is_number(v))
-            raise LogError(f"{path}: column '{name}' row {i + 2}: '{v}' is not a number") from None
+            raise LogError(
+                f"{path}: column '{name}' row {i + 2}: '{_shown(v)}' is not a number"
+            ) from None
         if as_read:
             columns[name] = out
             continue
@@ -222,11 +211,13 @@ def read_log(
         if wild.any():
             i = int(np.flatnonzero(wild)[0])
             if name == "time_s":
-                raise LogError(f"{path}: column 'time_s' row {i + 2}: '{values[i]}' is not finite")
+                raise LogError(
+                    f"{path}: column 'time_s' row {i + 2}: '{_shown(values[i])}' is not finite"
+                )
             beyond = f"outside {low:g}..{high:g}" if math.isfinite(high) else "not finite"
             notes.append(
                 f"{path}: column '{name}': {int(wild.sum())} reading(s) {beyond} (first row "
-                f"{i + 2}: '{values[i]}'), taken as missing (an instrument's error code)"
+                f"{i + 2}: '{_shown(values[i])}'), taken as missing (an instrument's error code)"
             )
             out[wild] = np.nan
         columns[name] = out
@@ -256,6 +247,97 @@ def read_log(
         if not isinstance(meta, dict):
             raise LogError(f"{meta_file}: expected a JSON object")
     return LabLog(path, columns, text, meta, notes)
+
+
+#: What spreadsheets write for no reading, read as an empty field (NaN is already one).
+_NO_READING = frozenset({"#N/A", "N/A", "#NV", "#NA"})
+
+
+#: A log file longer than this is refused before it is read [bytes]: a day at 1 Hz of
+#: the full log is about 60 MB.
+MAX_LOG_BYTES = 1_000_000_000
+
+
+def _text_of(path: Path, notes: list[str]) -> str:
+    """The log's text: UTF-8 (a spreadsheet's byte-order mark dropped) or, where it is not,
+    Windows-1252 as Excel writes a CSV on Windows (said in ``notes``); a file that is
+    neither, is no regular file (a device streams forever) or cannot be read is refused
+    naming it and, for the encoding, the line."""
+    try:
+        if not path.is_file():
+            what = "a directory" if path.is_dir() else "not a regular file"
+            if not path.exists():
+                raise LogError(f"{path}: cannot read (No such file or directory)")
+            raise LogError(f"{path}: {what}, not a lab log")
+        if path.stat().st_size > MAX_LOG_BYTES:
+            raise LogError(f"{path}: {path.stat().st_size:,} bytes, more than a lab log")
+        data = path.read_bytes()
+    except OSError as exc:
+        raise LogError(f"{path}: cannot read ({exc.strerror})") from None
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        try:
+            text = data.decode("cp1252")
+        except UnicodeDecodeError:
+            raise LogError(
+                f"{path}: line {line}: byte 0x{data[exc.start]:02x} is neither UTF-8 nor "
+                "Windows-1252 text (a binary file?)"
+            ) from None
+        notes.append(
+            f"{path}: not UTF-8 (line {line} first); read as Windows-1252, as a spreadsheet "
+            "on Windows writes it"
+        )
+        return text
+
+
+def _header(path: Path, reader: Any, notes: list[str]) -> list[str]:
+    """The header row: after any lines a spreadsheet or a logger puts before it (Excel's
+    "sep=," and comment lines starting with #, both said in ``notes``); names matched to the
+    log format's in any letter case."""
+    skipped = []
+    try:
+        for header in reader:
+            first = header[0].strip() if header else ""
+            if first.lower().startswith("sep=") and not any(h.strip() for h in header[1:]):
+                skipped.append(f"line {reader.line_num} ({_shown(first)})")
+                continue
+            if not header or first.startswith("#"):
+                skipped.append(f"line {reader.line_num} (a comment)" if header else "")
+                continue
+            break
+        else:
+            raise LogError(f"{path}: empty file (no header row)")
+    except csv.Error as exc:
+        raise LogError(f"{path}: not a CSV file ({exc})") from None
+    if any(skipped):
+        notes.append(f"{path}: {', '.join(s for s in skipped if s)} before the header skipped")
+    header = [h.strip() for h in header]
+    if len(header) == 1:
+        for sep, what in ((";", "semicolons"), ("\t", "tabs")):
+            if sep in header[0]:
+                raise LogError(
+                    f"{path}: fields separated by {what}, not commas (CONTRACT section 3: "
+                    "a CSV with '.' as the decimal point)"
+                )
+    known = {name.lower(): name for name in (*KNOWN_COLUMNS, *TEXT_COLUMNS)}
+    renamed = []
+    for j, name in enumerate(header):
+        proper = known.get(name.lower())
+        if proper is not None and proper != name and proper not in header:
+            renamed.append(f"'{_shown(name)}' as '{proper}'")
+            header[j] = proper
+    if renamed:
+        notes.append(f"{path}: column {', '.join(renamed)} (the log format's letter case)")
+    return header
+
+
+def _shown(value: str, width: int = 40) -> str:
+    """A field as a message shows it: control characters escaped, at most ``width``
+    characters (a field of 4,096 NUL bytes went to the terminal raw)."""
+    text = value.encode("unicode_escape").decode("ascii") if not value.isprintable() else value
+    return text if len(text) <= width else text[: width - 3] + "..."
 
 
 def _whole(last: str, before: str) -> bool:

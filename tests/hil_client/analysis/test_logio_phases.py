@@ -280,3 +280,56 @@ def test_a_log_of_two_plants_is_analysed_on_one(run_log, tmp_path, capsys):
     assert "holds 2 plants" in err and "only rig_epoch 1" in err
     single = one_plant(read_log(rec.path))  # one plant: the log as it is
     assert len(single) == len(rows) and not single.notes
+
+
+_BASE = (
+    "time_s,phase,water_flow_kg_h,water_in_temp_C,water_out_temp_C,boiler_water_temp_C,"
+    "flue_gas_temp_C,flue_gas_O2_pct,balance_mass_kg,room_temp_C\n"
+    "1,preheat,300,50,60,60,150,8,250,20\n"
+    "2,start_up,300,50,60.5,60,151,8,249.99,20\n"
+    "3,start_up,300,50,61,60.5,152,8,,20\n"
+)
+
+
+@pytest.mark.parametrize(
+    ("variant", "note"),
+    [
+        (lambda t: t + ",,,,,,,,,\n,,,,,,,,,\n", None),  # Excel's rows of empty fields
+        (lambda t: t.replace("time_s,phase", "TIME_S,Phase", 1), "'TIME_S' as 'time_s'"),
+        (lambda t: "# bench 3, operator JS\n# exported\n" + t, "line 1 (a comment)"),
+        (lambda t: "sep=,\n" + t, "line 1 (sep=) before the header"),
+        (lambda t: t.replace("preheat", "vorwärmen"), "read as Windows-1252"),
+        (lambda t: t.replace(",,20\n", ",#N/A,20\n"), None),  # Excel's no reading
+    ],
+    ids=["empty-rows", "letter-case", "comments", "sep-line", "windows-1252", "n-a"],
+)
+def test_spreadsheet_exports_read_as_the_log_they_hold(tmp_path, variant, note):
+    """What spreadsheets do to a CSV was refused, some with a wrong reason ("missing
+    required column 'time_s'" for a header in capitals or under a comment; a stranger's
+    probe). Each reads as the log it holds, and what was done is said in the notes."""
+    base, other = tmp_path / "base.csv", tmp_path / "other.csv"
+    base.write_text(_BASE)
+    encoding = "cp1252" if "vorw" in variant(_BASE) else "utf-8"
+    other.write_bytes(variant(_BASE).encode(encoding))
+    a, b = read_log(base), read_log(other)
+    assert a.columns.keys() == b.columns.keys()
+    for name in a.columns:
+        assert np.array_equal(a[name], b[name], equal_nan=True), name
+    assert (note is None and not b.notes) or any(note in n for n in b.notes), b.notes
+
+
+def test_what_is_no_lab_log_is_refused_in_a_line_that_shows_it(tmp_path):
+    """A device streams forever (balance /dev/zero ran until killed); NUL bytes in a field
+    went raw into the message; a byte that is no text names the line."""
+    with pytest.raises(LogError, match="not a regular file"):
+        read_log(Path("/dev/zero"))
+    nul = tmp_path / "nul.csv"
+    nul.write_text(_BASE.replace("151,", "1" + "\0" * 4096 + ",", 1))
+    with pytest.raises(LogError) as info:
+        read_log(nul)
+    message = str(info.value)
+    assert "\0" not in message and len(message) < 300 and "\\x00" in message
+    binary = tmp_path / "binary.csv"
+    binary.write_bytes(_BASE.encode() + b"\x81\x8d\x8f\x90\x9d\n")
+    with pytest.raises(LogError, match=r"line 5: byte 0x81 is neither UTF-8 nor Windows-1252"):
+        read_log(binary)
