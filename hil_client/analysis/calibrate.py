@@ -2,7 +2,8 @@
 
 From a stationary-test log and/or a load-cycle log plus the boiler's documentation values:
 
-- stationary intervals: the ``stationary_*`` sequences (or, without a ``sequence`` column,
+- stationary intervals: the ``stationary_*`` sequences (or, without a ``sequence`` column
+  or with a lab's own step names, :func:`~hil_client.analysis.logio.stationary_steps`,
   flow plateaus of at least 20 min in the test phase), without their first 10 min, and only
   where the burner fired throughout and the boiler water held within 3 K between its 2.5th
   and 97.5th percentiles (a slow approach at the start is cut off; the 13 % step, below
@@ -37,7 +38,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from hil_client.analysis.logio import LabLog, LogError, fill_gaps
+from hil_client.analysis.logio import LabLog, LogError, fill_gaps, stationary_steps
 from hil_client.analysis.phases import Phases
 from rig_emulator.model import constants as k
 from rig_emulator.model.fuel import stoichiometry
@@ -137,12 +138,13 @@ def stationary_intervals(log: LabLog, phases: Phases) -> list[Interval]:
     t = log.t
     test = phases.mask("test", t)
     segments: list[tuple[int, int, str]] = []
-    if log.has("sequence"):
-        seq = np.array(log.text["sequence"])
-        for name in dict.fromkeys(s for s in seq[test] if s.startswith("stationary")):
+    marked = stationary_steps(log, test)
+    if marked is not None:
+        seq = np.array([s.strip() for s in log.text["sequence"]])
+        for name in dict.fromkeys(seq[test & marked]):
             idx = np.flatnonzero(test & (seq == name))
             segments.append((int(idx[0]), int(idx[-1]) + 1, name))
-    else:
+    else:  # no sequence column, or a lab's own step names: the flow's plateaus
         column = (
             "water_flow_setpoint_kg_h"
             if log.has("water_flow_setpoint_kg_h")

@@ -78,6 +78,25 @@ def _plausible_range(name: str) -> tuple[float, float]:
     )
 
 
+#: How a ``sequence`` name marks a stationary step (the project's ``stationary_100``; a
+#: German lab's ``stationär_100``), in any letter case, spaces around it ignored.
+STATIONARY_PREFIXES = ("stationary", "stationär", "stationaer")
+
+
+def stationary_steps(log: LabLog, rows: np.ndarray) -> np.ndarray | None:
+    """Per row, whether the ``sequence`` column names a stationary step (see
+    :data:`STATIONARY_PREFIXES`); None where the column is missing or names none of
+    ``rows`` so (a lab's own step names: "full_load", "Stufe 3"), and the steps must be
+    found from the signals. Such names had the calibration keep its documentation values
+    for "no stationary interval" and the validation call a whole load cycle dynamic."""
+    if not log.has("sequence"):
+        return None
+    marked = np.array(
+        [s.strip().lower().startswith(STATIONARY_PREFIXES) for s in log.text["sequence"]]
+    )
+    return marked if marked[rows].any() else None
+
+
 class LogError(ValueError):
     """A lab log cannot be analysed; the message names the file and what is wrong."""
 

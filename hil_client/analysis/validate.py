@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hil_client.analysis.balance import flue_gas_loss_per_kg
-from hil_client.analysis.logio import LabLog, LogError, fill_gaps
+from hil_client.analysis.logio import LabLog, LogError, fill_gaps, stationary_steps
 from hil_client.analysis.metrics import table4_metrics
 from hil_client.analysis.phases import Phases
 from rig_emulator.model import pack_constants
@@ -90,13 +90,10 @@ def segments_of(log: LabLog, phases: Phases) -> dict[str, np.ndarray]:
         "test": phases.mask("test", t),
         "stand_by": phases.mask("cooling_1", t) | phases.mask("cooling_2", t),
     }
-    if log.has("sequence"):
-        seq = np.array(log.text["sequence"])
-        names = {s for s in seq[out["test"]]}
-        if len(names) > 1:
-            stationary = np.array([s.startswith("stationary") for s in seq])
-            out["test_stationary"] = out["test"] & stationary
-            out["test_dynamic"] = out["test"] & ~stationary
+    stationary = stationary_steps(log, out["test"])
+    if stationary is not None and not stationary[out["test"]].all():
+        out["test_stationary"] = out["test"] & stationary
+        out["test_dynamic"] = out["test"] & ~stationary
     return out
 
 

@@ -386,3 +386,52 @@ def test_a_stationary_test_below_full_load_reads_pel_along_the_line(tmp_path):
     doc = load_boiler("windhager_12kw")
     assert fitted["p_el_max_W"]["value"] == pytest.approx(doc.p_el_max_W, abs=0.5)
     assert fitted["p_el_min_W"]["value"] == pytest.approx(doc.p_el_min_W, abs=0.5)
+
+
+def _renamed_steps(path: Path, out: Path, rename) -> Path:
+    """A copy of the log at ``path`` (and its meta) with each sequence name renamed."""
+    import csv
+
+    with path.open(newline="") as fh:
+        rows = list(csv.reader(fh))
+    j = rows[0].index("sequence")
+    for row in rows[1:]:
+        row[j] = rename(row[j])
+    with out.open("w", newline="") as fh:
+        csv.writer(fh, lineterminator="\n").writerows(rows)
+    out.with_name(out.stem + ".meta.json").write_bytes(
+        path.with_name(path.stem + ".meta.json").read_bytes()
+    )
+    return out
+
+
+def test_a_labs_own_step_names_find_the_stationary_steps_from_the_flow(run_log, tmp_path):
+    """A lab's own step names ("Stufe 3") made calibrate keep the documentation values for
+    "no stationary interval" and validate call the whole load cycle dynamic (a stranger's
+    probe): such names are no names, the flow's plateaus are; "stationär_100" and names
+    padded with spaces are stationary steps as "stationary_100" is."""
+    rec = run_log("load_cycle", "windhager_12kw")
+    results = {}
+    for label, rename in (
+        ("ours", lambda name: name),
+        ("german", lambda name: name.replace("stationary", "stationär")),
+        ("padded", lambda name: f"  {name} "),
+        ("own", lambda name: f"Stufe {abs(hash(name)) % 97}" if name else name),
+    ):
+        log = _renamed_steps(rec.path, tmp_path / f"{label}.csv", rename)
+        out = tmp_path / label
+        assert (
+            main(["calibrate", str(log), "--boiler", "windhager_12kw", "--out", f"{out}.yaml"]) == 0
+        )
+        fitted = json.loads(Path(f"{out}.uncertainty.json").read_text())
+        assert main(["validate", str(log), "--boiler", "windhager_12kw", "--out", str(out)]) == 0
+        segments = json.loads((out / "validation.json").read_text())["metrics"].keys()
+        results[label] = (fitted["fac_a_lambda"]["value"], fitted["dt_nom_K"]["value"], segments)
+    assert results["german"] == results["padded"] == results["ours"]
+    assert "test_stationary" in results["ours"][2]
+    # the lab's own names: the stationary fit from the plateaus of the flow, the same fit
+    # within its uncertainty (the plateaus are the steps' rows, less their ramps), and the
+    # test validated whole, as without a sequence column
+    assert results["own"][0] == pytest.approx(results["ours"][0], rel=0.02)
+    assert results["own"][1] == pytest.approx(results["ours"][1], rel=0.02)
+    assert "test_stationary" not in results["own"][2] and "test" in results["own"][2]
