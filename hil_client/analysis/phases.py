@@ -159,19 +159,68 @@ def rise_rate_K_min(t: np.ndarray, y: np.ndarray, window_s: float = 300.0) -> np
     return np.where(full, rate, np.nan)
 
 
+def _first_firing(log: LabLog) -> int | None:
+    """The row the burner first fires (``boiler_on``, or, without it, the flue gas 20 K
+    hotter than the water or the O2 below 19 vol-%); None if it never does."""
+    t = log.t
+    if log.has("boiler_on") and np.nanmax(log["boiler_on"]) >= 0.5:
+        return int(np.argmax(log["boiler_on"] >= 0.5))
+    hot = fill_gaps(log["flue_gas_temp_C"], t) > fill_gaps(log["boiler_water_temp_C"], t) + 20.0
+    lean = fill_gaps(log["flue_gas_O2_pct"], t) < 19.0
+    firing = np.flatnonzero(hot | lean)
+    return int(firing[0]) if len(firing) else None
+
+
+def _circulating_rows(log: LabLog) -> np.ndarray:
+    """The rows the water circulates: a non-zero flow setpoint, or, without that column, a
+    flow above 5 % of its maximum."""
+    t = log.t
+    if log.has("water_flow_setpoint_kg_h"):
+        return np.flatnonzero(fill_gaps(log["water_flow_setpoint_kg_h"], t) > 0.0)
+    flow = fill_gaps(log["water_flow_kg_h"], t)
+    if np.isnan(flow).all():
+        return np.array([], dtype=int)
+    with np.errstate(invalid="ignore"):
+        return np.flatnonzero(flow > 0.05 * np.nanmax(flow))
+
+
+#: How far the meta file's t0 and t3 may lie from the burner's first firing and the last
+#: circulating row the signals show [s]: the flue gas's 20 K comes a minute or two after
+#: the burner's switch, an ignition takes minutes on top; the pump stops at t3 at once.
+MARK_SLACK_S = 900.0
+
+
+def _check_against_signals(log: LabLog, phases: Phases) -> None:
+    """A note where the meta file's t0 is far from the log's first firing, or its t3 (the
+    circulation stops) from the log's last circulating row: marks of another log taken
+    within the record gave confident figures of phases that were not (a test phase with
+    the burner off for two hours; a stranger's probe). (t2 has no such mark: a load
+    cycle's last, lowest step can leave the burner off for an hour and more before it.)"""
+    far = []
+    first = _first_firing(log)
+    if first is not None and abs(phases.t0 - log.t[first]) > MARK_SLACK_S:
+        far.append(f"t0_s = {phases.t0:g} s, the burner first firing at {log.t[first]:g} s")
+    running = _circulating_rows(log)
+    if len(running) and running[-1] < len(log) - 2:  # (a record cut short circulates on)
+        stop = float(log.t[running[-1]])
+        if abs(phases.t3 - stop) > MARK_SLACK_S:
+            far.append(f"t3_s = {phases.t3:g} s, the circulation stopping at {stop:g} s")
+    if far:
+        name = log.path.name if log.path else "the log"
+        log.notes.append(
+            f"the meta file's {'; '.join(far)} in {name}: marks of another log? (the phases "
+            "follow the marks; remove t0_s..t4_s from the meta file to find them from the "
+            "signals)"
+        )
+
+
 def _from_signals(log: LabLog) -> Phases:
     t = log.t
     path = log.path
     fg = fill_gaps(log["flue_gas_temp_C"], t)
-    if log.has("boiler_on") and np.nanmax(log["boiler_on"]) >= 0.5:
-        i0 = int(np.argmax(log["boiler_on"] >= 0.5))
-    else:  # firing shows as flue gas much hotter than the water, or as O2 falling
-        hot = fg > fill_gaps(log["boiler_water_temp_C"], t) + 20.0
-        lean = fill_gaps(log["flue_gas_O2_pct"], t) < 19.0
-        firing = np.flatnonzero(hot | lean)
-        if not len(firing):
-            raise LogError(f"{path}: cannot find t0: the burner never fires")
-        i0 = int(firing[0])
+    i0 = _first_firing(log)
+    if i0 is None:
+        raise LogError(f"{path}: cannot find t0: the burner never fires")
     i0 = max(i0 - 1, 0)
     t0 = float(t[i0])
     rate = rise_rate_K_min(t, fg)
@@ -179,12 +228,11 @@ def _from_signals(log: LabLog) -> Phases:
     if not len(ok):
         raise LogError(f"{path}: cannot find t1: the flue-gas temperature never settles")
     t1 = float(t[ok[0]])
-    if log.has("water_flow_setpoint_kg_h"):
-        flow = fill_gaps(log["water_flow_setpoint_kg_h"], t)
-        running = np.flatnonzero(flow > 0.0)
-    else:
-        flow = fill_gaps(log["water_flow_kg_h"], t)
-        running = np.flatnonzero(flow > 0.05 * np.nanmax(flow))
+    column = (
+        "water_flow_setpoint_kg_h" if log.has("water_flow_setpoint_kg_h") else "water_flow_kg_h"
+    )
+    flow = fill_gaps(log[column], t)
+    running = _circulating_rows(log)
     if not len(running):
         raise LogError(f"{path}: cannot find t3: the water never circulates")
     i3 = int(running[-1])
@@ -210,10 +258,13 @@ def find_phases(log: LabLog, prefer_signals: bool = False, partial: bool = False
     the phases it recorded, the one it was cut in ending at its last row (see
     :attr:`Phases.reached`), where the signals do not find all five."""
     if not prefer_signals:
-        for finder in (_from_column, _from_meta):
-            found = finder(log)
-            if found is not None:
-                return found
+        found = _from_column(log)
+        if found is not None:
+            return found
+        found = _from_meta(log)
+        if found is not None:
+            _check_against_signals(log, found)
+            return found
     reached = [key for key in MARKS if log.meta.get(key) is not None]
     if reached == list(MARKS) or not any(key in log.meta for key in MARKS):
         return _from_signals(log)

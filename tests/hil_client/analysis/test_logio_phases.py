@@ -333,3 +333,33 @@ def test_what_is_no_lab_log_is_refused_in_a_line_that_shows_it(tmp_path):
     binary.write_bytes(_BASE.encode() + b"\x81\x8d\x8f\x90\x9d\n")
     with pytest.raises(LogError, match=r"line 5: byte 0x81 is neither UTF-8 nor Windows-1252"):
         read_log(binary)
+
+
+def test_marks_of_another_log_within_the_record_are_said(run_log, tmp_path):
+    """A stationary log without its phase column, beside the load cycle's meta file (its
+    marks inside the record): the test ran two hours past the burner's last firing, with
+    confident figures and no word (a stranger's probe). t3, where the circulation stops,
+    is far from the log's; the log's own marks say nothing."""
+    import json
+
+    stationary, cycle = (
+        run_log("stationary", "windhager_12kw"),
+        run_log("load_cycle", "windhager_12kw"),
+    )
+    log = read_log(stationary.path)
+    keep = [c for c in log.columns if c not in ("phase", "sequence")]
+    path = tmp_path / "st.csv"
+    data = np.column_stack([log[c] for c in keep])
+    np.savetxt(path, data, delimiter=",", header=",".join(keep), comments="", fmt="%.6f")
+    for meta, far in ((stationary.meta, False), (cycle.meta, True)):
+        marks = {k: meta[k] for k in MARKS}
+        if marks["t3_s"] > log.t[-1]:
+            pytest.skip("the load cycle's t3 lies beyond the stationary record")
+        path.with_name("st.meta.json").write_text(json.dumps(marks))
+        again = read_log(path)
+        phases = find_phases(again)
+        assert phases.source == "meta file" and phases.t3 == meta["t3_s"]
+        said = [n for n in again.notes if "marks of another log?" in n]
+        assert bool(said) == far, again.notes
+        if far:
+            assert f"t3_s = {meta['t3_s']:g} s" in said[0]
