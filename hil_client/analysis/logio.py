@@ -97,6 +97,22 @@ def stationary_steps(log: LabLog, rows: np.ndarray) -> np.ndarray | None:
     return marked if marked[rows].any() else None
 
 
+#: A step of the record longer than this many times its usual step, and than
+#: :data:`GAP_MIN_S`, is a gap [-]: sampling of 1-10 s, irregular, is data.
+GAP_STEPS = 10.0
+
+
+GAP_MIN_S = 60.0
+
+
+def record_steps(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(each row's step from the row before [s], whether that step is a gap in the record);
+    the first row's step is the usual one (taking the one after it counted a gap twice)."""
+    usual = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+    dt = np.diff(t, prepend=t[0] - usual)
+    return dt, dt > max(GAP_MIN_S, GAP_STEPS * float(np.median(dt)))
+
+
 class LogError(ValueError):
     """A lab log cannot be analysed; the message names the file and what is wrong."""
 

@@ -25,7 +25,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from hil_client.analysis.balance import flue_gas_loss_per_kg
-from hil_client.analysis.logio import LabLog, LogError, fill_gaps, stationary_steps
+from hil_client.analysis.logio import (
+    LabLog,
+    LogError,
+    fill_gaps,
+    record_steps,
+    stationary_steps,
+)
 from hil_client.analysis.metrics import table4_metrics
 from hil_client.analysis.phases import Phases
 from rig_emulator.model import pack_constants
@@ -150,14 +156,6 @@ def compare(log: LabLog, phases: Phases, params: BoilerParams) -> Comparison:
     return Comparison(t, model, lab, segments_of(log, phases))
 
 
-#: A step of the record longer than this many times its usual step, and than
-#: :data:`GAP_MIN_S`, is a gap [-]: sampling of 1-10 s, irregular, is data.
-GAP_STEPS = 10.0
-
-
-GAP_MIN_S = 60.0
-
-
 def validation_metrics(comp: Comparison, log: LabLog, params: BoilerParams) -> dict:
     """Table 4 metrics per segment and signal, and the cumulative fuel per segment."""
     metrics: dict[str, dict] = {}
@@ -166,14 +164,12 @@ def validation_metrics(comp: Comparison, log: LabLog, params: BoilerParams) -> d
             continue
         metrics[name] = {s: table4_metrics(comp.model[s][mask], comp.lab[s][mask]) for s in SIGNALS}
     t = comp.t
-    # the first row's step is the usual one (the one after it was a gap counted twice)
-    dt = np.diff(t, prepend=t[0] - (float(np.median(np.diff(t))) if len(t) > 1 else 1.0))
+    dt, gap = record_steps(t)
     per_kg_dry = params.fuel.balance_loss_per_kg_dry
     mass = fill_gaps(log.balance_without_refills(), t)
     # a gap in the record: what the plant burnt in it is unknown to the replay (its inputs
     # were not logged), so neither side counts it (the balance counted the 2.8 kg a 2-h gap
     # burnt, the model its own guess of 0.7 kg: -18 % instead of -9 %, a stranger's probe)
-    gap = dt > max(GAP_MIN_S, GAP_STEPS * float(np.median(dt)))
     fuel = {}
     for name, mask in [*comp.segments.items(), ("total", np.ones(len(t), bool))]:
         idx = np.flatnonzero(mask)

@@ -132,3 +132,31 @@ def test_a_run_cut_short_gets_the_balance_of_the_phases_it_recorded(run_log, tmp
     # resolution over 0.9 kg of fuel (0.02-kg steps at both ends, 4 %)
     full_test = next(r for r in whole if r["phase"] == "test")
     assert by_phase["test"]["eta_direct"] == pytest.approx(full_test["eta_direct"], rel=0.05)
+
+
+def test_a_gap_in_the_record_is_said_in_its_phase(run_log, params_12kw):
+    """Two hours missing from the test (an acquisition that hung) were read across without
+    a word (a stranger's probe; an 11-day hole in a cooling, averaged over): the phase with
+    the gap says so, the others not."""
+    from hil_client.analysis.logio import read_log
+    from hil_client.analysis.phases import find_phases
+
+    log = read_log(run_log("stationary", "windhager_12kw").path)
+    phases = find_phases(log)
+    hole = (log.t > phases.t1 + 3600.0) & (log.t <= phases.t1 + 3 * 3600.0)
+    cut = LabLog(
+        log.path,
+        {k: v[~hole] for k, v in log.columns.items()},
+        {k: [x for x, h in zip(v, hole, strict=True) if not h] for k, v in log.text.items()},
+        log.meta,
+    )
+    said = {
+        r.phase: [w for w in r.warnings if "gaps of" in w]
+        for r in energy_balance(cut, params_12kw, phases)
+    }
+    assert said["test"] == [
+        "the record has gaps of 120 min in all in this phase: its figures read across them "
+        "as if the readings had gone straight"
+    ]
+    assert not any(v for k, v in said.items() if k != "test")
+    assert not any(w for r in energy_balance(log, params_12kw, phases) for w in r.warnings)
