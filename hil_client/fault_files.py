@@ -114,7 +114,15 @@ def summary(report: dict[str, Any]) -> str:
     outside = len(report.get("outside_run", ()))
     if outside:
         never += f", {outside} outside the run (before its first row or after its last)"
+    beyond = report.get("events_outside_run", 0)
+    if beyond:
+        never += (
+            f"; {beyond} of the client's events lie beyond the log's rows and are not counted"
+            " (the events file of a longer run, or a log cut or shifted?)"
+        )
+    journalled = len(report["faults"]) + outside + len(report.get("unseen", ()))
+    none = "none in the run" if journalled else "none journalled"
     return (
         f"faults: {report['detected']} detected, {report['missed']} missed, "
-        f"{report['false']} false{never} ({kinds or 'none journalled'})"
+        f"{report['false']} false{never} ({kinds or none})"
     )

@@ -196,7 +196,9 @@ def compare(
     its evaluations, inside one lockstep step or one real-time tick), listed under
     ``unseen``; and one whose window lies wholly before the log's first row or after its
     last (``server_time``: a client that joined late or stopped early could not see it),
-    listed under ``outside_run``."""
+    listed under ``outside_run``. Client events beyond the log's rows (an events file of a
+    longer run beside a log cut short) are no false alarms: counted under
+    ``events_outside_run``, as the summary says."""
     windows = fault_windows(journal, journal_name)
     served = [f for f in windows if f["seen"]]  # an unserved fault: neither caught nor missed
     end_of_run = max(
@@ -206,8 +208,15 @@ def compare(
     )
     outside: list[dict[str, Any]] = []
     faults = served
+    events_outside = 0  # client events beyond the log's rows: not this log's to count
     if server_time is not None and server_time.size:
         first, last = float(server_time[0]), float(server_time[-1])
+        spanned = [
+            first - slack_s <= float(e.get("server_time_s", math.nan)) <= last + slack_s
+            for e in client_events
+        ]
+        events_outside = spanned.count(False)
+        client_events = [e for e, ok in zip(client_events, spanned, strict=True) if ok]
 
         def in_run(fault: Mapping[str, Any]) -> bool:
             ended = fault["end_s"] is not None and fault["end_s"] < first - 1e-9
@@ -274,6 +283,7 @@ def compare(
         "outside_run": outside,
         "false": len(false_events),
         "false_events": false_events,
+        "events_outside_run": events_outside,
         "by_kind": by_kind,
         "slack_s": slack_s,
     }

@@ -309,6 +309,27 @@ def test_a_fault_the_server_never_served_is_neither_caught_nor_missed():
     assert [f["id"] for f in report["unseen"]] == [1]
 
 
+def test_client_events_beyond_the_logs_rows_are_no_false_alarms():
+    """A log cut at 500 s beside the events file of the whole run: the client's events of
+    a fault at 600-630 s counted as false alarms while the fault itself was "outside the
+    run", and the summary said "none journalled" (a stranger's probe)."""
+    from hil_client.fault_files import summary
+
+    events = [
+        {"event": "no_reply", "unit": 2, "time_s": t, "server_time_s": t}
+        for t in (600.0, 601.0, 602.0)
+    ]
+    report = compare([START, END], events, server_time=np.arange(0.0, 501.0))
+    assert report["false"] == 0 and report["events_outside_run"] == 3
+    assert [f["id"] for f in report["outside_run"]] == [1]
+    line = summary(report)
+    assert "3 of the client's events lie beyond the log's rows" in line
+    assert "none in the run" in line and "none journalled" not in line
+    # the whole run's log: the fault detected, nothing outside
+    whole = compare([START, END], events, server_time=np.arange(0.0, 1000.0))
+    assert whole["detected"] == 1 and whole["events_outside_run"] == 0
+
+
 def test_a_log_of_another_boiler_is_analysed_with_a_warning(run_log, tmp_path, capsys):
     """The README's own commands once calibrated a 6-kW log as the 12-kW boiler: every
     command exited 0 and the fits were far from any boiler, without a word. Now each says
