@@ -681,6 +681,14 @@ def _make_rig(args: argparse.Namespace, params: BoilerParams, register_map: Regi
             f"--boiler {args.boiler}: the server at {args.rig} runs another boiler, "
             f"{_served_boiler(served)}; {params.name} is boiler id {ours:08x}"
         )
+    if rig.lockstep and not rig.fresh_start:  # (it started without a word: a stranger's probe)
+        print(
+            f"hil-client: warning: the server is not fresh (simulated time "
+            f"{rig.sim_time_s:g} s, {rig.advances_before} advances; a fresh one reads 0 and 0):"
+            " the run starts on its plant as it is, and a restart of the server cannot be "
+            "replayed into this log",
+            file=sys.stderr,
+        )
     return rig
 
 

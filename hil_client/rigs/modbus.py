@@ -332,6 +332,17 @@ class ModbusRig:
                     "map; give the client the server's (--map)"
                 ) from None
 
+    @property
+    def fresh_start(self) -> bool:
+        """Whether this run began on a fresh server (time 0, no advance): only then can a
+        restart of the server be replayed into its log."""
+        return self._replayable
+
+    @property
+    def advances_before(self) -> int:
+        """The server's lockstep counter when this run began (modulo 65536)."""
+        return self._base_counter
+
     # ------------------------------------------------------------------ connections
     def _connect(self, abort: bool = False) -> None:
         self.close(abort)

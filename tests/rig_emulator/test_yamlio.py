@@ -47,3 +47,12 @@ def test_a_file_nested_thousands_deep_is_one_line(tmp_path):
     with pytest.raises(Bad) as info:
         _read(tmp_path, "a: " + "[" * 3000 + "]" * 3000 + "\n")
     assert "nested too deeply" in str(info.value)
+
+
+def test_a_set_up_file_of_many_megabytes_is_refused_before_it_is_parsed(tmp_path):
+    """A 20-MB register map parsed for 90 s in 1.2 GB without a word (a stranger's probe):
+    a file larger than any set-up file is one line at once."""
+    path = tmp_path / "huge.yaml"
+    path.write_text("points:\n" + "  - {name: p, address: 1}\n" * 200_000)
+    with pytest.raises(ValueError, match=r"huge.yaml: 5 MB, more than any set-up file"):
+        read_yaml(path, ValueError)
