@@ -12,6 +12,7 @@ from rig_emulator.model.water_heat import heat_to_water_kW
 _I = {name: i for i, name in enumerate(LOG_COLUMNS)}
 _T, _PHASE, _MASS, _FLOW = _I["time_s"], _I["phase"], _I["balance_mass_kg"], _I["water_flow_kg_h"]
 _T_IN, _T_OUT, _T_BOILER = _I["water_in_temp_C"], _I["water_out_temp_C"], _I["boiler_water_temp_C"]
+_EPOCH = _I["rig_epoch"]
 
 
 @dataclass(slots=True)
@@ -25,6 +26,8 @@ class PhaseTotal:
     t_boiler_end_C: float = float("nan")
     #: rows of the phase with a balance reading
     mass_readings: int = 0
+    #: the plants (``rig_epoch``) its rows came from: more than one, a break within it
+    epochs: set[int] = field(default_factory=set)
 
     @property
     def fuel_kg(self) -> float:
@@ -76,6 +79,7 @@ class RunSummary:
         total.mass_end_kg = mass
         total.mass_readings += reading == reading
         total.t_boiler_end_C = row[_T_BOILER]  # type: ignore[assignment]
+        total.epochs.add(int(row[_EPOCH]))  # type: ignore[call-overload]
         self._mass_prev = mass
 
     @property
@@ -96,4 +100,11 @@ class RunSummary:
                 f"{name:<10} {h:>3d}:{rem // 60:02d}:{rem % 60:02d} "
                 f"{p.heat_to_water_kWh:>10.2f} kWh {fuel} {p.t_boiler_end_C:>11.2f} C"
             )
+        for name, p in self.phases.items():  # (summed across the break without a word)
+            if len(p.epochs) > 1:
+                lines.append(
+                    f"note: {name} spans a break of the record (rig_epoch "
+                    f"{min(p.epochs)}..{max(p.epochs)}): its totals join two plants; "
+                    "hil-client balance reads one"
+                )
         return "\n".join(lines)

@@ -275,8 +275,10 @@ def run_protocol(
                     f"{phase} restarted at time_s = {t:g} s on a new plant (rig_epoch {epoch})"
                 )
             else:
+                why = gaps[-1].get("reason") if gaps else None  # not always a new plant
                 result.notes.append(
-                    f"rig_epoch {epoch} from time_s = {t:g} s: a new plant, the run went on"
+                    f"rig_epoch {epoch} from time_s = {t:g} s: "
+                    f"{why or 'a new plant'}; the run went on"
                 )
         if on_phase is not None and len(gaps) != n_gaps:
             on_phase(result)  # a gap (closed by this row) or a break: into the meta file now

@@ -252,6 +252,9 @@ class ModbusRig:
         self._head_own = False  # ... and the request it was silent on was the rig's own
         self._command: RigCommand | None = None
         self._written_switches: tuple[bool, bool, bool] | None = None
+        #: the switches went out with this step's reads: the boiler's mode may not show them
+        #: yet (a real-time server's controller takes them at its next tick)
+        self._switches_in_flight = False
         self.values: dict[str, float] = {}
         try:
             self._connect()
@@ -541,8 +544,9 @@ class ModbusRig:
         step (the rig writes them only when they change)."""
         mode = values.get("boiler_mode", math.nan)
         cmd = self._command
-        if cmd is None or self._written_switches is None or math.isnan(mode):
-            return
+        in_flight, self._switches_in_flight = self._switches_in_flight, False
+        if cmd is None or self._written_switches is None or math.isnan(mode) or in_flight:
+            return  # (a restarted plant's first row read "switched by another client")
         if (mode != 0.0) != cmd.boiler_on:
             unit, pdu = self._write_request("boiler_command", float(cmd.boiler_on))
             self._event("overridden", unit, pdu[0], signals=["boiler_command"], mode=mode)
@@ -598,6 +602,7 @@ class ModbusRig:
                 self._write_request("boiler_command", float(cmd.boiler_on)),
             ]
             self._written_switches = switches
+            self._switches_in_flight = True
         return requests
 
     # ------------------------------------------------------------------ expectations

@@ -262,8 +262,9 @@ def test_another_client_advancing_is_a_marked_break(serve, tmp_path, local, on_r
         mark = {"start_up": "t0_s", "test": "t1_s", "cooling_1": "t2_s", "cooling_2": "t3_s"}
         if phase in mark:
             assert log.meta[mark[phase]] == log.t[n0]
-    else:
-        assert "rig_epoch 1" in notes
+    else:  # the note names the break as it was, not "a new plant" (a stranger's probe)
+        assert "rig_epoch 1" in notes and "another client advanced the server" in notes
+        assert "a new plant" not in notes
 
 
 def _realtime_client(port: int, out: Path, *extra: str) -> subprocess.Popen:

@@ -10,9 +10,10 @@ from hil_client.protocol.runner import LOG_COLUMNS
 from hil_client.summary import RunSummary
 
 
-def _row(t: float, phase: str, mass: float) -> tuple:
+def _row(t: float, phase: str, mass: float, epoch: int = 0) -> tuple:
     values = dict.fromkeys(LOG_COLUMNS, 0.0)
     values.update(time_s=t, phase=phase, balance_mass_kg=mass, water_flow_kg_h=600.0)
+    values.update(rig_epoch=epoch)
     values.update(water_in_temp_C=55.0, water_out_temp_C=70.0, boiler_water_temp_C=70.0)
     return tuple(values[name] for name in LOG_COLUMNS)
 
@@ -52,3 +53,16 @@ def test_a_phase_the_balance_never_read_has_unknown_fuel_not_zero():
     assert math.isnan(summary.phases["test"].fuel_kg)
     line = next(x for x in summary.table().splitlines() if x.startswith("test"))
     assert " - " in line and "0.00 kg" not in line
+
+
+def test_a_phase_across_a_break_is_said_to_join_two_plants():
+    """--on-restart continue: the test's totals were summed across a restarted server's
+    two plants without a word (a stranger's probe)."""
+    summary = RunSummary()
+    for i, (phase, epoch) in enumerate([("start_up", 0), ("test", 0), ("test", 1), ("test", 1)]):
+        summary(_row(float(i + 1), phase, 250.0 - i, epoch))
+    notes = [line for line in summary.table().splitlines() if line.startswith("note:")]
+    assert notes == [
+        "note: test spans a break of the record (rig_epoch 0..1): its totals join two plants;"
+        " hil-client balance reads one"
+    ]
