@@ -744,6 +744,24 @@ def _set_aside(out: Path) -> list[tuple[Path, Path]]:
     return moved
 
 
+def _earlier_run(out: Path, moved: list[tuple[Path, Path]]) -> str:
+    """A line on the earlier run's log at ``out`` that this run replaces (set aside in
+    ``moved`` until this run's first row)."""
+    aside = dict(moved)
+    what = "an earlier run's files"
+    if out in aside:
+        try:
+            with aside[out].open("rb") as fh:
+                rows = max(sum(1 for _ in fh) - 1, 0)
+            meta = json.loads(aside[meta_path(out)].read_text()) if meta_path(out) in aside else {}
+        except (OSError, ValueError):
+            rows, meta = None, {}
+        done = {True: "complete", False: "not complete"}.get(meta.get("complete"), "")
+        facts = ", ".join(x for x in (f"{rows} rows" if rows is not None else "", done) if x)
+        what = f"an earlier run's log ({facts})" if facts else "an earlier run's log"
+    return f"{out} holds {what}: this run replaces it once it writes its first row"
+
+
 def _settle_previous(out: Path, moved: list[tuple[Path, Path]], rows: int, gaps: list) -> None:
     """After a run that wrote ``rows`` rows: with none, the previous run's files come back
     and this run's own go (a header and a meta file with nothing to describe), unless,
@@ -857,6 +875,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         write_meta(out, meta)
 
     previous = _set_aside(out)
+    if previous:  # (a killed run's partial log went without a word: a stranger's probe)
+        print(f"hil-client: {_earlier_run(out, previous)}", file=sys.stderr)
     written = [0]  # rows of this run in the log
     events = EventsWriter(out) if remote else None  # what faulty units did, beside the log
     try:

@@ -342,3 +342,16 @@ def test_a_run_whose_commands_all_arrived_has_no_such_warning(tmp_path, capsys, 
     if slow:  # the writes were late indeed, and said so in the events file
         events = [json.loads(line) for line in (tmp_path / "log.modbus_events.jsonl").open()]
         assert any(e["event"] == "late" and e["function"] in (5, 6, 15, 16) for e in events)
+
+
+def test_a_run_to_the_out_of_an_earlier_one_says_what_it_replaces(tmp_path, capsys):
+    """A rerun to the same --out replaced a killed run's partial log without a word (a
+    stranger's probe): one line names what is replaced; a first run says nothing."""
+    out = tmp_path / "log.csv"
+    argv = ["run", str(SHORT), "--boiler", "windhager_12kw", "--quiet", "--out", str(out)]
+    assert main(argv) == 0
+    assert "earlier run" not in capsys.readouterr().err
+    rows = len(out.read_text().splitlines()) - 1
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert f"{out} holds an earlier run's log ({rows} rows, complete): this run replaces" in err
