@@ -45,6 +45,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("port", type=int)
     parser.add_argument("--timeout", type=float, default=60.0)
     args = parser.parse_args(argv)
+    if not 0 <= args.timeout < float("inf"):  # (NaN too) bad usage, as the docstring says
+        parser.error(f"--timeout: {args.timeout:g} is not a number of seconds >= 0")
     if wait_for_port(args.host, args.port, args.timeout):
         return 0
     print(

@@ -57,8 +57,12 @@ def add_arguments(serve: argparse.ArgumentParser) -> None:
     rtu.add_argument(
         "--serial", default=None, metavar="PATH|pty", help="also serve RTU on this line [off]"
     )
-    rtu.add_argument("--baud", type=int_in(50, 4_000_000), default=19200, help="line speed [19200]")
-    rtu.add_argument("--parity", default="E", type=str.upper, choices=PARITIES, help="parity [E]")
+    rtu.add_argument("--baud", type=int_in(50, 4_000_000), default=None, help="line speed [19200]")
+    rtu.add_argument("--parity", default=None, type=str.upper, choices=PARITIES, help="parity [E]")
+
+
+DEFAULT_BAUD = 19200
+DEFAULT_PARITY = "E"  # the Modbus serial line guide's default
 
 
 @dataclass(frozen=True)
@@ -100,6 +104,11 @@ def plan(args: argparse.Namespace) -> TransportPlan:
         raise UsageError(
             f"--plain-role: '{args.plain_role}' is not one of {', '.join(policy.roles)}"
         )
+    if args.serial is None and (args.baud is not None or args.parity is not None):
+        given = "--baud" if args.baud is not None else "--parity"
+        raise UsageError(f"{given} sets the RTU line: it needs --serial PATH|pty")
+    args.baud = DEFAULT_BAUD if args.baud is None else args.baud
+    args.parity = DEFAULT_PARITY if args.parity is None else args.parity
     if args.serial is not None:
         try:
             check_line_options(args.baud, args.parity)

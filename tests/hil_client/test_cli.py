@@ -134,3 +134,13 @@ def test_ctrl_c_while_the_libraries_load_is_one_line(command, tmp_path):
             continue  # start, before any of this project's code ran: not what is tested
         assert "Traceback" not in err, (after_s, err)
         assert proc.returncode in (0, 1, -signal.SIGINT), (after_s, proc.returncode, err)
+
+
+@pytest.mark.parametrize("timeout", ["-1", "nan"])
+def test_wait_for_port_refuses_a_timeout_that_is_no_time(timeout, capsys):
+    """--timeout -1 waited no time and exited 1, "not reachable" (a stranger's probe)."""
+    from hil_client.wait_for_port import main as wait_main
+
+    with pytest.raises(SystemExit) as info:
+        wait_main(["127.0.0.1", "1", "--timeout", timeout])
+    assert info.value.code == 2 and "--timeout" in capsys.readouterr().err

@@ -510,3 +510,13 @@ def test_the_start_up_log_names_a_parity_the_pty_refused(rtu_server):
         pytest.skip("this kernel takes parity on a pty: nothing refused to report")
     assert line.settings.startswith(f"{BAUD} baud, parity E in the timing only: the line did")
     assert "no parity bit is checked" in line.settings
+
+
+@pytest.mark.parametrize("option", [["--baud", "9600"], ["--parity", "N"]])
+def test_line_options_without_a_line_are_refused(option, capsys):
+    """--baud without --serial was taken and ignored without a word (a stranger's probe)."""
+    from rig_emulator.cli import main
+
+    assert main(["serve", "--boiler", "windhager_12kw", "--lockstep", *option]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{option[0]} sets the RTU line: it needs --serial" in err
