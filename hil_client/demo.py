@@ -32,6 +32,7 @@ from hil_client.analysis.figures import energy_and_temperatures
 from hil_client.analysis.logio import read_log
 from hil_client.analysis.phases import find_phases
 from hil_client.cli import main as hil_client_main
+from hil_client.protocol.definition import ProtocolError, load_protocol
 from hil_client.wait_for_port import free_port, wait_for_port
 from rig_emulator.boilers import load_boiler
 from rig_emulator.model.params import ParameterError
@@ -88,6 +89,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         boiler = load_boiler(args.boiler)
     except ParameterError as exc:
         parser.error(f"--boiler: {exc}")
+    try:  # before a server is started for it (a stranger's probe)
+        load_protocol(args.protocol)
+    except ProtocolError as exc:
+        parser.error(f"--protocol: {exc}")
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:  # a file in the way, no permission

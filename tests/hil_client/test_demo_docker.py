@@ -108,6 +108,8 @@ def test_wait_for_port(capsys):
     ("argv", "message"),
     [
         (["--boiler", "nosuch"], "--boiler: unknown boiler 'nosuch'"),
+        # before a server is started for it (it started one, then failed: a stranger's probe)
+        (["--protocol", "nosuch"], "--protocol: unknown protocol 'nosuch'"),
         (["IN_A_FILE/sub"], "out_dir: cannot make"),
     ],
 )
