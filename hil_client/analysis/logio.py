@@ -250,9 +250,12 @@ def read_log(
                     f"{path}: column 'time_s' row {i + 2}: '{_shown(values[i])}' is not finite"
                 )
             beyond = f"outside {low:g}..{high:g}" if math.isfinite(high) else "not finite"
+            why = "an instrument's error code"
+            if wild.all() or wild.sum() > 0.5 * np.isfinite(out).sum():  # most: not codes
+                why = f"most readings: is the column in another unit than its name's ({name})?"
             notes.append(
                 f"{path}: column '{name}': {int(wild.sum())} reading(s) {beyond} (first row "
-                f"{i + 2}: '{_shown(values[i])}'), taken as missing (an instrument's error code)"
+                f"{i + 2}: '{_shown(values[i])}'), taken as missing ({why})"
             )
             out[wild] = np.nan
         columns[name] = out

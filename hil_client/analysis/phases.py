@@ -70,15 +70,22 @@ class Phases:
 
 
 def _from_column(log: LabLog) -> Phases | None:
+    """The phases from the ``phase`` column (its names in any letter case, spaces around
+    them ignored); None, said in the log's notes, where it does not hold them all."""
     if not log.has("phase"):
         return None
-    phase = log.text["phase"]
+    phase = [p.strip().lower() for p in log.text["phase"]]
     t = log.t
     bounds = {}
     for i in range(1, len(phase)):
         if phase[i] != phase[i - 1] and phase[i] in NAMES:
             bounds.setdefault(phase[i], t[i - 1])
-    if not {"start_up", "test", "cooling_1", "cooling_2"} <= set(bounds):
+    missing = [n for n in ("start_up", "test", "cooling_1", "cooling_2") if n not in bounds]
+    if missing:  # (ignored without a word: a stranger's probe)
+        log.notes.append(
+            f"the phase column holds no {', '.join(missing)} (the log format's phase names: "
+            f"{', '.join(NAMES)}); the phases come from the meta file or the signals"
+        )
         return None
     return Phases(
         bounds["start_up"],

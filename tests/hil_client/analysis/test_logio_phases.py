@@ -363,3 +363,22 @@ def test_marks_of_another_log_within_the_record_are_said(run_log, tmp_path):
         assert bool(said) == far, again.notes
         if far:
             assert f"t3_s = {meta['t3_s']:g} s" in said[0]
+
+
+def test_a_phase_column_is_read_in_any_case_and_one_without_the_names_is_said(tmp_path):
+    """Phase names padded with spaces, or in capitals, were not the phases (and a column
+    of a lab's own names was ignored without a word; a stranger's probe). A balance
+    logged in grams is taken as missing with a hint at the unit, not as error codes."""
+    rows = ["preheat", "start_up", "start_up", "test", "test", "cooling_1", "cooling_2"]
+    body = "".join(f"{i + 1},{p},300,50,60,60,150,8,{250000 - i},20\n" for i, p in enumerate(rows))
+    header = _BASE.splitlines()[0] + "\n"
+    padded = tmp_path / "padded.csv"
+    padded.write_text(header + body.replace(",test,", ", TEST ,"))
+    assert find_phases(read_log(padded)).source == "phase column"
+    other = tmp_path / "other.csv"
+    other.write_text(header + body.replace(",test,", ",Volllast,"))
+    log = read_log(other)
+    with pytest.raises(LogError):
+        find_phases(log)  # no meta file, and the signals of seven rows show no phases
+    assert any("the phase column holds no test" in n for n in log.notes), log.notes
+    assert any("another unit than its name's (balance_mass_kg)" in n for n in log.notes)
