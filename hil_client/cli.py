@@ -619,6 +619,12 @@ def _rig_map(args: argparse.Namespace) -> RegisterMap | None:
         register_map = load_map(args.map)
         if remote:
             check_map(register_map)
+    if not remote:  # (taken and ignored without a word: a stranger's probe)
+        print(
+            f"hil-client: warning: --map {args.map} is checked, but --rig local reads no "
+            "registers: the map is for a Modbus rig",
+            file=sys.stderr,
+        )
     return register_map if remote else None
 
 

@@ -355,3 +355,14 @@ def test_a_run_to_the_out_of_an_earlier_one_says_what_it_replaces(tmp_path, caps
     assert main(argv) == 0
     err = capsys.readouterr().err
     assert f"{out} holds an earlier run's log ({rows} rows, complete): this run replaces" in err
+
+
+def test_a_valid_map_for_the_local_rig_is_said_to_be_unused(tmp_path, capsys):
+    """--map with --rig local was checked, then ignored without a word (a stranger's
+    probe): the run goes on and says the map is for a Modbus rig."""
+    from rig_emulator.registers.schema import MAP_DIR
+
+    out = tmp_path / "local.csv"
+    argv = ["run", str(SHORT), "--boiler", "windhager_12kw", "--rig", "local", "--quiet"]
+    assert main([*argv, "--map", str(MAP_DIR / "wieselburg_bench.yaml"), "--out", str(out)]) == 0
+    assert "--rig local reads no registers" in capsys.readouterr().err
