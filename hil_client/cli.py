@@ -349,7 +349,9 @@ def _log_files(log: Path) -> dict[str, Path]:
 def _same_log(a: Path, b: Path) -> bool:
     """Whether two paths hold the same log (the same file, or the same bytes)."""
     try:
-        return a.resolve() == b.resolve() or filecmp.cmp(a, b, shallow=False)
+        if a.resolve() == b.resolve():
+            return True
+        return a.is_file() and b.is_file() and filecmp.cmp(a, b, shallow=False)
     except OSError:  # a missing file is reported when it is read
         return False
 
@@ -755,11 +757,12 @@ def _earlier_run(out: Path, moved: list[tuple[Path, Path]]) -> str:
     ``moved`` until this run's first row)."""
     aside = dict(moved)
     what = "an earlier run's files"
-    if out in aside:
+    if out in aside and aside[out].is_file():  # (a FIFO would be read forever)
         try:
             with aside[out].open("rb") as fh:
                 rows = max(sum(1 for _ in fh) - 1, 0)
-            meta = json.loads(aside[meta_path(out)].read_text()) if meta_path(out) in aside else {}
+            meta_aside = aside.get(meta_path(out))
+            meta = json.loads(meta_aside.read_text()) if meta_aside and meta_aside.is_file() else {}
         except (OSError, ValueError):
             rows, meta = None, {}
         done = {True: "complete", False: "not complete"}.get(meta.get("complete"), "")

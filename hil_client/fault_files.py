@@ -49,6 +49,8 @@ class EventsWriter:
 def read_jsonl(path: Path, what: str) -> list[dict[str, Any]]:
     """The lines of a JSONL file; a bad line raises ValueError naming file and line."""
     out = []
+    if Path(path).exists() and not Path(path).is_file():  # a FIFO or a device: read forever
+        raise ValueError(f"{path}: not a regular file ({what})")
     for number, line in enumerate(Path(path).read_text(encoding="utf-8").splitlines(), 1):
         if not line.strip():
             continue

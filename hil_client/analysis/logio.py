@@ -271,6 +271,8 @@ def read_log(
         )
     meta_file = path.with_name(path.stem + ".meta.json")
     meta: dict[str, Any] = {}
+    if meta_file.exists() and not meta_file.is_file():  # a FIFO or a device: read forever
+        raise LogError(f"{meta_file}: not a regular file, not a meta file")
     if meta_file.exists():
         try:
             meta = json.loads(meta_file.read_text(encoding="utf-8"))

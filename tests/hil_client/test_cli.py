@@ -90,7 +90,8 @@ def test_a_modbus_option_given_to_a_local_run_is_named(tmp_path, capsys):
     argv = ["run", str(short), "--boiler", "windhager_12kw", "--quiet", "--out", str(out)]
     assert main([*argv, "--reply-timeout", "0.5"]) == 0
     assert "--reply-timeout applies to a Modbus rig" in capsys.readouterr().err
-    assert main(argv) == 0
+    fresh = tmp_path / "fresh.csv"  # (a run to an earlier run's --out says it replaces it)
+    assert main([*argv[:-1], str(fresh)]) == 0
     assert capsys.readouterr().err == ""
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -323,6 +324,16 @@ def test_what_is_no_lab_log_is_refused_in_a_line_that_shows_it(tmp_path):
     went raw into the message; a byte that is no text names the line."""
     with pytest.raises(LogError, match="not a regular file"):
         read_log(Path("/dev/zero"))
+    # beside a log: a FIFO hung the reader, /dev/zero ran out of memory (a re-probe)
+    beside = tmp_path / "beside.csv"
+    beside.write_text(_BASE)
+    os.mkfifo(tmp_path / "beside.meta.json")
+    with pytest.raises(LogError, match="beside.meta.json: not a regular file"):
+        read_log(beside)
+    (tmp_path / "beside.meta.json").unlink()
+    (tmp_path / "beside.meta.json").symlink_to("/dev/zero")
+    with pytest.raises(LogError, match="beside.meta.json: not a regular file"):
+        read_log(beside)
     nul = tmp_path / "nul.csv"
     nul.write_text(_BASE.replace("151,", "1" + "\0" * 4096 + ",", 1))
     with pytest.raises(LogError) as info:
