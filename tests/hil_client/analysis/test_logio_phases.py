@@ -328,11 +328,11 @@ def test_what_is_no_lab_log_is_refused_in_a_line_that_shows_it(tmp_path):
     beside = tmp_path / "beside.csv"
     beside.write_text(_BASE)
     os.mkfifo(tmp_path / "beside.meta.json")
-    with pytest.raises(LogError, match="beside.meta.json: not a regular file"):
+    with pytest.raises(LogError, match=r"beside\.meta\.json: not a regular file"):
         read_log(beside)
     (tmp_path / "beside.meta.json").unlink()
     (tmp_path / "beside.meta.json").symlink_to("/dev/zero")
-    with pytest.raises(LogError, match="beside.meta.json: not a regular file"):
+    with pytest.raises(LogError, match=r"beside\.meta\.json: not a regular file"):
         read_log(beside)
     nul = tmp_path / "nul.csv"
     nul.write_text(_BASE.replace("151,", "1" + "\0" * 4096 + ",", 1))
