@@ -22,7 +22,7 @@ A boundary is the time of the last row of the phase before it (as the runner rec
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -81,11 +81,13 @@ def _from_column(log: LabLog) -> Phases | None:
         if phase[i] != phase[i - 1] and phase[i] in NAMES:
             bounds.setdefault(phase[i], t[i - 1])
     missing = [n for n in ("start_up", "test", "cooling_1", "cooling_2") if n not in bounds]
-    if missing:  # (ignored without a word: a stranger's probe)
+    unknown = set(phase) - set(NAMES) - {""}
+    if missing and unknown:  # a lab's own names (ignored without a word: a stranger's probe)
         log.notes.append(
             f"the phase column holds no {', '.join(missing)} (the log format's phase names: "
             f"{', '.join(NAMES)}); the phases come from the meta file or the signals"
         )
+    if missing:  # (a run cut short holds the phases it reached)
         return None
     return Phases(
         bounds["start_up"],
@@ -267,6 +269,8 @@ def find_phases(log: LabLog, prefer_signals: bool = False, partial: bool = False
     if not prefer_signals:
         found = _from_column(log)
         if found is not None:
+            if partial and "t4_s" in log.meta and log.meta["t4_s"] is None:  # cut in cooling_2
+                return replace(found, source="phase column, the run cut short", reached=4)
             return found
         found = _from_meta(log)
         if found is not None:
@@ -275,12 +279,12 @@ def find_phases(log: LabLog, prefer_signals: bool = False, partial: bool = False
     reached = [key for key in MARKS if log.meta.get(key) is not None]
     if reached == list(MARKS) or not any(key in log.meta for key in MARKS):
         return _from_signals(log)
+    cut = _meta_marks(log, partial=True) if partial else None
+    if cut is not None:  # the marks the bench recorded, not the signals' guess at the rest
+        return cut  # (a run cut in a cooling got marks of its last row: a re-probe)
     try:  # a run cut short: its meta file has the marks it reached, null for the rest
         return _from_signals(log)
     except LogError as exc:
-        cut = _meta_marks(log, partial=True) if partial else None
-        if cut is not None:
-            return cut
         known = ", ".join(reached) or "no mark"
         raise LogError(
             f"{exc}; the run was cut short (its meta file records {known}, the rest not "

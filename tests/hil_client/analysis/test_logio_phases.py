@@ -248,6 +248,12 @@ def test_marks_an_interrupted_run_did_not_reach_are_unknown_not_errors(run_log, 
     assert (partial.t0, partial.reached, partial.cut_in) == (rec.meta["t0_s"], 1, "start_up")
     assert partial.t1 == partial.t4 == log.t[log.t <= rec.meta["t0_s"] + 600.0][-1]
     assert partial.as_dict() == {"t0_s": rec.meta["t0_s"]} | dict.fromkeys(MARKS[1:])
+    # cut in a cooling: the marks it recorded, not the signals' guess at the rest (the
+    # signals had put t3 and t4 at its last row; a re-probe)
+    cooling = write(log.t <= rec.meta["t2_s"] + 600.0, "cooling", ("t0_s", "t1_s", "t2_s"))
+    partial = find_phases(read_log(cooling), partial=True)
+    assert (partial.reached, partial.cut_in, partial.t2) == (3, "cooling_1", rec.meta["t2_s"])
+    assert partial.as_dict()["t3_s"] is None
     # a mark after a null, or none at all, is no record of a run cut short
     gapped = write(log.t <= rec.meta["t1_s"] + 600.0, "gapped", ("t0_s", "t2_s"))
     with pytest.raises(LogError):
