@@ -224,11 +224,21 @@ class RequestHandler(asyncio.Protocol):
     def eof_received(self) -> bool:
         """The client sent all it will send: answer what it asked, then close."""
         self._eof = True
-        if not self.waiting:
+        # whether TLS, asked before any close: a closed TLS transport has no extra info to
+        # give (its _ssl_protocol gone), and asking it raised inside asyncio, one traceback
+        # per connection the server had closed (a re-probe)
+        tls = self._tls_transport()
+        if not self.waiting and not self._closed:
             self.transport.close()
         # keep the transport open for the answers still to come; TLS cannot (a close_notify
         # closes both ways: asyncio closes it whatever this says, and warns if it is True)
-        return self.transport.get_extra_info("sslcontext") is None
+        return not tls and not self._closed
+
+    def _tls_transport(self) -> bool:
+        try:
+            return self.transport.get_extra_info("sslcontext") is not None
+        except AttributeError:  # a TLS transport already closed
+            return True
 
     def close(self, reason: str, kind: str) -> None:
         """Close the connection with a log line naming ``reason``: for each ``kind`` of

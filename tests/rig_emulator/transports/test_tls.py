@@ -606,3 +606,23 @@ def test_a_role_cannot_write_lines_of_its_own_into_the_log(tls_server, certs, tm
     assert lines and all("\n" not in m for m in lines), lines
     assert any("engineer\\n2026" in m for m in lines)  # shown, escaped
     assert any("forger\\n2026-01-01 rig-emulator: FAKE" in m for m in lines)
+
+
+def test_a_tls_connection_the_server_closes_leaves_no_traceback(tls_server, certs, caplog):
+    """A frame that cannot be resynchronised closes the connection; on TLS the client's
+    end of it then raised inside asyncio (eof_received asked a closed TLS transport for its
+    extra info): one traceback per connection (a re-probe)."""
+    caplog.set_level(logging.WARNING, logger="asyncio")
+    ctx = client_context(certs, "engineer")
+    for _ in range(3):
+        with (
+            socket.create_connection(("127.0.0.1", tls_server.port), timeout=5) as raw,
+            ctx.wrap_socket(raw, server_hostname="127.0.0.1") as tls,
+        ):
+            tls.sendall(struct.pack(">HHHB", 1, 0, 300, 1) + b"\x04" * 20)  # length 300
+            with pytest.raises((ssl.SSLError, ConnectionError, OSError, AssertionError)):
+                assert tls.recv(256)  # closed by the server: b"" or an error
+    time.sleep(0.3)
+    assert not [r for r in caplog.records if r.name == "asyncio"], [
+        r.getMessage() for r in caplog.records
+    ]
