@@ -11,17 +11,23 @@ from collections.abc import Sequence
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    # Ctrl-C is held until the imports are done: raised inside one, it can land in
+    # Ctrl-C and SIGTERM are held until the imports are done: raised inside one, it can land in
     # importlib's own callbacks, which print it as an ignored exception with a traceback
     held: list[int] = []
     main_thread = threading.current_thread() is threading.main_thread()
-    if main_thread:
-        previous = signal.signal(signal.SIGINT, lambda signum, frame: held.append(signum))
+    stopping: tuple[int, ...] = ()  # (SIGTERM ended it silently, exit 143: a re-probe)
+    if main_thread:  # a signal the process was started ignoring stays ignored
+        ignored = signal.SIG_IGN
+        stopping = tuple(
+            n for n in (signal.SIGINT, signal.SIGTERM) if signal.getsignal(n) is not ignored
+        )
+        previous = [signal.signal(n, lambda signum, frame: held.append(signum)) for n in stopping]
     try:
         from hil_client.cli import main as cli_main
     finally:
         if main_thread:
-            signal.signal(signal.SIGINT, signal.SIG_DFL if previous is None else previous)
+            for signum, handler in zip(stopping, previous, strict=True):
+                signal.signal(signum, signal.SIG_DFL if handler is None else handler)
     if held:
         print("hil-client: interrupted", file=sys.stderr)
         return 1
