@@ -37,6 +37,7 @@ from rig_emulator.faults.spec import (
     Entry,
     FaultSpec,
     RandomSpec,
+    ReadingRange,
 )
 
 _EPS_S = 1e-9
@@ -146,7 +147,7 @@ class FaultEngine:
         self._last_instrument: dict[str, float] = {}
         #: per signal, the (lowest, highest) reading its register serves (an integer one
         #: clips there): the journal writes readings as served (set by the server)
-        self.reading_ranges: Mapping[str, tuple[float, float]] = {}
+        self.reading_ranges: Mapping[str, ReadingRange] = {}
         self._arm(self._initial)
 
     # ------------------------------------------------------------------ setting faults
@@ -386,9 +387,9 @@ class FaultEngine:
         else:
             reading = readings.get(signal, math.nan)
         instrument = self._last_instrument.get(signal, math.nan)
-        if signal in self.reading_ranges:  # as served: a spike of 9999 on 327.67 at most
-            lo, hi = self.reading_ranges[signal]
-            reading, instrument = (min(max(v, lo), hi) for v in (reading, instrument))
+        served = self.reading_ranges.get(signal)
+        if served is not None:  # as served: a spike of 9999 on 327.67 at most, on its steps
+            reading, instrument = served.served(reading), served.served(instrument)
         return {"reading": reading, "instrument": instrument, "truth": truth}
 
 

@@ -34,7 +34,7 @@ import numbers
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -337,9 +337,26 @@ def check_units(entries: Sequence[Entry], units: frozenset[int] | set[int], wher
                 )
 
 
-def check_spikes(
-    entries: Sequence[Entry], ranges: Mapping[str, tuple[float, float, str]], where: str
-) -> None:
+class ReadingRange(NamedTuple):
+    """What an integer register serves of a signal: its lowest and highest reading, the
+    register (for messages) and its step, the reading's resolution."""
+
+    lo: float
+    hi: float
+    register: str
+    step: float
+
+    def served(self, value: float) -> float:
+        """``value`` as the register serves it: clipped to its range, on its steps (NaN
+        stays NaN)."""
+        if value != value:
+            return value
+        clipped = min(max(value, self.lo), self.hi)
+        steps = round((clipped - self.lo) / self.step) if self.step > 0 else 0
+        return round(self.lo + steps * self.step, 9) if self.step > 0 else clipped
+
+
+def check_spikes(entries: Sequence[Entry], ranges: Mapping[str, ReadingRange], where: str) -> None:
     """Each spike's value is one its signal's register can serve (``ranges``: per signal
     published as an integer, the lowest and highest reading and the register in words): an
     int16 in hundredths of a kelvin clipped a -999 spike onto its invalid code, which
@@ -350,16 +367,17 @@ def check_spikes(
         known = ranges.get(str(entry.signal))
         if known is None:
             continue
-        lo, hi, register = known
+        lo, hi, register, step = known
         value = float(entry.parameter or 0.0)
-        # within a millionth of the ends is the end itself: the command block carries the
-        # value as a float32 of 7 digits (327.67 is 327.6700134 there, and the register's
-        # own end was refused; a re-probe)
-        slack = 1e-6 * max(abs(lo), abs(hi), 1.0)
+        # within half a step of the ends is the end itself, as the register serves it: the
+        # command block carries the value as a float32 (327.67 is 327.6700134 there, and the
+        # register's own end was refused; a re-probe); a millionth of the range let the
+        # int32 balance's invalid code through (a re-probe)
+        slack = 0.5 * step
         if not lo - slack <= value <= hi + slack:
             raise FaultError(
                 f"{_field(where, i, entries, 'value')}: {value:g} is outside what"
-                f" {entry.signal}'s register serves ({lo:g}..{hi:g}: {register})"
+                f" {entry.signal}'s register serves ({lo:.10g}..{hi:.10g}: {register})"
             )
 
 

@@ -30,6 +30,7 @@ from rig_emulator.faults import (
     FaultEngine,
     FaultError,
     FaultJournal,
+    ReadingRange,
     check_spikes,
     check_units,
 )
@@ -52,11 +53,11 @@ except ImportError:  # pragma: no cover - a handler without gates: no communicat
     GateDecision = None  # type: ignore[assignment,misc]
 
 
-def reading_ranges(register_map: RegisterMap) -> dict[str, tuple[float, float, str]]:
+def reading_ranges(register_map: RegisterMap) -> dict[str, ReadingRange]:
     """Per measured signal published as an integer: the lowest and highest reading every
-    register of it serves, its invalid code left out, and the narrowest register in
-    words."""
-    out: dict[str, tuple[float, float, str]] = {}
+    register of it serves, its invalid code left out, the narrowest register and its step
+    (a reading's resolution)."""
+    out: dict[str, ReadingRange] = {}
     for device in register_map.devices:
         for point in device.points:
             if point.signal not in MEASURED:
@@ -65,10 +66,13 @@ def reading_ranges(register_map: RegisterMap) -> dict[str, tuple[float, float, s
             if not math.isfinite(lo):
                 continue
             where = f"unit {device.unit_id} {point.name}, {point.datatype} x {point.scale:g}"
+            here = ReadingRange(lo, hi, where, abs(point.scale))
             known = out.get(point.signal)
-            if known is not None and known[1] - known[0] <= hi - lo:
-                lo, hi, where = max(lo, known[0]), min(hi, known[1]), known[2]
-            out[point.signal] = (lo, hi, where)
+            if known is not None and known.hi - known.lo <= hi - lo:
+                here = ReadingRange(
+                    max(lo, known.lo), min(hi, known.hi), known.register, known.step
+                )
+            out[point.signal] = here
     return out
 
 
@@ -91,7 +95,7 @@ class ServerFaults:
         emulator.reading_hook = self.engine.apply
         self.block: dict[str, float] = dict.fromkeys(BLOCK_SIGNALS, 0.0)
         self._ranges = reading_ranges(register_map)
-        self.engine.reading_ranges = {s: (lo, hi) for s, (lo, hi, _) in self._ranges.items()}
+        self.engine.reading_ranges = self._ranges
         #: the units a communication fault may name (the bench's; 0: all of them)
         self.units = frozenset(d.unit_id for d in register_map.devices)
 

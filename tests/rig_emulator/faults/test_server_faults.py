@@ -254,3 +254,6 @@ def test_the_journal_writes_a_reading_as_its_register_serves_it(serve, tmp_path)
     assert served == pytest.approx(327.67)  # int16 x 0.01: 32767, its invalid code 0x8000
     assert start["served"]["reading"] == pytest.approx(served)
     assert start["served"]["truth"] < 100.0  # the plant's own flue gas, unclipped
+    # and on the register's steps: 0.01 K, not 68.5197... (a re-probe)
+    instrument = start["served"]["instrument"]
+    assert instrument == round(instrument, 2)

@@ -94,3 +94,29 @@ def test_profiles_carry_faults():
     assert lab.faults == ()
     with pytest.raises(ProfileError, match=r"p.yaml: faults\[0\].kind"):
         profile_from_mapping({"name": "x", "faults": [{"kind": "hail"}]}, "p.yaml")
+
+
+@pytest.mark.parametrize(
+    ("signal", "value", "ok"),
+    [
+        ("balance_mass_kg", -2147483.647, True),  # int32 x 0.001: its lowest reading
+        ("balance_mass_kg", -2147483.648, False),  # its invalid code (a dropout)
+        ("flue_gas_temp_C", 327.67, True),  # int16 x 0.01: its highest reading
+        ("flue_gas_temp_C", 327.6700134, True),  # the same as a float32 carries it
+        ("flue_gas_temp_C", 327.68, False),
+    ],
+)
+def test_a_spike_is_one_its_register_serves_to_its_step(signal, value, ok):
+    """Spikes on 32-bit registers slipped past the range check with a slack of a millionth
+    of the range (2.1 kg on the balance: its invalid code was accepted; a re-probe). The
+    slack is half the register's step; the message gives the range in full."""
+    from rig_emulator.faults import check_spikes
+    from rig_emulator.modbus.fault_control import reading_ranges
+    from rig_emulator.registers import load_map
+
+    (spike,) = faults_from_list([{"kind": "spike", "signal": signal, "value": value}])
+    if ok:
+        check_spikes([spike], reading_ranges(load_map()), "faults.yaml")
+    else:
+        with pytest.raises(FaultError, match=r"outside what .*\(-?[0-9.]+\.\.[0-9.]+: unit"):
+            check_spikes([spike], reading_ranges(load_map()), "faults.yaml")
