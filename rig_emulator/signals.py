@@ -72,6 +72,7 @@ _STATUS = (
     ("achieved_speed", "-", "simulated s per wall s of the last real-time tick (0 in lockstep)"),
     ("tick_overrun_ms", "ms", "simulation the last tick could not do in its budget, dropped"),
     ("active_fault_count", "-", "number of active faults (fault injection)"),
+    ("map_id", "-", "32-bit hash of the register map served (units, points, types, scales)"),
 )
 _COMMANDS = (
     ("water_flow_setpoint_kg_h", "kg/h", "flow setpoint of the bench pump/valve", 0.0, 2000.0),

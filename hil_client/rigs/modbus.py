@@ -71,7 +71,15 @@ from hil_client.modbus_client import (
 )
 from hil_client.protocol.rig import READING_KEYS, RigCommand, RigError
 from hil_client.rigs.transports import url_port
-from rig_emulator.registers import MapError, Point, RegisterMap, encode, invalid_value, run_decoder
+from rig_emulator.registers import (
+    MapError,
+    Point,
+    RegisterMap,
+    encode,
+    invalid_value,
+    map_identity,
+    run_decoder,
+)
 
 _READ_FUNCTION = {"coil": 1, "discrete": 2, "holding": 3, "input": 4}
 
@@ -308,6 +316,7 @@ class ModbusRig:
         map, and the run stops here naming it. It ran blind instead: every row's fields
         empty, exit 0 (a stranger's probe). A server with faults active from its start
         (an exception may be one of them) is not asked."""
+        self._check_map_identity(url, register_map)
         try:
             _, point = register_map.point("active_fault_count")
         except KeyError:
@@ -345,6 +354,28 @@ class ModbusRig:
     def advances_before(self) -> int:
         """The server's lockstep counter when this run began (modulo 65536)."""
         return self._base_counter
+
+    def _check_map_identity(self, url: str, register_map: RegisterMap) -> None:
+        """Where both maps have it, the server's ``map_id`` must be this client's map's: two
+        same-length points swapped, a word order, a scale or a type that differ read wrong
+        values as readings, exit 0 (a re-probe). A server without it is not asked."""
+        try:
+            register_map.point("map_id")
+        except KeyError:
+            return
+        (read,) = _read_plan(register_map, ("map_id",), trim=True)
+        values: dict[str, float] = {}
+        try:
+            self._decode([read], self._exchange([_request(read)]), values)
+        except ModbusExceptionResponse:
+            return  # a server whose map has no map_id: the blocks' check is all there is
+        served, ours = int(values["map_id"]), map_identity(register_map)
+        if served != ours:
+            raise RigError(
+                f"{url}: the server serves another register map than {register_map.source} "
+                f"(map id {served:08x}, this one's {ours:08x}: a point moved, swapped, "
+                "retyped or rescaled); give the client the server's map (--map)"
+            )
 
     # ------------------------------------------------------------------ connections
     def _connect(self, abort: bool = False) -> None:

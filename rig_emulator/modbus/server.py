@@ -46,7 +46,15 @@ from rig_emulator.modbus.handler import (
     DEFAULT_MAX_CONNECTIONS,
     BenchModbusServer,
 )
-from rig_emulator.registers import Device, Point, RegisterMap, decode, encode, run_encoder
+from rig_emulator.registers import (
+    Device,
+    Point,
+    RegisterMap,
+    decode,
+    encode,
+    map_identity,
+    run_encoder,
+)
 
 log = logging.getLogger("rig_emulator.serve")
 
@@ -183,6 +191,7 @@ class BenchServer:
         self.ssl_context = ssl_context
         self.emulator = emulator
         self.map = register_map
+        self.map_id = float(map_identity(register_map))
         self.host = host
         self.port = port
         self.tick_period_s = 1.0 / tick_hz
@@ -390,6 +399,7 @@ class BenchServer:
         out["achieved_speed"] = self.achieved_speed if realtime else 0.0
         out["tick_overrun_ms"] = self.tick_overrun_ms if realtime else 0.0
         out["lockstep_counter"] = float(self.lockstep_counter % 65536)
+        out["map_id"] = self.map_id
         out["epoch_id"] = float(self.epoch_id)
         out["speed_factor"] = self.clock.speed
         out["clock_mode"] = float(self.clock.mode)

@@ -17,6 +17,7 @@ from rig_emulator.registers.schema import (
     RegisterMap,
     load_map,
     map_from_mapping,
+    map_identity,
 )
 
 __all__ = [
@@ -30,6 +31,7 @@ __all__ = [
     "invalid_value",
     "load_map",
     "map_from_mapping",
+    "map_identity",
     "precision",
     "reading_range",
     "run_decoder",

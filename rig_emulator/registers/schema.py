@@ -30,6 +30,7 @@ A broken map is refused with the file, device and point named.
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -282,3 +283,17 @@ def load_map(path: str | Path | None = None) -> RegisterMap:
     path = Path(path) if path is not None else MAP_DIR / "wieselburg_bench.yaml"
     data = read_yaml(path, MapError)
     return map_from_mapping(data, source=str(path))
+
+
+def map_identity(register_map: RegisterMap) -> int:
+    """A 32-bit hash of what a map puts on the wire: per unit, each point's signal, table,
+    address, type, word order, scale and offset (names, units and texts left out). The
+    server publishes it (``map_id``), so a client whose map differs stops before it reads
+    a swapped, rescaled or word-swapped value as a reading."""
+    wire = sorted(
+        (d.unit_id, p.table, p.address, p.signal, p.datatype, p.word_order, p.scale, p.offset)
+        for d in register_map.devices
+        for p in d.points
+    )
+    digest = hashlib.blake2b(repr(wire).encode(), digest_size=4).digest()
+    return int.from_bytes(digest, "big")

@@ -108,12 +108,45 @@ def test_a_server_running_another_map_is_named_before_the_first_row(serve, tmp_p
     data = yaml.safe_load((MAP_DIR / "wieselburg_bench.yaml").read_text())
     plc = next(d for d in data["devices"] if d["unit_id"] == 1)
     plc["points"] = [p for p in plc["points"] if p["signal"] != "water_out_temp_C"]
-    srv = serve(register_map=map_from_mapping(data, "theirs.yaml"))
     out = tmp_path / "blind.csv"
+    srv = serve(register_map=map_from_mapping(data, "theirs.yaml"))
+    assert _run(["--rig", f"modbus://127.0.0.1:{srv.port}", "--out", str(out)]) == 1
+    err = capsys.readouterr().err  # its map id differs: stopped by that first
+    assert err.count("\n") == 1 and "serves another register map" in err and "--map" in err
+    # a server without a map id (an older one) is asked for every block of readings
+    control = next(d for d in data["devices"] if d["unit_id"] == 100)
+    control["points"] = [p for p in control["points"] if p["signal"] != "map_id"]
+    srv = serve(register_map=map_from_mapping(data, "theirs.yaml"))
     assert _run(["--rig", f"modbus://127.0.0.1:{srv.port}", "--out", str(out)]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "answers exception 02" in err
     assert "water_out_temp_C" in err and "--map" in err and not out.exists()
+
+
+@pytest.mark.parametrize("change", ["swap", "word_order", "scale"])
+def test_a_map_that_differs_in_what_a_point_carries_stops_the_run(serve, tmp_path, capsys, change):
+    """Differences the blocks' check cannot see read wrong values as readings, exit 0 (a
+    re-probe): two same-length points swapped (forward and return temperature), the
+    analyser's word order, the flue gas's scale. The server's map id tells them."""
+    import yaml
+
+    from rig_emulator.registers import map_from_mapping
+    from rig_emulator.registers.schema import MAP_DIR
+
+    data = yaml.safe_load((MAP_DIR / "wieselburg_bench.yaml").read_text())
+    points = {p["signal"]: p for d in data["devices"] for p in d["points"]}
+    if change == "swap":
+        a, b = points["water_in_temp_C"], points["water_out_temp_C"]
+        a["address"], b["address"] = b["address"], a["address"]
+    elif change == "word_order":
+        points["flue_gas_O2_pct"]["word_order"] = "ABCD"
+    else:
+        points["flue_gas_temp_C"]["scale"] = 0.1
+    srv = serve(register_map=map_from_mapping(data, "theirs.yaml"))
+    out = tmp_path / "wrong.csv"
+    assert _run(["--rig", f"modbus://127.0.0.1:{srv.port}", "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "serves another register map" in err and not out.exists()
 
 
 def test_a_server_faster_than_the_client_reads_is_a_coarse_log_said_so(serve, tmp_path, capsys):

@@ -35,6 +35,7 @@ def test_clean_readings_are_the_plant(params_12kw):
         "achieved_speed",
         "tick_overrun_ms",
         "lockstep_counter",
+        "map_id",  # the server's, of the map it serves
         "epoch_id",
         "speed_factor",
         "clock_mode",
