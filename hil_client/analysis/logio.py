@@ -179,11 +179,15 @@ def read_log(
     while named_width and not header[named_width - 1]:
         named_width -= 1
     raw: list[list[str]] = []
+    comments = 0
     odd: tuple[int, int] | None = None  # (line, fields) of a row of the wrong width
     try:
         for row in reader:
             if not any(field.strip() for field in row):  # a blank line, or a spreadsheet's
                 continue  # row of empty fields (",,,,")
+            if row[0].lstrip().startswith("#"):  # a comment (no time_s starts so)
+                comments += 1
+                continue
             if odd is not None:
                 break  # a row follows the odd one: refused below
             if named_width <= len(row) < len(header):
@@ -194,6 +198,8 @@ def read_log(
             raw.append(row)
     except csv.Error as exc:
         raise LogError(f"{path}: line {reader.line_num}: {exc}") from None
+    if comments:
+        notes.append(f"{path}: {comments} comment line(s) (#...) among the rows skipped")
     if odd is not None:
         line, fields = odd
         if fields < len(header) and reader.line_num == line and _ends_unterminated(path):
@@ -226,7 +232,10 @@ def read_log(
             continue
         try:
             out = np.array(
-                [v if v.strip() and v.strip() not in _NO_READING else "nan" for v in values],
+                [
+                    v if v.strip() and v.strip().upper() not in _NO_READING else "nan"
+                    for v in values
+                ],
                 dtype=float,
             )
         except ValueError:
@@ -290,7 +299,7 @@ def read_log(
 
 
 #: What spreadsheets write for no reading, read as an empty field (NaN is already one).
-_NO_READING = frozenset({"#N/A", "N/A", "#NV", "#NA"})
+_NO_READING = frozenset({"#N/A", "N/A", "#NV", "#NA", "#DIV/0!", "#VALUE!", "#NUM!"})
 
 
 #: A log file longer than this is refused before it is read [bytes]: a day at 1 Hz of
@@ -314,6 +323,18 @@ def _text_of(path: Path, notes: list[str]) -> str:
         data = path.read_bytes()
     except OSError as exc:
         raise LogError(f"{path}: cannot read ({exc.strerror})") from None
+    if data.startswith((b"\xff\xfe", b"\xfe\xff")):  # a spreadsheet's "Unicode text"
+        try:
+            notes.append(f"{path}: UTF-16 text (a byte-order mark), read as such")
+            return data.decode("utf-16")
+        except UnicodeDecodeError:
+            raise LogError(f"{path}: starts as UTF-16 text but is not") from None
+    if b"\x00" in data[:65536]:
+        line = data.count(b"\n", 0, data.index(b"\x00")) + 1
+        raise LogError(
+            f"{path}: line {line} holds NUL bytes: UTF-16 without its byte-order mark, or no"
+            " text at all (a lab log is UTF-8 or Windows-1252 text)"
+        )
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
@@ -343,8 +364,9 @@ def _header(path: Path, reader: Any, notes: list[str]) -> list[str]:
             if first.lower().startswith("sep=") and not any(h.strip() for h in header[1:]):
                 skipped.append(f"line {reader.line_num} ({_shown(first)})")
                 continue
-            if not header or first.startswith("#"):
-                skipped.append(f"line {reader.line_num} (a comment)" if header else "")
+            if not any(h.strip() for h in header) or first.startswith("#"):
+                comment = header and first.startswith("#")
+                skipped.append(f"line {reader.line_num} (a comment)" if comment else "")
                 continue
             break
         else:
@@ -361,6 +383,16 @@ def _header(path: Path, reader: Any, notes: list[str]) -> list[str]:
                     f"{path}: fields separated by {what}, not commas (CONTRACT section 3: "
                     "a CSV with '.' as the decimal point)"
                 )
+    by_case: dict[str, list[str]] = {}
+    for h in header:
+        if h:
+            by_case.setdefault(h.lower(), []).append(h)
+    clash = next((names for names in by_case.values() if len(set(names)) > 1), None)
+    if clash is not None:  # (one of them was taken without a word: a re-probe)
+        raise LogError(
+            f"{path}: columns {' and '.join(repr(_shown(h)) for h in dict.fromkeys(clash))} "
+            "differ only in letter case: which one is the reading?"
+        )
     known = {name.lower(): name for name in (*KNOWN_COLUMNS, *TEXT_COLUMNS)}
     renamed = []
     for j, name in enumerate(header):

@@ -307,8 +307,21 @@ _BASE = (
         (lambda t: "sep=,\n" + t, "line 1 (sep=) before the header"),
         (lambda t: t.replace("preheat", "vorwärmen"), "read as Windows-1252"),
         (lambda t: t.replace(",,20\n", ",#N/A,20\n"), None),  # Excel's no reading
+        (lambda t: t.replace(",,20\n", ",#div/0!,20\n"), None),
+        (lambda t: t.replace("\n2,", "\n# operator: flow check\n2,") + "# end\n", "2 comment"),
+        (lambda t: ",,,,\n" + t, None),  # a row of empty fields above the header
     ],
-    ids=["empty-rows", "letter-case", "comments", "sep-line", "windows-1252", "n-a"],
+    ids=[
+        "empty-rows",
+        "letter-case",
+        "comments",
+        "sep-line",
+        "windows-1252",
+        "n-a",
+        "div0",
+        "comments-among-rows",
+        "empty-row-on-top",
+    ],
 )
 def test_spreadsheet_exports_read_as_the_log_they_hold(tmp_path, variant, note):
     """What spreadsheets do to a CSV was refused, some with a wrong reason ("missing
@@ -345,7 +358,20 @@ def test_what_is_no_lab_log_is_refused_in_a_line_that_shows_it(tmp_path):
     with pytest.raises(LogError) as info:
         read_log(nul)
     message = str(info.value)
-    assert "\0" not in message and len(message) < 300 and "\\x00" in message
+    assert "\0" not in message and len(message) < 300 and "line 3 holds NUL bytes" in message
+    from hil_client.analysis.logio import _shown  # a field shown in a message, beyond that
+
+    assert _shown("1" + "\0" * 4096) == "1" + "\\x00" * 9 + "..."
+    utf16 = tmp_path / "utf16.csv"
+    utf16.write_bytes(_BASE.encode("utf-16"))  # with its byte-order mark: read as such
+    assert np.array_equal(read_log(utf16).t, [1.0, 2.0, 3.0])
+    utf16.write_bytes(_BASE.encode("utf-16-le"))  # without: named, not "missing 'time_s'"
+    with pytest.raises(LogError, match="line 1 holds NUL bytes: UTF-16 without its"):
+        read_log(utf16)
+    both = tmp_path / "both.csv"
+    both.write_text(_BASE.replace("phase,", "TIME_S,", 1).replace(",preheat,", ",0,"))
+    with pytest.raises(LogError, match="'time_s' and 'TIME_S' differ only in letter case"):
+        read_log(both)
     binary = tmp_path / "binary.csv"
     binary.write_bytes(_BASE.encode() + b"\x81\x8d\x8f\x90\x9d\n")
     with pytest.raises(LogError, match=r"line 5: byte 0x81 is neither UTF-8 nor Windows-1252"):
