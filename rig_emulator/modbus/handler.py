@@ -24,6 +24,7 @@ is here, written from the Modbus specs rather than from pymodbus's server:
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import ssl
 import time
@@ -573,10 +574,28 @@ class BenchModbusServer:
         logged_s, unlogged = self._closes.get(kind, (-_LIMIT_LOG_INTERVAL_S, 0))
         if now - logged_s < _LIMIT_LOG_INTERVAL_S:
             self._closes[kind] = (logged_s, unlogged + 1)
+            if not unlogged:  # the count is said when the interval ends, burst or not
+                with contextlib.suppress(RuntimeError):  # (no loop: said with the next)
+                    asyncio.get_running_loop().call_later(
+                        logged_s + _LIMIT_LOG_INTERVAL_S - now, self._log_closes_left, kind
+                    )
             return
         more = f" ({unlogged} more closed so since the last such line)" if unlogged else ""
         log.warning("closing the connection of %s: %s%s", peer, reason, more)
         self._closes[kind] = (now, 0)
+
+    def _log_closes_left(self, kind: str) -> None:
+        """The closes of ``kind`` an interval did not log, in one line (a burst's count was
+        said only when another close of its kind came, maybe never; a re-probe)."""
+        logged_s, unlogged = self._closes.get(kind, (0.0, 0))
+        if unlogged:
+            log.warning(
+                "%d more connection(s) closed (%s) in the %g s after the last such line",
+                unlogged,
+                kind,
+                _LIMIT_LOG_INTERVAL_S,
+            )
+            self._closes[kind] = (logged_s, 0)
 
     def _log_limit(self, what: str) -> None:
         """Log what the connection limit did: one line per interval, with a count."""
