@@ -692,7 +692,8 @@ def _make_rig(args: argparse.Namespace, params: BoilerParams, register_map: Regi
     if rig.lockstep and not rig.fresh_start:  # (it started without a word: a stranger's probe)
         print(
             f"hil-client: warning: the server is not fresh (simulated time "
-            f"{rig.sim_time_s:g} s, {rig.advances_before} advances; a fresh one reads 0 and 0):"
+            f"{rig.sim_time_s:g} s, lockstep counter {rig.advances_before}, which wraps at "
+            "65536; a fresh one reads 0 and 0):"
             " the run starts on its plant as it is, and a restart of the server cannot be "
             "replayed into this log",
             file=sys.stderr,
@@ -1005,7 +1006,7 @@ _GAP_ACTIONS = {
     "resumed": "resumed where it was",
     "reconnected": "reconnected",
     "restart-phase": "the phase starts again on the new plant",
-    "continue": "the run goes on, on the new plant",
+    "continue": "the run goes on from the plant as it is",
     "abort": "stopped",
 }
 
