@@ -134,6 +134,9 @@ def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[Ph
         idx = np.flatnonzero(mask)
         duration = float(dt[idx].sum())
         gap_s = float(dt[idx[gap[idx]]].sum())
+        after = idx[-1] + 1  # a gap from the phase's last row on: its end lies in the gap
+        if after < len(t) and gap[after]:  # (the test was shortened without a word: a re-probe)
+            gap_s += float(dt[after])
         if gap_s > 0:  # (an 11-day hole was averaged over without a word: a stranger's probe)
             warn.append(
                 f"the record has gaps of {gap_s / 60:.0f} min in all in this phase: its "

@@ -160,3 +160,18 @@ def test_a_gap_in_the_record_is_said_in_its_phase(run_log, params_12kw):
     ]
     assert not any(v for k, v in said.items() if k != "test")
     assert not any(w for r in energy_balance(log, params_12kw, phases) for w in r.warnings)
+    # a gap across the test's end: said in both phases it cuts (the test was shortened
+    # without a word; a re-probe)
+    across = (log.t > phases.t2 - 600.0) & (log.t <= phases.t2 + 600.0)
+    cut = LabLog(
+        log.path,
+        {k: v[~across] for k, v in log.columns.items()},
+        {k: [x for x, h in zip(v, across, strict=True) if not h] for k, v in log.text.items()},
+        log.meta,
+    )
+    said = {
+        r.phase
+        for r in energy_balance(cut, params_12kw, phases)
+        if any("gaps of" in w for w in r.warnings)
+    }
+    assert said == {"test", "cooling_1"}
