@@ -38,7 +38,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from hil_client.analysis.logio import LabLog, LogError, fill_gaps, stationary_steps
+from hil_client.analysis.logio import (
+    LabLog,
+    LogError,
+    fill_gaps,
+    flow_plateaus,
+    stationary_steps,
+)
 from hil_client.analysis.phases import Phases
 from rig_emulator.model import constants as k
 from rig_emulator.model.fuel import stoichiometry
@@ -145,21 +151,7 @@ def stationary_intervals(log: LabLog, phases: Phases) -> list[Interval]:
             idx = np.flatnonzero(test & (seq == name))
             segments.append((int(idx[0]), int(idx[-1]) + 1, name))
     else:  # no sequence column, or a lab's own step names: the flow's plateaus
-        column = (
-            "water_flow_setpoint_kg_h"
-            if log.has("water_flow_setpoint_kg_h")
-            else ("water_flow_kg_h")
-        )
-        flow = fill_gaps(log[column], t)
-        idx = np.flatnonzero(test)
-        start = idx[0]
-        for i in range(idx[0] + 1, idx[-1] + 2):
-            end = i == idx[-1] + 1
-            level = np.median(flow[start:i])
-            if end or abs(flow[i] - level) > 0.02 * max(level, 1.0):
-                if t[i - 1] - t[start] >= 1200.0:
-                    segments.append((int(start), int(i), f"plateau_{level:.0f}kg_h"))
-                start = i
+        segments += [(i0, i1, f"plateau_{lv:.0f}kg_h") for i0, i1, lv in flow_plateaus(log, test)]
     out = []
 
     def span(i0: int, i1: int) -> float:  # covered time [s], whatever the sampling period

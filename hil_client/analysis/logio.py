@@ -113,6 +113,41 @@ def record_steps(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return dt, dt > max(GAP_MIN_S, GAP_STEPS * float(np.median(dt)))
 
 
+def flow_column(log: LabLog) -> str:
+    """The column that tells the flow's steps: its setpoint where logged, else the flow."""
+    return "water_flow_setpoint_kg_h" if log.has("water_flow_setpoint_kg_h") else "water_flow_kg_h"
+
+
+#: A stationary step found from the flow lasts at least this long [s] (the load cycle's
+#: shortest stationary step is 30 min; its ramps between steps last minutes).
+PLATEAU_MIN_S = 1200.0
+
+
+def flow_plateaus(log: LabLog, rows: np.ndarray) -> list[tuple[int, int, float]]:
+    """The runs of the stretch ``rows`` (a mask of one stretch: the test) where the flow
+    (its setpoint where logged) holds within 2 % of its median for :data:`PLATEAU_MIN_S` at
+    least: (first row, end row, exclusive, level [kg/h]). The stationary steps of a log
+    whose ``sequence`` names mark none (:func:`stationary_steps`)."""
+    t = log.t
+    column = (
+        "water_flow_setpoint_kg_h" if log.has("water_flow_setpoint_kg_h") else "water_flow_kg_h"
+    )
+    flow = fill_gaps(log[column], t)
+    idx = np.flatnonzero(rows)
+    out: list[tuple[int, int, float]] = []
+    if not len(idx):
+        return out
+    start = idx[0]
+    for i in range(idx[0] + 1, idx[-1] + 2):
+        end = i == idx[-1] + 1
+        level = float(np.median(flow[start:i]))
+        if end or abs(flow[i] - level) > 0.02 * max(level, 1.0):
+            if t[i - 1] - t[start] >= PLATEAU_MIN_S:
+                out.append((int(start), int(i), level))
+            start = i
+    return out
+
+
 class LogError(ValueError):
     """A lab log cannot be analysed; the message names the file and what is wrong."""
 

@@ -26,7 +26,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from hil_client.analysis.logio import LabLog, LogError, fill_gaps
+from hil_client.analysis.logio import LabLog, LogError, fill_gaps, flow_column
 
 NAMES = ("preheat", "start_up", "test", "cooling_1", "cooling_2")
 MARKS = ("t0_s", "t1_s", "t2_s", "t3_s", "t4_s")
@@ -237,10 +237,7 @@ def _from_signals(log: LabLog) -> Phases:
     if not len(ok):
         raise LogError(f"{path}: cannot find t1: the flue-gas temperature never settles")
     t1 = float(t[ok[0]])
-    column = (
-        "water_flow_setpoint_kg_h" if log.has("water_flow_setpoint_kg_h") else "water_flow_kg_h"
-    )
-    flow = fill_gaps(log[column], t)
+    flow = fill_gaps(log[flow_column(log)], t)
     running = _circulating_rows(log)
     if not len(running):
         raise LogError(f"{path}: cannot find t3: the water never circulates")

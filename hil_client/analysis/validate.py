@@ -29,6 +29,7 @@ from hil_client.analysis.logio import (
     LabLog,
     LogError,
     fill_gaps,
+    flow_plateaus,
     record_steps,
     stationary_steps,
 )
@@ -97,7 +98,11 @@ def segments_of(log: LabLog, phases: Phases) -> dict[str, np.ndarray]:
         "stand_by": phases.mask("cooling_1", t) | phases.mask("cooling_2", t),
     }
     stationary = stationary_steps(log, out["test"])
-    if stationary is not None and not stationary[out["test"]].all():
+    if stationary is None:  # no step names that say: the flow's plateaus, as calibrate does
+        stationary = np.zeros(len(t), dtype=bool)  # (the split was dropped without a word)
+        for i0, i1, _ in flow_plateaus(log, out["test"]):
+            stationary[i0:i1] = True
+    if stationary[out["test"]].any() and not stationary[out["test"]].all():
         out["test_stationary"] = out["test"] & stationary
         out["test_dynamic"] = out["test"] & ~stationary
     return out

@@ -429,9 +429,10 @@ def test_a_labs_own_step_names_find_the_stationary_steps_from_the_flow(run_log, 
         results[label] = (fitted["fac_a_lambda"]["value"], fitted["dt_nom_K"]["value"], segments)
     assert results["german"] == results["padded"] == results["ours"]
     assert "test_stationary" in results["ours"][2]
-    # the lab's own names: the stationary fit from the plateaus of the flow, the same fit
+    # the lab's own names: the stationary steps from the plateaus of the flow, the same fit
     # within its uncertainty (the plateaus are the steps' rows, less their ramps), and the
-    # test validated whole, as without a sequence column
+    # test validated in its stationary and dynamic parts too (the split was dropped
+    # without a word; a re-probe)
     assert results["own"][0] == pytest.approx(results["ours"][0], rel=0.02)
     assert results["own"][1] == pytest.approx(results["ours"][1], rel=0.02)
-    assert "test_stationary" not in results["own"][2] and "test" in results["own"][2]
+    assert {"test", "test_stationary", "test_dynamic"} <= set(results["own"][2])
