@@ -134,6 +134,16 @@ def test_a_run_cut_short_gets_the_balance_of_the_phases_it_recorded(run_log, tmp
     assert by_phase["test"]["eta_direct"] == pytest.approx(full_test["eta_direct"], rel=0.05)
 
 
+def _without(log: LabLog, rows: np.ndarray) -> LabLog:
+    """``log`` with ``rows`` (a mask) left out: a gap in the record."""
+    return LabLog(
+        log.path,
+        {k: v[~rows] for k, v in log.columns.items()},
+        {k: [x for x, h in zip(v, rows, strict=True) if not h] for k, v in log.text.items()},
+        log.meta,
+    )
+
+
 def test_a_gap_in_the_record_is_said_in_its_phase(run_log, params_12kw):
     """Two hours missing from the test (an acquisition that hung) were read across without
     a word (a stranger's probe; an 11-day hole in a cooling, averaged over): the phase with
@@ -143,13 +153,7 @@ def test_a_gap_in_the_record_is_said_in_its_phase(run_log, params_12kw):
 
     log = read_log(run_log("stationary", "windhager_12kw").path)
     phases = find_phases(log)
-    hole = (log.t > phases.t1 + 3600.0) & (log.t <= phases.t1 + 3 * 3600.0)
-    cut = LabLog(
-        log.path,
-        {k: v[~hole] for k, v in log.columns.items()},
-        {k: [x for x, h in zip(v, hole, strict=True) if not h] for k, v in log.text.items()},
-        log.meta,
-    )
+    cut = _without(log, (log.t > phases.t1 + 3600.0) & (log.t <= phases.t1 + 3 * 3600.0))
     said = {
         r.phase: [w for w in r.warnings if "gaps of" in w]
         for r in energy_balance(cut, params_12kw, phases)
@@ -162,13 +166,7 @@ def test_a_gap_in_the_record_is_said_in_its_phase(run_log, params_12kw):
     assert not any(w for r in energy_balance(log, params_12kw, phases) for w in r.warnings)
     # a gap across the test's end: said in both phases it cuts (the test was shortened
     # without a word; a re-probe)
-    across = (log.t > phases.t2 - 600.0) & (log.t <= phases.t2 + 600.0)
-    cut = LabLog(
-        log.path,
-        {k: v[~across] for k, v in log.columns.items()},
-        {k: [x for x, h in zip(v, across, strict=True) if not h] for k, v in log.text.items()},
-        log.meta,
-    )
+    cut = _without(log, (log.t > phases.t2 - 600.0) & (log.t <= phases.t2 + 600.0))
     said = {
         r.phase
         for r in energy_balance(cut, params_12kw, phases)
