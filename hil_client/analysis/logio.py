@@ -129,10 +129,7 @@ def flow_plateaus(log: LabLog, rows: np.ndarray) -> list[tuple[int, int, float]]
     least: (first row, end row, exclusive, level [kg/h]). The stationary steps of a log
     whose ``sequence`` names mark none (:func:`stationary_steps`)."""
     t = log.t
-    column = (
-        "water_flow_setpoint_kg_h" if log.has("water_flow_setpoint_kg_h") else "water_flow_kg_h"
-    )
-    flow = fill_gaps(log[column], t)
+    flow = fill_gaps(log[flow_column(log)], t)
     idx = np.flatnonzero(rows)
     out: list[tuple[int, int, float]] = []
     if not len(idx):
@@ -220,7 +217,8 @@ def read_log(
         for row in reader:
             if not any(field.strip() for field in row):  # a blank line, or a spreadsheet's
                 continue  # row of empty fields (",,,,")
-            if row[0].lstrip().startswith("#"):  # a comment (no time_s starts so)
+            first = row[0].strip()  # a comment: no time_s starts so but Excel's #N/A
+            if first.startswith("#") and first.upper() not in _NO_READING:
                 comments += 1
                 continue
             if odd is not None:
