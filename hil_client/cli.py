@@ -1005,7 +1005,7 @@ _GAP_ACTIONS = {
     "replayed": "the run's commands were replayed on the new plant, the log goes on as one",
     "resumed": "resumed where it was",
     "reconnected": "reconnected",
-    "restart-phase": "the phase starts again on the new plant",
+    "restart-phase": "the phase starts again from the plant as it is",
     "continue": "the run goes on from the plant as it is",
     "abort": "stopped",
 }
