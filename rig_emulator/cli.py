@@ -394,6 +394,12 @@ async def _serve(server: BenchServer, args: argparse.Namespace) -> None:
             "on" if args.http_control else "off",
         )
     await stop.wait()
+    # the stop is under way: a second Ctrl-C or SIGTERM (GNU timeout signals the group
+    # again) interrupted the shutdown's own clean-up, with a traceback ("Exception ignored
+    # in atexit callback"; a re-probe); from here on they are ignored
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        loop.remove_signal_handler(sig)
+        signal.signal(sig, signal.SIG_IGN)
     logging.getLogger("rig_emulator.serve").info(
         "stopping at simulated time %.1f s", server.emulator.sim_time_s
     )

@@ -133,3 +133,30 @@ def test_serve_warns_of_a_measured_signal_its_map_publishes_nowhere(caplog):
         _warn_unpublished(map_from_mapping(data, "theirs.yaml"))
     (record,) = caplog.records
     assert "theirs.yaml publishes no point for relative_humidity_pct" in record.getMessage()
+
+
+def test_serve_stopped_twice_stops_once_without_a_traceback():
+    """A second Ctrl-C or SIGTERM while serve shuts down (GNU timeout signals the group
+    again) interrupted its clean-up: "Exception ignored in atexit callback" with a
+    traceback, sometimes exit 1 (a re-probe, 4 stops in 25). Signals at several moments
+    after the first; each stop must end cleanly."""
+    import signal
+    import subprocess
+    import time
+
+    from hil_client.demo import rig_emulator_serve
+
+    for gap_s in (0.0, 0.01, 0.05, 0.2):
+        with rig_emulator_serve("windhager_12kw", "--lockstep", stderr=subprocess.PIPE) as (
+            _,
+            proc,
+        ):
+            proc.send_signal(signal.SIGINT)
+            time.sleep(gap_s)
+            for _ in range(3):
+                if proc.poll() is None:
+                    proc.send_signal(signal.SIGINT)
+                    time.sleep(0.005)
+            err = proc.communicate(timeout=30)[1].decode()
+        assert proc.returncode == 0, (gap_s, proc.returncode, err)
+        assert "Traceback" not in err and "Exception ignored" not in err, (gap_s, err)
