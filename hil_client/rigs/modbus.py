@@ -310,26 +310,41 @@ class ModbusRig:
         ]
         self._n_reads = len(self._reads)
 
-    def _check_server_map(self, url: str, plan: list[_Read], register_map: RegisterMap) -> None:
-        """Read every block of readings once before the first row: one the server answers
-        with 01 or 02 (no such function or register) is a server running another register
-        map, and the run stops here naming it. It ran blind instead: every row's fields
-        empty, exit 0 (a stranger's probe). A server with faults active from its start
-        (an exception may be one of them) is not asked."""
-        self._check_map_identity(url, register_map)
+    def _read_optional(self, register_map: RegisterMap, signal: str) -> float | None:
+        """One read of ``signal``; None where this map or the server's has no such point."""
         try:
-            _, point = register_map.point("active_fault_count")
+            register_map.point(signal)
         except KeyError:
-            point = None
-        if point is not None:
-            (status,) = _read_plan(register_map, ("active_fault_count",), trim=True)
-            values: dict[str, float] = {}
-            try:
-                self._decode([status], self._exchange([_request(status)]), values)
-            except ModbusExceptionResponse:
-                values = {}
-            if values.get("active_fault_count", 0.0) > 0:
-                return
+            return None
+        (read,) = _read_plan(register_map, (signal,), trim=True)
+        values: dict[str, float] = {}
+        try:
+            self._decode([read], self._exchange([_request(read)]), values)
+        except ModbusExceptionResponse:
+            return None
+        return values[signal]
+
+    def _check_server_map(self, url: str, plan: list[_Read], register_map: RegisterMap) -> None:
+        """Before the first row, that the server serves this client's map: its ``map_id``
+        where both maps have one (two same-length points swapped, a word order, a scale or a
+        type that differ read wrong values as readings, exit 0; a re-probe); without one,
+        every block of readings read once, a block the server answers with 01 or 02 (no
+        such function or register) naming the difference (the run went on blind: every
+        row's fields empty, exit 0; a stranger's probe). A server with faults active from
+        its start (an exception may be one of them) is not asked for the blocks."""
+        served = self._read_optional(register_map, "map_id")
+        if served is not None:
+            ours = map_identity(register_map)
+            if int(served) != ours:
+                raise RigError(
+                    f"{url}: the server serves another register map than "
+                    f"{register_map.source} (map id {int(served):08x}, this one's {ours:08x}: "
+                    "a point moved, swapped, retyped or rescaled); give the client the "
+                    "server's map (--map)"
+                )
+            return
+        if (self._read_optional(register_map, "active_fault_count") or 0.0) > 0:
+            return
         for read in plan:
             try:
                 self._exchange([_request(read)])
@@ -354,28 +369,6 @@ class ModbusRig:
     def advances_before(self) -> int:
         """The server's lockstep counter when this run began (modulo 65536)."""
         return self._base_counter
-
-    def _check_map_identity(self, url: str, register_map: RegisterMap) -> None:
-        """Where both maps have it, the server's ``map_id`` must be this client's map's: two
-        same-length points swapped, a word order, a scale or a type that differ read wrong
-        values as readings, exit 0 (a re-probe). A server without it is not asked."""
-        try:
-            register_map.point("map_id")
-        except KeyError:
-            return
-        (read,) = _read_plan(register_map, ("map_id",), trim=True)
-        values: dict[str, float] = {}
-        try:
-            self._decode([read], self._exchange([_request(read)]), values)
-        except ModbusExceptionResponse:
-            return  # a server whose map has no map_id: the blocks' check is all there is
-        served, ours = int(values["map_id"]), map_identity(register_map)
-        if served != ours:
-            raise RigError(
-                f"{url}: the server serves another register map than {register_map.source} "
-                f"(map id {served:08x}, this one's {ours:08x}: a point moved, swapped, "
-                "retyped or rescaled); give the client the server's map (--map)"
-            )
 
     # ------------------------------------------------------------------ connections
     def _connect(self, abort: bool = False) -> None:
