@@ -131,8 +131,8 @@ def _build_parser() -> argparse.ArgumentParser:
         type=finite_float(0.0, 1e7, "s"),
         default=300.0,
         metavar="SECONDS",
-        help="close client connections silent this long, or stalled in a TLS handshake "
-        "(0: never) [300]",
+        help="close client connections that sent no whole request this long, or stalled in "
+        "a TLS handshake (0: never) [300]",
     )
     serve.add_argument(
         "--max-connections",

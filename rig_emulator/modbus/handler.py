@@ -127,12 +127,16 @@ class RequestHandler(asyncio.Protocol):
         self._registered = False
         self._write_paused = False
         self._read_paused = False
+        #: when it last sent a whole request or was answered: bytes that make no request (a
+        #: frame trickled in for ever, a header and nothing more) do not count, so such a
+        #: connection neither stays open past the idle timeout nor outranks a real client
+        #: when the connection limit needs a place
         self._last_activity = time.monotonic()
         self._idle_timer: asyncio.TimerHandle | None = None
         self._discarded = 0  # frames discarded for a wrong MBAP header
         self._yielding = False  # a slice of requests was answered; the rest come next turn
-        #: it sent something: its connection and disconnection are logged at INFO (a port
-        #: probe, a health check that connects and closes, only at DEBUG)
+        #: it sent a whole request: its connection and disconnection are logged at INFO (a
+        #: port probe, a health check that connects and closes, only at DEBUG)
         self._spoke = False
 
     # ------------------------------------------------------------------ connection
@@ -271,7 +275,8 @@ class RequestHandler(asyncio.Protocol):
         if self._busy or idle_s < timeout_s:
             self._arm_idle_timer(max(timeout_s - idle_s, 0.01) if not self._busy else timeout_s)
             return
-        self.close(f"idle for {idle_s:.0f} s (--idle-timeout {timeout_s:g})", "idle")
+        what = "a request left incomplete" if self._buffer else "idle"
+        self.close(f"{what} for {idle_s:.0f} s (--idle-timeout {timeout_s:g})", "idle")
 
     # ------------------------------------------------------------------ flow control
     def pause_writing(self) -> None:
@@ -297,10 +302,6 @@ class RequestHandler(asyncio.Protocol):
     def data_received(self, data: bytes) -> None:
         if self._closed or self._close_after is not None:
             return
-        self._last_activity = time.monotonic()
-        if not self._spoke:
-            self._spoke = True
-            log.info("client %s connected (%d open)", self.peer, len(self.server.handlers))
         self._buffer += data
         if not self._securing:  # else the handshake's end drains it, once the role is known
             self._drain()
@@ -318,6 +319,11 @@ class RequestHandler(asyncio.Protocol):
         for frame in frames:
             self._queue.append(frame)
             self._queued_bytes += len(frame.pdu) + 7
+        if frames:
+            self._last_activity = time.monotonic()
+            if not self._spoke:
+                self._spoke = True
+                log.info("client %s connected (%d open)", self.peer, len(self.server.handlers))
         return len(discarded)
 
     def _log_discard(self, why: str) -> None:
@@ -436,7 +442,7 @@ class BenchModbusServer:
         devices: one ``SimDevice`` per unit; device id 0 is the catch-all of unknown units.
         address: (host, port) to listen on (port 0: any free one).
         identity: what read device identification (43/14) answers; None: exception 01.
-        idle_timeout_s: close connections that sent nothing for this long (0: never).
+        idle_timeout_s: close connections that sent no whole request for this long (0: never).
         max_connections: connections open at once; a new one beyond closes the oldest
             unused one (none unused: the new one is closed).
         ssl: an ``ssl.SSLContext`` for Modbus/TCP Security, or None.

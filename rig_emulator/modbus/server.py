@@ -50,10 +50,10 @@ from rig_emulator.registers import (
     Device,
     Point,
     RegisterMap,
-    decode,
     encode,
     map_identity,
     run_encoder,
+    written_value,
 )
 
 log = logging.getLogger("rig_emulator.serve")
@@ -160,10 +160,11 @@ class BenchServer:
         tick_hz: rate of the real-time tick and of the register updates.
         allow_control: let clients write the clock commands (speed, mode, reset, advance) and
             the fault command block of a real-time server; without it they get exception 01
-            (a lockstep server always accepts them).
+            (a server started in lockstep always accepts them, also once a client switched
+            it to real time: else that one write would lock every client out for good).
         faults: faults to schedule (``FAULTS.yaml`` entries; the profile's come too).
         fault_log: the JSONL journal of fault starts and ends (None: none).
-        idle_timeout_s: close client connections silent this long (0: never).
+        idle_timeout_s: close client connections that sent no whole request this long (0: never).
         max_connections: client connections open at once (the next ones are closed).
         ssl_context: serve Modbus/TCP Security (TLS) on ``host:port`` instead of plain TCP
             (:mod:`rig_emulator.modbus.transports` adds more listeners and lines).
@@ -201,11 +202,11 @@ class BenchServer:
         #: random per start: a client that sees it change knows the plant is a new one
         self.epoch_id = secrets.randbits(32)
         self.last_advance_s = 0.0
-        self.allow_control = allow_control
+        self.allow_control = allow_control or lockstep
         self._kernels_ready = threading.Event()
         self.achieved_speed = speed
         self.tick_overrun_ms = 0.0
-        self._clock_lock = asyncio.Lock()  # one clock command (advance, reset, ...) at a time
+        self._clock_lock = asyncio.Lock()  # one write at a time, an advance's whole length
         self._refusals_logged: set[tuple[str, str]] = set()
         self._internal = False
         self._server: BenchModbusServer | None = None
@@ -528,7 +529,7 @@ class BenchServer:
             if table == "coil":
                 value = 1.0 if values[first] else 0.0
             else:
-                value = decode(point, values[first : first + point.width])
+                value = written_value(point, values[first : first + point.width])
             try:
                 new[point.signal] = check_command(
                     point.signal, value, within=(point.minimum, point.maximum)
@@ -584,10 +585,11 @@ class BenchServer:
     async def _apply(self, new: dict[str, float], operator: bool = False) -> ExcCodes | None:
         if not operator and self._control_refused(new):
             return ExcCodes.ILLEGAL_FUNCTION
-        if any(k in CLOCK_COMMANDS for k in new):
-            async with self._clock_lock:
-                return await self._apply_now(new)
-        return await self._apply_now(new)
+        # every write waits for a clock command under way (a long advance runs in slices,
+        # answering reads meanwhile): another client's setpoint lands between two advances,
+        # never at a point inside one that the machine's load would choose
+        async with self._clock_lock:
+            return await self._apply_now(new)
 
     async def _apply_now(self, new: dict[str, float]) -> ExcCodes | None:
         plant = {

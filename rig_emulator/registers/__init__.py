@@ -8,6 +8,7 @@ from rig_emulator.registers.codec import (
     reading_range,
     run_decoder,
     run_encoder,
+    written_value,
 )
 from rig_emulator.registers.schema import (
     MAP_DIR,
@@ -36,4 +37,5 @@ __all__ = [
     "reading_range",
     "run_decoder",
     "run_encoder",
+    "written_value",
 ]

@@ -193,6 +193,21 @@ def decode(point: Point, registers: list[int]) -> float:
     return raw * point.scale + point.offset
 
 
+def written_value(point: Point, registers: list[int]) -> float:
+    """The value a client's write of ``registers`` carries, checked against the point's
+    range as written: a float within its type's rounding of a bound it cannot carry exactly
+    is that bound (float32 has no 0.01; the 0.0099999998 a client's encoder sends for it is
+    0.01), so the documented ends of a range can be written; anything further out is not
+    moved, and the range check refuses it."""
+    value = decode(point, registers)
+    if DATATYPES[point.datatype].is_float:
+        if point.minimum - precision(point, point.minimum) <= value < point.minimum:
+            return point.minimum
+        if point.maximum < value <= point.maximum + precision(point, point.maximum):
+            return point.maximum
+    return value
+
+
 def precision(point: Point, value: float) -> float:
     """Largest difference between ``value`` and its decoded encoding (encoding precision)."""
     if point.datatype == "bool":

@@ -43,9 +43,11 @@ def markdown(register_map: RegisterMap) -> str:
         "  and `lockstep_counter` counts completed advances.",
         "- The clock commands (`speed_factor`, `clock_mode`, `reset`, `lockstep_advance`) of a",
         "  real-time server are refused with exception 01 unless it runs with",
-        "  `serve --allow-control`; a lockstep server accepts them. A long advance runs in",
-        "  slices, so other clients are answered meanwhile. A real-time tick that cannot keep",
-        "  up drops the rest (see `achieved_speed` and `tick_overrun`) instead of chasing it.",
+        "  `serve --allow-control`; a server started with `--lockstep` accepts them, also once",
+        "  a client switched it to real time. A long advance runs in slices, so other clients",
+        "  are answered meanwhile; writes of other clients wait for it to end, so they land",
+        "  between advances, never inside one. A real-time tick that cannot keep up drops the",
+        "  rest (see `achieved_speed` and `tick_overrun`) instead of chasing it.",
         "",
     ]
     for device in register_map.devices:

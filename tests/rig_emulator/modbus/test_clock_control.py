@@ -4,6 +4,7 @@ sockets on 127.0.0.1."""
 from __future__ import annotations
 
 import signal
+import struct
 import subprocess
 import threading
 import time
@@ -12,7 +13,7 @@ from hil_client.demo import rig_emulator_serve
 from rig_emulator.emulator import Emulator
 from rig_emulator.instruments import load_profile
 from rig_emulator.registers import encode
-from tests.modbus_helpers import ADVANCE, client, point, read_point, write
+from tests.modbus_helpers import ADVANCE, client, point, read_point, start_boiler, write
 
 
 def test_speed_100000_with_lab_profile_answers_reads_and_stops_on_sigterm():
@@ -122,6 +123,88 @@ def test_control_guard(serve, caplog):
     assert not write(c, lockstep, "sim_control", "speed_factor", 5.0).isError()
     assert not write(c, lockstep, "sim_control", "reset", 1).isError()
     assert lockstep.server.emulator.sim_time_s == 0.0
+    c.close()
+
+
+def test_a_lockstep_server_switched_to_real_time_can_be_switched_back(serve):
+    """A stranger's probe: one write of clock_mode = 0 to a lockstep server made it refuse
+    every clock and fault command after (exception 01, "real time without
+    --allow-control"), so nothing could bring it back, nor clear a fault set before. A
+    server started in lockstep keeps its clients' right to the clock."""
+    srv = serve()
+    c = client(srv.port)
+    assert not write(c, srv, "sim_control", "clock_mode", 0).isError()
+    assert srv.server.clock.mode == 0
+    assert not write(c, srv, "sim_control", "speed_factor", 2.0).isError()
+    assert not write(c, srv, "sim_control", "clock_mode", 1).isError()
+    assert srv.server.clock.mode == 1
+    time_before = srv.server.emulator.sim_time_s
+    assert not write(c, srv, *ADVANCE, 60).isError()
+    assert srv.server.emulator.sim_time_s == time_before + 60.0
+    c.close()
+
+
+def _advance_a_day_while_another_client_writes(srv, during: bool) -> dict[str, float]:
+    """Client A advances a day; client B writes the flow setpoint while the advance runs
+    (``during``) or after it. The state read at the end, and the simulated time B's write
+    was answered at."""
+    a, b = client(srv.port, timeout_s=120), client(srv.port, timeout_s=120)
+    start_boiler(a, srv, seconds=600)
+    done = threading.Event()
+
+    def advance() -> None:
+        assert not write(a, srv, *ADVANCE, 86_400).isError()
+        done.set()
+
+    thread = threading.Thread(target=advance)
+    thread.start()
+    if during:  # once the advance is under way
+        deadline = time.monotonic() + 30
+        while srv.server.emulator.sim_time_s <= 600 and time.monotonic() < deadline:
+            time.sleep(0.001)
+        assert not done.is_set(), "the advance ended before the write: nothing is tested"
+    else:
+        done.wait(timeout=120)
+    assert not write(b, srv, "bench_plc", "flow_setpoint", 300.0).isError()
+    answered_at = srv.server.emulator.sim_time_s
+    thread.join(timeout=120)
+    assert not write(a, srv, *ADVANCE, 3600).isError()
+    state = {
+        name: read_point(a, *point(srv, device, name))
+        for device, name in (("bench_plc", "boiler_water_temp"), ("balance", "mass"))
+    }
+    a.close()
+    b.close()
+    return {"answered_at_s": answered_at, **state}
+
+
+def test_another_clients_write_lands_after_an_advance_not_inside_it(serve):
+    """A stranger's probe: B's setpoint, written 50 ms into A's one-day advance, landed
+    inside it at a simulated time the machine's load chose (three runs of the same
+    sequence: 202.25, 200.87 and 200.07 kg). A write waits for the advance under way and
+    lands after it: the same as writing once the advance is done, to the last bit."""
+    during = _advance_a_day_while_another_client_writes(serve(), during=True)
+    after = _advance_a_day_while_another_client_writes(serve(), during=False)
+    assert during["answered_at_s"] == 600.0 + 86_400.0
+    assert during == after
+
+
+def test_the_documented_ends_of_a_float_range_can_be_written(serve):
+    """A stranger's probe: the speed's documented minimum, 0.01, was refused (exception 03):
+    the float32 a client's encoder sends for it is 0.0099999998, below 0.01. A float within
+    its type's rounding of a bound is that bound; one step of float32 further is refused."""
+    srv = serve()
+    dev, speed = point(srv, "sim_control", "speed_factor")
+    c = client(srv.port)
+    nearest = struct.unpack(">f", struct.pack(">f", 0.01))[0]
+    assert nearest < 0.01  # the premise: float32 has no 0.01
+    registers = list(struct.unpack(">HH", struct.pack(">f", 0.01)))
+    assert not c.write_registers(speed.address, registers, device_id=dev.unit_id).isError()
+    assert srv.server.clock.speed == 0.01
+    below = struct.pack(">I", struct.unpack(">I", struct.pack(">f", 0.01))[0] - 1)
+    reply = c.write_registers(speed.address, list(struct.unpack(">HH", below)), device_id=100)
+    assert reply.isError() and reply.exception_code == 3
+    assert srv.server.clock.speed == 0.01
     c.close()
 
 

@@ -371,6 +371,60 @@ def test_at_the_limit_silent_connections_go_before_a_client_that_polls(serve):
         s.close()
 
 
+def test_at_the_limit_half_sent_frames_go_before_a_client_that_polls(serve):
+    """A stranger's probe: connections that sent 3 bytes of a header, or trickled a frame
+    a byte at a time, counted as used from their last byte, so the poller (answered
+    longest ago) was the one closed at the limit. Bytes that never make a request are not
+    a use: those connections go first."""
+    srv = serve(max_connections=5)
+    poller = connect(srv.port)
+    replies = Replies(poller)
+    good, counts = _reads(1)
+    poller.sendall(good)
+    _check_read_replies(replies.take(1), counts)
+    time.sleep(0.1)
+    stalled = [connect(srv.port) for _ in range(4)]  # the limit is reached
+    for i, s in enumerate(stalled):
+        s.sendall(good[: 3 + i])  # part of a header, never the rest
+    time.sleep(0.2)
+    for s in stalled[:2]:  # still "sending": one more byte each, later than the poll
+        s.sendall(good[5:6])
+    time.sleep(0.2)
+    newcomers = [connect(srv.port) for _ in range(4)]
+    time.sleep(0.3)  # the server has accepted them all
+    assert all(closed_by_server(s, timeout=5) for s in stalled)
+    assert not closed_by_server(poller, timeout=0.3)
+    good, counts = _reads(1, first_tid=2)
+    poller.sendall(good)
+    _check_read_replies(replies.take(1), counts, first_tid=2)
+    for s in [poller, *stalled, *newcomers]:
+        s.close()
+
+
+def test_a_frame_trickled_in_for_ever_is_closed_at_the_idle_timeout(serve, caplog):
+    """A stranger's probe: a byte a second kept a connection open past --idle-timeout for
+    good (a slowloris holding a place). What counts is a whole request; the log says the
+    request was left incomplete."""
+    srv = serve(idle_timeout_s=1.0)
+    caplog.set_level(logging.WARNING, logger="rig_emulator.serve")
+    slow = connect(srv.port)
+    # a header announcing the longest frame, then a byte every 0.2 s: 40 bytes never make it
+    trickle = [struct.pack(">HHHB", 1, 0, 254, 1)] + [b"\x03"] * 40
+    closed = False
+    for chunk in trickle:
+        try:
+            slow.sendall(chunk)
+        except OSError:
+            closed = True
+            break
+        if closed_by_server(slow, timeout=0.2):
+            closed = True
+            break
+    assert closed
+    assert any("a request left incomplete for" in r.getMessage() for r in caplog.records)
+    slow.close()
+
+
 def test_at_the_limit_with_every_connection_waiting_the_new_one_is_refused(serve, caplog):
     """No connection is unused (each has a request waiting behind a 2-s gate): the new one
     is closed with a log line, and the waiting ones get their answers."""
