@@ -7,7 +7,12 @@ heating during preheat). Everything here is deterministic; instrument errors com
 Assumptions (ours, the paper is silent): the boiler stands on the balance with its ash box,
 so the balance loses the fuel as received (moisture included) less its ash; the chimney is
 DN100 and the bench holds the draught at -12 Pa (digest section 5); without firing, the
-draught pulls ``idle_velocity_m_s`` of air through the idle boiler.
+draught pulls ``idle_velocity_m_s`` of air through the idle boiler. The boiler's hopper
+holds ``hopper_fuel_kg`` of the balance's first reading; the lab tops it up to that level
+whenever less than ``refill_below_kg`` is left (an operator, or the level switch of a
+bench left to run for days), so the balance rises in one step by what was tipped in, as
+on a real bench, and never reads less than the empty boiler (a stranger's probe read
+-142 kg after six simulated days of firing). The analyses take refills out.
 
 Unmodelled effects (CONTRACT section 4; :mod:`rig_emulator.bench.effects`) are given to the
 bench as resolved settings or a profile's ``effects`` mapping. With none on, the bench steps
@@ -74,6 +79,8 @@ BENCH_CONSTANT_FIELDS = (
     "draught_Pa",
     "initial_balance_kg",
     "balance_loss_per_kg_dry",  # balance loss per kg of dry fuel the model burns [kg]
+    "hopper_fuel_kg",
+    "refill_below_kg",
 )
 BC = index_of(BENCH_CONSTANT_FIELDS)
 BC_TAU_FLOW = BC["flow_time_constant_s"]
@@ -87,11 +94,14 @@ BC_IDLE_VELOCITY = BC["idle_velocity_m_s"]
 BC_DRAUGHT = BC["draught_Pa"]
 BC_BALANCE0 = BC["initial_balance_kg"]
 BC_BALANCE_PER_KG = BC["balance_loss_per_kg_dry"]
+BC_HOPPER = BC["hopper_fuel_kg"]
+BC_REFILL_BELOW = BC["refill_below_kg"]
 N_BENCH_CONSTANTS = len(BENCH_CONSTANT_FIELDS)
 
-BENCH_STATE_FIELDS = ("water_flow_kg_h", "return_temp_C", "time_s")
+BENCH_STATE_FIELDS = ("water_flow_kg_h", "return_temp_C", "time_s", "refilled_kg")
 BS = index_of(BENCH_STATE_FIELDS)
 BS_FLOW, BS_T_RETURN, BS_TIME = BS["water_flow_kg_h"], BS["return_temp_C"], BS["time_s"]
+BS_REFILLED = BS["refilled_kg"]
 
 #: What the test controller and the room give the bench each step.
 INPUT_FIELDS = (
@@ -153,6 +163,19 @@ class BenchConfig:
     room: RoomConditions = field(default_factory=RoomConditions)
     initial_water_temp_C: float = 22.0
     initial_balance_kg: float = 250.0
+    #: fuel in the hopper at the start, part of the first reading [kg]
+    hopper_fuel_kg: float = 100.0
+    #: the lab tops the hopper up to ``hopper_fuel_kg`` when less than this is left [kg]
+    refill_below_kg: float = 10.0
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.refill_below_kg < self.hopper_fuel_kg <= self.initial_balance_kg:
+            raise ValueError(
+                "BenchConfig: needs 0 <= refill_below_kg < hopper_fuel_kg <= "
+                f"initial_balance_kg, got {self.refill_below_kg:g}, {self.hopper_fuel_kg:g}, "
+                f"{self.initial_balance_kg:g}"
+            )
+
     chimney_diameter_m: float = 0.10
     draught_Pa: float = -12.0
     idle_velocity_m_s: float = 0.25
@@ -175,6 +198,8 @@ def pack_bench_constants(params: BoilerParams, cfg: BenchConfig, c: np.ndarray) 
     bc[BC_BALANCE0] = cfg.initial_balance_kg
     # the balance loses the fuel as received less its ash, which stays in the ash box
     bc[BC_BALANCE_PER_KG] = params.fuel.balance_loss_per_kg_dry
+    bc[BC_HOPPER] = cfg.hopper_fuel_kg
+    bc[BC_REFILL_BELOW] = cfg.refill_below_kg
     return bc
 
 
@@ -235,7 +260,10 @@ def _loop_and_outputs(s, bc, bs, u, y, yb, dt_s, flow, t_in, t_forward):
     yb[YB_ROOM] = room
     yb[YB_PRESSURE] = u[U_PRESSURE]
     yb[YB_HUMIDITY] = u[U_HUMIDITY]
-    yb[YB_BALANCE] = bc[BC_BALANCE0] - s[S_FUEL] * bc[BC_BALANCE_PER_KG]
+    fed_kg = s[S_FUEL] * bc[BC_BALANCE_PER_KG]
+    if bc[BC_HOPPER] + bs[BS_REFILLED] - fed_kg < bc[BC_REFILL_BELOW]:  # topped up
+        bs[BS_REFILLED] = fed_kg
+    yb[YB_BALANCE] = bc[BC_BALANCE0] + bs[BS_REFILLED] - fed_kg
     if y[Y_FG_WET] > 0.0:
         # actual volume flow at flue-gas temperature and room pressure over the duct area
         yb[YB_VELOCITY] = (
