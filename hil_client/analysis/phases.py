@@ -276,6 +276,14 @@ def find_phases(log: LabLog, prefer_signals: bool = False, partial: bool = False
     reached = [key for key in MARKS if log.meta.get(key) is not None]
     if reached == list(MARKS) or not any(key in log.meta for key in MARKS):
         return _from_signals(log)
+    first_null = next(key for key in MARKS if log.meta.get(key) is None)
+    after = [key for key in MARKS[MARKS.index(first_null) + 1 :] if key in reached]
+    if after:  # no run writes that: it stops marking at the first mark it does not reach
+        meta_file = log.path.with_name(log.path.stem + ".meta.json") if log.path else "meta"
+        log.notes.append(
+            f"{meta_file}: {', '.join(after)} given after {first_null} = null, which no "
+            "interrupted run writes (edited?): its marks are not used; phases from the signals"
+        )
     cut = _meta_marks(log, partial=True) if partial else None
     if cut is not None:  # the marks the bench recorded, not the signals' guess at the rest
         return cut  # (a run cut in a cooling got marks of its last row: a re-probe)

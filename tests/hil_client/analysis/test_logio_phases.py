@@ -258,6 +258,12 @@ def test_marks_an_interrupted_run_did_not_reach_are_unknown_not_errors(run_log, 
     gapped = write(log.t <= rec.meta["t1_s"] + 600.0, "gapped", ("t0_s", "t2_s"))
     with pytest.raises(LogError):
         find_phases(read_log(gapped), partial=True)
+    # on a whole record the signals find the phases, and the unused marks are said (they
+    # were dropped without a word)
+    gapped_whole = read_log(write(log.t >= 0, "gapped_whole", ("t0_s", "t2_s", "t3_s")))
+    assert find_phases(gapped_whole).source == "signals"
+    said = [n for n in gapped_whole.notes if "given after t1_s = null" in n]
+    assert len(said) == 1 and "t2_s, t3_s" in said[0], gapped_whole.notes
 
 
 def test_a_log_of_two_plants_is_analysed_on_one(run_log, tmp_path, capsys):
