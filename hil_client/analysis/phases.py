@@ -77,15 +77,27 @@ def _from_column(log: LabLog) -> Phases | None:
     phase = [p.strip().lower() for p in log.text["phase"]]
     t = log.t
     bounds = {}
+    last = None  # the latest of the format's phases so far
     for i in range(1, len(phase)):
         if phase[i] != phase[i - 1] and phase[i] in NAMES:
+            if last is not None and NAMES.index(phase[i]) < NAMES.index(last):
+                # a run's phases only go on (a restarted phase keeps its name): a second run
+                # appended (its rows were read as the first run's second cooling, with its
+                # firing and fuel, and a confident parameter file: a stranger's probe)
+                raise LogError(
+                    f"{log.path or 'the log'}: the phase column goes back from {last} to "
+                    f"{phase[i]} at time_s = {t[i]:g}: two runs in one log; split it there"
+                )
+            last = phase[i]
             bounds.setdefault(phase[i], t[i - 1])
     missing = [n for n in ("start_up", "test", "cooling_1", "cooling_2") if n not in bounds]
     unknown = set(phase) - set(NAMES) - {""}
-    if missing and unknown:  # a lab's own names (ignored without a word: a stranger's probe)
-        log.notes.append(
-            f"the phase column holds no {', '.join(missing)} (the log format's phase names: "
-            f"{', '.join(NAMES)}); the phases come from the meta file or the signals"
+    skipped = [n for n in missing if NAMES.index(n) < max(map(NAMES.index, bounds), default=0)]
+    if missing and (unknown or skipped):  # a lab's own names, a phase left out (ignored
+        log.notes.append(  # without a word: a stranger's probe)
+            f"the phase column holds no {', '.join(skipped if not unknown else missing)} "
+            f"(the log format's phase names: {', '.join(NAMES)}); the phases come from the "
+            "meta file or the signals"
         )
     if missing:  # (a run cut short holds the phases it reached)
         return None

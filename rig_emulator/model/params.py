@@ -191,6 +191,7 @@ def params_from_mapping(data: Any, source: str = "<parameters>") -> BoilerParams
             raise ParameterError(f"{source}: key 'fuel.{key}' must be a fraction in [0, 1)")
     if fuel_values["hhv_dry_kJ_kg"] <= 0:
         raise ParameterError(f"{source}: key 'fuel.hhv_dry_kJ_kg' must be positive")
+    _check_unit(fuel_values["hhv_dry_kJ_kg"], HHV_DRY_RANGE_KJ_KG, "fuel.hhv_dry_kJ_kg", source)
     total = sum(fuel_values[key] for key in ("c", "h", "o", "n", "s", "ash"))
     if abs(total - 1.0) > 0.02:
         raise ParameterError(
@@ -213,6 +214,9 @@ def params_from_mapping(data: Any, source: str = "<parameters>") -> BoilerParams
     for key in positive:
         if key in values and values[key] <= 0:
             raise ParameterError(f"{source}: key '{key}' must be positive, got {values[key]}")
+    _check_unit(values["p_nom_kW"], P_NOM_RANGE_KW, "p_nom_kW", source)
+    for key, per_kW in PER_KW_RANGES.items():
+        _check_unit(values[key] / values["p_nom_kW"], per_kW, key, source, values[key])
     for key in ("p_el_min_W", "p_el_max_W", "p_el_off_W", "w_el_Wh"):
         if values[key] < 0:
             raise ParameterError(f"{source}: key '{key}' must not be negative")
@@ -253,6 +257,44 @@ def params_from_mapping(data: Any, source: str = "<parameters>") -> BoilerParams
             "modulation range (incomplete combustion)"
         )
     return params
+
+
+#: Plausible ranges that tell a value in another unit, with the unit it looks like: (low,
+#: high, factor by which the value exceeds the range in that unit, its name). A wrong unit
+#: is off by 1000 where these keys are concerned, far outside; the ranges are wide enough
+#: for any boiler Type 869 describes (small-scale biomass, a few to a few hundred kW).
+#: HHV of dry solid fuels: wood and agro-pellets 17-21 MJ/kg, lignite to hard coal 25-30.
+HHV_DRY_RANGE_KJ_KG = (12_000.0, 35_000.0, 1e-3, "MJ/kg")
+#: nominal firing power: a pellet boiler of 2 kW to a wood-chip boiler of 2 MW
+P_NOM_RANGE_KW = (1.0, 2_000.0, 1e3, "W")
+#: per kW of nominal power: the thermal capacity of the boiler's mass (the bench's boilers:
+#: 80 kJ/K for 6 and 12 kW, 7-13 kJ/K per kW; steel and cast-iron boilers 2-50) and its
+#: water volume (2.5-5 l per kW; buffer-integrated boilers up to some 50 l per kW)
+PER_KW_RANGES: dict[str, tuple[float, float, float, str]] = {
+    "c_therm_kJ_K": (0.5, 500.0, 1e3, "J/K"),
+    "vol_water_m3": (0.0002, 0.1, 1e3, "litres"),
+}
+
+
+def _check_unit(
+    value: float,
+    bounds: tuple[float, float, float, str],
+    key: str,
+    source: str,
+    shown: float | None = None,
+) -> None:
+    """Refuse a value outside its plausible range (:data:`HHV_DRY_RANGE_KJ_KG` and the
+    like; per kW of nominal power where ``shown``, the value as written, is given), saying
+    which unit it looks like it was written in."""
+    low, high, factor, unit = bounds
+    if low <= value <= high:
+        return
+    per = "" if shown is None else f", {value:.3g} per kW of p_nom_kW,"
+    hint = f" (written in {unit}?)" if low <= value / factor <= high else ""
+    raise ParameterError(
+        f"{source}: key '{key}' = {value if shown is None else shown:g}{per} lies outside "
+        f"the plausible {low:g}..{high:g}{hint}"
+    )
 
 
 def _dry_fuel_kg_h(params: BoilerParams, firing_kW: float) -> float:

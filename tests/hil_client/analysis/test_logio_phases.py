@@ -10,6 +10,7 @@ import pytest
 
 from hil_client.analysis.logio import LogError, fill_gaps, read_log
 from hil_client.analysis.phases import MARKS, find_phases, rise_rate_K_min
+from hil_client.cli import main as hil_client_main
 
 HEADER = (
     "time_s,water_flow_kg_h,water_in_temp_C,water_out_temp_C,boiler_water_temp_C,"
@@ -435,3 +436,52 @@ def test_a_phase_column_is_read_in_any_case_and_one_without_the_names_is_said(tm
         find_phases(log)  # no meta file, and the signals of seven rows show no phases
     assert any("the phase column holds no test" in n for n in log.notes), log.notes
     assert any("another unit than its name's (balance_mass_kg)" in n for n in log.notes)
+
+
+def test_two_runs_in_one_log_are_refused_where_the_phase_column_starts_over(
+    run_log, tmp_path, capsys
+):
+    """A stranger's probe: a stationary test with a load cycle appended (time running on)
+    was analysed as one run: the whole load cycle became the first run's second cooling
+    (23.4 h, 8.94 kg of fuel), and calibrate wrote UA_off 0.09 W/K (documented 2.9) with
+    exit 0. The phase column going back is a second run: refused, naming where."""
+    first, second = (
+        run_log("stationary", "windhager_12kw").path.read_text().splitlines(),
+        run_log("load_cycle", "windhager_12kw").path.read_text().splitlines(),
+    )
+    header = first[0].split(",")
+    col = header.index("time_s")
+    end = float(first[-1].split(",")[col])
+    shifted = []
+    for line in second[1:]:
+        fields = line.split(",")
+        fields[col] = f"{float(fields[col]) + end + 1.0:g}"
+        shifted.append(",".join(fields))
+    path = tmp_path / "stitched.csv"
+    path.write_text("\n".join([*first, *shifted]) + "\n")
+    code = hil_client_main(["balance", str(path), "--boiler", "windhager_12kw"])
+    err = capsys.readouterr().err
+    assert code == 2
+    second_start = float(shifted[0].split(",")[col])
+    assert f"goes back from cooling_2 to preheat at time_s = {second_start:g}:" in err
+    assert "two runs in one log" in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_phase_column_that_leaves_a_phase_out_is_said(run_log, tmp_path):
+    """A phase column without its test rows (relabelled) fell back to the signals without
+    a word, where a lab's own names were said (a stranger's probe)."""
+    log = read_log(run_log("stationary", "windhager_12kw").path)
+    lines = log.path.read_text().splitlines()
+    col = lines[0].split(",").index("phase")
+    out = [lines[0]]
+    for line in lines[1:]:
+        fields = line.split(",")
+        if fields[col] == "test":
+            fields[col] = "start_up"
+        out.append(",".join(fields))
+    path = tmp_path / "no_test.csv"
+    path.write_text("\n".join(out) + "\n")
+    relabelled = read_log(path)
+    assert find_phases(relabelled).source != "phase column"
+    said = [n for n in relabelled.notes if "the phase column holds no test" in n]
+    assert len(said) == 1, relabelled.notes
