@@ -979,6 +979,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.fault_report is not None:
         with bad_input(ValueError, LogError, prefix="--fault-report: "):
             fault_rep = fault_report(out, args.fault_journal)
+        for note in fault_rep["notes"]:
+            print(f"hil-client: warning: {note}", file=sys.stderr)
         write_report(fault_rep, output_file(args.fault_report))
         if not args.quiet:
             print(fault_summary(fault_rep))
@@ -1043,6 +1045,8 @@ def _cmd_fault_report(args: argparse.Namespace) -> int:
     _refuse_overwriting(args.out, _log_files(args.log) | {"the fault journal": args.journal})
     with bad_input(ValueError, LogError):
         rep = fault_report(args.log, args.journal)
+    for note in rep["notes"]:
+        print(f"hil-client: warning: {note}", file=sys.stderr)
     write_report(rep, output_file(args.out))
     print(fault_summary(rep))
     print(f"written: {args.out}")

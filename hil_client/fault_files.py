@@ -46,17 +46,25 @@ class EventsWriter:
         self._file.close()
 
 
-def read_jsonl(path: Path, what: str) -> list[dict[str, Any]]:
-    """The lines of a JSONL file; a bad line raises ValueError naming file and line."""
+def read_jsonl(path: Path, what: str, notes: list[str] | None = None) -> list[dict[str, Any]]:
+    """The lines of a JSONL file; a bad line raises ValueError naming file and line. A last
+    line cut short (no newline after it: the writer was killed, or its disk filled up) is
+    left out, said in ``notes``, as a lab log's is (it refused the whole journal: a
+    stranger's probe)."""
     out = []
     if Path(path).exists() and not Path(path).is_file():  # a FIFO or a device: read forever
         raise ValueError(f"{path}: not a regular file ({what})")
-    for number, line in enumerate(Path(path).read_text(encoding="utf-8").splitlines(), 1):
+    text = Path(path).read_text(encoding="utf-8")
+    lines = text.splitlines()
+    for number, line in enumerate(lines, 1):
         if not line.strip():
             continue
         try:
             item = json.loads(line)
         except (json.JSONDecodeError, RecursionError):  # nested a thousand deep: no journal
+            if number == len(lines) and not text.endswith("\n") and notes is not None:
+                notes.append(f"{path}: its last line is cut short ({what}): left out")
+                break
             raise ValueError(f"{path}: line {number} is not JSON ({what})") from None
         if not isinstance(item, dict):
             raise ValueError(f"{path}: line {number} is not a JSON object ({what})")
@@ -67,7 +75,8 @@ def read_jsonl(path: Path, what: str) -> list[dict[str, Any]]:
 def fault_report(log_path: Path, journal_path: Path, slack_s: float = 2.0) -> dict[str, Any]:
     """Compare the run's events and log with the server's journal (ValueError if a file
     is not what it should be)."""
-    journal = read_jsonl(journal_path, "the server's fault journal")
+    notes: list[str] = []
+    journal = read_jsonl(journal_path, "the server's fault journal", notes)
     check_journal(journal, str(journal_path))
     events_file = events_path(log_path)
     if not events_file.exists():
@@ -75,7 +84,7 @@ def fault_report(log_path: Path, journal_path: Path, slack_s: float = 2.0) -> di
             f"{log_path}: no Modbus events file beside it ({events_file.name}): not a log of "
             "hil-client run on a Modbus rig, so there is nothing to compare with the journal"
         )
-    events = read_jsonl(events_file, "Modbus events")
+    events = read_jsonl(events_file, "Modbus events", notes)
     _check_events(events, events_file)
     log = read_log(Path(log_path), as_read=True)
     offset = log.meta.get("server_time_offset_s", 0.0)
@@ -84,6 +93,7 @@ def fault_report(log_path: Path, journal_path: Path, slack_s: float = 2.0) -> di
     report = compare(journal, events, log.columns, server_time, slack_s, str(journal_path))
     report["log"] = str(log_path)
     report["journal"] = str(journal_path)
+    report["notes"] = notes
     return report
 
 

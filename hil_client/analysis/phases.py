@@ -21,6 +21,7 @@ A boundary is the time of the last row of the phase before it (as the runner rec
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, replace
 
@@ -235,6 +236,29 @@ def _check_against_signals(log: LabLog, phases: Phases) -> None:
         )
 
 
+#: The longest the water may stop circulating between the burner's first firing and the
+#: end of the first cooling found from the signals [s]: the protocol circulates throughout
+#: (start-up, test and first cooling); a stop this long is the second cooling of one run
+#: and the preheat of another appended to it.
+STOP_INSIDE_MAX_S = 900.0
+
+
+def _refuse_a_stop_inside(log: LabLog, running: np.ndarray, i0: int, i3: int) -> None:
+    """:class:`LogError` where the circulation stops for over :data:`STOP_INSIDE_MAX_S`
+    between rows ``i0`` and ``i3`` (a stationary test with a load cycle appended read as
+    one test of 22.7 h, with confident figures: a stranger's probe)."""
+    t = log.t
+    inside = running[(running >= i0) & (running <= i3)]
+    for a, b in itertools.pairwise(inside):
+        if b - a > 1 and t[b - 1] - t[a + 1] > STOP_INSIDE_MAX_S:
+            raise LogError(
+                f"{log.path or 'the log'}: the water stops circulating from time_s = "
+                f"{t[a + 1]:g} to {t[b - 1]:g}, inside the run the signals find "
+                f"(first firing {t[i0]:g} to the circulation's end {t[i3]:g}): two runs in "
+                "one log? split it there, or give its phase column or meta file"
+            )
+
+
 def _from_signals(log: LabLog) -> Phases:
     t = log.t
     path = log.path
@@ -254,6 +278,7 @@ def _from_signals(log: LabLog) -> Phases:
     if not len(running):
         raise LogError(f"{path}: cannot find t3: the water never circulates")
     i3 = int(running[-1])
+    _refuse_a_stop_inside(log, running, i0, i3)
     if i3 >= len(t) - 2:  # the record ends before the circulation stops: no second cooling
         i3 = len(t) - 1
         log.notes.append(

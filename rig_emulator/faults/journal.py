@@ -14,9 +14,12 @@ the fault answered) and ``reason`` (``for_s elapsed``, ``cleared``, ``reset``, `
 from __future__ import annotations
 
 import json
+import logging
 import math
 from pathlib import Path
 from typing import Any, TextIO
+
+log = logging.getLogger("rig_emulator.serve")
 
 
 def _json_safe(value: Any) -> Any:
@@ -30,23 +33,58 @@ def _json_safe(value: Any) -> Any:
 
 
 class FaultJournal:
-    """Appends fault events to a JSONL file, one flushed line each."""
+    """Appends fault events to a JSONL file, one flushed line each.
+
+    A journal that cannot be written (a full disk, ``/dev/full``, a file system gone
+    read-only) costs its lines, not the faults or the simulation: one warning says so and
+    how many lines were lost, and the server serves on. Before, the error reached the
+    lockstep advance that started the fault, which answered exception 04 although it had
+    advanced (the client's next step went two), with a traceback in the log and a false
+    "cannot serve" at the stop (a stranger's probe)."""
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._file: TextIO | None = self.path.open("w", encoding="utf-8")
+        self.lost = 0  # lines that could not be written
 
     def write(self, event: dict[str, Any]) -> None:
+        line = json.dumps(_json_safe(event), allow_nan=False) + "\n"
         if self._file is None:
+            self.lost += 1 if self.lost else 0  # (after close: nothing is written)
             return
-        self._file.write(json.dumps(_json_safe(event), allow_nan=False) + "\n")
-        self._file.flush()
+        try:
+            self._file.write(line)
+            self._file.flush()
+        except OSError as exc:
+            self.lost += 1
+            log.warning(
+                "fault journal %s: cannot write (%s): its lines are lost from now on; the "
+                "faults act as scheduled",
+                self.path,
+                exc.strerror or exc,
+            )
+            self._drop()
+
+    def _drop(self) -> None:
+        """Stop writing (what was buffered is lost with the file's own error)."""
+        file, self._file = self._file, None
+        if file is not None:
+            try:
+                file.close()
+            except OSError:
+                pass
 
     def close(self) -> None:
         if self._file is not None:
-            self._file.close()
+            try:
+                self._file.close()
+            except OSError as exc:
+                log.warning("fault journal %s: cannot finish writing (%s)", self.path, exc)
             self._file = None
+        if self.lost:
+            log.warning("fault journal %s: %d line(s) lost", self.path, self.lost)
+            self.lost = 0
 
 
 def read_journal(path: str | Path) -> list[dict[str, Any]]:

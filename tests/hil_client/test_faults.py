@@ -180,6 +180,19 @@ def test_fault_report_detects_instrument_faults(serve, tmp_path):
     co = columns["flue_gas_CO_ppm"]
     assert co[39] is None and co[58] is None and co[38] is not None and co[60] is not None
     assert {e["kind"] for e in journal} == {"dropout", "spike", "offset", "drift"}
+    # a journal whose last line was cut (a server killed mid-write, a full disk) is read
+    # without it, said in one warning (it was refused whole: a stranger's probe)
+    text = (tmp_path / "journal.jsonl").read_text()
+    cut = tmp_path / "cut.jsonl"
+    cut.write_text(text.rstrip("\n")[:-7])
+    again = tmp_path / "again.json"
+    code = hil_client_main(
+        ["fault-report", str(out), "--journal", str(cut), "--out", str(again)]
+    )
+    assert code == 0
+    cut_report = json.loads(again.read_text())
+    assert len(cut_report["notes"]) == 1 and "last line is cut short" in cut_report["notes"][0]
+    assert cut_report["detected"] + cut_report["missed"] <= report["detected"] + report["missed"]
 
 
 @needs_gates

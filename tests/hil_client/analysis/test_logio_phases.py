@@ -465,6 +465,17 @@ def test_two_runs_in_one_log_are_refused_where_the_phase_column_starts_over(
     second_start = float(shifted[0].split(",")[col])
     assert f"goes back from cooling_2 to preheat at time_s = {second_start:g}:" in err
     assert "two runs in one log" in err and len(err.strip().splitlines()) == 1
+    # without the phase column the signals read both runs as one test of 22.7 h: the
+    # circulation's stop between them (the first run's second cooling) is refused
+    header_cols = [c for c in header if c not in ("phase", "sequence")]
+    keep = [header.index(c) for c in header_cols]
+    bare = tmp_path / "stitched_bare.csv"
+    rows = [[line.split(",")[k] for k in keep] for line in [*first[1:], *shifted]]
+    bare.write_text("\n".join([",".join(header_cols), *map(",".join, rows)]) + "\n")
+    code = hil_client_main(["balance", str(bare), "--boiler", "windhager_12kw"])
+    err = capsys.readouterr().err
+    assert code == 2 and "the water stops circulating from time_s = " in err
+    assert "two runs in one log?" in err and len(err.strip().splitlines()) == 1
 
 
 def test_a_phase_column_that_leaves_a_phase_out_is_said(run_log, tmp_path):

@@ -10,6 +10,7 @@ import math
 import subprocess
 import sys
 import urllib.request
+from pathlib import Path
 
 import pytest
 from pymodbus.exceptions import ModbusIOException
@@ -257,3 +258,40 @@ def test_the_journal_writes_a_reading_as_its_register_serves_it(serve, tmp_path)
     # and on the register's steps: 0.01 K, not 68.5197... (a re-probe)
     instrument = start["served"]["instrument"]
     assert instrument == round(instrument, 2)
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="no /dev/full on this system")
+def test_a_journal_that_cannot_be_written_costs_its_lines_not_the_run(tmp_path):
+    """A stranger's probe with ``--fault-log /dev/full`` (a full disk): the lockstep advance
+    that started or ended a fault answered exception 04 although it had advanced (the
+    client's next step went two), the log got two tracebacks, and the stop said "cannot
+    serve ... No space left on device" with exit 2. Now one warning, the steps exact, the
+    fault served, a clean stop."""
+    import signal
+
+    faults = tmp_path / "faults.yaml"
+    faults.write_text("faults:\n  - {kind: exception, unit: 5, code: 6, at_s: 1, for_s: 5}\n")
+    options = ("--lockstep", "--faults", str(faults), "--fault-log", "/dev/full")
+    with rig_emulator_serve("windhager_12kw", *options, stderr=subprocess.PIPE) as (port, proc):
+        from rig_emulator.registers import load_map
+
+        sim = load_map().device("sim_control")
+        sim_time = next(p for p in sim.points if p.name == "sim_time")
+        advance = next(p for p in sim.points if p.name == "lockstep_advance")
+        c = client(port, timeout_s=60)
+        replies = []
+        for step in range(1, 8):
+            reply = c.write_registers(advance.address, encode(advance, 1), device_id=100)
+            replies.append(reply.isError())
+            assert read_point(c, sim, sim_time) == step
+            if step == 3:  # inside the window: the balance is busy
+                busy = c.read_input_registers(0, count=2, device_id=5)
+                assert busy.isError() and busy.exception_code == 6
+        c.close()
+        proc.send_signal(signal.SIGINT)
+        code = proc.wait(timeout=60)
+        err = proc.stderr.read().decode()
+    assert replies == [False] * 7
+    assert code == 0, err
+    assert "Traceback" not in err and "cannot serve" not in err, err
+    assert err.count("fault journal /dev/full: cannot write") == 1, err
