@@ -13,6 +13,7 @@ the fault answered) and ``reason`` (``for_s elapsed``, ``cleared``, ``reset``, `
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import math
@@ -70,10 +71,8 @@ class FaultJournal:
         """Stop writing (what was buffered is lost with the file's own error)."""
         file, self._file = self._file, None
         if file is not None:
-            try:
+            with contextlib.suppress(OSError):
                 file.close()
-            except OSError:
-                pass
 
     def close(self) -> None:
         if self._file is not None:
