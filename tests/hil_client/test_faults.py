@@ -186,9 +186,7 @@ def test_fault_report_detects_instrument_faults(serve, tmp_path):
     cut = tmp_path / "cut.jsonl"
     cut.write_text(text.rstrip("\n")[:-7])
     again = tmp_path / "again.json"
-    code = hil_client_main(
-        ["fault-report", str(out), "--journal", str(cut), "--out", str(again)]
-    )
+    code = hil_client_main(["fault-report", str(out), "--journal", str(cut), "--out", str(again)])
     assert code == 0
     cut_report = json.loads(again.read_text())
     assert len(cut_report["notes"]) == 1 and "last line is cut short" in cut_report["notes"][0]
