@@ -41,6 +41,14 @@ import pytest
 DEFAULTS = {"boiler": "windhager_12kw", "profile": "clean", "seed": 0, "faults": None}
 START_TIMEOUT_S = 120.0  # the first start may compile numba's kernels
 MAX_ADVANCE_S = 86_400  # the server's limit for one lockstep advance (a day)
+#: How long ``read``, ``write`` and the fault calls wait for a reply [s]: a lockstep server
+#: answers at once but for a ``delay`` fault (a few seconds at most in practice); a
+#: ``no_reply`` fault costs this long, then :class:`RigEmulatorError` (it cost 60 s and
+#: ended in pymodbus's own exception: a stranger's probe). ``reply_timeout_s`` sets it.
+REPLY_TIMEOUT_S = 5.0
+#: How long an advance may take to answer [s]: a day of the lab profile takes seconds on a
+#: loaded machine.
+ADVANCE_TIMEOUT_S = 300.0
 _LISTENING = re.compile(r"serving .* on ([^\s:]+):(\d+) ")
 
 
@@ -76,7 +84,11 @@ class RigEmulator:
         host, port: where it listens (Modbus TCP).
         journal: the fault journal it writes (JSONL, one line per fault start and end).
         stderr_lines: what the server logged so far.
+        reply_timeout_s: how long a read or write waits for its reply
+            (:data:`REPLY_TIMEOUT_S`).
     """
+
+    reply_timeout_s: float = REPLY_TIMEOUT_S
 
     def __init__(
         self,
@@ -185,21 +197,36 @@ class RigEmulator:
         from pymodbus.client import ModbusTcpClient
 
         if self._client is None:
-            self._client = ModbusTcpClient(self.host, port=self.port, timeout=30, retries=0)
+            self._client = ModbusTcpClient(
+                self.host, port=self.port, timeout=self.reply_timeout_s, retries=0
+            )
         if not self._client.connected and not self._client.connect():
             raise RigEmulatorError(f"cannot connect to {self.host}:{self.port}")
         return self._client
 
-    def _call(self, request: Callable[[Any], Any]) -> Any:
-        """``request(client)``; once more on a new connection if the server closed this
-        one (a ``disconnect`` fault closes the fixture's connection too)."""
+    def _call(self, request: Callable[[Any], Any], what: str) -> Any:
+        """``request(client)`` within :attr:`reply_timeout_s`; once more on a new connection
+        if the server closed this one (a ``disconnect`` fault closes the fixture's
+        connection too). No reply in time is :class:`RigEmulatorError` naming ``what``."""
         from pymodbus.exceptions import ConnectionException, ModbusIOException
 
+        client = self.client
+        client.comm_params.timeout_connect = self.reply_timeout_s
+        try:
+            return request(client)
+        except ConnectionException:
+            pass  # the server closed the connection: once more on a new one
+        except (ModbusIOException, OSError) as exc:
+            if client.connected:  # open, but nothing came back in time
+                raise RigEmulatorError(
+                    f"{what}: no reply within {self.reply_timeout_s:g} s (a no_reply fault, "
+                    "or a delay longer than that; reply_timeout_s sets the wait)"
+                ) from exc
+        self._reconnect()
         try:
             return request(self.client)
-        except (ConnectionException, ModbusIOException, OSError):
-            self._reconnect()
-            return request(self.client)
+        except (ConnectionException, ModbusIOException, OSError) as exc:
+            raise RigEmulatorError(f"{what}: {exc}") from exc
 
     def _reconnect(self) -> None:
         if self._client is not None:
@@ -211,7 +238,10 @@ class RigEmulator:
         device, point = self.map.point(signal_name) if signal_name else (None, None)
         unit = device.unit_id if device else self.map.point("fault_kind")[0].unit_id
         start = point.address if point else int(address or 0)
-        reply = self._call(lambda c: c.write_registers(start, registers, device_id=unit))
+        reply = self._call(
+            lambda c: c.write_registers(start, registers, device_id=unit),
+            f"write at {unit}:{start}",
+        )
         if reply.isError():
             raise RigEmulatorError(f"write at {unit}:{start} refused: {reply}")
 
@@ -246,13 +276,17 @@ class RigEmulator:
         device, point = self.map.point("lockstep_advance_s")
         registers = encode(point, float(seconds))
         before = self.read("lockstep_counter")
+        client = self.client
+        client.comm_params.timeout_connect = ADVANCE_TIMEOUT_S
         try:
-            reply = self.client.write_registers(point.address, registers, device_id=device.unit_id)
+            reply = client.write_registers(point.address, registers, device_id=device.unit_id)
         except (ConnectionException, ModbusIOException, OSError):
             self._reconnect()
             if self.read("lockstep_counter") != before:
                 return  # it was applied; only its reply was lost
-            reply = self.client.write_registers(point.address, registers, device_id=device.unit_id)
+            client = self.client
+            client.comm_params.timeout_connect = ADVANCE_TIMEOUT_S
+            reply = client.write_registers(point.address, registers, device_id=device.unit_id)
         if reply.isError():
             raise RigEmulatorError(f"advance by {seconds} s refused: {reply}")
 
@@ -308,7 +342,8 @@ class RigEmulator:
             "coil": "read_coils",
         }[point.table]
         reply = self._call(
-            lambda c: getattr(c, method)(point.address, count=point.width, device_id=device.unit_id)
+            lambda c: getattr(c, method)(point.address, count=point.width, device_id=device.unit_id),
+            f"read of {signal_name}",
         )
         if reply.isError():
             raise RigEmulatorError(f"read of {signal_name} refused: {reply}")
@@ -325,12 +360,14 @@ class RigEmulator:
         device, point = self.map.point(signal_name)
         if point.table == "coil":
             reply = self._call(
-                lambda c: c.write_coil(point.address, value >= 0.5, device_id=device.unit_id)
+                lambda c: c.write_coil(point.address, value >= 0.5, device_id=device.unit_id),
+                f"write of {signal_name}",
             )
         else:
             words = encode(point, float(value))
             reply = self._call(
-                lambda c: c.write_registers(point.address, words, device_id=device.unit_id)
+                lambda c: c.write_registers(point.address, words, device_id=device.unit_id),
+                f"write of {signal_name}",
             )
         if reply.isError():
             raise RigEmulatorError(f"write of {signal_name} = {value} refused: {reply}")

@@ -260,6 +260,28 @@ def test_inject_takes_numpy_numbers_and_read_gives_nan_for_any_dropout(tmp_path)
         assert rig.read("balance_mass_kg") > 2e6
 
 
+def test_a_read_under_no_reply_ends_in_one_error_at_the_reply_timeout(tmp_path):
+    """A stranger's probe: read() under a no_reply fault waited 60 s (a 30-s timeout, tried
+    twice) and raised pymodbus's own ModbusIOException, where an exception fault gave the
+    plugin's error at once. Now RigEmulatorError naming the read, after reply_timeout_s;
+    the fixture goes on with the other units."""
+    import time
+
+    from rig_emulator.pytest_plugin import RigEmulator, RigEmulatorError
+
+    with RigEmulator(workdir=tmp_path) as rig:
+        rig.reply_timeout_s = 1.0
+        rig.inject({"kind": "no_reply", "unit": 2, "for_s": 60})
+        started = time.monotonic()
+        with pytest.raises(RigEmulatorError, match=r"read of flue_gas_O2_pct: no reply within 1 s"):
+            rig.read("flue_gas_O2_pct")
+        # a bound far above the 1-s wait, not a timing target: it was 60 s
+        assert time.monotonic() - started < 30.0
+        assert rig.read("water_flow_kg_h") >= 0.0
+        rig.advance(61)
+        assert rig.read("flue_gas_O2_pct") > 0.0  # back once the fault is over
+
+
 BAD_MARKERS = """
 import pytest
 
