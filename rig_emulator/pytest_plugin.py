@@ -341,8 +341,9 @@ class RigEmulator:
             "discrete": "read_discrete_inputs",
             "coil": "read_coils",
         }[point.table]
+        unit = device.unit_id
         reply = self._call(
-            lambda c: getattr(c, method)(point.address, count=point.width, device_id=device.unit_id),
+            lambda c: getattr(c, method)(point.address, count=point.width, device_id=unit),
             f"read of {signal_name}",
         )
         if reply.isError():
