@@ -126,13 +126,16 @@ def summary(report: dict[str, Any]) -> str:
     outside = len(report.get("outside_run", ()))
     if outside:
         never += f", {outside} outside the run (before its first row or after its last)"
+    still = len(report.get("no_trace", ()))
+    if still:
+        never += f", {still} stuck on a reading that was not moving anyway (no trace to find)"
     beyond = report.get("events_outside_run", 0)
     if beyond:
         never += (
             f"; {beyond} of the client's events lie beyond the log's rows and are not counted"
             " (the events file of a longer run, or a log cut or shifted?)"
         )
-    journalled = len(report["faults"]) + outside + len(report.get("unseen", ()))
+    journalled = len(report["faults"]) + outside + len(report.get("unseen", ())) + still
     none = "none in the run" if journalled else "none journalled"
     return (
         f"faults: {report['detected']} detected, {report['missed']} missed, "

@@ -182,6 +182,23 @@ def _log_detects(kind: str, x: np.ndarray, rows: np.ndarray) -> bool:
     return False
 
 
+#: Rows before a stuck fault's window that show whether its column was moving [rows].
+STILL_BEFORE_ROWS = 10
+
+
+def _already_still(x: np.ndarray, rows: np.ndarray) -> bool:
+    """Whether a stuck fault on column ``x`` over ``rows`` held a reading that was not
+    moving anyway: the column equal to its first value in the window over the
+    :data:`STILL_BEFORE_ROWS` before and all of the window (a clean profile's forward
+    temperature at its set point, 70.00000 for hours: a stranger's probe found such a
+    fault counted as detected, and the same fault, made up, on another still column as
+    missed). Neither detected nor missed: nothing in the log could tell."""
+    if rows.size == 0 or rows[0] < STILL_BEFORE_ROWS:
+        return False
+    span = x[rows[0] - STILL_BEFORE_ROWS : rows[-1] + 1]
+    return bool(np.all(span == x[rows[0]]))
+
+
 def compare(
     journal: Sequence[Mapping[str, Any]],
     client_events: Sequence[Mapping[str, Any]],
@@ -196,7 +213,9 @@ def compare(
     its evaluations, inside one lockstep step or one real-time tick), listed under
     ``unseen``; and one whose window lies wholly before the log's first row or after its
     last (``server_time``: a client that joined late or stopped early could not see it),
-    listed under ``outside_run``. Client events beyond the log's rows (an events file of a
+    listed under ``outside_run``; and a ``stuck`` fault on a column that was not moving
+    before it or in it (:func:`_already_still`), under ``no_trace``. Client events beyond
+    the log's rows (an events file of a
     longer run beside a log cut short) are no false alarms: counted under
     ``events_outside_run``, as the summary says."""
     windows = fault_windows(journal, journal_name)
@@ -226,6 +245,7 @@ def compare(
         outside = [f for f in served if not in_run(f)]
     explained: set[int] = set()
     rows_out = []
+    no_trace: list[dict[str, Any]] = []
     for fault in faults:
         start = fault["start_s"]
         end = (fault["end_s"] if fault["end_s"] is not None else end_of_run) + slack_s
@@ -260,6 +280,9 @@ def compare(
         ):
             x = np.asarray(log_columns[fault["signal"]], dtype=float)
             rows = np.flatnonzero((server_time >= start - 1e-9) & (server_time <= end))
+            if kind == "stuck" and _already_still(x, rows):
+                no_trace.append(fault)
+                continue
             if _log_detects(kind, x, rows):
                 detected, how, first = True, f"log: {kind}", float(server_time[rows[0]])
         row = {**fault, "detected": detected, "how": how, "first_seen_s": first}
@@ -281,6 +304,7 @@ def compare(
         "missed": sum(not r["detected"] for r in rows_out),
         "unseen": [f for f in windows if not f["seen"]],
         "outside_run": outside,
+        "no_trace": no_trace,
         "false": len(false_events),
         "false_events": false_events,
         "events_outside_run": events_outside,

@@ -94,3 +94,24 @@ def test_log_detectors_find_spike_offset_and_stuck_only_where_they_are():
         ("drift", "d"): False,
     }
     assert report["false"] == 0
+
+
+def test_a_stuck_fault_on_a_reading_that_was_not_moving_is_no_trace_not_detected():
+    """A stranger's probe: a stuck fault on the clean profile's forward temperature, at its
+    set point (70.00000 for hours), was "detected" in the log; the same fault, made up, on
+    another still column was "missed". A reading held where it stood still anyway leaves
+    nothing to find: neither detected nor missed, listed under no_trace. A still column
+    that was moving before the window is still a fault the log shows."""
+    t = np.arange(400.0)
+    still = np.full(t.size, 70.0)
+    held = 60 + 0.05 * t
+    held[300:330] = held[300]  # moving, then held by the fault
+    columns = {"still": still, "held": held}
+    journal = _journal(
+        {"start": 100.0, "end": 130.0, "what": {"kind": "stuck", "signal": "still"}},
+        {"start": 300.0, "end": 330.0, "what": {"kind": "stuck", "signal": "held"}},
+    )
+    report = compare(journal, [], columns, t)
+    assert [(f["signal"], f["start_s"]) for f in report["no_trace"]] == [("still", 100.0)]
+    assert [(r["signal"], r["detected"]) for r in report["faults"]] == [("held", True)]
+    assert report["detected"] == 1 and report["missed"] == 0
