@@ -475,6 +475,10 @@ def _is_number(text: str) -> bool:
     return True
 
 
+def _number(value: object) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
 def one_plant(log: LabLog) -> LabLog:
     """The rows of one plant: a log whose ``rig_epoch`` changes (a break the run went on
     from, CONTRACT section 7: a restarted server, another client's reset or advance) holds
@@ -501,10 +505,20 @@ def one_plant(log: LabLog) -> LabLog:
         list(log.notes),
     )
     first, last = float(kept.t[0]), float(kept.t[-1])
-    for key in ("t0_s", "t1_s", "t2_s", "t3_s", "t4_s"):
+    marks = ("t0_s", "t1_s", "t2_s", "t3_s", "t4_s")
+    before = [k for k in marks if _number(kept.meta.get(k)) and kept.meta[k] < first]
+    for key in marks:
         mark = kept.meta.get(key)
-        if isinstance(mark, int | float) and not first <= mark <= last:
+        if _number(mark) and not first <= mark <= last:
             kept.meta[key] = None
+    if before == ["t0_s"] and _number(kept.meta.get("t1_s")) and kept.meta["t1_s"] > first:
+        # a later plant's rows in the start-up (``--on-restart continue``): it starts up
+        # from its first row on, to the run's t1
+        kept.meta["t0_s"] = first
+    elif before:  # it begins in a later phase: the run's marks are no set for its rows,
+        for key in marks:  # which tell the phases themselves
+            if key in kept.meta:
+                kept.meta[key] = None
     kept.notes.append(
         f"{log.path}: the log holds {len(starts)} plants (rig_epoch changes at time_s "
         f"{breaks}: a break the run went on from); only rig_epoch {epoch[rows.start]:g} "

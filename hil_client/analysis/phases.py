@@ -93,7 +93,12 @@ def _from_column(log: LabLog) -> Phases | None:
             bounds.setdefault(phase[i], t[i - 1])
     missing = [n for n in ("start_up", "test", "cooling_1", "cooling_2") if n not in bounds]
     unknown = set(phase) - set(NAMES) - {""}
-    skipped = [n for n in missing if NAMES.index(n) < max(map(NAMES.index, bounds), default=0)]
+    present = sorted(NAMES.index(p) for p in set(phase) & set(NAMES))
+    # a phase left out between two the column holds (a log that begins or ends mid-run, a
+    # later plant's rows, lacks those before or after: no note for those)
+    between = NAMES[present[0] : present[-1] + 1] if present else ()
+    held = set(phase)
+    skipped = [n for n in between if n not in held]
     if missing and (unknown or skipped):  # a lab's own names, a phase left out (ignored
         log.notes.append(  # without a word: a stranger's probe)
             f"the phase column holds no {', '.join(skipped if not unknown else missing)} "

@@ -296,6 +296,49 @@ def test_a_log_of_two_plants_is_analysed_on_one(run_log, tmp_path, capsys):
     assert len(single) == len(rows) and not single.notes
 
 
+def test_a_later_plant_in_the_start_up_starts_up_from_its_first_row(run_log, tmp_path):
+    """A stranger's probe: a run that went on (``--on-restart continue``) after a break in
+    its start-up, cut short in its test: the later plant's rows hold the run's t1, not its
+    t0, and balance refused ("cannot find t1") though the meta file records t1. Its rows
+    start up from their first on; a later plant that begins in a later phase (the test
+    restarted there) takes its phases from its rows, with no note blaming the meta file or
+    the phase column for marks the slicing left out."""
+    import json
+
+    from hil_client.analysis.logio import one_plant
+
+    rec = run_log("stationary", "windhager_12kw")
+    lines = rec.path.read_text().splitlines()
+    header = lines[0].split(",")
+    i_time, i_epoch = header.index("time_s"), header.index("rig_epoch")
+    rows = [line.split(",") for line in lines[1:]]
+    t = np.array([float(r[i_time]) for r in rows])
+    for name, at_s in (
+        ("in_start_up", 0.5 * (rec.meta["t0_s"] + rec.meta["t1_s"])),
+        ("in_test", rec.meta["t1_s"] + 600.0),
+    ):
+        cut = int(np.searchsorted(t, at_s))
+        shifted = [list(r) for r in rows]
+        for row in shifted[cut:]:
+            row[i_time] = f"{float(row[i_time]) + 600.0:.3f}"
+            row[i_epoch] = "1"
+        path = tmp_path / f"{name}.csv"
+        path.write_text("\n".join([lines[0], *(",".join(r) for r in shifted)]) + "\n")
+        marks = {k: rec.meta[k] + (600.0 if rec.meta[k] > at_s else 0.0) for k in MARKS}
+        marks.update(dict.fromkeys(("t2_s", "t3_s", "t4_s")))  # cut short in its test
+        path.with_name(f"{name}.meta.json").write_text(json.dumps(marks))
+        log = one_plant(read_log(path))
+        phases = find_phases(log, partial=True)
+        if name == "in_start_up":
+            assert phases.source.startswith("meta file")
+            assert phases.t0 == log.t[0] and phases.t1 == marks["t1_s"]
+            assert phases.cut_in == "test"
+        else:
+            assert phases.source == "signals"
+        stray = [n for n in log.notes if "given after" in n or "holds no" in n]
+        assert not stray, stray
+
+
 _BASE = (
     "time_s,phase,water_flow_kg_h,water_in_temp_C,water_out_temp_C,boiler_water_temp_C,"
     "flue_gas_temp_C,flue_gas_O2_pct,balance_mass_kg,room_temp_C\n"
