@@ -264,10 +264,13 @@ class ModbusRig:
         #: yet (a real-time server's controller takes them at its next tick)
         self._switches_in_flight = False
         self.values: dict[str, float] = {}
+        self._map_check = (plan, register_map)  # checked again when a server comes back
         try:
             self._connect()
             status = self._read_status()
-            self._check_server_map(url, plan, register_map)
+            problem = self._map_problem(plan, register_map)
+            if problem is not None:
+                raise RigError(f"{url}: {problem}")
         except ConnectionLost as exc:
             hint = ""
             if url.startswith("modbus://") and "closed by the server" in str(exc):
@@ -324,27 +327,28 @@ class ModbusRig:
             return None
         return values[signal]
 
-    def _check_server_map(self, url: str, plan: list[_Read], register_map: RegisterMap) -> None:
-        """Before the first row, that the server serves this client's map: its ``map_id``
-        where both maps have one (two same-length points swapped, a word order, a scale or a
-        type that differ read wrong values as readings, exit 0; a re-probe); without one,
-        every block of readings read once, a block the server answers with 01 or 02 (no
-        such function or register) naming the difference (the run went on blind: every
-        row's fields empty, exit 0; a stranger's probe). A server with faults active from
-        its start (an exception may be one of them) is not asked for the blocks."""
+    def _map_problem(self, plan: list[_Read], register_map: RegisterMap) -> str | None:
+        """Before the first row, and when a restarted server comes back, whether the server
+        serves this client's map (None if it does): its ``map_id`` where both maps have one
+        (two same-length points swapped, a word order, a scale or a type that differ read
+        wrong values as readings, exit 0; a re-probe; a server restarted with another map
+        went on into the same log: a stranger's probe); without one, every block of
+        readings read once, a block the server answers with 01 or 02 (no such function or
+        register) naming the difference (the run went on blind: every row's fields empty,
+        exit 0; a stranger's probe). A server with faults active from its start (an
+        exception may be one of them) is not asked for the blocks."""
         served = self._read_optional(register_map, "map_id")
         if served is not None:
             ours = map_identity(register_map)
             if int(served) != ours:
-                raise RigError(
-                    f"{url}: the server serves another register map than "
-                    f"{register_map.source} (map id {int(served):08x}, this one's {ours:08x}: "
-                    "a point moved, swapped, retyped or rescaled); give the client the "
-                    "server's map (--map)"
+                return (
+                    f"the server serves another register map than {register_map.source} "
+                    f"(map id {int(served):08x}, this one's {ours:08x}: a point moved, "
+                    "swapped, retyped or rescaled); give the client the server's map (--map)"
                 )
-            return
+            return None
         if (self._read_optional(register_map, "active_fault_count") or 0.0) > 0:
-            return
+            return None
         for read in plan:
             try:
                 self._exchange([_request(read)])
@@ -352,12 +356,13 @@ class ModbusRig:
                 if exc.code not in (1, 2):
                     continue  # busy, failed: an instrument's state, not the map
                 names = ", ".join(p.signal for p in read.points)
-                raise RigError(
-                    f"{url}: unit {read.unit} answers exception {exc.code:02X} to the read of "
+                return (
+                    f"unit {read.unit} answers exception {exc.code:02X} to the read of "
                     f"{names} (function {read.function}, address {read.start}, {read.count} "
                     f"registers of {register_map.source}): the server runs another register "
                     "map; give the client the server's (--map)"
-                ) from None
+                )
+        return None
 
     @property
     def fresh_start(self) -> bool:
@@ -662,6 +667,9 @@ class ModbusRig:
         mode = "lockstep" if status["clock_mode"] == 1.0 else "real time"
         if (status["clock_mode"] == 1.0) != self.lockstep:
             changed.append(f"clock {mode}")
+        problem = self._map_problem(*self._map_check)
+        if problem is not None:
+            changed.append(problem)
         if changed:
             reason = f"the server came back as another plant ({'; '.join(changed)})"
             self._gap(reason, "abort", status)

@@ -155,6 +155,39 @@ def test_lockstep_server_killed_twice_is_replayed_into_an_equal_log(
     assert_logs_equal(read_log(local), read_log(out))
 
 
+def test_server_back_with_another_map_stops_cleanly(servers, tmp_path, capsys):
+    """A stranger's probe: a server killed and restarted with the analyser's word order
+    changed in its map: the run replayed its commands on it and went on into the same log
+    (O2 read as 1.3e11 from then on), exit 0. The map is checked again when a server comes
+    back: the run stops where it was, in one line."""
+    import yaml
+
+    from rig_emulator.registers.schema import MAP_DIR
+
+    data = yaml.safe_load((MAP_DIR / "wieselburg_bench.yaml").read_text())
+    analyser = next(d for d in data["devices"] if d["unit_id"] == 2)
+    analyser["word_order"] = "ABCD" if analyser.get("word_order") != "ABCD" else "CDAB"
+    other = tmp_path / "other_map.yaml"
+    other.write_text(yaml.safe_dump(data))
+    port = free_port()
+    first = servers(port, "--lockstep")
+    out = tmp_path / "map.csv"
+
+    def killer() -> None:
+        _wait(lambda: _rows(out) >= 1000, "row 1000")
+        first.kill()
+        servers(port, "--lockstep", "--map", str(other))
+
+    threading.Thread(target=killer, daemon=True).start()
+    code = _run(port, out)
+    err = capsys.readouterr().err
+    assert code == 1 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert "came back as another plant (the server serves another register map" in err
+    log = read_log(out)
+    assert len(log) >= 1000 and set(log.columns["rig_epoch"]) == {0.0}
+    assert _meta(out)["gaps"][-1]["action"] == "abort"
+
+
 def test_server_back_with_another_seed_stops_cleanly(servers, tmp_path, capsys, local):
     port = free_port()
     first = servers(port, "--lockstep", "--seed", "0")
