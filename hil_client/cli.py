@@ -66,6 +66,7 @@ from rig_emulator.cli_support import (
     output_file,
     path_arg,
     report,
+    report_os_error,
     text_file,
     text_input,
 )
@@ -779,7 +780,8 @@ def _settle_previous(out: Path, moved: list[tuple[Path, Path]], rows: int, gaps:
     with rows, the previous run's files are deleted (this run's log replaces them)."""
     if not rows and (moved or not gaps):
         for path in (out, meta_path(out), events_path(out)):
-            path.unlink(missing_ok=True)
+            with contextlib.suppress(OSError):  # (a read-only file system has none to go)
+                path.unlink(missing_ok=True)
     for path, aside in moved:
         if not rows:
             aside.replace(path)
@@ -916,6 +918,19 @@ def _cmd_run(args: argparse.Namespace) -> int:
             progress.done()
         kept = _what_is_kept(written[0], previous, getattr(rig, "gaps", []))
         print(f"hil-client: error: {exc}; {kept}", file=sys.stderr)
+        return 1
+    except OSError as exc:  # the log's disk full, its file system gone read-only
+        if progress is not None:
+            progress.done()
+        kept = _what_is_kept(written[0], previous, getattr(rig, "gaps", []))
+        where = exc.filename or out
+        print(
+            f"hil-client: error: cannot write {where}: {exc.strerror or exc}; {kept}",
+            file=sys.stderr,
+        )
+        with contextlib.suppress(OSError):  # the meta says why, where the disk lets it
+            meta["notes"] = [*meta["notes"], f"stopped: cannot write {where} ({exc.strerror})"]
+            write_meta(out, meta)
         return 1
     except CommandError as exc:  # a setpoint the rig refused (check_setpoints passed it)
         if progress is not None:
@@ -1065,8 +1080,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         "fault-report": _cmd_fault_report,
     }
     previous = _stop_on_signals()
+    out = None
     try:
         args = _build_parser().parse_args(argv)
+        out = getattr(args, "out", None)
         with input_errors(), warnings.catch_warnings():
             # numpy's "mean of empty slice" on a column with no readings where a figure is
             # read: the figure is NaN and reported as missing, the warning says nothing more
@@ -1074,6 +1091,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return commands[args.command](args)
     except UsageError as exc:
         return report(exc, "hil-client")
+    except OSError as exc:  # a write's error names no file: the output's, most likely
+        return report_os_error(exc, "hil-client", f"writing {out}" if out else None)
     except KeyboardInterrupt:
         print("hil-client: interrupted", file=sys.stderr)
         return 1

@@ -31,6 +31,7 @@ from rig_emulator.cli_support import (
     output_file,
     path_arg,
     report,
+    report_os_error,
     text_file,
     text_input,
 )
@@ -424,6 +425,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return commands[args.command](args)
     except UsageError as exc:
         return report(exc, "rig-emulator")
+    except OSError as exc:
+        return report_os_error(exc, "rig-emulator")
     except KeyboardInterrupt:  # serve stops on its own; the other commands end here
         print("rig-emulator: interrupted", file=sys.stderr)
         return 1

@@ -49,6 +49,16 @@ def report(exc: UsageError, default_prog: str) -> int:
     return 2
 
 
+def report_os_error(exc: OSError, prog: str, unnamed: str | None = None) -> int:
+    """A file the command could not write or read for a reason that is no bad input (a full
+    disk, a read-only file system, an I/O error): one line naming it (``unnamed``: what to
+    name where the error names no file), exit 1 (it ended in a traceback: a stranger's
+    probe with a 64-kB tmpfs)."""
+    where = f"{exc.filename or unnamed}: " if exc.filename or unnamed else ""
+    print(f"{prog}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+    return 1
+
+
 def path_arg(text: str) -> Path:
     """An argparse ``type`` for a file or directory path: an empty one is refused (it was
     taken as '.', and the error named '.')."""

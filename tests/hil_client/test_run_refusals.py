@@ -366,3 +366,69 @@ def test_a_valid_map_for_the_local_rig_is_said_to_be_unused(tmp_path, capsys):
     argv = ["run", str(SHORT), "--boiler", "windhager_12kw", "--rig", "local", "--quiet"]
     assert main([*argv, "--map", str(MAP_DIR / "wieselburg_bench.yaml"), "--out", str(out)]) == 0
     assert "--rig local reads no registers" in capsys.readouterr().err
+
+
+def _with_file_size_limit(limit_bytes: int):
+    """A child process whose files cannot grow beyond ``limit_bytes`` (a full disk, as the
+    kernel reports it: EFBIG on the write; SIGXFSZ ignored so the write returns it)."""
+    import resource
+    import signal
+
+    def limit() -> None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, limit_bytes))
+
+    return limit
+
+
+def test_a_disk_that_fills_up_ends_the_run_in_one_line_and_keeps_the_rows(tmp_path):
+    """A stranger's probe with a 64-kB tmpfs: the run ended in two tracebacks and a meta
+    file that said nothing. Now one line naming the log, exit 1, the rows written kept."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "st.csv"
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "hil_client.cli",
+            "run",
+            "stationary",
+            "--boiler",
+            "windhager_12kw",
+            "--rig",
+            "local",
+            "--out",
+            str(out),
+            "--quiet",
+        ],
+        preexec_fn=_with_file_size_limit(64 * 1024),
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 1, proc.stderr
+    assert "Traceback" not in proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and f"cannot write {out}" in lines[0], lines
+    assert 0 < out.stat().st_size <= 64 * 1024
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="no /dev/full on this system")
+def test_an_output_that_cannot_be_written_is_one_line_naming_it(tmp_path, capsys, run_log):
+    """balance's --out on a full disk: a traceback before; now one line, exit 1."""
+    out = tmp_path / "b.json"
+    out.symlink_to("/dev/full")
+    code = main(
+        [
+            "balance",
+            str(run_log("stationary", "windhager_12kw").path),
+            "--boiler",
+            "windhager_12kw",
+            "--out",
+            str(out),
+        ]
+    )
+    err = capsys.readouterr().err
+    assert code == 1 and err.strip() == f"hil-client: error: writing {out}: No space left on device"
