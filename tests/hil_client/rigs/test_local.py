@@ -23,6 +23,21 @@ def test_a_missing_reading_is_no_point_of_the_slope():
     assert window.full() and window.slope() == pytest.approx(0.1)
 
 
+def test_readings_sparser_than_the_window_still_give_a_slope():
+    """A real-time server at x400 answers every 400 simulated seconds: the 300-s window
+    never held three readings, its slope was never known, and t1 waited for the start-up's
+    2-h time-out (a stranger's probe). The last three readings give it."""
+    window = _SlopeWindow(300.0)
+    for t in range(0, 4001, 400):
+        window.add(float(t), 150.0 + 0.002 * t)
+    assert window.full() and window.slope() == pytest.approx(0.002)
+    assert len(window.points) == 3  # no more than the window or three readings hold
+    dense = _SlopeWindow(300.0)
+    for t in range(1000):
+        dense.add(float(t), 0.0)
+    assert len(dense.points) == 301  # a dense stream keeps its window, as before
+
+
 def _marks(out) -> dict:
     return json.loads(out.with_name(out.stem + ".meta.json").read_text())
 
