@@ -896,6 +896,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             write_meta(out, meta)
 
             told = [0]  # breaks told on stderr
+            switched_told = [False]  # the boiler switched against the run, told
 
             def sink(row: tuple[object, ...]) -> None:
                 with _signals_held():  # a row in the log is a row in the count
@@ -906,6 +907,18 @@ def _cmd_run(args: argparse.Namespace) -> int:
                     for gap in gaps[told[0] :]:
                         print(f"hil-client: {_gap_line(gap)}", file=sys.stderr)
                     told[0] = len(gaps)
+                recent = getattr(rig, "comm_events", [])[-8:]
+                if not switched_told[0] and any(  # said as it happens, once (two clients
+                    e.get("event") == "overridden"
+                    for e in recent  # fought over the burner
+                ):  # for 155 rows in silence: a stranger's probe)
+                    switched_told[0] = True
+                    print(
+                        f"hil-client: warning: the boiler was switched against this run at "
+                        f"time_s {row[0]:g} (another client, or a hand at the bench); it is "
+                        "switched back each time, and the count comes at the end",
+                        file=sys.stderr,
+                    )
                 summary(row)
                 if events is not None:
                     events.catch_up(rig.comm_events)
@@ -941,9 +954,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
         if progress is not None:
             progress.done()
         kept = _what_is_kept(written[0], previous, getattr(rig, "gaps", []))
+        overridden = _overridden(getattr(rig, "comm_events", []))
+        if overridden:  # (the end's warning came only for a run that ended)
+            print(f"hil-client: warning: {overridden}", file=sys.stderr)
         if written[0]:  # the meta says why the run is not complete (it said nothing)
             meta["notes"] = [
                 *meta["notes"],
+                *([overridden] if overridden else []),
                 f"interrupted (Ctrl-C or SIGTERM) after {written[0]} rows",
             ]
             meta["interrupted"] = True

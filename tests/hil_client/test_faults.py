@@ -264,6 +264,40 @@ def test_a_boiler_switched_off_by_another_client_is_noticed_and_switched_back(se
     assert modes[5.0] == 0.0 and all(modes[t] != 0.0 for t in (4.0, 6.0, 7.0, 8.0))
 
 
+def test_a_run_says_the_boiler_was_switched_against_it_as_it_happens(serve, tmp_path, capsys):
+    """A stranger's probe: two clients on one real-time server fought over the burner for
+    155 rows without a word on the console (the warning came only at a run's end, and an
+    interrupted run never reached it). The first switch against the run is said as it
+    happens, once; the count comes at the end."""
+    import threading
+    import time
+
+    from tests.modbus_helpers import client, write
+
+    srv = serve()
+    protocol = tmp_path / "short.yaml"
+    protocol.write_text(SHORT_PROTOCOL)
+    out = tmp_path / "log.csv"
+    other = client(srv.port)
+
+    def switch_off_mid_test() -> None:
+        deadline = time.monotonic() + 60
+        while srv.server.emulator.sim_time_s < 150 and time.monotonic() < deadline:
+            time.sleep(0.001)
+        write(other, srv, "boiler_controller", "on_command", 0)
+
+    thread = threading.Thread(target=switch_off_mid_test, daemon=True)
+    thread.start()
+    argv = ["run", str(protocol), "--boiler", "windhager_12kw", "--quiet"]
+    code = hil_client_main([*argv, "--rig", f"modbus://127.0.0.1:{srv.port}", "--out", str(out)])
+    thread.join(timeout=60)
+    other.close()
+    err = capsys.readouterr().err
+    assert code == 0
+    assert err.count("the boiler was switched against this run at time_s") == 1, err
+    assert "switched against this run's command on" in err  # the count at the end
+
+
 def test_switches_written_with_a_steps_reads_are_no_override_on_a_real_time_server(serve):
     """A real-time server takes a switch at its next tick, so a mode read in the same batch
     as the write can still show the old one: a restarted plant's first row under
