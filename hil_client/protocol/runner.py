@@ -71,10 +71,12 @@ class RunResult:
 
 
 class _SlopeWindow:
-    """Least-squares slope of y(t) over a sliding time window, O(1) per sample; over the
-    last three readings where the window holds fewer (a real-time server at x400 answers a
-    step every 400 simulated seconds: the 300-s window never held three, and t1 waited for
-    the start-up's 2-h time-out with the flue gas flat since: a stranger's probe)."""
+    """Least-squares slope of y(t) over a sliding time window, O(1) per sample. It keeps
+    the latest reading at least a window old, so the window fills whatever the step, and
+    at least three readings (a real-time server at x400 gave a row every 40 simulated
+    seconds: the readings within 300 s spanned 280, the window was never full, and t1
+    waited for the start-up's 2-h time-out with the flue gas flat since: a stranger's
+    probe)."""
 
     MIN_POINTS = 3
 
@@ -93,7 +95,7 @@ class _SlopeWindow:
         self.sy += y
         self.stt += t * t
         self.sty += t * y
-        while len(self.points) > self.MIN_POINTS and self.points[0][0] < t - self.window_s:
+        while len(self.points) > self.MIN_POINTS and self.points[1][0] <= t - self.window_s:
             t_old, y_old = self.points.popleft()
             self.st -= t_old
             self.sy -= y_old

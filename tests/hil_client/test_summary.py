@@ -66,3 +66,12 @@ def test_a_phase_across_a_break_is_said_to_join_two_plants():
         "note: test spans a break of the record (rig_epoch 0..1): its totals join two plants;"
         " hil-client balance reads one"
     ]
+
+
+def test_a_balance_read_below_zero_is_noted_when_it_first_does():
+    """A rig whose plant has no refills (another server than this emulator, whose hopper is
+    topped up) can burn its balance below 0 kg: the run notes when it first did."""
+    summary = RunSummary()
+    for i, mass in enumerate([0.4, 0.2, 0.0, -0.2, -0.4]):
+        summary(_row(float(i + 1), "test", mass))
+    assert summary.empty_at_s == 4.0
