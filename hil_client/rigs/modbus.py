@@ -193,6 +193,25 @@ def _make_read(unit: int, table: str, run: list[Point]) -> _Read:
     return _Read(unit, _READ_FUNCTION[table], start, count, tuple(run), run_decoder(run))
 
 
+def _role_hint(url: str, exc: ModbusExceptionResponse) -> str:
+    """Why a Modbus/TCP Security server may answer 01 (its log names the role and the
+    request); "" where that is not the case (a stranger's probe: a certificate of an
+    unknown role read as "not a rig-emulator with this map?", one without the engineer
+    role gave only "function 16 refused")."""
+    if exc.code != 1 or not url.startswith("modbus+tls://"):
+        return ""
+    if exc.function in (1, 2, 3, 4):
+        return (
+            " (this client certificate's role may not read it: a role the server does not "
+            "know may do nothing; the server's log says which role it read)"
+        )
+    return (
+        " (this client certificate's role may not write it: the instruments need operator, "
+        "the simulation control (a lockstep server's advance) engineer; the server's log "
+        "says which role it read)"
+    )
+
+
 class ModbusRig:
     """A remote bench reached over Modbus TCP (see the module docstring).
 
@@ -282,7 +301,8 @@ class ModbusRig:
                 )
             raise RigError(f"cannot reach {url}: {exc}{hint}") from None
         except ModbusExceptionResponse as exc:
-            raise RigError(f"{url}: {exc} (not a rig-emulator with this map?)") from None
+            why = _role_hint(url, exc) or " (not a rig-emulator with this map?)"
+            raise RigError(f"{url}: {exc}{why}") from None
         self.lockstep = status["clock_mode"] == 1.0
         self.speed = status["speed_factor"]
         self.sim_time_s = status["sim_time_s"]
@@ -791,7 +811,7 @@ class ModbusRig:
                 self._on_break(brk)
                 continue
             except ModbusExceptionResponse as exc:
-                raise RigError(f"{self.url}: {exc}") from None
+                raise RigError(f"{self.url}: {exc}{_role_hint(self.url, exc)}") from None
             self._row_wall = time.monotonic()
             self._stepped = True
             for event in self._step_events:

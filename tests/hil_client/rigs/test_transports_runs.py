@@ -103,7 +103,32 @@ def test_operator_cannot_drive_the_clock(tls_server, certs, tmp_path, capsys):
     assert _run(SHORT, "--rig", rig, *_tls_args(certs, "operator"), "--out", str(out)) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert "exception 01" in err[-1], err
+    # what the role lacks, said (a stranger's probe: only "function 16 refused")
+    assert "role may not write it" in err[-1] and "engineer" in err[-1], err
     assert tls_server.values()["sim_time_s"] == 0.0
+
+
+def test_a_role_the_server_does_not_know_is_said_not_another_map(
+    tls_server, certs, tmp_path, capsys
+):
+    """A stranger's probe: a certificate with the role "superuser" (no role the server
+    knows: it may do nothing) read as "not a rig-emulator with this map?"."""
+    from cryptography import x509
+    from cryptography.hazmat.primitives import serialization
+
+    from rig_emulator.certs import Issued, make_client, write_pair
+
+    ca = Issued(
+        key=serialization.load_pem_private_key((certs / "ca.key").read_bytes(), None),
+        cert=x509.load_pem_x509_certificate((certs / "ca.pem").read_bytes()),
+    )
+    write_pair(make_client(ca, "superuser client", "superuser"), tmp_path, "superuser")
+    args = ["--tls-cert", str(tmp_path / "superuser.pem"), "--tls-key"]
+    args += [str(tmp_path / "superuser.key"), "--tls-ca", str(certs / "ca.pem")]
+    rig = f"modbus+tls://127.0.0.1:{tls_server.port}"
+    assert _run(SHORT, "--rig", rig, *args, "--out", str(tmp_path / "su.csv")) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert "role may not read it" in err[-1] and "this map" not in err[-1], err
 
 
 def test_tls_options_checked_before_connecting(certs, tmp_path, capsys):
