@@ -240,6 +240,13 @@ def _cmd_certs(args: argparse.Namespace) -> int:
     for name in args.server_name:
         if not _host_name_or_address(name):
             raise UsageError(f"--server-name: '{name}' is not a host name or IP address")
+    held = sorted(p.name for p in (args.out / "ca.pem", args.out / "ca.key") if p.exists())
+    if held:  # a new CA would leave every certificate issued from the old one refused
+        raise UsageError(  # (it was replaced without a word: a stranger's probe)
+            f"--out: '{args.out}' already holds a CA ({', '.join(held)}); certificates it "
+            "issued would stop working with a new one: name another directory, or move "
+            "them away first"
+        )
     try:
         written = make_lab_certificates(args.out, server_names=tuple(args.server_name))
     except OSError as exc:

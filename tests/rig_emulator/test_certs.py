@@ -112,3 +112,16 @@ def test_console_script_help():
         timeout=60,
     )
     assert done.returncode == 0 and "--out" in done.stdout
+
+
+def test_a_second_run_into_a_ca_s_directory_keeps_the_ca(tmp_path, capsys):
+    """A stranger's probe: ``certs --out DIR`` run again replaced the CA and every
+    certificate without a word, so those handed out stopped working. Refused, one line,
+    nothing changed."""
+    assert main(["certs", "--out", str(tmp_path)]) == 0
+    before = (tmp_path / "ca.pem").read_bytes()
+    capsys.readouterr()
+    assert main(["certs", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "already holds a CA (ca.key, ca.pem)" in err, err
+    assert (tmp_path / "ca.pem").read_bytes() == before
