@@ -128,13 +128,13 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument(
         "--reconnect-timeout",
         type=finite_float(0.0, 1e6, "s"),
-        default=60.0,
+        default=None,
         help="give up after a Modbus outage this long [60 s]",
     )
     run.add_argument(
         "--on-restart",
         choices=("abort", "restart-phase", "continue"),
-        default="abort",
+        default=None,
         help="a Modbus server restarted in real time, or advanced or reset by another client: "
         "stop (exit 1), restart the current phase, or go on; the log marks the break "
         "(rig_epoch, gaps in the meta file). A restarted lockstep server with the same "
@@ -646,8 +646,15 @@ def _make_rig(args: argparse.Namespace, params: BoilerParams, register_map: Regi
     """The rig named by --rig; bad options (and a server running another boiler than
     ``params``) raise UsageError, an unreachable server RigError."""
     if register_map is None:
-        if args.reply_timeout is not None:  # nothing to wait for in-process
-            print("hil-client: warning: --reply-timeout applies to a Modbus rig", file=sys.stderr)
+        wire = ("--reply-timeout", "--reconnect-timeout", "--on-restart", "--tls-cert",
+                "--tls-key", "--tls-ca")  # fmt: skip
+        given = [o for o in wire if getattr(args, o[2:].replace("-", "_")) is not None]
+        if given:  # nothing to wait for, reconnect to or secure in-process (they were
+            print(  # taken and ignored without a word: a stranger's probe)
+                f"hil-client: warning: {', '.join(given)} apply to a Modbus rig, not to "
+                "--rig local",
+                file=sys.stderr,
+            )
         with bad_input(ProfileError, prefix="--profile: "):
             profile = load_profile(args.profile or "clean")
         wire_only = wire_only_faults(profile.faults)
@@ -679,8 +686,8 @@ def _make_rig(args: argparse.Namespace, params: BoilerParams, register_map: Regi
         args.rig,
         register_map,
         timeout_s=timeout_s,
-        reconnect_timeout_s=args.reconnect_timeout,
-        on_restart=args.on_restart,
+        reconnect_timeout_s=60.0 if args.reconnect_timeout is None else args.reconnect_timeout,
+        on_restart=args.on_restart or "abort",
         connect=connect,
     )
     served, ours = rig.identity["boiler_id"], boiler_identity(params)

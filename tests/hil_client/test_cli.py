@@ -90,7 +90,12 @@ def test_a_modbus_option_given_to_a_local_run_is_named(tmp_path, capsys):
     out = tmp_path / "log.csv"
     argv = ["run", str(short), "--boiler", "windhager_12kw", "--quiet", "--out", str(out)]
     assert main([*argv, "--reply-timeout", "0.5"]) == 0
-    assert "--reply-timeout applies to a Modbus rig" in capsys.readouterr().err
+    assert "--reply-timeout apply to a Modbus rig" in capsys.readouterr().err
+    # the other wire options too (a stranger's probe: taken and ignored without a word)
+    again = [*argv[:-1], str(tmp_path / "again.csv"), "--on-restart", "continue"]
+    assert main([*again, "--reconnect-timeout", "5"]) == 0
+    err = capsys.readouterr().err
+    assert "--reconnect-timeout, --on-restart apply to a Modbus rig, not to --rig local" in err
     fresh = tmp_path / "fresh.csv"  # (a run to an earlier run's --out says it replaces it)
     assert main([*argv[:-1], str(fresh)]) == 0
     assert capsys.readouterr().err == ""
