@@ -65,6 +65,7 @@ class ActiveFault:
     held: float | None = None  # stuck: the frozen reading
     served: float = math.nan  # instrument: the reading last served
     requests: int = 0  # communication: requests answered (or not) by this fault
+    closed: int = 0  # disconnect: the connections it closed
 
     def as_dict(self) -> dict[str, Any]:
         out = {"id": self.id, **self.spec.as_dict(), "source": self.source}
@@ -252,12 +253,20 @@ class FaultEngine:
             (_end_s(f, t_sim_s), "end", f, None) for f in ended
         ]
         events += [(f.start_s, "start", f, None) for f in started if f.spec.kind != "disconnect"]
-        for fault in unseen:  # (a disconnect that happened is journalled as it happened)
+        once: set[int] = set()  # disconnects that happened (their end: "once")
+        for fault in started:  # a disconnect is journalled as it happened: at this evaluation,
+            if fault.spec.kind == "disconnect":  # in time order with the rest (it came first)
+                closed = {"connections_closed": fault.closed}
+                events += [(t_sim_s, "start", fault, closed), (t_sim_s, "end", fault, None)]
+                once.add(fault.id)
+        for fault in unseen:
             events += [(fault.start_s, "start", fault, _UNSEEN)]
             events += [(_end_s(fault, t_sim_s), "end", fault, _UNSEEN)]
         for t_s, event, fault, served in sorted(events, key=lambda e: e[0]):
             shown = None if served is not None else readings
-            reason = "for_s elapsed" if event == "end" else None
+            reason = None
+            if event == "end":
+                reason = "once" if fault.id in once else "for_s elapsed"
             self._journal(event, fault, t_s, shown, served, reason)
 
     def _new(self, spec: FaultSpec, source: str, start_s: float) -> ActiveFault:
@@ -275,12 +284,9 @@ class FaultEngine:
     def _start(self, fault: ActiveFault, t_sim_s: float) -> ActiveFault:
         """Make ``fault`` act; the evaluation is at ``t_sim_s`` (a disconnect happens then)."""
         spec = fault.spec
-        if spec.kind == "disconnect":
-            closed = 0
+        if spec.kind == "disconnect":  # (journalled by the caller, in time order)
             if self.on_disconnect is not None:
-                closed = self.on_disconnect(f"disconnect fault #{fault.id}")
-            self._journal("start", fault, t_sim_s, None, served={"connections_closed": closed})
-            self._journal("end", fault, t_sim_s, None, reason="once")
+                fault.closed = self.on_disconnect(f"disconnect fault #{fault.id}")
             return fault
         # a stuck reading is held at what the first evaluation serves, the faults started
         # before it applied (:meth:`_transform`): an active offset or drift stays in it

@@ -210,6 +210,13 @@ def test_a_disconnect_window_inside_one_advance_closes_nothing(tmp_path):
     events = [(e["event"], e["t_sim_s"], e["served"]) for e in read_journal(path)]
     unseen = {"seen": False, "why": "its whole window fell between two evaluations"}
     assert ("start", 300.0, unseen) in events and ("end", 305.0, unseen) in events
+    # the one-shot as it happened, at the evaluation, and the journal in time order (its
+    # lines came first, before the 300-s window's: a stranger's probe)
+    assert ("start", 1000.0, {"connections_closed": 1}) in events
+    times = [t for _, t, _ in events]
+    assert times == sorted(times)
+    ends = [e for e in read_journal(path) if e["event"] == "end" and e["kind"] == "disconnect"]
+    assert sorted(e["reason"] for e in ends) == ["for_s elapsed", "once"]
 
 
 def test_a_fault_set_after_its_at_s_starts_when_it_is_set(tmp_path):
