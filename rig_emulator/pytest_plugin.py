@@ -65,6 +65,33 @@ def _stop_with_parent() -> None:
         ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
 
 
+#: the servers this process started and has not stopped (for :func:`_watch_controller`)
+_LIVE: set[subprocess.Popen] = set()
+_WATCHING: list[threading.Thread] = []
+
+
+def _watch_controller() -> None:
+    """Under pytest-xdist (a worker, ``PYTEST_XDIST_WORKER``), stop this worker's servers
+    once the controlling pytest is gone (the worker's parent changes). The parent-death
+    signal ties a server to the worker that started it, and a worker outlives a killed
+    controller until its test ends: a test that never ends kept its server and its port
+    for good (a stranger's probe with ``pytest -n 2`` killed)."""
+    if not os.environ.get("PYTEST_XDIST_WORKER") or _WATCHING:
+        return
+    controller = os.getppid()
+
+    def watch() -> None:
+        while os.getppid() == controller:
+            time.sleep(0.5)
+        for process in list(_LIVE):
+            with contextlib.suppress(OSError):
+                process.send_signal(signal.SIGTERM)
+
+    thread = threading.Thread(target=watch, name="rig_emulator-controller-watch", daemon=True)
+    thread.start()
+    _WATCHING.append(thread)
+
+
 class RigEmulatorError(RuntimeError):
     """The emulator did not start or refused a request."""
 
@@ -132,6 +159,8 @@ class RigEmulator:
             text=True,
             preexec_fn=_stop_with_parent if sys.platform == "linux" else None,
         )
+        _LIVE.add(self.process)
+        _watch_controller()
         self.host, self.port = self._wait_listening()
         self._drain = threading.Thread(target=self._read_stderr, daemon=True)
         self._drain.start()
@@ -180,6 +209,7 @@ class RigEmulator:
             except subprocess.TimeoutExpired:
                 self.process.kill()
                 self.process.wait(timeout=10)
+        _LIVE.discard(self.process)
         if self._tmp is not None:
             self._tmp.cleanup()
             self._tmp = None
