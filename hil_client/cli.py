@@ -36,7 +36,7 @@ from hil_client.analysis.figures import (
 from hil_client.analysis.logio import LabLog, LogError, fill_gaps, one_plant, read_log
 from hil_client.analysis.phases import Phases, find_phases
 from hil_client.analysis.report import validation_report
-from hil_client.analysis.sanity import suspicious
+from hil_client.analysis.sanity import check_time_step, suspicious
 from hil_client.analysis.validate import compare, validation_metrics
 from hil_client.fault_files import EventsWriter, events_path, fault_report, write_report
 from hil_client.fault_files import summary as fault_summary
@@ -279,6 +279,8 @@ def _logs_with_phases(
     a 6-kW boiler analysed as the 12-kW one gave fits far from any boiler, silently."""
     with bad_input(LogError):
         logs = [one_plant(read_log(path)) for path in paths]
+        for log in logs:
+            check_time_step(log)
         found = [(log, _phases_or_why(log, boiler)) for log in logs]
     _warn_tolerated(logs)
     if boiler is not None:
@@ -589,6 +591,7 @@ def _boiler_for(log: LabLog, name: str | None):
 def _cmd_balance(args: argparse.Namespace) -> int:
     with bad_input(LogError):
         log = one_plant(read_log(args.log))
+        check_time_step(log)
         params = _boiler_for(log, args.boiler)
         phases = _phases_or_why(log, params, partial=True)
     _warn_tolerated([log])

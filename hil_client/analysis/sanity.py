@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from hil_client.analysis.firing import observe_firing
-from hil_client.analysis.logio import LabLog, fill_gaps
+from hil_client.analysis.logio import LabLog, LogError, fill_gaps
 from rig_emulator.model.params import BoilerParams
 from rig_emulator.model.water_heat import heat_to_water_kW
 
@@ -247,6 +247,25 @@ def _quiet_gain(log: LabLog, burning: np.ndarray) -> list[str]:
                 f" ({slope * 3600:+.2f} kg/h): a drifting balance?"
             ]
     return []
+
+
+#: A log whose median step is longer than this [s] is refused by the analyses: a 6-h test
+#: of 36 rows, a start-up of one or two, holds no phase to read (a log in milliseconds, the
+#: usual cause, gave a calibrated file 1000 times off with a tiny uncertainty: a
+#: stranger's probe).
+TIME_STEP_REFUSE_S = 600.0
+
+
+def check_time_step(log: LabLog) -> None:
+    """:class:`LogError` if ``log``'s median step exceeds :data:`TIME_STEP_REFUSE_S`."""
+    t = log.t
+    step = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
+    if step > TIME_STEP_REFUSE_S:
+        raise LogError(
+            f"{log.path}: column 'time_s' advances a median of {step:g} s per row: a time in "
+            f"milliseconds? (a lab logs every 1-10 s; the analyses need a row at least every "
+            f"{TIME_STEP_REFUSE_S / 60:g} min)"
+        )
 
 
 def _time_step(log: LabLog) -> list[str]:

@@ -109,11 +109,20 @@ def _rewritten(src, tmp_path, name: str, column: str, change) -> object:
 
 def test_where_the_phases_cannot_be_found_the_error_says_what_looks_wrong(logs, tmp_path, capsys):
     """A time in milliseconds gave "the flue-gas temperature never settles": true, and no
-    help. The one error line now says what in the log looks like a wrong unit as well."""
-    path = _rewritten(logs["stationary"].path, tmp_path, "ms.csv", "time_s", lambda v: v * 1e3)
-    assert main(["balance", str(path), "--boiler", BOILER]) == 2
+    help. The one error line now says what in the log looks like a wrong unit as well. A
+    time in milliseconds from the first row (1000 s per row) is refused before any fit:
+    calibrate wrote UA_off 0.0029 W/K +- 4.5e-05 from one (a stranger's probe)."""
+    minutes = _rewritten(logs["stationary"].path, tmp_path, "min.csv", "time_s", lambda v: v * 200)
+    assert main(["balance", str(minutes), "--boiler", BOILER]) == 2
     err = capsys.readouterr().err.strip()
     assert "milliseconds?" in err and "cannot find" in err and len(err.splitlines()) == 1, err
+    path = _rewritten(logs["stationary"].path, tmp_path, "ms.csv", "time_s", lambda v: v * 1e3)
+    for command in ("balance", "validate", "calibrate"):
+        out = tmp_path / f"{command}_out{'.yaml' if command == 'calibrate' else ''}"
+        assert main([command, str(path), "--boiler", BOILER, "--out", str(out)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert "a median of 1000 s per row: a time in milliseconds?" in err, err
+        assert len(err.splitlines()) == 1 and not out.exists()
 
 
 def test_a_short_part_load_test_is_no_wrong_unit(tmp_path):
