@@ -172,10 +172,13 @@ def _meta_marks(log: LabLog, partial: bool) -> Phases | None:
 
 def rise_rate_K_min(t: np.ndarray, y: np.ndarray, window_s: float = 300.0) -> np.ndarray:
     """Least-squares slope of ``y`` over the trailing window at every row [K/min]
-    (NaN until the window is full)."""
+    (NaN until the window is full). The window reaches back to the latest row at least
+    ``window_s`` old, so it fills whatever the step (rows every 40 s never filled 300 s:
+    the last row within it was 280 s back, and t1 was never found from the signals in a
+    log of a real-time server at x400: a re-probe)."""
     y = fill_gaps(y, t)
     cs, cy, ctt, cty = (np.concatenate(([0.0], np.cumsum(a))) for a in (t, y, t * t, t * y))
-    j = np.searchsorted(t, t - window_s, side="left")
+    j = np.maximum(np.searchsorted(t, t - window_s, side="right") - 1, 0)
     i1 = np.arange(1, len(t) + 1)
     n = i1 - j
     st, sy = cs[i1] - cs[j], cy[i1] - cy[j]

@@ -159,13 +159,17 @@ def test_empty_fields_are_missing_values_and_can_be_filled(tmp_path):
     assert filled.tolist() == [1.0, 2.0, 3.0, 3.0]
 
 
-def test_rise_rate_of_a_known_ramp():
-    t = np.arange(0.0, 1200.0)
-    y = np.where(t < 600, 0.02 * t, 12.0)  # 1.2 K/min, then flat
+@pytest.mark.parametrize("step_s", [1.0, 40.0, 45.0, 120.0])
+def test_rise_rate_of_a_known_ramp(step_s):
+    """At any step: rows 40, 45 or 120 s apart never filled the 300-s window (the last
+    within it 280 s back), so t1 was never found in a log of a real-time server at x400
+    (a re-probe)."""
+    t = np.arange(0.0, 2400.0, step_s)
+    y = np.where(t < 1200, 0.02 * t, 24.0)  # 1.2 K/min, then flat
     rate = rise_rate_K_min(t, y)
-    assert np.isnan(rate[100])
-    assert rate[500] == pytest.approx(1.2)
-    assert rate[1000] == pytest.approx(0.0, abs=1e-9)
+    assert np.isnan(rate[np.searchsorted(t, 100.0)])
+    assert rate[np.searchsorted(t, 1000.0)] == pytest.approx(1.2)
+    assert rate[-1] == pytest.approx(0.0, abs=1e-9)
 
 
 @pytest.mark.parametrize("protocol", ["stationary", "load_cycle"])
