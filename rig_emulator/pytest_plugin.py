@@ -92,6 +92,13 @@ def _watch_controller() -> None:
     _WATCHING.append(thread)
 
 
+def _no_reply(exc: Exception) -> bool:
+    """Whether pymodbus's ``exc`` says the request went out and no reply came in time (a
+    reset or closed connection says otherwise: a ``disconnect`` fault's, read as "no
+    reply" at first: a re-probe)."""
+    return "No response received" in str(exc) and not isinstance(exc.__cause__, OSError)
+
+
 class RigEmulatorError(RuntimeError):
     """The emulator did not start or refused a request."""
 
@@ -244,14 +251,15 @@ class RigEmulator:
         client.comm_params.timeout_connect = self.reply_timeout_s
         try:
             return request(client)
-        except ConnectionException:
-            pass  # the server closed the connection: once more on a new one
-        except (ModbusIOException, OSError) as exc:
-            if client.connected:  # open, but nothing came back in time
-                raise RigEmulatorError(
+        except ModbusIOException as exc:
+            if _no_reply(exc):  # the connection stands, nothing came back in time: the
+                self._reconnect()  # next call goes on a new one (a late reply on this
+                raise RigEmulatorError(  # one answered the calls after it: a re-probe)
                     f"{what}: no reply within {self.reply_timeout_s:g} s (a no_reply fault, "
                     "or a delay longer than that; reply_timeout_s sets the wait)"
                 ) from exc
+        except (ConnectionException, OSError):
+            pass  # the server closed the connection (a disconnect): once more on a new one
         self._reconnect()
         try:
             return request(self.client)

@@ -319,6 +319,17 @@ def test_a_read_under_no_reply_ends_in_one_error_at_the_reply_timeout(tmp_path):
         assert rig.read("water_flow_kg_h") >= 0.0
         rig.advance(61)
         assert rig.read("flue_gas_O2_pct") > 0.0  # back once the fault is over
+        # a re-probe: a disconnect fault's reset read as "no reply" at first, and a reply
+        # late past the timeout answered the calls after it (even to unfaulted units)
+        rig.inject({"kind": "disconnect"})
+        rig.advance(1)
+        assert rig.read("room_temp_C") > 0.0
+        rig.inject({"kind": "delay", "unit": 5, "delay_ms": 2500, "for_s": 60})
+        with pytest.raises(RigEmulatorError, match="read of balance_mass_kg: no reply"):
+            rig.read("balance_mass_kg")
+        assert rig.truth("room_temp_C") > 0.0  # unit 101, never faulted
+        rig.clear_faults()  # unit 100
+        assert rig.read("balance_mass_kg") > 0.0
 
 
 BAD_MARKERS = """
