@@ -195,16 +195,21 @@ def decode(point: Point, registers: list[int]) -> float:
 
 def written_value(point: Point, registers: list[int]) -> float:
     """The value a client's write of ``registers`` carries, checked against the point's
-    range as written: a float within its type's rounding of a bound it cannot carry exactly
-    is that bound (float32 has no 0.01; the 0.0099999998 a client's encoder sends for it is
-    0.01), so the documented ends of a range can be written; anything further out is not
-    moved, and the range check refuses it."""
+    range as written: the float nearest to a bound its type cannot carry exactly is that
+    bound (float32 has no 0.01; the 0.0099999998 a client's encoder sends for it is 0.01),
+    so the documented ends of a range can be written; anything else is not moved, and the
+    range check refuses what lies outside (a float64 just below 0, which the type carries
+    exactly, too: a re-probe)."""
     value = decode(point, registers)
-    if DATATYPES[point.datatype].is_float:
-        if point.minimum - precision(point, point.minimum) <= value < point.minimum:
-            return point.minimum
-        if point.maximum < value <= point.maximum + precision(point, point.maximum):
-            return point.maximum
+    datatype = DATATYPES[point.datatype]
+    if datatype.is_float:
+        for bound in (point.minimum, point.maximum):
+            try:
+                carried = struct.unpack(datatype.code, struct.pack(datatype.code, bound))[0]
+            except (OverflowError, struct.error):  # beyond the type: no write reaches it
+                continue
+            if carried != bound and value == carried:  # a bound the type cannot carry
+                return bound  # (0 and 1e9 it can: a value just outside those is outside)
     return value
 
 

@@ -205,6 +205,12 @@ def test_the_documented_ends_of_a_float_range_can_be_written(serve):
     reply = c.write_registers(speed.address, list(struct.unpack(">HH", below)), device_id=100)
     assert reply.isError() and reply.exception_code == 3
     assert srv.server.clock.speed == 0.01
+    # a bound the type carries exactly is met exactly: the float64 fault_at's 0 (a re-probe:
+    # -1e-300 was taken as 0)
+    dev, at = point(srv, "sim_control", "fault_at")
+    words = list(struct.unpack(">HHHH", struct.pack(">d", -1e-300)))
+    reply = c.write_registers(at.address, words, device_id=dev.unit_id)
+    assert reply.isError() and reply.exception_code == 3
     c.close()
 
 
