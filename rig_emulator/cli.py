@@ -8,9 +8,11 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import ipaddress
 import logging
 import math
+import os
 import re
 import signal
 import sys
@@ -240,17 +242,24 @@ def _cmd_certs(args: argparse.Namespace) -> int:
     for name in args.server_name:
         if not _host_name_or_address(name):
             raise UsageError(f"--server-name: '{name}' is not a host name or IP address")
-    held = sorted(p.name for p in (args.out / "ca.pem", args.out / "ca.key") if p.exists())
+    held = sorted(  # (a link counts, a dangling one too: the CA was written through it)
+        p.name for p in (args.out / "ca.pem", args.out / "ca.key") if os.path.lexists(p)
+    )
     if held:  # a new CA would leave every certificate issued from the old one refused
         raise UsageError(  # (it was replaced without a word: a stranger's probe)
             f"--out: '{args.out}' already holds a CA ({', '.join(held)}); certificates it "
             "issued would stop working with a new one: name another directory, or move "
             "them away first"
         )
+    before = set(args.out.iterdir()) if args.out.is_dir() else set()
     try:
         written = make_lab_certificates(args.out, server_names=tuple(args.server_name))
-    except OSError as exc:
-        raise UsageError(f"--out: cannot write into '{args.out}' ({exc.strerror})") from None
+    except OSError as exc:  # a full disk, a read-only file system: nothing half-made stays
+        if args.out.is_dir():  # (an empty ca.pem refused every retry: a re-probe)
+            for path in set(args.out.iterdir()) - before:
+                with contextlib.suppress(OSError):
+                    path.unlink()
+        raise OSError(exc.errno, exc.strerror, str(args.out)) from None
     for path in written:
         print(f"written: {path} (key {path.with_suffix('.key')})")
     return 0

@@ -125,3 +125,41 @@ def test_a_second_run_into_a_ca_s_directory_keeps_the_ca(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "already holds a CA (ca.key, ca.pem)" in err, err
     assert (tmp_path / "ca.pem").read_bytes() == before
+
+
+def _with_file_size_limit(limit_bytes: int):
+    import resource
+    import signal
+
+    def limit() -> None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, limit_bytes))
+
+    return limit
+
+
+def test_a_full_disk_leaves_no_half_made_ca_and_exits_1(tmp_path):
+    """A re-probe: certs on a full disk left an empty ca.pem (exit 2), which every retry
+    then took for a CA and refused. Now nothing it made stays, exit 1 (no bad input), and a
+    retry with room succeeds; a dangling ca.pem link counts as a CA (the CA was written
+    through it, outside DIR)."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "certs"
+    proc = subprocess.run(
+        [sys.executable, "-m", "rig_emulator.cli", "certs", "--out", str(out)],
+        preexec_fn=_with_file_size_limit(300),
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 1, proc.stderr
+    assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+    assert list(out.iterdir()) == []
+    assert main(["certs", "--out", str(out)]) == 0
+    linked = tmp_path / "linked"
+    linked.mkdir()
+    (linked / "ca.pem").symlink_to(tmp_path / "elsewhere.pem")
+    assert main(["certs", "--out", str(linked)]) == 2
+    assert not (tmp_path / "elsewhere.pem").exists()
