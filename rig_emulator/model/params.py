@@ -238,6 +238,16 @@ def params_from_mapping(data: Any, source: str = "<parameters>") -> BoilerParams
                 f"{source}: key '{key}' ({values[key]:g} W/K) would lose more than "
                 f"{UA_MAX_SHARE:.0%} of p_nom_kW to the room at {UA_CHECK_DT_K:g} K above it"
             )
+    if values["p_max_kW"] > P_MAX_OVER_NOM * values["p_nom_kW"]:  # (13200 with p_nom 12,
+        hint = (  # a lambda curve flat enough: accepted; a re-probe)
+            " (written in W?)"
+            if values["p_max_kW"] / 1e3 <= P_MAX_OVER_NOM * values["p_nom_kW"]
+            else ""
+        )
+        raise ParameterError(
+            f"{source}: key 'p_max_kW' ({values['p_max_kW']:g}) is over {P_MAX_OVER_NOM:g} x "
+            f"p_nom_kW ({values['p_nom_kW']:g}){hint}"
+        )
     if values["p_start_kW"] > values["p_max_kW"] * 1.5:
         raise ParameterError(f"{source}: key 'p_start_kW' is above 1.5 x p_max_kW")
     params = BoilerParams(**values)
@@ -267,6 +277,8 @@ def params_from_mapping(data: Any, source: str = "<parameters>") -> BoilerParams
 HHV_DRY_RANGE_KJ_KG = (12_000.0, 35_000.0, 1e-3, "MJ/kg")
 #: nominal firing power: a pellet boiler of 2 kW to a wood-chip boiler of 2 MW
 P_NOM_RANGE_KW = (1.0, 2_000.0, 1e3, "W")
+#: the most the maximum firing power may exceed the nominal by (the bench's boilers: 1.1-1.15)
+P_MAX_OVER_NOM = 2.0
 #: per kW of nominal power: the thermal capacity of the boiler's mass (the bench's boilers:
 #: 80 kJ/K for 6 and 12 kW, 7-13 kJ/K per kW; steel and cast-iron boilers 2-50) and its
 #: water volume (2.5-5 l per kW; buffer-integrated boilers up to some 50 l per kW)
@@ -287,10 +299,13 @@ def _check_unit(
     like; per kW of nominal power where ``shown``, the value as written, is given), saying
     which unit it looks like it was written in."""
     low, high, factor, unit = bounds
-    if low <= value <= high:
+    slack = 1e-9 * max(abs(low), abs(high))  # a bound met to rounding is met
+    if low - slack <= value <= high + slack:
         return
     per = "" if shown is None else f", {value:.3g} per kW of p_nom_kW,"
     hint = f" (written in {unit}?)" if low <= value / factor <= high else ""
+    if shown is not None and not hint and low <= value * 1e3 <= high:  # per kW of a p_nom
+        hint = " (p_nom_kW and the other powers written in W?)"  # in W (a re-probe)
     raise ParameterError(
         f"{source}: key '{key}' = {value if shown is None else shown:g}{per} lies outside "
         f"the plausible {low:g}..{high:g}{hint}"

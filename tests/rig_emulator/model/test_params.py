@@ -59,6 +59,13 @@ def _write(tmp_path: Path, mutate) -> Path:
             lambda d: d.update(p_nom_kW=12e3, p_max_kW=13.2e3, p_min_kW=4.4e3, p_start_kW=13.2e3),
             "'p_nom_kW' = 12000 lies outside the plausible 1..2000 (written in W?)",
         ),
+        # a re-probe: p_max alone in W passed where the lambda curve allowed it; a 2-kW
+        # boiler's powers in W (2000) passed the range and blamed the capacity
+        (lambda d: d.update(p_max_kW=13.2e3), "'p_max_kW' (13200) is over 2 x p_nom_kW (12)"),
+        (
+            lambda d: d.update(p_nom_kW=2e3, p_max_kW=2.2e3, p_min_kW=0.7e3, p_start_kW=2.2e3),
+            "(p_nom_kW and the other powers written in W?)",
+        ),
     ],
 )
 def test_broken_files_name_the_key_and_file(tmp_path, mutate, message):
@@ -77,3 +84,9 @@ def test_not_yaml_and_unknown_name(tmp_path):
         load_boiler(str(path))
     with pytest.raises(ParameterError, match="unknown boiler 'nope'"):
         load_boiler("nope")
+
+
+def test_a_value_on_a_plausible_bound_is_plausible(tmp_path):
+    """A re-probe: 0.0024 m3 for 12 kW, exactly 0.0002 per kW, was refused (0.00019999...
+    after the division)."""
+    load_boiler(str(_write(tmp_path, lambda d: d.update(vol_water_m3=0.0024))))
