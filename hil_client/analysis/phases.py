@@ -70,9 +70,11 @@ class Phases:
         return None if self.reached == 5 else NAMES[self.reached]
 
 
-def _from_column(log: LabLog) -> Phases | None:
+def _from_column(log: LabLog, partial: bool = False) -> Phases | None:
     """The phases from the ``phase`` column (its names in any letter case, spaces around
-    them ignored); None, said in the log's notes, where it does not hold them all."""
+    them ignored); None, said in the log's notes, where it does not hold them all. With
+    ``partial``, a column that holds the phases in order up to one it ends in (a run cut
+    short without its meta file) gives those (a re-probe: refused, "cannot find t2")."""
     if not log.has("phase"):
         return None
     phase = [p.strip().lower() for p in log.text["phase"]]
@@ -105,6 +107,11 @@ def _from_column(log: LabLog) -> Phases | None:
             f"(the log format's phase names: {', '.join(NAMES)}); the phases come from the "
             "meta file or the signals"
         )
+    reached = next((i for i, n in enumerate(NAMES[1:]) if n not in bounds), 4)
+    if missing and partial and not unknown and not skipped and reached >= 1:
+        ends = [float(bounds[n]) for n in NAMES[1 : 1 + reached]] + [float(t[-1])] * (5 - reached)
+        source = f"phase column, the run cut short in its {NAMES[reached]} phase"
+        return Phases(*ends, source=source, reached=reached)  # type: ignore[arg-type]
     if missing:  # (a run cut short holds the phases it reached)
         return None
     return Phases(
@@ -303,13 +310,19 @@ def _from_signals(log: LabLog) -> Phases:
     return Phases(t0, t1, t2, t3, float(t[-1]), "signals")
 
 
+def _marks_in_meta(log: LabLog) -> bool:
+    """Whether the meta file records marks (then they, not the column, say where a run
+    cut short stopped)."""
+    return any(log.meta.get(key) is not None for key in MARKS)
+
+
 def find_phases(log: LabLog, prefer_signals: bool = False, partial: bool = False) -> Phases:
     """Phase boundaries from the phase column, the meta file, or the signals (see above).
     With ``partial``, a run cut short (its meta file's marks up to those it reached) gives
     the phases it recorded, the one it was cut in ending at its last row (see
     :attr:`Phases.reached`), where the signals do not find all five."""
     if not prefer_signals:
-        found = _from_column(log)
+        found = _from_column(log, partial and not _marks_in_meta(log))
         if found is not None:
             if partial and "t4_s" in log.meta and log.meta["t4_s"] is None:  # cut in cooling_2
                 return replace(found, source="phase column, the run cut short", reached=4)

@@ -543,3 +543,22 @@ def test_a_phase_column_that_leaves_a_phase_out_is_said(run_log, tmp_path):
     assert find_phases(relabelled).source != "phase column"
     said = [n for n in relabelled.notes if "the phase column holds no test" in n]
     assert len(said) == 1, relabelled.notes
+
+
+def test_a_phase_column_cut_short_without_its_meta_gives_the_phases_it_holds(run_log, tmp_path):
+    """A re-probe: a stationary log cut at 12,000 s with its phase column but without its
+    meta file was refused ("cannot find t2: no change of flow before the first cooling").
+    The column holds preheat, start-up and part of the test: those are the phases, the
+    test the one it was cut in."""
+    rec = run_log("stationary", "windhager_12kw")
+    lines = rec.path.read_text().splitlines()
+    col = lines[0].split(",").index("time_s")
+    kept = [line for line in lines[1:] if float(line.split(",")[col]) <= 12_000.0]
+    path = tmp_path / "cut.csv"  # no meta file beside it
+    path.write_text("\n".join([lines[0], *kept]) + "\n")
+    log = read_log(path)
+    phases = find_phases(log, partial=True)
+    assert phases.source.startswith("phase column") and phases.cut_in == "test"
+    assert (phases.t0, phases.t1) == pytest.approx((rec.meta["t0_s"], rec.meta["t1_s"]), abs=1.0)
+    with pytest.raises(LogError):  # the analyses that need a whole test still refuse it
+        find_phases(log)
