@@ -10,6 +10,7 @@ caller might not) is quoted as RFC 4180 says, so every row keeps its width.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import math
@@ -120,9 +121,14 @@ def write_meta(log_path: Path, meta: dict[str, Any]) -> Path:
     at the start, at each phase mark and each gap, and at the end."""
     path = meta_path(log_path)
     tmp = path.with_name(path.name + ".tmp")
-    with tmp.open("w", encoding="utf-8") as fh:
-        fh.write(strict_json(meta, indent=2) + "\n")
-        fh.flush()
-        os.fsync(fh.fileno())
+    try:
+        with tmp.open("w", encoding="utf-8") as fh:
+            fh.write(strict_json(meta, indent=2) + "\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+    except OSError:  # a full disk: no half-written temporary file left beside the log
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
     os.replace(tmp, path)
     return path

@@ -428,8 +428,10 @@ async def _serve(server: BenchServer, args: argparse.Namespace) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``rig-emulator``; returns the exit code."""
+    out = None
     try:
         args = _build_parser().parse_args(argv)
+        out = getattr(args, "out", None)
         commands = {
             "check": _cmd_check,
             "steady": _cmd_steady,
@@ -441,8 +443,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return commands[args.command](args)
     except UsageError as exc:
         return report(exc, "rig-emulator")
-    except OSError as exc:
-        return report_os_error(exc, "rig-emulator")
+    except OSError as exc:  # a write's error names no file: --out's, or standard output
+        return report_os_error(exc, "rig-emulator", f"writing {out or 'standard output'}")
     except KeyboardInterrupt:  # serve stops on its own; the other commands end here
         print("rig-emulator: interrupted", file=sys.stderr)
         return 1

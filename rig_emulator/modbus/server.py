@@ -572,14 +572,14 @@ class BenchServer:
             return False
         if self.clock.mode == LOCKSTEP:
             return False
-        for name in commands:
-            if (name, "realtime") not in self._refusals_logged:
-                self._refusals_logged.add((name, "realtime"))
-                log.warning(
-                    "refused a write of %s (exception 01): the server runs in real time "
-                    "without --allow-control (further refusals not logged)",
-                    name,
-                )
+        new_names = [n for n in commands if (n, "realtime") not in self._refusals_logged]
+        if new_names:  # one line for a write, however many commands it holds (a fault
+            self._refusals_logged.update((n, "realtime") for n in new_names)  # block's six
+            log.warning(  # wrote six lines: a re-probe)
+                "refused a write of %s (exception 01): the server runs in real time "
+                "without --allow-control (further refusals of these not logged)",
+                ", ".join(new_names),
+            )
         return True
 
     async def _apply(self, new: dict[str, float], operator: bool = False) -> ExcCodes | None:

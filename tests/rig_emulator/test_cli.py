@@ -160,3 +160,26 @@ def test_serve_stopped_twice_stops_once_without_a_traceback():
             err = proc.communicate(timeout=30)[1].decode()
         assert proc.returncode == 0, (gap_s, proc.returncode, err)
         assert "Traceback" not in err and "Exception ignored" not in err, (gap_s, err)
+
+
+def test_a_full_standard_output_is_one_line_naming_it():
+    """A re-probe: map-doc to a full disk said "No space left on device" naming nothing."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    if not Path("/dev/full").exists():
+        pytest.skip("no /dev/full on this system")
+    with open("/dev/full", "w") as full:
+        proc = subprocess.run(
+            [sys.executable, "-m", "rig_emulator.cli", "map-doc"],
+            stdout=full,
+            stderr=subprocess.PIPE,
+            text=True,
+            timeout=120,
+        )
+    assert proc.returncode == 1
+    assert (
+        proc.stderr.strip()
+        == "rig-emulator: error: writing standard output: No space left on device"
+    )

@@ -108,6 +108,16 @@ def test_control_guard(serve, caplog):
         assert _registers(c, realtime, name) == before, name
     assert realtime.server.clock.speed == 1.0 and realtime.server.clock.mode == 0
     c.close()
+    # one line for one write of several commands (a fault block's wrote six: a re-probe)
+    fresh = serve(lockstep=False)
+    c = client(fresh.port)
+    caplog.clear()
+    words = [*encode(point(fresh, "sim_control", "speed_factor")[1], 2.0), 1]  # + clock_mode
+    reply = c.write_registers(0, words, device_id=100)
+    assert reply.isError() and reply.exception_code == 1
+    refused = [r.getMessage() for r in caplog.records if "refused a write of" in r.getMessage()]
+    assert len(refused) == 1 and "clock_mode, speed_factor" in refused[0], refused
+    c.close()
 
     allowed = serve(lockstep=False, allow_control=True)
     c = client(allowed.port)
