@@ -907,6 +907,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
             told = [0]  # breaks told on stderr
             switched_told = [False]  # the boiler switched against the run, told
+            switch_seen = [0]  # the rig's events looked through for that
 
             def sink(row: tuple[object, ...]) -> None:
                 with _signals_held():  # a row in the log is a row in the count
@@ -917,10 +918,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
                     for gap in gaps[told[0] :]:
                         print(f"hil-client: {_gap_line(gap)}", file=sys.stderr)
                     told[0] = len(gaps)
-                recent = getattr(rig, "comm_events", [])[-8:]
+                comm = getattr(rig, "comm_events", [])
+                fresh, switch_seen[0] = comm[switch_seen[0] :], len(comm)
                 if not switched_told[0] and any(  # said as it happens, once (two clients
                     e.get("event") == "overridden"
-                    for e in recent  # fought over the burner
+                    for e in fresh  # fought over the burner
                 ):  # for 155 rows in silence: a stranger's probe)
                     switched_told[0] = True
                     print(

@@ -215,9 +215,8 @@ def compare(
     last (``server_time``: a client that joined late or stopped early could not see it),
     listed under ``outside_run``; and a ``stuck`` fault on a column that was not moving
     before it or in it (:func:`_already_still`), under ``no_trace``. Client events beyond
-    the log's rows (an events file of a
-    longer run beside a log cut short) are no false alarms: counted under
-    ``events_outside_run``, as the summary says."""
+    the log's rows (an events file of a longer run beside a log cut short) are no false
+    alarms: counted under ``events_outside_run``, as the summary says."""
     windows = fault_windows(journal, journal_name)
     served = [f for f in windows if f["seen"]]  # an unserved fault: neither caught nor missed
     end_of_run = max(
