@@ -52,7 +52,8 @@ class FaultJournal:
     def write(self, event: dict[str, Any]) -> None:
         line = json.dumps(_json_safe(event), allow_nan=False) + "\n"
         if self._file is None:
-            self.lost += 1 if self.lost else 0  # (after close: nothing is written)
+            if self.lost:  # dropped after a failed write (after close: nothing to count)
+                self.lost += 1
             return
         try:
             self._file.write(line)
