@@ -738,6 +738,10 @@ def _refused_commands(events: list[dict]) -> str | None:
     )
 
 
+#: Breaks said on stderr as they happen; the rest are in the meta file.
+BREAKS_TOLD = 10
+
+
 def _overridden(events: list[dict]) -> str | None:
     """One line on the rows where the boiler was not in the on/off state this run wrote
     (another client, or a hand at the bench, switched it), or None."""
@@ -915,8 +919,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
                     written[0] += 1
                 gaps = getattr(rig, "gaps", ())
                 if len(gaps) > told[0]:  # a break: said as it happens, not only at the end
-                    for gap in gaps[told[0] :]:
-                        print(f"hil-client: {_gap_line(gap)}", file=sys.stderr)
+                    for gap in gaps[told[0] : BREAKS_TOLD]:  # (two clients stepping one
+                        print(f"hil-client: {_gap_line(gap)}", file=sys.stderr)  # server
+                    if told[0] < BREAKS_TOLD <= len(gaps):  # made a line a step: a probe)
+                        print(
+                            f"hil-client: more than {BREAKS_TOLD} breaks: the rest are in the "
+                            "meta file's gaps",
+                            file=sys.stderr,
+                        )
                     told[0] = len(gaps)
                 comm = getattr(rig, "comm_events", [])
                 fresh, switch_seen[0] = comm[switch_seen[0] :], len(comm)
@@ -1037,8 +1047,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print(summary.table())
         for note in result.notes:
             print(f"note: {note}")
-        for gap in meta["gaps"]:
+        for gap in meta["gaps"][:BREAKS_TOLD]:
             print(_gap_line(gap))
+        if len(meta["gaps"]) > BREAKS_TOLD:
+            print(f"{len(meta['gaps']) - BREAKS_TOLD} more breaks: see the meta file's gaps")
         print(
             f"simulated {result.duration_s / 3600:.2f} h in {wall:.2f} s "
             f"({result.duration_s / max(wall, 1e-9):,.0f} x real time)"

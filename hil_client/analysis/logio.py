@@ -479,6 +479,10 @@ def _number(value: object) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool)
 
 
+#: The meta key :func:`one_plant` sets on the rows it keeps: the ``rig_epoch`` kept.
+EPOCH_KEPT = "rig_epoch_kept"
+
+
 def one_plant(log: LabLog) -> LabLog:
     """The rows of one plant: a log whose ``rig_epoch`` changes (a break the run went on
     from, CONTRACT section 7: a restarted server, another client's reset or advance) holds
@@ -496,7 +500,9 @@ def one_plant(log: LabLog) -> LabLog:
     k = int(np.argmax(ends - starts))
     rows = slice(int(starts[k]), int(ends[k]))
     t = log.t
-    breaks = ", ".join(f"{t[i - 1]:g} -> {t[i]:g}" for i in change)
+    breaks = ", ".join(f"{t[i - 1]:g} -> {t[i]:g}" for i in change[:3])
+    if len(change) > 3:  # (a thousand breaks made a warning of kilobytes: a stranger's probe)
+        breaks += f" and {len(change) - 3} more"
     kept = LabLog(
         log.path,
         {name: values[rows] for name, values in log.columns.items()},
@@ -505,6 +511,7 @@ def one_plant(log: LabLog) -> LabLog:
         list(log.notes),
     )
     first, last = float(kept.t[0]), float(kept.t[-1])
+    kept.meta[EPOCH_KEPT] = float(epoch[rows.start])  # (the phases' errors say so)
     marks = ("t0_s", "t1_s", "t2_s", "t3_s", "t4_s")
     before = [k for k in marks if _number(kept.meta.get(k)) and kept.meta[k] < first]
     for key in marks:

@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from hil_client.analysis.logio import LabLog, LogError, fill_gaps, flow_column
+from hil_client.analysis.logio import EPOCH_KEPT, LabLog, LogError, fill_gaps, flow_column
 
 NAMES = ("preheat", "start_up", "test", "cooling_1", "cooling_2")
 MARKS = ("t0_s", "t1_s", "t2_s", "t3_s", "t4_s")
@@ -348,6 +348,11 @@ def find_phases(log: LabLog, prefer_signals: bool = False, partial: bool = False
     try:  # a run cut short: its meta file has the marks it reached, null for the rest
         return _from_signals(log)
     except LogError as exc:
+        if log.meta.get(EPOCH_KEPT) is not None:  # (its marks are set aside, not missing)
+            raise LogError(
+                f"{exc}; the rows of the log's longest plant (rig_epoch "
+                f"{log.meta[EPOCH_KEPT]:g}) hold no whole test to analyse by phase"
+            ) from None
         known = ", ".join(reached) or "no mark"
         raise LogError(
             f"{exc}; the run was cut short (its meta file records {known}, the rest not "

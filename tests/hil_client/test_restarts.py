@@ -300,6 +300,35 @@ def test_another_client_advancing_is_a_marked_break(serve, tmp_path, local, on_r
         assert "a new plant" not in notes
 
 
+def test_a_run_of_many_breaks_says_ten_and_counts_the_rest(serve, tmp_path, capsys):
+    """A stranger's probe: two clients stepping one lockstep server with --on-restart
+    continue made 1018 breaks, a console line each, and a balance warning of kilobytes
+    listing them. Ten are said as they come, then one line; the analyses list three."""
+    srv = serve(lockstep=True)
+    out = tmp_path / "busy.csv"
+
+    def other() -> None:
+        for n in range(12):
+            _wait(lambda n=n: _rows(out) >= 1000 + 200 * n, f"row {1000 + 200 * n}")
+            _advance_from_another_client(srv.port, 60)
+
+    threading.Thread(target=other, daemon=True).start()
+    assert _run(srv.port, out, "--on-restart", "continue") == 0
+    err = capsys.readouterr().err
+    assert err.count("break after") == 10 and "more than 10 breaks" in err, err
+    assert len(_meta(out)["gaps"]) == 12
+    from hil_client.analysis.logio import one_plant
+
+    warning = next(n for n in one_plant(read_log(out)).notes if "plants" in n)
+    assert "and 9 more" in warning and len(warning) < 600, warning
+    # a plant without a whole test: said as such, not as "the run was cut short (its
+    # meta file records no mark)" while it records all five
+    balance = ["balance", str(out), "--boiler", BOILER, "--out", str(tmp_path / "b.json")]
+    assert main(balance) == 2  # the last plant, the longest, only cools
+    err = capsys.readouterr().err
+    assert "the rows of the log's longest plant (rig_epoch 12)" in err and "cut short" not in err
+
+
 def _realtime_client(port: int, out: Path, *extra: str) -> subprocess.Popen:
     return _start_client(port, out, "--reconnect-timeout", "30", *extra)
 
