@@ -29,6 +29,7 @@ A bad entry raises :class:`FaultError` naming the file, the entry and the field.
 
 from __future__ import annotations
 
+import datetime
 import math
 import numbers
 from collections.abc import Mapping, Sequence
@@ -171,7 +172,8 @@ Entry = FaultSpec | RandomSpec
 def _number(where: str, value: Any, low: float, high: float, low_open: bool = False) -> float:
     """A number (numpy's too: a value taken from an array or a table)."""
     if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real):
-        raise FaultError(f"{where}: must be a number, not {value!r}")
+        shown = f"'{value}'" if isinstance(value, datetime.date | datetime.time) else repr(value)
+        raise FaultError(f"{where}: must be a number, not {shown}")
     try:
         value = float(value)
     except OverflowError:  # an integer of hundreds of digits
@@ -224,6 +226,8 @@ def fault_from_mapping(data: Any, where: str) -> Entry:
     kind = data.get("kind")
     if kind == "random":
         return _random_from_mapping(data, where)
+    if kind is None:  # (said as "None is not one of ...": a stranger's probe)
+        raise FaultError(f"{where}: missing 'kind' (one of {', '.join(KINDS)}, random)")
     if kind not in KINDS:
         raise FaultError(f"{where}.kind: {kind!r} is not one of {', '.join(KINDS)}, random")
     allowed = (*_COMMON, "unit" if kind in COMM_KINDS else "signal")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import datetime
+
 import pytest
 
 from rig_emulator.faults import FaultError, FaultSpec, RandomSpec, faults_from_list, load_faults
@@ -63,6 +65,12 @@ def test_every_kind_parses_with_its_parameter():
             "faults[0].params.delay",
         ),
         ("no_reply", "faults[0]"),
+        # said as "kind: None is not one of", and a date as datetime.date(...): a probe
+        ({"unit": 1}, "faults[0]: missing 'kind'"),
+        (
+            {"kind": "no_reply", "unit": 1, "at_s": datetime.date(2026, 1, 1)},
+            "faults[0].at_s: must be a number, not '2026-01-01'",
+        ),
     ],
 )
 def test_a_bad_entry_names_the_entry_and_field(entry, where):
