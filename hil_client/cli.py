@@ -33,7 +33,14 @@ from hil_client.analysis.figures import (
     calibration_figures,
     validation_figures,
 )
-from hil_client.analysis.logio import LabLog, LogError, fill_gaps, one_plant, read_log
+from hil_client.analysis.logio import (
+    LabLog,
+    LogError,
+    fill_gaps,
+    one_plant,
+    read_log,
+    refills,
+)
 from hil_client.analysis.phases import Phases, find_phases
 from hil_client.analysis.report import validation_report
 from hil_client.analysis.sanity import check_time_step, suspicious
@@ -605,6 +612,11 @@ def _cmd_balance(args: argparse.Namespace) -> int:
     out.write_text(text + "\n", encoding="utf-8")
     print(f"energy balance of {args.log} ({params.name}; phases from the {phases.source})")
     print(balance_table(rows))
+    if log.has("balance_mass_kg"):  # taken out of the fuel, as said (it was not: a probe)
+        found = refills(log["balance_mass_kg"], log.t)
+        if found:
+            each = ", ".join(f"+{r.rise_kg:.2f} kg at time_s {log.t[r.start]:g}" for r in found)
+            print(f"note: {len(found)} refill(s) of the balance taken out of the fuel ({each})")
     print(f"written: {out}")
     return 0
 

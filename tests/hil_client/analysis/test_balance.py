@@ -173,3 +173,23 @@ def test_a_gap_in_the_record_is_said_in_its_phase(run_log, params_12kw):
         if any("gaps of" in w for w in r.warnings)
     }
     assert said == {"test", "cooling_1"}
+
+
+def test_a_refill_taken_out_is_said(run_log, tmp_path, capsys):
+    """A +15 kg refill was taken out of the fuel without a word (a stranger's probe)."""
+    import csv
+
+    from hil_client.cli import main
+
+    rec = run_log("stationary", "windhager_12kw")
+    rows = list(csv.DictReader(rec.path.open()))
+    for row in rows[len(rows) // 2 :]:
+        row["balance_mass_kg"] = f"{float(row['balance_mass_kg']) + 15.0:.2f}"
+    path = tmp_path / "refilled.csv"
+    with path.open("w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    assert main(["balance", str(path), "--boiler", "windhager_12kw"]) == 0
+    out = capsys.readouterr().out
+    assert "note: 1 refill(s) of the balance taken out of the fuel (+15.0" in out, out
