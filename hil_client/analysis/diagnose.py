@@ -371,6 +371,8 @@ def diagnose(
         "caveats": caveats(effect, assessments[effect].params) if effect != "none" else [],
         "ignition_charge_kg": ignition_charge_kg,
         "firing": {"calibration": cal.firing.source, "validation": val.firing.source},
+        # where each log's phases came from (the report did not say: a stranger's probe)
+        "phases": {"calibration": cal_phases.source, "validation": val_phases.source},
         # the sensors' response times the replay applied, as the calibration log shows them
         "sensor_tau_s": cal.sensor_tau_s,
         "calibrated": {key: f.value for key, f in calibration.fitted.items()},

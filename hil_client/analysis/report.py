@@ -83,6 +83,15 @@ def diagnosis_report(result: dict, figures: list[Path], cal: str, val: str) -> s
         "",
         f"Calibration log (fitted on): `{cal}`; validation log (held out): `{val}`.",
         "",
+        *(
+            [
+                f"Phases from the {result['phases']['calibration']} (calibration log) and "
+                f"the {result['phases']['validation']} (validation log).",
+                "",
+            ]
+            if result.get("phases")
+            else []
+        ),
         f"**Unmodelled effect: `{result['effect']}`** (confidence "
         f"{result['confidence']:.2f}: the share of bootstrap draws of the evidence that "
         f"give this answer). Rule: {result['rule']}.",

@@ -67,6 +67,9 @@ def test_small_benchmark_is_blind_and_scored(small_benchmark):
     assert sum(row["answers"] for row in on_disk["reliability"]) == 6
     report = (out / "report.md").read_text()
     assert "Reliability of the confidence" in report and (out / "benchmark.png").exists()
+    # each case's report says where its phases came from: the signals (no phase column)
+    case_report = next((out / "cases").iterdir()) / "diagnosis" / "report.md"
+    assert "Phases from the signals (calibration log) and the signals" in case_report.read_text()
     # the target is >= 90 % on 48 cases (`hil-client gap-benchmark --reality emulator`); one
     # miss in six is allowed here, and a right effect always shrinks the held-out gap
     assert round((1.0 - scores["accuracy"]) * 6) <= 1
