@@ -251,7 +251,8 @@ def _cmd_certs(args: argparse.Namespace) -> int:
             "issued would stop working with a new one: name another directory, or move "
             "them away first"
         )
-    before = set(args.out.iterdir()) if args.out.is_dir() else set()
+    existed = args.out.is_dir()
+    before = set(args.out.iterdir()) if existed else set()
     try:
         written = make_lab_certificates(args.out, server_names=tuple(args.server_name))
     except OSError as exc:  # a full disk, a read-only file system: nothing half-made stays
@@ -259,6 +260,9 @@ def _cmd_certs(args: argparse.Namespace) -> int:
             for path in set(args.out.iterdir()) - before:
                 with contextlib.suppress(OSError):
                     path.unlink()
+            if not existed:
+                with contextlib.suppress(OSError):
+                    args.out.rmdir()
         raise OSError(exc.errno, exc.strerror, str(args.out)) from None
     for path in written:
         print(f"written: {path} (key {path.with_suffix('.key')})")

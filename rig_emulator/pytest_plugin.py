@@ -254,9 +254,11 @@ class RigEmulator:
         except ModbusIOException as exc:
             if _no_reply(exc):  # the connection stands, nothing came back in time: the
                 self._reconnect()  # next call goes on a new one (a late reply on this
+                late = " (a write delayed is still carried out when its delay ends)"
                 raise RigEmulatorError(  # one answered the calls after it: a re-probe)
                     f"{what}: no reply within {self.reply_timeout_s:g} s (a no_reply fault, "
                     "or a delay longer than that; reply_timeout_s sets the wait)"
+                    + (late if what.startswith("write") else "")
                 ) from exc
         except (ConnectionException, OSError):
             pass  # the server closed the connection (a disconnect): once more on a new one

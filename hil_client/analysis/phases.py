@@ -281,6 +281,12 @@ def _from_signals(log: LabLog) -> Phases:
     i0 = _first_firing(log)
     if i0 is None:
         raise LogError(f"{path}: cannot find t0: the burner never fires")
+    if i0 == 0:  # (a preheat of no time and a start-up at full load were made up for it,
+        raise LogError(  # and a model run from there: a re-probe)
+            f"{path}: the record begins with the burner firing (time_s {t[0]:g}): its "
+            "start-up is not in it, so the signals tell no phases; give the log of a whole "
+            "run, or its phase column or meta file"
+        )
     i0 = max(i0 - 1, 0)
     t0 = float(t[i0])
     rate = rise_rate_K_min(t, fg)
@@ -301,9 +307,15 @@ def _from_signals(log: LabLog) -> Phases:
             " second cooling, and its last constant-flow stretch is read as the first"
         )
     t3 = float(t[i3])
-    # the first cooling: constant flow back from t3 (skip the lag at its end)
-    level = np.median(flow[max(i3 - 120, 0) : max(i3 - 30, 1)])
-    off = np.flatnonzero((np.abs(flow[: i3 - 30] - level) > 0.05 * level) & (t[: i3 - 30] > t1))
+    # the first cooling: constant flow back from t3 (skip the lag of its last 30 s), in
+    # time, not rows (120 rows of a 60-s log reach two hours back, into the test: t2 came
+    # 44 min late; a re-probe)
+    before_end = t < t3 - 30.0
+    near = before_end & (t >= t3 - 120.0)
+    if not near.any():  # rows sparser than the window: the last one before the lag
+        near = before_end & (t >= t[before_end][-1]) if before_end.any() else t <= t3
+    level = np.median(flow[near])
+    off = np.flatnonzero(before_end & (np.abs(flow - level) > 0.05 * level) & (t > t1))
     if not len(off):
         raise LogError(f"{path}: cannot find t2: no change of flow before the first cooling")
     t2 = float(t[off[-1]])

@@ -256,8 +256,15 @@ def _quiet_gain(log: LabLog, burning: np.ndarray) -> list[str]:
 TIME_STEP_REFUSE_S = 600.0
 
 
+#: ... and one that spans longer than this [s]: a test bench's run lasts hours to days;
+#: a 14-h run logged every 0.5 s in milliseconds spans 300 days in rows under 10 min apart
+#: (it still calibrated to UA_off 0.006 W/K: a re-probe).
+TIME_SPAN_REFUSE_S = 30 * 86400.0
+
+
 def check_time_step(log: LabLog) -> None:
-    """:class:`LogError` if ``log``'s median step exceeds :data:`TIME_STEP_REFUSE_S`."""
+    """:class:`LogError` if ``log``'s median step exceeds :data:`TIME_STEP_REFUSE_S` or it
+    spans more than :data:`TIME_SPAN_REFUSE_S`."""
     t = log.t
     step = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
     if step > TIME_STEP_REFUSE_S:
@@ -265,6 +272,13 @@ def check_time_step(log: LabLog) -> None:
             f"{log.path}: column 'time_s' advances a median of {step:g} s per row: a time in "
             f"milliseconds? (a lab logs every 1-10 s; the analyses need a row at least every "
             f"{TIME_STEP_REFUSE_S / 60:g} min)"
+        )
+    span = float(t[-1] - t[0]) if len(t) else 0.0
+    if span > TIME_SPAN_REFUSE_S:
+        raise LogError(
+            f"{log.path}: column 'time_s' spans {span / 86400:.0f} days: a time in "
+            f"milliseconds? (a test bench's run lasts hours to days; the analyses read at "
+            f"most {TIME_SPAN_REFUSE_S / 86400:.0f})"
         )
 
 

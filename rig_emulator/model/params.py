@@ -302,7 +302,7 @@ def _check_unit(
     slack = 1e-9 * max(abs(low), abs(high))  # a bound met to rounding is met
     if low - slack <= value <= high + slack:
         return
-    per = "" if shown is None else f", {value:.3g} per kW of p_nom_kW,"
+    per = "" if shown is None else f", {value:.4g} per kW of p_nom_kW,"
     hint = f" (written in {unit}?)" if low <= value / factor <= high else ""
     if shown is not None and not hint and low <= value * 1e3 <= high:  # per kW of a p_nom
         hint = " (p_nom_kW and the other powers written in W?)"  # in W (a re-probe)

@@ -324,9 +324,9 @@ def test_a_run_of_many_breaks_says_ten_and_counts_the_rest(serve, tmp_path, caps
     # a plant without a whole test: said as such, not as "the run was cut short (its
     # meta file records no mark)" while it records all five
     balance = ["balance", str(out), "--boiler", BOILER, "--out", str(tmp_path / "b.json")]
-    assert main(balance) == 2  # the last plant, the longest, only cools
-    err = capsys.readouterr().err
-    assert "the rows of the log's longest plant (rig_epoch 12)" in err and "cut short" not in err
+    assert main(balance) == 2  # the longest plant holds no whole test (which one is the
+    err = capsys.readouterr().err  # longest depends on the machine's load)
+    assert "the rows of the log's longest plant (rig_epoch " in err and "cut short" not in err
 
 
 def _realtime_client(port: int, out: Path, *extra: str) -> subprocess.Popen:

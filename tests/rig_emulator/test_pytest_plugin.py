@@ -313,6 +313,11 @@ def test_a_read_under_no_reply_ends_in_one_error_at_the_reply_timeout(tmp_path):
         assert rig.truth("room_temp_C") > 0.0  # unit 101, never faulted
         rig.clear_faults()  # unit 100
         assert rig.read("balance_mass_kg") > 0.0
+        # a write that timed out still lands once its delay ends: said (a re-probe)
+        rig.inject({"kind": "delay", "unit": 1, "delay_ms": 2500, "for_s": 60})
+        with pytest.raises(RigEmulatorError, match="still carried out when its delay ends"):
+            rig.write("water_flow_setpoint_kg_h", 700.0)
+        rig.clear_faults()
 
 
 BAD_MARKERS = """

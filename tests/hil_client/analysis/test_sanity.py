@@ -112,17 +112,25 @@ def test_where_the_phases_cannot_be_found_the_error_says_what_looks_wrong(logs, 
     help. The one error line now says what in the log looks like a wrong unit as well. A
     time in milliseconds from the first row (1000 s per row) is refused before any fit:
     calibrate wrote UA_off 0.0029 W/K +- 4.5e-05 from one (a stranger's probe)."""
-    minutes = _rewritten(logs["stationary"].path, tmp_path, "min.csv", "time_s", lambda v: v * 200)
-    assert main(["balance", str(minutes), "--boiler", BOILER]) == 2
+    no_setpoint = _rewritten(
+        logs["stationary"].path, tmp_path, "sp.csv", "water_flow_setpoint_kg_h", lambda v: 0.0
+    )
+    negative = _rewritten(no_setpoint, tmp_path, "neg.csv", "water_flow_kg_h", lambda v: -v)
+    assert main(["balance", str(negative), "--boiler", BOILER]) == 2
     err = capsys.readouterr().err.strip()
-    assert "milliseconds?" in err and "cannot find" in err and len(err.splitlines()) == 1, err
-    path = _rewritten(logs["stationary"].path, tmp_path, "ms.csv", "time_s", lambda v: v * 1e3)
-    for command in ("balance", "validate", "calibrate"):
-        out = tmp_path / f"{command}_out{'.yaml' if command == 'calibrate' else ''}"
-        assert main([command, str(path), "--boiler", BOILER, "--out", str(out)]) == 2
-        err = capsys.readouterr().err.strip()
-        assert "a median of 1000 s per row: a time in milliseconds?" in err, err
-        assert len(err.splitlines()) == 1 and not out.exists()
+    assert "cannot find" in err and "negative" in err and len(err.splitlines()) == 1, err
+    # a time in milliseconds is refused before any fit, by its step or, logged faster
+    # than every 0.6 s, by its span (a re-probe: 0.5-s rows in ms still calibrated)
+    for scale, said in ((1e3, "a median of 1000 s per row"), (500, "spans 302 days")):
+        path = _rewritten(
+            logs["stationary"].path, tmp_path, "ms.csv", "time_s", lambda v, k=scale: v * k
+        )
+        for command in ("balance", "validate", "calibrate"):
+            out = tmp_path / f"{command}_out{'.yaml' if command == 'calibrate' else ''}"
+            assert main([command, str(path), "--boiler", BOILER, "--out", str(out)]) == 2
+            err = capsys.readouterr().err.strip()
+            assert said in err and "a time in milliseconds?" in err, err
+            assert len(err.splitlines()) == 1 and not out.exists()
 
 
 def test_a_short_part_load_test_is_no_wrong_unit(tmp_path):
