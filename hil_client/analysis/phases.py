@@ -281,12 +281,6 @@ def _from_signals(log: LabLog) -> Phases:
     i0 = _first_firing(log)
     if i0 is None:
         raise LogError(f"{path}: cannot find t0: the burner never fires")
-    if i0 == 0:  # (a preheat of no time and a start-up at full load were made up for it,
-        raise LogError(  # and a model run from there: a re-probe)
-            f"{path}: the record begins with the burner firing (time_s {t[0]:g}): its "
-            "start-up is not in it, so the signals tell no phases; give the log of a whole "
-            "run, or its phase column or meta file"
-        )
     i0 = max(i0 - 1, 0)
     t0 = float(t[i0])
     rate = rise_rate_K_min(t, fg)
