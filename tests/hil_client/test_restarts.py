@@ -178,8 +178,12 @@ def test_server_back_with_another_map_stops_cleanly(servers, tmp_path, capsys):
         first.kill()
         servers(port, "--lockstep", "--map", str(other))
 
-    threading.Thread(target=killer, daemon=True).start()
+    thread = threading.Thread(target=killer, daemon=True)
+    thread.start()
     code = _run(port, out)
+    # the second server is registered once it listens, which the run may see first: wait
+    # for it, so the fixture stops it (it outlived a CI run otherwise)
+    thread.join(timeout=90)
     err = capsys.readouterr().err
     assert code == 1 and err.count("\n") == 1 and "Traceback" not in err, err
     assert "came back as another plant (the server serves another register map" in err
@@ -198,8 +202,12 @@ def test_server_back_with_another_seed_stops_cleanly(servers, tmp_path, capsys, 
         first.kill()
         servers(port, "--lockstep", "--seed", "7")
 
-    threading.Thread(target=killer, daemon=True).start()
+    thread = threading.Thread(target=killer, daemon=True)
+    thread.start()
     code = _run(port, out)
+    # the second server is registered once it listens, which the run may see first: wait
+    # for it, so the fixture stops it (it outlived a CI run otherwise)
+    thread.join(timeout=90)
     err = capsys.readouterr().err
     assert code == 1
     assert err.count("\n") == 1 and "Traceback" not in err
