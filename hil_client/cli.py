@@ -1135,7 +1135,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     previous = _stop_on_signals()
     out = None
     try:
-        args = _build_parser().parse_args(argv)
+        try:
+            args = _build_parser().parse_args(argv)
+        except OSError as exc:  # --help's text
+            return report_os_error(exc, "hil-client", "writing standard output")
         out = getattr(args, "out", None)
         with input_errors(), warnings.catch_warnings():
             # numpy's "mean of empty slice" on a column with no readings where a figure is

@@ -434,7 +434,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``rig-emulator``; returns the exit code."""
     out = None
     try:
-        args = _build_parser().parse_args(argv)
+        try:
+            args = _build_parser().parse_args(argv)
+        except OSError as exc:  # --help's text
+            return report_os_error(exc, "rig-emulator", "writing standard output")
         out = getattr(args, "out", None)
         commands = {
             "check": _cmd_check,

@@ -8,6 +8,7 @@ import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import IO
 
 from rig_emulator.boilers import load_boiler
 from rig_emulator.model.params import BoilerParams, ParameterError
@@ -26,6 +27,12 @@ class Parser(argparse.ArgumentParser):
 
     def error(self, message: str) -> None:  # type: ignore[override]
         raise UsageError(message, self.prog)
+
+    def _print_message(self, message: str, file: IO[str] | None = None) -> None:
+        """As argparse's, but the write's error is raised (``--help`` into a full
+        standard output exited 0 without a word: argparse drops it)."""
+        if message:
+            (file or sys.stderr).write(message)
 
 
 @contextmanager

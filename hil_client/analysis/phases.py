@@ -281,20 +281,34 @@ def _from_signals(log: LabLog) -> Phases:
     i0 = _first_firing(log)
     if i0 is None:
         raise LogError(f"{path}: cannot find t0: the burner never fires")
-    i0 = max(i0 - 1, 0)
-    t0 = float(t[i0])
+    t0 = float(t[max(i0 - 1, 0)])
     rate = rise_rate_K_min(t, fg)
     ok = np.flatnonzero((t >= t0 + 300.0) & (rate < 0.5))
     if not len(ok):
         raise LogError(f"{path}: cannot find t1: the flue-gas temperature never settles")
     t1 = float(t[ok[0]])
+    if i0 == 0:  # the record begins with the burner firing: its start-up or its test?
+        settled = ok[0] == np.searchsorted(t, t0 + 300.0)  # at its first full window
+        if settled:  # (a preheat of its first row and a start-up of 5 min at full load
+            t0 = t1 = t0 - float(np.median(np.diff(t)))  # were made up: a re-probe)
+        name = path.name if path else "the log"
+        log.notes.append(
+            f"{name} begins with the burner firing (time_s {t[0]:g}) and "
+            + (
+                "its flue gas settled: no preheat or start-up is in it, and its test is read "
+                "from its first row"
+                if settled
+                else "its flue gas rising: its start-up is read from its first row"
+            )
+        )
     flow = fill_gaps(log[flow_column(log)], t)
     running = _circulating_rows(log)
     if not len(running):
         raise LogError(f"{path}: cannot find t3: the water never circulates")
     i3 = int(running[-1])
     _refuse_a_stop_inside(log, running, i0, i3)
-    if i3 >= len(t) - 2:  # the record ends before the circulation stops: no second cooling
+    cut_short = i3 >= len(t) - 2
+    if cut_short:  # the record ends before the circulation stops: no second cooling
         i3 = len(t) - 1
         log.notes.append(
             "the record ends before the circulation stops (acquisition cut short?): no"
@@ -311,7 +325,15 @@ def _from_signals(log: LabLog) -> Phases:
     level = np.median(flow[near])
     off = np.flatnonzero(before_end & (np.abs(flow - level) > 0.05 * level) & (t > t1))
     if not len(off):
-        raise LogError(f"{path}: cannot find t2: no change of flow before the first cooling")
+        raise LogError(
+            f"{path}: cannot find t2: no change of flow before the first cooling"
+            + (
+                f" (the record ends at time_s {t[-1]:g} with the water circulating: cut "
+                "short in its test? give the whole run, or its phase column or meta file)"
+                if cut_short
+                else ""
+            )
+        )
     t2 = float(t[off[-1]])
     return Phases(t0, t1, t2, t3, float(t[-1]), "signals")
 

@@ -162,8 +162,18 @@ def test_serve_stopped_twice_stops_once_without_a_traceback():
         assert "Traceback" not in err and "Exception ignored" not in err, (gap_s, err)
 
 
-def test_a_full_standard_output_is_one_line_naming_it():
-    """A re-probe: map-doc to a full disk said "No space left on device" naming nothing."""
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["rig_emulator.cli", "map-doc"],
+        ["rig_emulator.cli", "serve", "--help"],
+        ["hil_client.cli", "--help"],
+        ["hil_client.cli", "diagnose", "--help"],
+    ],
+)
+def test_a_full_standard_output_is_one_line_naming_it(argv):
+    """A re-probe: map-doc to a full disk said "No space left on device" naming nothing;
+    ``--help`` into it exited 0 without a word (argparse drops its write's error)."""
     import subprocess
     import sys
     from pathlib import Path
@@ -172,14 +182,12 @@ def test_a_full_standard_output_is_one_line_naming_it():
         pytest.skip("no /dev/full on this system")
     with open("/dev/full", "w") as full:
         proc = subprocess.run(
-            [sys.executable, "-m", "rig_emulator.cli", "map-doc"],
+            [sys.executable, "-m", *argv],
             stdout=full,
             stderr=subprocess.PIPE,
             text=True,
             timeout=120,
         )
+    prog = "rig-emulator" if argv[0].startswith("rig") else "hil-client"
     assert proc.returncode == 1
-    assert (
-        proc.stderr.strip()
-        == "rig-emulator: error: writing standard output: No space left on device"
-    )
+    assert proc.stderr.strip() == f"{prog}: error: writing standard output: No space left on device"

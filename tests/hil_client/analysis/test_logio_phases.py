@@ -578,3 +578,56 @@ def test_phases_from_the_signals_of_rows_a_minute_or_two_apart(run_log, tmp_path
     phases = find_phases(read_log(path))
     for key in ("t0_s", "t1_s", "t2_s", "t3_s"):  # within two rows of the bench's marks
         assert abs(getattr(phases, key[:2]) - rec.meta[key]) <= 2 * step, key
+
+
+@pytest.mark.parametrize("step", [1, 60])
+def test_a_record_begun_with_the_burner_firing_starts_where_its_signals_say(
+    run_log, tmp_path, step
+):
+    """A re-probe: a record begun an hour into the test got a preheat of its first row and
+    a start-up of five minutes at full load, and validate ran the model from there. A
+    record whose flue gas has settled at its first full window is read as test from its
+    first row; one whose flue gas still rises (begun in the start-up) starts up there."""
+    rec = run_log("stationary", "windhager_12kw")
+    lines = rec.path.read_text().splitlines()
+    header = lines[0].split(",")
+    keep = [i for i, h in enumerate(header) if h not in ("phase", "sequence")]
+    col = header.index("time_s")
+    rows = [r.split(",") for r in lines[1:]][::step]
+    for name, at_s in (
+        ("in_test", rec.meta["t1_s"] + 3600.0),
+        ("in_start_up", rec.meta["t0_s"] + 120.0),
+    ):
+        path = tmp_path / f"{name}.csv"  # no meta file beside it
+        cut = [r for r in rows if float(r[col]) >= at_s]
+        path.write_text("\n".join(",".join(r[i] for i in keep) for r in [header, *cut]) + "\n")
+        log = read_log(path)
+        phases = find_phases(log)
+        if name == "in_test":
+            assert phases.t0 == phases.t1 < log.t[0]  # no preheat, no start-up
+            assert phases.mask("test", log.t)[0]
+            assert "its test is read from its first row" in log.notes[-1]
+        else:
+            # t0 at the first row, as a later plant's rows begun in the start-up get it
+            assert phases.t0 == log.t[0]  # (test_a_later_plant_in_the_start_up...)
+            # t1 within two rows of the bench's mark, a minute at least (the slope window)
+            assert abs(phases.t1 - rec.meta["t1_s"]) <= 2 * max(step, 60), phases.t1
+            assert "its start-up is read from its first row" in log.notes[-1]
+        assert abs(phases.t2 - rec.meta["t2_s"]) <= 2 * step  # the rest as before
+
+
+def test_a_record_cut_short_in_its_test_without_marks_is_said_so(run_log, tmp_path):
+    """A re-probe: validate and calibrate on a log cut short in its test, with no phase
+    column or meta file beside it, said only "cannot find t2"."""
+    rec = run_log("stationary", "windhager_12kw")
+    lines = rec.path.read_text().splitlines()
+    header = lines[0].split(",")
+    keep = [i for i, h in enumerate(header) if h not in ("phase", "sequence")]
+    col = header.index("time_s")
+    rows = [r.split(",") for r in lines[1:]]
+    cut = [r for r in rows if float(r[col]) <= rec.meta["t1_s"] + 3600.0]
+    path = tmp_path / "cut.csv"
+    path.write_text("\n".join(",".join(r[i] for i in keep) for r in [header, *cut]) + "\n")
+    with pytest.raises(LogError, match="cannot find t2") as info:
+        find_phases(read_log(path))
+    assert f"ends at time_s {float(cut[-1][col]):g} with the water circulating" in str(info.value)
