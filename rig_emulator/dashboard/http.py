@@ -32,6 +32,7 @@ import json
 import logging
 import math
 import socket
+import time
 from importlib import resources
 from urllib.parse import parse_qs, urlsplit
 
@@ -48,6 +49,9 @@ MAX_HEADER_BYTES = 8192
 MAX_BODY_BYTES = 4096
 REQUEST_TIMEOUT_S = 10.0
 MAX_STREAMS = 64
+#: At most one log line per this long about streams closed for new ones [s] (a client
+#: opening streams in a loop wrote a line per stream)
+EVICTION_LOG_S = 60.0
 INITIAL_WINDOW_S = 12 * 3600.0  # the trend sent with the page
 CONTROL_SIGNALS = ("water_flow_setpoint_kg_h", "boiler_command", "speed_factor")
 
@@ -106,6 +110,8 @@ class Dashboard:
         self._srv: asyncio.AbstractServer | None = None
         self._task: asyncio.Task | None = None
         self._last: dict = {}
+        self._evicted = 0  # streams closed for new ones since the last line said so
+        self._evicted_said = -math.inf  # when that line was logged (monotonic) [s]
 
     # ------------------------------------------------------------------ lifecycle
     async def start(self) -> None:
@@ -224,7 +230,16 @@ class Dashboard:
             # the oldest gives way (it may be a connection that stopped reading): a new
             # viewer is never locked out by streams nobody reads
             oldest = next(iter(self._streams))
-            log.warning("dashboard: %d live streams, the oldest closed for a new one", MAX_STREAMS)
+            self._evicted += 1
+            now = time.monotonic()
+            if now - self._evicted_said >= EVICTION_LOG_S:
+                log.warning(
+                    "dashboard: %d live streams: the oldest closed for a new one (%d so "
+                    "since the last such line; at most one a minute)",
+                    MAX_STREAMS,
+                    self._evicted,
+                )
+                self._evicted, self._evicted_said = 0, now
             self._streams.pop(oldest).transport.abort()
             _end(oldest)
         queue: asyncio.Queue = asyncio.Queue(maxsize=2)

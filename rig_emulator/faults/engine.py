@@ -365,6 +365,8 @@ class FaultEngine:
         if served is None:
             served = self._served(event, fault, readings)
         line["served"] = served
+        if event == "start":  # as asked: a fault set after its at_s starts when it is set
+            line |= {key: v for key in ("at_s", "for_s") if (v := getattr(spec, key)) is not None}
         if event == "end":
             line["reason"] = reason
             if spec.is_comm:

@@ -5,6 +5,7 @@ bad requests, and the page in a real headless browser."""
 from __future__ import annotations
 
 import json
+import logging
 import shutil
 import socket
 import subprocess
@@ -384,3 +385,27 @@ def test_map_text_cannot_end_or_hide_the_pages_script(dashboard, tmp_path):
     state = json.loads(page[start : page.index(b";\n", start)])
     fid = next(u for u in state["units"] if u["name"] == "fid")
     assert fid["instrument"].startswith("<!--<script>")  # the text itself is kept
+
+
+def test_streams_closed_for_new_ones_are_logged_at_most_once_a_minute(serve, caplog):
+    """A re-probe: a client opening streams in a loop got a log line per stream closed for
+    a new one. The first is said, with a count; the rest wait a minute."""
+    from rig_emulator.dashboard.http import MAX_STREAMS, Dashboard
+
+    srv = serve()
+    board = Dashboard(srv.server, port=0)
+    srv.call(board.start())
+    opened = []
+    try:
+        with caplog.at_level(logging.WARNING, logger="rig_emulator.dashboard"):
+            for _ in range(MAX_STREAMS + 40):
+                s = socket.create_connection(("127.0.0.1", board.port), timeout=10)
+                s.sendall(b"GET /api/stream HTTP/1.1\r\n\r\n")
+                assert s.recv(12) == b"HTTP/1.1 200"  # (its place taken: it streams)
+                opened.append(s)
+        lines = [r.getMessage() for r in caplog.records if "live streams" in r.getMessage()]
+        assert len(lines) == 1 and "(1 so since the last such line" in lines[0], lines
+    finally:
+        for s in opened:
+            s.close()
+        srv.call(board.stop())

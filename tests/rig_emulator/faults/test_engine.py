@@ -230,6 +230,9 @@ def test_a_fault_set_after_its_at_s_starts_when_it_is_set(tmp_path):
     assert engine.decide(3).drop
     engine.apply({}, 130.0)
     assert engine.decide(3) is None
+    start, end = read_journal(tmp_path / "j.jsonl")  # the journal says what was asked
+    assert (start["t_sim_s"], start["at_s"], start["for_s"]) == (100.0, 50.0, 30.0)
+    assert end["t_sim_s"] == 130.0 and "at_s" not in end
 
 
 def test_random_faults_are_seeded_and_at_the_rate():
