@@ -517,7 +517,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         f"# documentation values from {args.boiler}; fitted values +- expanded uncertainty (k=2):",
     ]
     for key, f in result.fitted.items():
-        kept = "  IMPLAUSIBLE, documentation value kept" if key in result.flags else ""
+        kept = f"  IMPLAUSIBLE, {getattr(params, key):.4g} written" if key in result.flags else ""
         lines.append(f"#   {key} = {f.value:.4g} +- {f.expanded:.2g}  ({f.method}){kept}")
     dump_boiler(params, output_file(args.out), header="\n".join(lines))
     side = args.out.with_suffix(".uncertainty.json")
@@ -532,7 +532,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
                     "points": f.n,
                     "implausible": key in result.flags,
                     **(
-                        {"kept": getattr(doc, key), "why": result.flags[key]}
+                        {"kept": getattr(params, key), "why": result.flags[key]}
                         if key in result.flags
                         else {}
                     ),
@@ -547,7 +547,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
                     "method": None,
                     "points": 0,
                     "implausible": False,
-                    "kept": getattr(doc, key),
+                    "kept": getattr(params, key),
                     "why": why,
                 }
                 for key, why in result.flags.items()
@@ -564,7 +564,13 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     for key, f in result.fitted.items():
         print(f"  {key:<20} {f.value:>10.4g} {f.expanded:>10.2g}  {getattr(doc, key):>13.4g}")
     for key, why in result.flags.items():
-        print(f"warning: {key}: {why}; documentation value {getattr(doc, key):.4g} kept")
+        written, documented = getattr(params, key), getattr(doc, key)
+        kept = (
+            f"documentation value {documented:.4g} kept"
+            if written == documented
+            else f"{written:.4g} written, at that bound (documentation value {documented:.4g})"
+        )
+        print(f"warning: {key}: {why}; {kept}")
     print(f"written: {args.out}, {side}, " + ", ".join(str(p) for p in figures))
     return 0
 

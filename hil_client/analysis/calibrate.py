@@ -48,7 +48,7 @@ from hil_client.analysis.logio import (
 from hil_client.analysis.phases import Phases
 from rig_emulator.model import constants as k
 from rig_emulator.model.fuel import stoichiometry
-from rig_emulator.model.params import BoilerParams
+from rig_emulator.model.params import ORDERED_PAIRS, BoilerParams
 
 #: The lab's instruments (Carlon et al. 2015, Section 2.2; typical classes where silent):
 #: (absolute, relative) half-width of the tolerance band.
@@ -266,6 +266,12 @@ def _plausible(doc: BoilerParams, fitted: dict[str, Fitted]) -> tuple[BoilerPara
         params = replace(
             params, fac_a_lambda=doc.fac_a_lambda, fac_b_lambda_h_kg=doc.fac_b_lambda_h_kg
         )
+    for low, high, why in ORDERED_PAIRS:  # a pair out of order: the lower one's fit goes
+        if getattr(params, low) <= getattr(params, high):  # back to its documentation
+            continue  # value, clamped at the higher one's where that is above it still
+        said = f"{low} {getattr(params, low):.4g} above {high} {getattr(params, high):.4g}"
+        params = replace(params, **{low: min(getattr(doc, low), getattr(params, high))})
+        flags[low] = f"{said}, where {why}"
     return params, flags
 
 

@@ -238,6 +238,12 @@ def params_from_mapping(data: Any, source: str = "<parameters>") -> BoilerParams
                 f"{source}: key '{key}' ({values[key]:g} W/K) would lose more than "
                 f"{UA_MAX_SHARE:.0%} of p_nom_kW to the room at {UA_CHECK_DT_K:g} K above it"
             )
+    for low, high, why in ORDERED_PAIRS:
+        if values[low] > values[high]:
+            raise ParameterError(
+                f"{source}: key '{low}' ({values[low]:g}) exceeds '{high}' "
+                f"({values[high]:g}): {why}"
+            )
     if values["p_max_kW"] > P_MAX_OVER_NOM * values["p_nom_kW"]:  # (13200 with p_nom 12,
         hint = (  # a lambda curve flat enough: accepted; a re-probe)
             " (written in W?)"
@@ -267,6 +273,20 @@ def params_from_mapping(data: Any, source: str = "<parameters>") -> BoilerParams
             "modulation range (incomplete combustion)"
         )
     return params
+
+
+#: Pairs whose first may not exceed the second, and why (a stranger's review: check took
+#: UA_on above UA_off, a negative draught-air heat in Eq. 16, and an electricity that falls
+#: with the load)
+ORDERED_PAIRS = (
+    (
+        "ua_amb_on_W_K",
+        "ua_amb_off_W_K",
+        "the idle boiler loses what the firing one does and the draught air's heat on top "
+        "(Eq. 14-16)",
+    ),
+    ("p_el_min_W", "p_el_max_W", "the auxiliary power at 30 % load is below that at 100 %"),
+)
 
 
 #: Plausible ranges that tell a value in another unit, with the unit it looks like: (low,

@@ -436,3 +436,45 @@ def test_a_labs_own_step_names_find_the_stationary_steps_from_the_flow(run_log, 
     assert results["own"][0] == pytest.approx(results["ours"][0], rel=0.02)
     assert results["own"][1] == pytest.approx(results["ours"][1], rel=0.02)
     assert {"test", "test_stationary", "test_dynamic"} <= set(results["own"][2])
+
+
+def test_a_noiseless_log_gives_back_the_documented_ua_on(run_log, tmp_path):
+    """A stranger's review: the emulator's own clean log calibrated UA_on 37 % low (0.80
+    against 1.27 W/K), the idle draught carrying more air than Eq. 14-16 allow. Logged
+    to 0.01 K and 1e-5 m/s, the draught's heat per K comes back to a few hundredths of a
+    W/K (the mean of rho v against rho at the mean temperature: under 1 % of 1.63 W/K)."""
+    rec = run_log("stationary", "windhager_12kw")
+    out = tmp_path / "c.yaml"
+    assert main(["calibrate", str(rec.path), "--boiler", "windhager_12kw", "--out", str(out)]) == 0
+    fitted = json.loads(out.with_suffix(".uncertainty.json").read_text())
+    documented = load_boiler("windhager_12kw")
+    assert fitted["ua_amb_on_W_K"]["value"] == pytest.approx(documented.ua_amb_on_W_K, abs=0.03)
+
+
+def test_a_draught_read_backwards_gives_a_file_that_loads(round_trip, tmp_path, capsys):
+    """A vortex meter mounted the wrong way round reads the stand-by draught negative:
+    Eq. 14-16 then give UA_on above UA_off (a negative draught-air heat), which the
+    parameter files refuse, so calibrate wrote nothing (exit 2). UA_on goes back to its
+    documentation value, clamped at the fitted UA_off where that is lower; flagged, the
+    file written, exit 0."""
+    _, boiler, logs, _ = round_trip
+    log = tmp_path / "stationary.csv"
+    lines = logs[0].read_text().splitlines()
+    header = lines[0].split(",")
+    iv, ib = header.index("flue_gas_velocity_m_s"), header.index("boiler_on")
+    rows = [line.split(",") for line in lines[1:]]
+    for r in rows:
+        if r[iv] and r[ib] and float(r[ib]) < 0.5:
+            r[iv] = f"{-float(r[iv]):.3f}"
+    log.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    out = tmp_path / "cal.yaml"
+    capsys.readouterr()
+    assert main(["calibrate", str(log), "--boiler", str(boiler), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    calibrated = load_boiler(str(out))  # a valid file
+    flags = json.loads(out.with_suffix(".uncertainty.json").read_text())
+    on, off = flags["ua_amb_on_W_K"], flags["ua_amb_off_W_K"]
+    assert on["implausible"] is True and on["value"] > off["value"]
+    assert calibrated.ua_amb_on_W_K == on["kept"] <= calibrated.ua_amb_off_W_K
+    assert off["implausible"] is False  # the second cooling's fit stays
+    assert "warning: ua_amb_on_W_K: ua_amb_on_W_K" in printed and "(Eq. 14-16)" in printed

@@ -50,6 +50,10 @@ def _write(tmp_path: Path, mutate) -> Path:
         (lambda d: d.update(p_nom_kW=1.0), "'p_nom_kW' (1.0) must lie between 'p_min_kW'"),
         (lambda d: d.update(ua_amb_on_W_K=1e12), "'ua_amb_on_W_K' (1e+12 W/K) would lose"),
         (lambda d: d.update(p_max_kW=10**400), "'p_max_kW' is too large to be a number"),
+        # a stranger's review: a negative draught-air heat (Eq. 16), an electricity that
+        # falls with the load
+        (lambda d: d.update(ua_amb_on_W_K=9.0), "'ua_amb_on_W_K' (9) exceeds 'ua_amb_off_W_K'"),
+        (lambda d: d.update(p_el_min_W=70.0), "'p_el_min_W' (70) exceeds 'p_el_max_W' (50)"),
         # a unit off by 1000 (a stranger's probe: each was accepted, and the analyses
         # blamed the log's flow or balance for what followed)
         (lambda d: d["fuel"].update(hhv_dry_kJ_kg=20.07), "(written in MJ/kg?)"),
