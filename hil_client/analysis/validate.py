@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hil_client.analysis.balance import flue_gas_loss_per_kg
+from hil_client.analysis.balance import flue_gas_loss_per_kg, fuel_rate_from_balance
 from hil_client.analysis.logio import (
     LabLog,
     LogError,
@@ -40,7 +40,6 @@ from rig_emulator.model.params import BoilerParams
 from rig_emulator.model.simulate import simulate
 from rig_emulator.model.water_heat import heat_to_water_kW
 
-FUEL_WINDOW_S = 900.0
 SIGNALS = ("boiler_water_temp_C", "heat_to_water_kW", "flue_gas_loss_kW")
 
 
@@ -68,24 +67,6 @@ def model_run(log: LabLog, phases: Phases, params: BoilerParams) -> dict[str, np
     out = {name: np.concatenate((col[:1], col)) for name, col in steps.items()}
     out["t_boiler_C"][0] = t0
     return out
-
-
-def fuel_rate_from_balance(log: LabLog, params: BoilerParams) -> np.ndarray:
-    """Dry fuel flow [kg/h] per row from the balance, refills taken out: slope of a
-    centred linear fit."""
-    t = log.t
-    m = fill_gaps(log.balance_without_refills(), t)
-    per_kg_dry = params.fuel.balance_loss_per_kg_dry
-    # running sums give the least-squares slope over a centred window at every row
-    cs, cm, ctt, ctm = (np.concatenate(([0.0], np.cumsum(a))) for a in (t, m, t * t, t * m))
-    lo = np.searchsorted(t, t - FUEL_WINDOW_S / 2, side="left")
-    hi = np.searchsorted(t, t + FUEL_WINDOW_S / 2, side="right")
-    n = hi - lo
-    st, sm = cs[hi] - cs[lo], cm[hi] - cm[lo]
-    stt, stm = ctt[hi] - ctt[lo], ctm[hi] - ctm[lo]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        slope = (n * stm - st * sm) / (n * stt - st * st)
-    return np.maximum(np.nan_to_num(-slope), 0.0) * 3600.0 / per_kg_dry
 
 
 def segments_of(log: LabLog, phases: Phases) -> dict[str, np.ndarray]:
