@@ -454,7 +454,9 @@ def test_lab_effects_fuel_gap_and_forward_sensor(lab_gap):
         )
 
     ratio = fuel(tl, lab, "t1_s", "t2_s") / fuel(tc, clean, "t1_s", "t2_s")
-    assert 1.05 < ratio <= 1.10  # the lab: 16.3 kg measured vs 15.0 kg simulated
+    # the paper's 16.3 kg on the balance against the clean model's 15.98 kg (its 15.0 kg
+    # simulated is dry fuel): 1.02, within the balance's 0.02-kg steps and its 0.05 kg
+    assert 1.01 < ratio <= 1.03
     gap = lab["boiler_water_temp_C"] - lab["water_out_temp_C"]
     t = lab["time_s"]
     assert np.max(np.abs(gap[(t > tl["t1_s"]) & (t < tl["t2_s"])])) < 0.2
