@@ -196,7 +196,7 @@ def _point(raw: Any, where: str, default_order: str) -> Point:
         )
     name = raw.get("name", signal_name)
     if not isinstance(name, str) or not name:
-        raise MapError(f"{where}: 'name' must be a non-empty string")
+        raise MapError(f"{where}: 'name' must be a non-empty text, got {_kind(name)}")
     return Point(
         name=name,
         signal=signal_name,
@@ -206,12 +206,31 @@ def _point(raw: Any, where: str, default_order: str) -> Point:
         word_order=order,
         scale=scale,
         offset=offset,
-        unit=str(raw.get("unit", signal.unit)),
+        unit=_text(raw, "unit", signal.unit, where),
         access=access,
         minimum=minimum,
         maximum=maximum,
-        description=str(raw.get("description", signal.description)),
+        description=_text(raw, "description", signal.description, where),
     )
+
+
+def _kind(value: Any) -> str:
+    """What a value is, for a message (never the value itself: a list of YAML aliases
+    nested ten deep printed for 24 s in 2.5 GB, a stranger's probe)."""
+    if isinstance(value, str | int | float | bool) or value is None:
+        return repr(value) if len(repr(value)) <= 40 else f"{repr(value)[:30]}..."
+    return f"a {type(value).__name__}"
+
+
+def _text(raw: Mapping[str, Any], key: str, default: str, where: str) -> str:
+    """A free-text key (name, description, unit, instrument): text (a number as written),
+    or refused (a list was printed as such in the reference)."""
+    value = raw.get(key, default)
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        return str(value)
+    if not isinstance(value, str):
+        raise MapError(f"{where}: '{key}' must be text, got {_kind(value)}")
+    return value
 
 
 def map_from_mapping(data: Any, source: str = "<map>") -> RegisterMap:
@@ -230,9 +249,11 @@ def map_from_mapping(data: Any, source: str = "<map>") -> RegisterMap:
         where = f"{source}: devices[{i}]"
         if not isinstance(raw, Mapping):
             raise MapError(f"{where}: must be a mapping")
-        name = raw.get("name")
-        if not isinstance(name, str) or not name:
+        if "name" not in raw:
             raise MapError(f"{where}: missing required key 'name'")
+        name = raw["name"]
+        if not isinstance(name, str) or not name:  # (17 was "missing": a stranger's probe)
+            raise MapError(f"{where}: 'name' must be a non-empty text, got {_kind(name)}")
         where = f"{source}: device '{name}'"
         for key in raw:
             if key not in ("name", "unit_id", "instrument", "word_order", "points"):
@@ -253,7 +274,8 @@ def map_from_mapping(data: Any, source: str = "<map>") -> RegisterMap:
             raise MapError(f"{where}: 'points' must be a non-empty list")
         points: list[Point] = []
         for j, praw in enumerate(points_raw):
-            label = praw.get("name", f"#{j}") if isinstance(praw, Mapping) else f"#{j}"
+            label = praw.get("name") if isinstance(praw, Mapping) else None
+            label = label if isinstance(label, str) else f"#{j}"
             points.append(_point(praw, f"{where} point '{label}'", order))
         names = [p.name for p in points]
         for point in points:
@@ -269,10 +291,10 @@ def map_from_mapping(data: Any, source: str = "<map>") -> RegisterMap:
                             f"overlaps point '{used[addr]}'"
                         )
                     used[addr] = point.name
-        devices.append(Device(name, unit_id, str(raw.get("instrument", "")), tuple(points)))
+        devices.append(Device(name, unit_id, _text(raw, "instrument", "", where), tuple(points)))
     return RegisterMap(
-        name=str(data.get("name", Path(source).stem)),
-        description=str(data.get("description", "")),
+        name=_text(data, "name", Path(source).stem, source),
+        description=_text(data, "description", "", source),
         devices=tuple(devices),
         source=source,
     )

@@ -56,3 +56,45 @@ def test_a_set_up_file_of_many_megabytes_is_refused_before_it_is_parsed(tmp_path
     path.write_text("points:\n" + "  - {name: p, address: 1}\n" * 200_000)
     with pytest.raises(ValueError, match=r"huge.yaml: 5 MB, more than any set-up file"):
         read_yaml(path, ValueError)
+
+
+def test_plain_scalars_are_read_as_yaml_1_2_reads_them(tmp_path):
+    """A stranger's probe with register numbers copied from a vendor sheet: YAML 1.1 read
+    ``010`` as octal (unit 8), ``1:10`` in base 60 (address 70) and ``on`` as true (a
+    point named 'on' became 'True')."""
+    data = _read(
+        tmp_path,
+        "a: 010\nb: 0100\nc: 1:10\nd: on\ne: yes\nf: 0x1F\ng: 0o17\nh: true\ni: -0.5\n"
+        "j: .inf\nk: 1_000\nl: 190:20:30.15\n",
+    )
+    assert data == {
+        "a": 10,
+        "b": 100,
+        "c": "1:10",
+        "d": "on",
+        "e": "yes",
+        "f": 31,
+        "g": 15,
+        "h": True,
+        "i": -0.5,
+        "j": float("inf"),
+        "k": "1_000",
+        "l": "190:20:30.15",
+    }
+
+
+def test_a_tab_in_the_indentation_is_named(tmp_path):
+    with pytest.raises(Bad) as info:
+        _read(tmp_path, "name: t\ndevices:\n\t- name: plc\n")
+    assert str(info.value).endswith("not valid YAML at line 3 (a tab: YAML indents with spaces)")
+
+
+def test_aliases_that_expand_to_millions_of_values_are_refused(tmp_path):
+    """A stranger's probe: 551 bytes of aliases nested ten deep (a "billion laughs") in a
+    map's description ran map-doc 24 s in 2.5 GB; any message showing such a value would."""
+    levels = ["a: &a [x, x, x, x, x, x, x, x, x, x]"]
+    for name, below in zip("bcdefg", "abcdef", strict=True):
+        levels.append(f"{name}: &{name} [{', '.join([f'*{below}'] * 10)}]")
+    with pytest.raises(Bad, match=r"aliases .* expand to more than 2,000,000 values"):
+        _read(tmp_path, "\n".join([*levels, "p_nom_kW: *g"]) + "\n")
+    assert _read(tmp_path, "\n".join(levels[:4]) + "\n")["d"][0][0][0] == ["x"] * 10  # 10^4

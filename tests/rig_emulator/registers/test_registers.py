@@ -194,6 +194,20 @@ def _broken(mutate) -> dict:
             lambda d: d["devices"][0]["points"][7].update(max=10**400),
             "'max' must be a finite number, got 10000000000000000000...",
         ),
+        # a stranger's probe: free text of another type was printed as such ([1, 2]), a
+        # device named 17 was "missing required key 'name'"
+        (
+            lambda d: d["devices"][1].update(instrument=[1, 2]),
+            "device 'flue_gas_analyser': 'instrument' must be text, got a list",
+        ),
+        (
+            lambda d: d["devices"][0].update(name=17),
+            "devices[0]: 'name' must be a non-empty text, got 17",
+        ),
+        (
+            lambda d: d.update(description={"a": 1}),
+            "'description' must be text, got a dict",
+        ),
     ],
 )
 def test_broken_maps_name_file_device_and_point(mutate, message):
@@ -206,3 +220,25 @@ def test_broken_maps_name_file_device_and_point(mutate, message):
 def test_committed_reference_is_generated_from_the_map():
     committed = (REPO / "docs" / "register_map.md").read_text()
     assert committed == markdown(load_map()), "run: rig-emulator map-doc --out docs/register_map.md"
+
+
+def test_register_numbers_from_a_vendor_sheet_are_decimal(tmp_path):
+    """A stranger's probe: ``unit_id: 010`` served unit 8 and ``address: 0100`` address 64
+    (YAML 1.1 octal); ``address: 1:10`` address 70 (base 60). Decimal, or refused."""
+    from rig_emulator.registers import load_map
+
+    text = (MAP_DIR / "wieselburg_bench.yaml").read_text()
+    data = yaml.safe_load(text)
+    data["devices"] = data["devices"][:1]
+    data["devices"][0]["points"] = data["devices"][0]["points"][:1]
+    path = tmp_path / "m.yaml"
+    path.write_text(
+        yaml.safe_dump(data)
+        .replace("unit_id: 1\n", "unit_id: 010\n")
+        .replace("address: 0\n", "address: 0100\n")
+    )
+    served = load_map(str(path))
+    assert served.devices[0].unit_id == 10 and served.devices[0].points[0].address == 100
+    path.write_text(path.read_text().replace("address: 0100\n", "address: 1:10\n"))
+    with pytest.raises(MapError, match="'address' must be an integer"):
+        load_map(str(path))
