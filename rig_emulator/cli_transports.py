@@ -2,7 +2,10 @@
 
 - ``--tls-cert CERT --tls-key KEY --tls-ca CA [--roles ROLES.yaml]``: ``--port`` (default
   802, Modbus/TCP Security's port) serves TLS with client certificates and roles instead of
-  plain TCP; ``--tcp-port PORT`` adds a plain TCP listener beside it (on the same host);
+  plain TCP; ``--tcp-port PORT`` adds a plain TCP listener beside it (on the same host).
+  Without ``--roles`` the roles are the defaults derived from the served map's devices
+  (:func:`~rig_emulator.modbus.roles.default_policy`); a ROLES.yaml's unit IDs are taken as
+  written;
 - ``--serial PATH|pty [--baud 19200] [--parity E|N|O]``: also serve the units on an RTU
   line; ``pty`` creates a pseudo-terminal and prints ``serial: /dev/pts/N`` on stdout;
 - ``--plain-role ROLE``: hold plain TCP and RTU clients to a role too (default: they pass
@@ -20,7 +23,13 @@ from dataclasses import dataclass
 
 from rig_emulator.cli_support import UsageError, int_in, text_file
 from rig_emulator.modbus import BenchServer
-from rig_emulator.modbus.roles import DEFAULT_POLICY, RolePolicy, RolesError, load_policy
+from rig_emulator.modbus.roles import (
+    DEFAULT_POLICY,
+    RolePolicy,
+    RolesError,
+    default_policy,
+    load_policy,
+)
 from rig_emulator.modbus.rtu import SerialConfigError, check_line_options
 from rig_emulator.modbus.rtu_wire import PARITIES
 from rig_emulator.modbus.tls import DEFAULT_TLS_PORT, TlsConfigError, server_context
@@ -40,7 +49,8 @@ def add_arguments(serve: argparse.ArgumentParser) -> None:
         "--roles",
         default=None,
         type=text_file,
-        help="ROLES.yaml redefining the roles [observer/operator/engineer]",
+        help="ROLES.yaml redefining the roles [observer; operator writes the instruments; "
+        "engineer also the simulation control: units from what the --map devices publish]",
     )
     tls.add_argument(
         "--tcp-port",
@@ -70,7 +80,7 @@ class TransportPlan:
     """What the options ask for, checked before anything listens."""
 
     ssl_context: ssl.SSLContext | None
-    policy: RolePolicy
+    policy: RolePolicy | None  # None: the default roles of the served map (see start)
     port: int
     tcp_port: int | None
     plain_role: str | None
@@ -97,13 +107,12 @@ def plan(args: argparse.Namespace) -> TransportPlan:
     if args.roles is not None and context is None and args.plain_role is None:
         raise UsageError("--roles needs --tls-* or --plain-role")
     try:
-        policy = load_policy(args.roles) if args.roles is not None else DEFAULT_POLICY
+        policy = load_policy(args.roles) if args.roles is not None else None
     except RolesError as exc:
         raise UsageError(f"--roles: {exc}") from None
-    if args.plain_role is not None and args.plain_role not in policy.roles:
-        raise UsageError(
-            f"--plain-role: '{args.plain_role}' is not one of {', '.join(policy.roles)}"
-        )
+    names = (policy or DEFAULT_POLICY).roles  # the default roles' names are every map's
+    if args.plain_role is not None and args.plain_role not in names:
+        raise UsageError(f"--plain-role: '{args.plain_role}' is not one of {', '.join(names)}")
     if args.serial is None and (args.baud is not None or args.parity is not None):
         given = "--baud" if args.baud is not None else "--parity"
         raise UsageError(f"{given} sets the RTU line: it needs --serial PATH|pty")
@@ -128,21 +137,27 @@ def plan(args: argparse.Namespace) -> TransportPlan:
 
 
 async def start(server: BenchServer, transport_plan: TransportPlan) -> Transports:
-    """Add the planned listeners, role gate and lines to the started ``server``."""
+    """Add the planned listeners, role gate and lines to the started ``server``; without a
+    ROLES.yaml, the roles are the defaults of the map it serves (they were those of the
+    shipped map's unit IDs, whatever devices a ``--map`` put there: a stranger's probe)."""
     modbus = server.modbus_server
     assert modbus is not None
     transports = Transports(modbus)
     p = transport_plan
+    policy = p.policy if p.policy is not None else default_policy(server.map)
     if p.ssl_context is not None or p.plain_role is not None:
-        transports.authorise(p.policy, p.plain_role)
+        transports.authorise(policy, p.plain_role)
+        log.info(
+            "roles%s: %s; a certificate without a role is %s",
+            "" if p.policy is not None else " (defaults of the map's devices)",
+            policy.summary(),
+            policy.default_role,
+        )
     if p.ssl_context is not None:
         log.info(
-            "Modbus/TCP Security on %s:%d (TLS 1.2+, client certificates of --tls-ca; "
-            "roles: %s; no role extension: %s)",
+            "Modbus/TCP Security on %s:%d (TLS 1.2+, client certificates of --tls-ca)",
             server.host,
             server.port,
-            ", ".join(p.policy.roles),
-            p.policy.default_role,
         )
     try:
         if p.tcp_port is not None:

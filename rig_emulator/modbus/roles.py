@@ -1,14 +1,23 @@
 """Role-based authorisation of Modbus/TCP Security (the roles of the client certificates).
 
 A role says which units a client may read and which it may write. The defaults
-(CONTRACT section 6):
+(CONTRACT section 6), derived from the served register map by what its devices publish,
+not by their unit IDs (:func:`default_policy`):
 
 - ``observer`` reads every unit and writes none;
-- ``operator`` also writes the ``rw`` points of the instruments, units 1-7;
-- ``engineer`` also writes the simulation control, unit 100.
+- ``operator`` also writes the instruments: the devices publishing a measured signal or a
+  command of the plant (the shipped map's units 1-7);
+- ``engineer`` also writes the simulation control: the devices publishing a clock or fault
+  command (:data:`SIM_CONTROL_SIGNALS`; the shipped map's unit 100).
+
+Any other device (the truth unit, a device of status signals only) is read only. A device
+publishing a simulation-control command is simulation control as a whole, even if it also
+has instrument points: roles are granted per unit, and the operator must not reach the
+clock through a shared unit.
 
 A certificate without the role extension gets ``default_role`` (``observer``); a role the
-policy does not know may do nothing. A ``ROLES.yaml`` file redefines them::
+policy does not know may do nothing. A ``ROLES.yaml`` file redefines them, with unit IDs
+taken as written (here the defaults of the shipped map)::
 
     default_role: observer          # optional; for certificates without the role extension
     roles:
@@ -31,12 +40,20 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from rig_emulator.modbus.fault_control import FAULT_COMMANDS
+from rig_emulator.modbus.server import CLOCK_COMMANDS
+from rig_emulator.registers import RegisterMap
+from rig_emulator.signals import SIGNALS
 from rig_emulator.yamlio import read_yaml
 
 READ_FUNCTIONS = frozenset({1, 2, 3, 4, 7, 11, 12, 17, 43})
 ALL_UNITS = frozenset(range(256))
+#: The instruments and the simulation control of the shipped map (:data:`DEFAULT_POLICY`)
 INSTRUMENT_UNITS = frozenset(range(1, 8))
 SIM_CONTROL_UNIT = 100
+#: The signals whose device is the simulation control: the clock and fault commands the
+#: server executes rather than hands to the plant
+SIM_CONTROL_SIGNALS = frozenset(CLOCK_COMMANDS) | frozenset(FAULT_COMMANDS)
 
 
 class RolesError(ValueError):
@@ -72,15 +89,71 @@ class RolePolicy:
             return f"unknown role '{role}', which may send nothing"
         return known.refusal(unit_id, function_code)
 
+    def summary(self) -> str:
+        """What each role may write, for the log (``operator writes units 1-7``)."""
+        return "; ".join(
+            f"{name} writes {_shown_units(role.write_units)}" for name, role in self.roles.items()
+        )
 
-DEFAULT_POLICY = RolePolicy(
-    roles={
-        "observer": Role("observer", ALL_UNITS, frozenset()),
-        "operator": Role("operator", ALL_UNITS, INSTRUMENT_UNITS),
-        "engineer": Role("engineer", ALL_UNITS, INSTRUMENT_UNITS | {SIM_CONTROL_UNIT}),
-    },
-    default_role="observer",
-)
+
+def _shown_units(units: frozenset[int]) -> str:
+    if not units:
+        return "no unit"
+    if units == ALL_UNITS:
+        return "every unit"
+    runs: list[list[int]] = []
+    for unit in sorted(units):
+        if runs and unit == runs[-1][1] + 1:
+            runs[-1][1] = unit
+        else:
+            runs.append([unit, unit])
+    shown = ", ".join(str(a) if a == b else f"{a}-{b}" for a, b in runs)
+    return f"unit{'s' if len(units) > 1 else ''} {shown}"
+
+
+def _default_roles(instruments: frozenset[int], control: frozenset[int]) -> RolePolicy:
+    return RolePolicy(
+        roles={
+            "observer": Role("observer", ALL_UNITS, frozenset()),
+            "operator": Role("operator", ALL_UNITS, instruments),
+            "engineer": Role("engineer", ALL_UNITS, instruments | control),
+        },
+        default_role="observer",
+    )
+
+
+#: The default roles of the shipped map (``default_policy(load_map())``)
+DEFAULT_POLICY = _default_roles(INSTRUMENT_UNITS, frozenset({SIM_CONTROL_UNIT}))
+
+
+def sim_control_units(register_map: RegisterMap) -> frozenset[int]:
+    """The units of ``register_map`` publishing a clock or fault command."""
+    return frozenset(
+        d.unit_id
+        for d in register_map.devices
+        if any(p.signal in SIM_CONTROL_SIGNALS for p in d.points)
+    )
+
+
+def instrument_units(register_map: RegisterMap) -> frozenset[int]:
+    """The units of ``register_map`` publishing a measured signal or a command of the plant,
+    the simulation control left out."""
+    control = sim_control_units(register_map)
+    return frozenset(
+        d.unit_id
+        for d in register_map.devices
+        if d.unit_id not in control
+        and any(SIGNALS[p.signal].kind in ("measured", "command") for p in d.points)
+    )
+
+
+def default_policy(register_map: RegisterMap) -> RolePolicy:
+    """The default roles (module docstring) of a server of ``register_map``: the units each
+    role writes follow what the devices publish, not their numbers (with the simulation
+    control at unit 7 and an instrument at unit 100, the operator could advance and reset
+    the clock, and with instruments at units 31 and 247 it was refused its pump and
+    setpoint writes: a stranger's probe). The shipped map gives :data:`DEFAULT_POLICY`."""
+    return _default_roles(instrument_units(register_map), sim_control_units(register_map))
 
 
 def _units(value: Any, where: str) -> frozenset[int]:

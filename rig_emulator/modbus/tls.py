@@ -136,7 +136,9 @@ class Authorisation:
     connections (see the module docstring).
 
     Args:
-        policy: the roles.
+        policy: the roles (default: those of the shipped map; a server of another map
+            wants :func:`~rig_emulator.modbus.roles.default_policy` of its map, as
+            ``rig-emulator serve`` does).
         plain_role: the role of connections without TLS (plain TCP, RTU); None: no check.
     """
 

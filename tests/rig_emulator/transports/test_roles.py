@@ -5,11 +5,15 @@ from __future__ import annotations
 import pytest
 
 from rig_emulator.modbus.roles import (
+    ALL_UNITS,
     DEFAULT_POLICY,
     RefusalLog,
     RolesError,
+    default_policy,
     load_policy,
 )
+from rig_emulator.registers import load_map, map_from_mapping
+from tests.rig_emulator.transports.remapped import shipped_map_with_units
 
 READS = (1, 2, 3, 4)
 WRITES = (5, 6, 15, 16, 23)
@@ -27,6 +31,75 @@ def test_default_roles(role, writable_units):
             refused = DEFAULT_POLICY.refusal(role, unit, fc)
             assert (refused is None) == (unit in writable_units), (role, unit, fc)
     assert DEFAULT_POLICY.default_role == "observer"
+
+
+def test_default_policy_of_the_shipped_map_is_the_default_policy():
+    assert default_policy(load_map()) == DEFAULT_POLICY
+    assert DEFAULT_POLICY.summary() == (
+        "observer writes no unit; operator writes units 1-7; engineer writes units 1-7, 100"
+    )
+
+
+@pytest.mark.parametrize(
+    ("units", "instruments", "control"),
+    [
+        # a stranger's probe: the simulation control and the boiler controller swapped
+        ({"sim_control": 7, "boiler_controller": 100}, {*range(1, 7), 100}, {7}),
+        # instruments at the edges of the unit range
+        ({"bench_plc": 31, "boiler_controller": 247}, {*range(2, 7), 31, 247}, {100}),
+    ],
+)
+def test_default_policy_follows_the_devices_not_their_unit_ids(units, instruments, control):
+    """The operator writes the units of the instruments and the engineer also those of the
+    simulation control, wherever the map puts them; the truth unit (101) stays read only."""
+    policy = default_policy(shipped_map_with_units(**units))
+    assert policy.roles["observer"].write_units == frozenset()
+    assert policy.roles["operator"].write_units == instruments
+    assert policy.roles["engineer"].write_units == instruments | control
+    assert all(role.read_units == ALL_UNITS for role in policy.roles.values())
+    assert policy.default_role == "observer"
+
+
+def test_a_unit_sharing_instrument_and_clock_points_is_simulation_control():
+    """Roles go per unit: a unit with a clock command is the engineer's, even with a pump
+    on it (else the operator resets the plant through it); status-only units are read only."""
+    register_map = map_from_mapping(
+        {
+            "devices": [
+                {
+                    "name": "plc",
+                    "unit_id": 1,
+                    "points": [
+                        {"signal": "pump_on", "table": "coil", "address": 0,
+                         "datatype": "bool", "access": "rw"},
+                        {"signal": "reset", "table": "holding", "address": 0,
+                         "datatype": "uint16", "access": "rw"},
+                    ],
+                },
+                {
+                    "name": "truth",
+                    "unit_id": 2,
+                    "points": [{"signal": "true_water_flow_kg_h", "table": "input",
+                                "address": 0, "datatype": "float64"}],
+                },
+                {
+                    "name": "clock_status",
+                    "unit_id": 3,
+                    "points": [{"signal": "sim_time_s", "table": "input", "address": 0,
+                                "datatype": "float64"}],
+                },
+                {
+                    "name": "balance",
+                    "unit_id": 4,
+                    "points": [{"signal": "balance_mass_kg", "table": "input", "address": 0,
+                                "datatype": "float32"}],
+                },
+            ]
+        }
+    )  # fmt: skip
+    policy = default_policy(register_map)
+    assert policy.roles["operator"].write_units == {4}
+    assert policy.roles["engineer"].write_units == {1, 4}
 
 
 def test_unknown_role_may_do_nothing():

@@ -489,6 +489,93 @@ def test_cli_serves_tls_with_a_roles_file_and_plain_tcp(certs, tmp_path):
     assert "unknown role 'operator'" in err
 
 
+def _serve_remapped(serve, certs, units: dict[str, int], *options: str):
+    """A lockstep TLS server of the shipped map with ``units`` moved, its roles set up as
+    ``rig-emulator serve`` sets them (``cli_transports.plan`` and ``start``)."""
+    from rig_emulator import cli_transports
+    from rig_emulator.cli import _build_parser
+    from tests.rig_emulator.transports.remapped import shipped_map_with_units
+
+    srv = serve(
+        register_map=shipped_map_with_units(**units),
+        ssl_context=server_context(certs / "server.pem", certs / "server.key", certs / "ca.pem"),
+    )
+    args = _build_parser().parse_args(["serve", "--boiler", "x", *_tls_options(certs), *options])
+    srv.transports = srv.call(cli_transports.start(srv.server, cli_transports.plan(args)))
+    return srv
+
+
+@pytest.mark.parametrize(
+    "units",
+    [{"sim_control": 7, "boiler_controller": 100}, {"bench_plc": 31, "boiler_controller": 247}],
+)
+def test_serve_gives_the_roles_of_the_devices_not_of_their_unit_ids(serve, certs, units):
+    """A stranger's probe: with the simulation control at unit 7 (and the boiler controller
+    at 100) a TLS operator advanced and reset the clock, and with the instruments at units
+    31 and 247 it was refused its setpoint and boiler writes: the roles went by the shipped
+    map's unit IDs. Now the operator writes the instruments wherever they are and gets 01
+    from the simulation control; the engineer advances it."""
+    srv = _serve_remapped(serve, certs, units)
+    try:
+        for stem in ("operator", "engineer"):
+            c = tls_client(srv.port, certs, stem)
+            try:
+                r = _write(c, srv, "bench_plc", "flow_setpoint", 321.5)
+                assert not r.isError(), (stem, r)
+                assert srv.values()["water_flow_setpoint_kg_h"] == 321.5
+                set_temp = 55.0 if stem == "operator" else 65.0
+                r = _write(c, srv, "boiler_controller", "set_temp", set_temp)
+                assert not r.isError(), (stem, r)
+                # raw 550 * scale 0.1 is 55.000000000000007: approx's relative 1e-6
+                assert srv.values()["boiler_set_temp_C"] == pytest.approx(set_temp)
+                on_command, _ = _point(srv, "boiler_controller", "on_command")
+                assert not c.write_coil(0, True, device_id=on_command.unit_id).isError()
+
+                time_before = srv.values()["sim_time_s"]
+                r = _write(c, srv, "sim_control", "lockstep_advance", 5)
+                if stem == "engineer":
+                    assert not r.isError(), r
+                    assert srv.values()["sim_time_s"] == pytest.approx(time_before + 5.0)
+                else:
+                    assert r.isError() and r.exception_code == 1, r
+                    r = _write(c, srv, "sim_control", "reset", 1)
+                    assert r.isError() and r.exception_code == 1, r
+                    assert srv.values()["sim_time_s"] == time_before
+            finally:
+                c.close()
+        observer = tls_client(srv.port, certs, "observer")
+        try:
+            r = _write(observer, srv, "bench_plc", "flow_setpoint", 100.0)
+            assert r.isError() and r.exception_code == 1, r
+        finally:
+            observer.close()
+    finally:
+        srv.call(srv.transports.stop())
+
+
+def test_a_roles_file_keeps_its_unit_ids_whatever_the_map(serve, certs, tmp_path):
+    """The unit lists of a ROLES.yaml are the user's: with the simulation control at unit 7,
+    a file letting the operator write units 1-7 lets it advance the clock."""
+    roles = tmp_path / "roles.yaml"
+    roles.write_text("roles:\n  observer: {read: all, write: []}\n"
+                     "  operator: {read: all, write: [1, 2, 3, 4, 5, 6, 7]}\n")  # fmt: skip
+    srv = _serve_remapped(
+        serve, certs, {"sim_control": 7, "boiler_controller": 100}, "--roles", str(roles)
+    )
+    try:
+        c = tls_client(srv.port, certs, "operator")
+        try:
+            time_before = srv.values()["sim_time_s"]
+            assert not _write(c, srv, "sim_control", "lockstep_advance", 5).isError()
+            assert srv.values()["sim_time_s"] == pytest.approx(time_before + 5.0)
+            r = _write(c, srv, "boiler_controller", "set_temp", 55.0)  # now at unit 100
+            assert r.isError() and r.exception_code == 1, r
+        finally:
+            c.close()
+    finally:
+        srv.call(srv.transports.stop())
+
+
 def _ca_of(certs):
     from cryptography import x509
     from cryptography.hazmat.primitives import serialization
