@@ -71,6 +71,7 @@ from hil_client.modbus_client import (
 )
 from hil_client.protocol.rig import READING_KEYS, RigCommand, RigError
 from hil_client.rigs.transports import url_port
+from rig_emulator.emulator import check_command
 from rig_emulator.registers import (
     MapError,
     Point,
@@ -78,8 +79,10 @@ from rig_emulator.registers import (
     encode,
     invalid_value,
     map_identity,
+    reading_range,
     run_decoder,
 )
+from rig_emulator.registers.codec import accepted_range
 
 _READ_FUNCTION = {"coil": 1, "discrete": 2, "holding": 3, "input": 4}
 
@@ -98,6 +101,8 @@ WRITES = (
     "boiler_command",
     "lockstep_advance_s",
 )
+#: The setpoints the rig writes every step (checked against what their points carry).
+SETPOINTS = ("water_flow_setpoint_kg_h", "return_setpoint_C")
 #: Every signal the rig reads or writes: a register map must have them all.
 NEEDED = (*READING_KEYS, *STATUS_KEYS, "clock_mode", "speed_factor", *WRITES)
 # a replay batch stays in one small segment: the server drops a receive buffer above 264
@@ -274,6 +279,10 @@ class ModbusRig:
         self._check_plan = _read_plan(register_map, CHECK_KEYS, trim=True)
         self._clock_plan = _read_plan(register_map, ("clock_mode", "speed_factor"))
         self._points = {s: register_map.point(s) for s in WRITES}
+        #: what a setpoint's point can carry (its map range, narrowed to its encoding)
+        self._accepted = {s: accepted_range(self._points[s][1]) for s in SETPOINTS}
+        self._time_point = register_map.point("sim_time_s")[1]
+        self._time_max = reading_range(self._time_point)[1]  # a float's: inf
         if any(p.signal == "reset" for d in register_map.devices for p in d.points):
             self._points["reset"] = register_map.point("reset")  # (optional: a rebuild)
         self._conn: Connection | None = None
@@ -672,10 +681,29 @@ class ModbusRig:
                 abs(status["sim_time_s"] - sim_time) <= _TIME_TOLERANCE_S
             ):
                 return None
+            self._stop_if_time_pinned(status)
             return _foreign(status["sim_time_s"] - sim_time)
         if status["sim_time_s"] < self._row_server_time - _TIME_TOLERANCE_S:
             return "the server was reset (its time went back)"
         return None
+
+    def _stop_if_time_pinned(self, status: dict[str, float]) -> None:
+        """Stop (:class:`RigError`) where the server's time stands at the most its point
+        carries: the map cannot count this run's time on, and no other client is to blame
+        (a stranger's probe: a sim_time as int16 stopped at 32767 s, and the run ended
+        with "another client reset the server")."""
+        now = status.get("sim_time_s", math.nan)
+        if not now >= self._time_max:
+            return
+        p = self._time_point
+        scale = f" x{p.scale:g}" if p.scale != 1.0 else ""
+        reason = (
+            f"the server's sim_time stands at {now:g} s, the most its point '{p.name}' "
+            f"({p.datatype}{scale}) carries: the register map cannot count this run's time "
+            "on (give sim_time a wider type: float64, as the shipped map)"
+        )
+        self._gap(reason, "abort", status)
+        raise RigError(f"{self.url}: {reason}; stopped after time_s = {self.log_time_s:g} s")
 
     def _check_identity(self, status: dict[str, float]) -> None:
         """Stop (:class:`RigError`) if a restarted server has another set-up."""
@@ -743,6 +771,7 @@ class ModbusRig:
                     self._applied = applied
                     self._gap(f"connection lost ({reason})", "resumed", status)
                     return
+            self._stop_if_time_pinned(status)
             raise _Break(_foreign(status["sim_time_s"] - self._expected(self._applied)[1]), status)
         if status["sim_time_s"] < self._row_server_time - _TIME_TOLERANCE_S:
             raise _Break("the server was reset (its time went back)", status)
@@ -807,6 +836,11 @@ class ModbusRig:
 
     # ------------------------------------------------------------------ rig interface
     def apply(self, command: RigCommand) -> None:
+        """Take the step's commands; a setpoint its point cannot carry is refused
+        (:class:`~rig_emulator.emulator.CommandError`), never clipped on the wire (a
+        stranger's probe: 687 kg/h went out as 655.35 on a uint16 x0.01, the log saying 687)."""
+        check_command(SETPOINTS[0], command.flow_setpoint_kg_h, self._accepted[SETPOINTS[0]])
+        check_command(SETPOINTS[1], command.return_setpoint_C, self._accepted[SETPOINTS[1]])
         self._command = RigCommand(
             command.flow_setpoint_kg_h,
             command.return_setpoint_C,
@@ -957,6 +991,7 @@ class ModbusRig:
             now = status["sim_time_s"]
             if now >= target - 1e-9 or now < self._row_server_time - _TIME_TOLERANCE_S:
                 return
+            self._stop_if_time_pinned(status)  # (else waited for ever)
             wait = (target - now) / max(self.speed, 1e-9)
             time.sleep(min(max(wait * 0.5, 0.001), 0.25))
 

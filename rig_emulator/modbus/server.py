@@ -22,6 +22,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import math
 import secrets
 import socket
 import ssl
@@ -52,9 +53,11 @@ from rig_emulator.registers import (
     RegisterMap,
     encode,
     map_identity,
+    reading_range,
     run_encoder,
     written_value,
 )
+from rig_emulator.registers.codec import accepted_range
 
 log = logging.getLogger("rig_emulator.serve")
 
@@ -76,13 +79,27 @@ class _Run:
     start: int
     points: tuple[Point, ...]
     encode: Callable[[Mapping[str, float]], list[int]]  # signal values -> the run's registers
+    #: per scaled integer point: (point, lowest, highest value it serves, half a step wider)
+    limits: tuple[tuple[Point, float, float], ...] = ()
 
 
 _WritePlan = tuple[tuple[Point, int], ...] | ExcCodes
 
 
+def _limits(points: list[Point]) -> tuple[tuple[Point, float, float], ...]:
+    """Where the integer points of a run saturate: beyond these a value is served as its
+    type's limit (half a step inside them it only rounds to it)."""
+    out = []
+    for p in points:
+        lo, hi = reading_range(p)
+        if math.isfinite(lo) and math.isfinite(hi) and p.datatype != "bool":
+            half = abs(p.scale) / 2.0
+            out.append((p, lo - half, hi + half))
+    return tuple(out)
+
+
 def _run(table: str, points: list[Point]) -> _Run:
-    return _Run(table, points[0].address, tuple(points), run_encoder(points))
+    return _Run(table, points[0].address, tuple(points), run_encoder(points), _limits(points))
 
 
 def _runs(device: Device, table: str) -> list[_Run]:
@@ -208,6 +225,7 @@ class BenchServer:
         self.tick_overrun_ms = 0.0
         self._clock_lock = asyncio.Lock()  # one write at a time, an advance's whole length
         self._refusals_logged: set[tuple[str, str]] = set()
+        self._clamps_logged: set[tuple[int, str]] = set()  # (unit, point): warned once
         self._internal = False
         self._server: BenchModbusServer | None = None
         self._tick_task: asyncio.Task | None = None
@@ -466,12 +484,40 @@ class BenchServer:
                                 )
                                 published[p.address] = bit
                         continue
+                    for p, lo, hi in run.limits:
+                        value = values[p.signal]
+                        if (value < lo or value > hi) and (unit_id, p.name) not in (
+                            self._clamps_logged
+                        ):
+                            self._clamped(unit_id, p, value)
                     regs = run.encode(values)
                     if published.get(run.start) != regs:
                         await self._server.async_setValues(unit_id, function, run.start, regs)
                         published[run.start] = regs
         finally:
             self._internal = False
+
+    def _clamped(self, unit_id: int, point: Point, value: float) -> None:
+        """Warn, once per point, that a value its type cannot carry is served as the type's
+        limit (a stranger's probe: a balance as int16 x0.001 read 32.767 kg of 250 kg, a
+        sim_time as int16 stood at 32767 s, and nothing said so)."""
+        self._clamps_logged.add((unit_id, point.name))
+        lo, hi = reading_range(point)
+        limit = hi if value > hi else lo
+        log.warning(
+            "unit %d point '%s' (%s) publishes %g %s, out of the range %s%s carries: "
+            "saturated at %g %s, its limit, while it stays out (widen the point's type or "
+            "scale; not logged again for this point)",
+            unit_id,
+            point.name,
+            point.signal,
+            value,
+            point.unit,
+            point.datatype,
+            f" x{point.scale:g}" if point.scale != 1.0 else "",
+            limit,
+            point.unit,
+        )
 
     # ------------------------------------------------------------------ writes
     def _action(self, device: Device, tables_used: set[str]):
@@ -551,6 +597,12 @@ class BenchServer:
                             return f"{value!r} is not 0 or 1 (a switch): Modbus exception 03"
                         registers: list = [value == 1.0]
                     else:
+                        lo, hi = accepted_range(point)
+                        if not lo <= value <= hi:  # (encode clips: 687 went out as 655.35)
+                            return (
+                                f"{value!r} outside {lo:g}..{hi:g}, what point '{point.name}' "
+                                f"({point.datatype}) accepts: Modbus exception 03"
+                            )
                         try:
                             registers = encode(point, value)
                         except (ValueError, OverflowError, struct.error):

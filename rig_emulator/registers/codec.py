@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 import struct
+import sys
 from collections.abc import Callable, Mapping, Sequence
 from functools import cache
 
@@ -64,6 +65,38 @@ def reading_range(point: Point) -> tuple[float, float]:
     lo, hi = (lo + 1, hi) if invalid == lo else (lo, hi - 1) if invalid == hi else (lo, hi)
     ends = sorted((lo * point.scale + point.offset, hi * point.scale + point.offset))
     return ends[0], ends[1]
+
+
+#: the largest finite value of each float type (half, single, double)
+_FLOAT_MAX = {
+    "e": 65504.0,
+    "f": struct.unpack(">f", b"\x7f\x7f\xff\xff")[0],
+    "d": sys.float_info.max,
+}
+
+
+def encodable_range(point: Point) -> tuple[float, float]:
+    """The lowest and highest value ``point``'s encoding carries: an integer type's whole
+    raw range, scaled (a command's: no invalid code), a float type's largest finite value
+    either side, a bit's 0 and 1."""
+    datatype = DATATYPES[point.datatype]
+    if datatype.is_bit:
+        return 0.0, 1.0
+    if datatype.is_float:
+        return -_FLOAT_MAX[datatype.code], _FLOAT_MAX[datatype.code]
+    lo, hi = datatype.int_range
+    ends = sorted((lo * point.scale + point.offset, hi * point.scale + point.offset))
+    return ends[0], ends[1]
+
+
+def accepted_range(point: Point) -> tuple[float, float]:
+    """The values a write of ``point`` can set: its declared ``min..max`` where its encoding
+    carries them, narrowed to what the encoding does (a stranger's probe: a flow setpoint
+    as uint16 x0.01 carries at most 655.35 kg/h; a run that wanted 687 had it clipped on
+    the wire without a word, its log saying 687, and map-doc showed 0..2000). Empty (low
+    above high) where the two do not meet."""
+    lo, hi = encodable_range(point)
+    return max(point.minimum, lo), min(point.maximum, hi)
 
 
 def _raw(point: Point, value: float) -> int:

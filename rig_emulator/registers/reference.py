@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
-from rig_emulator.registers.schema import BIT_TABLES, RegisterMap
+import re
+
+from rig_emulator.registers.codec import accepted_range
+from rig_emulator.registers.schema import BIT_TABLES, Point, RegisterMap
 
 _FUNCTION = {
     "input": "FC4 read input registers",
@@ -11,16 +14,49 @@ _FUNCTION = {
     "discrete": "FC2 read discrete inputs",
 }
 _PLC_BASE = {"coil": 1, "discrete": 10001, "input": 30001, "holding": 40001}
+_PLC_BASE_6 = {"coil": 1, "discrete": 100001, "input": 300001, "holding": 400001}
+_PLC_5_MAX = 9998  # the last address whose 5-digit number stays in its table's 10000
+_BREAK = re.compile(r"\s*[\r\n]+\s*")
 
 
 def _number(x: float) -> str:
-    return f"{x:g}" if abs(x) != float("inf") else ""
+    """``x`` short (``1e+09``), with the digits it needs (42949672.95, not 4.29497e+07)."""
+    if abs(x) == float("inf"):
+        return ""
+    short = f"{x:g}"
+    return short if float(short) == x else f"{x:.12g}"
+
+
+def _cell(text: str) -> str:
+    """Free text as one table cell: a line break would end the row and a ``|`` open a
+    column (a stranger's probe: a two-line description with a pipe broke the table)."""
+    return _BREAK.sub(" ", text).strip().replace("|", "\\|")
+
+
+def plc_number(table: str, address: int) -> str:
+    """The PLC-style number of a 0-based address: the 5-digit form (40001 + address) while
+    it stays unambiguous, up to address 9998, the 6-digit one (400001 + address) beyond (a
+    stranger's probe: holding 9999 was printed 50000, discrete 20000 as 30001, an input
+    register's number of another table)."""
+    if address <= _PLC_5_MAX:
+        return str(_PLC_BASE[table] + address)
+    return f"{_PLC_BASE_6[table] + address:06d}"
+
+
+def _range(point: Point) -> str:
+    """What a write of ``point`` can set: its declared range as far as its encoding carries
+    it (:func:`~rig_emulator.registers.codec.accepted_range`; a bool coil carrying a
+    1..86400 s advance takes 1 only)."""
+    lo, hi = accepted_range(point)
+    if lo > hi:
+        return "none"
+    return _number(lo) if lo == hi else f"{_number(lo)}..{_number(hi)}"
 
 
 def markdown(register_map: RegisterMap) -> str:
     """Reference tables, one per device, with everything a lab needs to configure a client."""
     lines = [
-        f"# Register map `{register_map.name}`",
+        f"# Register map `{_BREAK.sub(' ', register_map.name)}`",
         "",
         "Generated from the YAML map by `rig-emulator map-doc`; do not edit by hand.",
         "",
@@ -29,6 +65,14 @@ def markdown(register_map: RegisterMap) -> str:
         "Conventions:",
         "",
         "- Addresses are 0-based protocol addresses (the PLC-style number is given too).",
+        *(
+            [
+                "  PLC numbers are 5-digit up to address 9998 (40001 + address), 6-digit",
+                "  beyond (400001 + address).",
+            ]
+            if any(p.address > _PLC_5_MAX for d in register_map.devices for p in d.points)
+            else []
+        ),
         "- Registers are 16-bit big-endian. 32/64-bit values span consecutive registers:",
         "  `ABCD` sends the most significant word first, `CDAB` the least significant first.",
         "- Integer points are scaled: value = raw x scale + offset.",
@@ -52,7 +96,12 @@ def markdown(register_map: RegisterMap) -> str:
         "",
     ]
     for device in register_map.devices:
-        lines += [f"## Unit {device.unit_id}: `{device.name}`", "", device.instrument, ""]
+        lines += [
+            f"## Unit {device.unit_id}: `{_BREAK.sub(' ', device.name)}`",
+            "",
+            device.instrument,
+            "",
+        ]
         for table in ("input", "holding", "discrete", "coil"):
             points = device.table(table)
             if not points:
@@ -73,11 +122,11 @@ def markdown(register_map: RegisterMap) -> str:
                     else _number(p.scale)
                 )
                 offset = "" if not scale else _number(p.offset)
-                rng = f"{_number(p.minimum)}..{_number(p.maximum)}" if p.writable else ""
+                rng = _range(p) if p.writable else ""
                 lines.append(
-                    f"| {span} | {_PLC_BASE[table] + p.address} | {p.name} | {p.datatype} | "
-                    f"{words} | {scale} | {offset} | {p.unit} | {p.access} | {rng} | "
-                    f"`{p.signal}` | {p.description} |"
+                    f"| {span} | {plc_number(table, p.address)} | {_cell(p.name)} | "
+                    f"{p.datatype} | {words} | {scale} | {offset} | {_cell(p.unit)} | "
+                    f"{p.access} | {rng} | `{p.signal}` | {_cell(p.description)} |"
                 )
             lines.append("")
     return "\n".join(lines).rstrip() + "\n"
