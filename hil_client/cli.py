@@ -11,7 +11,6 @@ import contextlib
 import filecmp
 import json
 import math
-import os
 import signal
 import sys
 import threading
@@ -72,6 +71,7 @@ from rig_emulator.cli_support import (
     int_in,
     output_file,
     path_arg,
+    refuse_overwriting,
     report,
     report_os_error,
     text_file,
@@ -81,6 +81,7 @@ from rig_emulator.emulator import CommandError, boiler_identity
 from rig_emulator.instruments import ProfileError, load_profile
 from rig_emulator.model.params import BoilerParams, ParameterError, params_from_mapping
 from rig_emulator.registers import MapError, RegisterMap, load_map
+from rig_emulator.registers.codec import accepted_range
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -332,23 +333,17 @@ def _warn_other_boiler(log: LabLog, boiler: BoilerParams) -> None:
         )
 
 
-def _refuse_overwriting(out: Path, inputs: dict[str, Path]) -> None:
-    """Refuse an ``--out`` that names one of the command's inputs (``inputs``: what each
-    is, as the message says it); ``balance --out LOG.csv`` wrote its JSON over the lab log
-    and exited 0, as ``fault-report`` did over its journal (a stranger's probe)."""
-    for what, path in inputs.items():
-        try:
-            same = out.resolve() == path.resolve() or (
-                out.exists() and path.exists() and os.path.samefile(out, path)
-            )
-        except OSError:  # a path that cannot be resolved is reported where it is used
-            continue
-        if same:
-            raise UsageError(f"--out: '{out}' is {what}, which it would overwrite; name another")
+def _file_given(name_or_path: str | Path | None) -> Path | None:
+    """The file an option names where it names one (not a shipped NAME), for
+    :func:`refuse_overwriting`."""
+    if name_or_path is None:
+        return None
+    path = Path(name_or_path)
+    return path if path.is_file() else None
 
 
 def _log_files(log: Path) -> dict[str, Path]:
-    """A lab log's own files, by what they are (for :func:`_refuse_overwriting`)."""
+    """A lab log's own files, by what they are (for :func:`refuse_overwriting`)."""
     return {
         "the lab log": log,
         "the lab log's meta file": meta_path(log),
@@ -507,7 +502,9 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         raise UsageError(f"--out: '{args.out}' must name a .yaml file")
     with bad_input(ParameterError):
         documentation = resolve_boiler(args.boiler)
-    _refuse_overwriting(args.out, {"the --boiler file (the documentation values)": documentation})
+    refuse_overwriting(args.out, {"the --boiler file (the documentation values)": documentation})
+    for log in args.logs:  # (a log named .yaml was replaced by the parameters: a probe)
+        refuse_overwriting(args.out, _log_files(log))
     logs = _logs_with_phases(args.logs, doc)
     with bad_input(LogError, ParameterError):
         result = calibrate(logs, doc)
@@ -611,7 +608,7 @@ def _cmd_balance(args: argparse.Namespace) -> int:
     _warn_suspicious(log, params)
     rows = energy_balance(log, params, phases)
     out = args.out or args.log.with_name(args.log.stem + ".balance.json")
-    _refuse_overwriting(out, _log_files(args.log))
+    refuse_overwriting(out, _log_files(args.log) | {"the --boiler file": _file_given(args.boiler)})
     out = output_file(out)
     # strict JSON: a figure a phase does not define (NaN, e.g. no fuel burnt) is null
     text = strict_json(balance_json(rows, phases), indent=2)
@@ -843,6 +840,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if out.is_dir():
         raise UsageError(f"--out: '{out}' is a directory")
     _check_out_parent(out)
+    refuse_overwriting(  # (a protocol saved as .csv was replaced by the log: a probe)
+        out,
+        {
+            "the protocol file": _file_given(args.protocol),
+            "the --boiler file": _file_given(args.boiler),
+            "the --map file": _file_given(args.map),
+        },
+    )
     if args.fault_report is not None and args.fault_journal is None:
         raise UsageError("--fault-report needs --fault-journal JOURNAL.jsonl")
     if args.fault_report is not None and args.rig == "local":
@@ -851,7 +856,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     # every setpoint the protocol writes for this boiler, against what the emulator (and
     # a Modbus rig's map) accepts: refused now, not after the log was begun
     limits = (
-        {s: (p.minimum, p.maximum) for s in WRITES for p in [register_map.point(s)[1]]}
+        {s: accepted_range(p) for s in WRITES for p in [register_map.point(s)[1]]}
         if register_map is not None
         else None
     )
@@ -1116,7 +1121,7 @@ def _coarse_sampling(median_s: float | None, period_s: float, meta: dict) -> str
 
 
 def _cmd_fault_report(args: argparse.Namespace) -> int:
-    _refuse_overwriting(args.out, _log_files(args.log) | {"the fault journal": args.journal})
+    refuse_overwriting(args.out, _log_files(args.log) | {"the fault journal": args.journal})
     with bad_input(ValueError, LogError):
         rep = fault_report(args.log, args.journal)
     for note in rep["notes"]:

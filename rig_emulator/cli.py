@@ -32,10 +32,12 @@ from rig_emulator.cli_support import (
     listen_host,
     output_file,
     path_arg,
+    refuse_overwriting,
     report,
     report_os_error,
     text_file,
     text_input,
+    write_atomically,
 )
 from rig_emulator.dashboard import Dashboard
 from rig_emulator.emulator import CommandError, Emulator, check_command
@@ -293,7 +295,10 @@ def _cmd_map_doc(args: argparse.Namespace) -> int:
     if args.out is not None:
         if not args.out.strip():
             raise UsageError("--out: empty (a file to write; leave --out out for stdout)")
-        output_file(Path(args.out)).write_text(text, encoding="utf-8")
+        out = Path(args.out)
+        given = Path(args.map) if args.map is not None and Path(args.map).is_file() else None
+        refuse_overwriting(out, {"the --map file": given})
+        write_atomically(output_file(out), text)
     else:
         sys.stdout.write(text)
     return 0
@@ -336,6 +341,25 @@ def _cmd_serve(args: argparse.Namespace) -> int:
             output_file(args.fault_log)
         except UsageError as exc:
             raise UsageError(str(exc).replace("--out:", "--fault-log:", 1)) from None
+        named = {  # (the journal replaced the fault file or the boiler file: a probe)
+            "the --faults file": args.faults,
+            "the --boiler file": args.boiler,
+            "the --map file": args.map,
+            "the --profile file": args.profile,
+            "the --roles file": getattr(args, "roles", None),
+        }
+        refuse_overwriting(
+            args.fault_log,
+            {what: Path(v) for what, v in named.items() if v is not None and Path(v).is_file()},
+            "--fault-log",
+        )
+    if args.lockstep and not any(
+        p.signal == "lockstep_advance_s" for d in register_map.devices for p in d.points
+    ):  # (a plant that could never move: a stranger's probe)
+        raise UsageError(
+            f"--lockstep: the map {register_map.source} publishes no point for "
+            "lockstep_advance_s, so nothing could advance this server"
+        )
     if args.http is not None and not 0 <= args.http <= 65535:
         raise UsageError(f"--http: {args.http} is not a TCP port")
     if args.http_control and args.http is None:

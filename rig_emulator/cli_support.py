@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 from typing import IO
@@ -164,9 +165,33 @@ def data_file(text: str) -> Path:
     return path
 
 
+def refuse_overwriting(out: Path, inputs: Mapping[str, Path | None], option: str = "--out") -> None:
+    """Refuse an output that names one of the command's inputs (``inputs``: what each is,
+    as the message says it; None: not given), through links: ``balance --out LOG.csv``
+    wrote its JSON over the lab log, ``serve --fault-log F.yaml --faults F.yaml`` its
+    journal over the fault file, ``map-doc --out MAP --map MAP`` the reference over the
+    map (strangers' probes)."""
+    for what, path in inputs.items():
+        if path is None:
+            continue
+        try:
+            same = out.resolve() == path.resolve() or (
+                out.exists() and path.exists() and os.path.samefile(out, path)
+            )
+        except (OSError, RuntimeError):  # (a loop: reported where the path is used)
+            continue
+        if same:
+            raise UsageError(f"{option}: '{out}' is {what}, which it would overwrite; name another")
+
+
 def output_file(path: Path) -> Path:
     """``path``, its missing parent directories created (as ``--out`` users expect);
-    a parent that is a file, or a ``path`` that is a directory, is a :class:`UsageError`."""
+    a parent that is a file, or a ``path`` that is a directory or a loop of symbolic links,
+    is a :class:`UsageError`."""
+    try:
+        path.resolve()
+    except (RuntimeError, OSError):  # (a traceback: a stranger's probe)
+        raise UsageError(f"--out: '{path}' is a loop of symbolic links") from None
     if path.is_dir():
         raise UsageError(f"--out: '{path}' is a directory")
     try:
@@ -174,6 +199,21 @@ def output_file(path: Path) -> Path:
     except OSError as exc:
         raise UsageError(f"--out: cannot create '{path.parent}' ({exc.strerror})") from None
     return path
+
+
+def write_atomically(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file beside it: a disk that fills up
+    leaves the previous file as it was (map-doc left 8 kB of a reference in place of the
+    old one: a stranger's probe with an 8-kB tmpfs) and no temporary file."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        if exc.filename == str(tmp):
+            exc.filename = str(path)
+        raise
 
 
 @contextmanager

@@ -46,13 +46,29 @@ class FaultJournal:
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._file: TextIO | None = self.path.open("w", encoding="utf-8")
+        self._file: TextIO | None = None
+        self._begun = False
+        self._failed = False  # the file could not be written: its lines are lost
         self.lost = 0  # lines that could not be written
+
+    def begin(self) -> None:
+        """Start the file (an earlier journal there is replaced), unless begun: a server
+        begins it once it listens, so a start that fails (a busy port) leaves an earlier
+        journal as it was (it was emptied: a stranger's probe); a first line begins it too."""
+        if self._begun:
+            return
+        self._begun = True
+        try:
+            self._file = self.path.open("w", encoding="utf-8")
+        except OSError as exc:
+            self._failed = True
+            log.warning("fault journal %s: cannot write (%s)", self.path, exc.strerror or exc)
 
     def write(self, event: dict[str, Any]) -> None:
         line = json.dumps(_json_safe(event), allow_nan=False) + "\n"
+        self.begin()
         if self._file is None:
-            if self.lost:  # dropped after a failed write (after close: nothing to count)
+            if self._failed:  # dropped after a failed write (after close: nothing to count)
                 self.lost += 1
             return
         try:
@@ -60,6 +76,7 @@ class FaultJournal:
             self._file.flush()
         except OSError as exc:
             self.lost += 1
+            self._failed = True
             log.warning(
                 "fault journal %s: cannot write (%s): its lines are lost from now on; the "
                 "faults act as scheduled",
@@ -76,6 +93,7 @@ class FaultJournal:
                 file.close()
 
     def close(self) -> None:
+        self.begin()  # (a run without a fault has an empty journal)
         if self._file is not None:
             try:
                 self._file.close()

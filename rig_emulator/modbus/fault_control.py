@@ -102,7 +102,10 @@ class ServerFaults:
     # ------------------------------------------------------------------ wiring
     def attach(self, modbus_server: Any) -> bool:
         """Put the gate on ``modbus_server.gates`` and let ``disconnect`` close its
-        connections; False if that server has no gates (communication faults then act not)."""
+        connections; False if that server has no gates (communication faults then act not).
+        The server listens: the journal begins (:meth:`FaultJournal.begin`)."""
+        if self.engine.journal is not None:
+            self.engine.journal.begin()
         gates = getattr(modbus_server, "gates", None)
         close = getattr(modbus_server, "close_all_connections", None)
         if close is not None:

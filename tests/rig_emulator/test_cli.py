@@ -191,3 +191,92 @@ def test_a_full_standard_output_is_one_line_naming_it(argv):
     prog = "rig-emulator" if argv[0].startswith("rig") else "hil-client"
     assert proc.returncode == 1
     assert proc.stderr.strip() == f"{prog}: error: writing standard output: No space left on device"
+
+
+def test_outputs_never_replace_an_input(tmp_path, capsys):
+    """Strangers' probes: ``--fault-log`` replaced the ``--faults`` file (and a boiler
+    file) with journal lines; ``map-doc --out`` replaced its ``--map``. Refused, the input
+    kept."""
+    import shutil
+
+    from rig_emulator.registers import MAP_DIR
+
+    faults = tmp_path / "F.yaml"
+    faults.write_text("faults:\n  - {kind: disconnect, at_s: 5}\n")
+    for option in ("--faults", "--map"):
+        target = faults if option == "--faults" else tmp_path / "m.yaml"
+        if option == "--map":
+            shutil.copy(MAP_DIR / "wieselburg_bench.yaml", target)
+        before = target.read_bytes()
+        argv = ["serve", "--boiler", "windhager_12kw", "--port", "0", "--lockstep"]
+        assert main([*argv, option, str(target), "--fault-log", str(target)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "which it would overwrite" in err, err
+        assert target.read_bytes() == before
+    mapped = tmp_path / "m.yaml"
+    before = mapped.read_bytes()
+    assert main(["map-doc", "--map", str(mapped), "--out", str(mapped)]) == 2
+    assert "is the --map file, which it would overwrite" in capsys.readouterr().err
+    assert mapped.read_bytes() == before
+
+
+def test_a_server_that_cannot_listen_leaves_an_earlier_journal(tmp_path, capsys):
+    """A stranger's probe: a serve that failed on a busy port emptied the journal its
+    --fault-log named (59 bytes to 0)."""
+    import socket
+
+    journal = tmp_path / "journal.jsonl"
+    journal.write_text('{"event": "start"}\n')
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        argv = ["serve", "--boiler", "windhager_12kw", "--port", str(port), "--lockstep"]
+        assert main([*argv, "--fault-log", str(journal)]) == 2
+    assert "cannot" in capsys.readouterr().err
+    assert journal.read_text() == '{"event": "start"}\n'
+
+
+def test_lockstep_needs_a_map_that_can_advance(tmp_path, capsys):
+    """A stranger's probe: ``serve --lockstep`` with a map that publishes no
+    lockstep_advance started a plant nothing could move."""
+    import yaml
+
+    from rig_emulator.registers import MAP_DIR
+
+    data = yaml.safe_load((MAP_DIR / "wieselburg_bench.yaml").read_text())
+    for device in data["devices"]:
+        device["points"] = [p for p in device["points"] if p["signal"] != "lockstep_advance_s"]
+    path = tmp_path / "m.yaml"
+    path.write_text(yaml.safe_dump(data))
+    assert main(["serve", "--boiler", "windhager_12kw", "--lockstep", "--map", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "publishes no point for lockstep_advance_s" in err and err.count("\n") == 1
+
+
+def test_a_reference_that_cannot_be_written_leaves_the_old_one(tmp_path):
+    """A stranger's probe with an 8-kB tmpfs: map-doc on a full disk left 8 kB of a new
+    reference in place of the old one. Here a file-size limit stands for the full disk."""
+    import resource
+    import signal
+    import subprocess
+    import sys
+
+    out = tmp_path / "m.md"
+    out.write_text("the old reference\n")
+
+    def small_files():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # EFBIG instead of a kill
+        resource.setrlimit(resource.RLIMIT_FSIZE, (4096, 4096))
+
+    proc = subprocess.run(
+        [sys.executable, "-m", "rig_emulator.cli", "map-doc", "--out", str(out)],
+        preexec_fn=small_files,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 1 and proc.stderr.count("\n") == 1, proc.stderr
+    assert f"writing {out}" in proc.stderr or str(out) in proc.stderr
+    assert out.read_text() == "the old reference\n"
+    assert [p.name for p in tmp_path.iterdir()] == ["m.md"]  # no temporary file left
