@@ -9,7 +9,6 @@ server's fault journal (:mod:`hil_client.analysis.fault_report`).
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -17,6 +16,7 @@ from typing import Any
 from hil_client.analysis.fault_report import check_journal, compare
 from hil_client.analysis.logio import read_log
 from hil_client.jsonio import strict_json
+from rig_emulator.yamlio import finite_number
 
 
 def events_path(log_path: Path) -> Path:
@@ -88,7 +88,7 @@ def fault_report(log_path: Path, journal_path: Path, slack_s: float = 2.0) -> di
     _check_events(events, events_file)
     log = read_log(Path(log_path), as_read=True)
     offset = log.meta.get("server_time_offset_s", 0.0)
-    offset = float(offset) if isinstance(offset, int | float) else 0.0
+    offset = finite_number(offset) or 0.0
     server_time = log.t - offset
     report = compare(journal, events, log.columns, server_time, slack_s, str(journal_path))
     report["log"] = str(log_path)
@@ -105,10 +105,10 @@ def _check_events(events: Sequence[dict[str, Any]], path: Path) -> None:
             raise ValueError(f"{path}: line {number}: field 'event' is missing or not text")
         for key in ("time_s", "server_time_s"):
             value = event.get(key)
-            number_ok = isinstance(value, int | float) and not isinstance(value, bool)
-            if not number_ok or not math.isfinite(value):
+            if finite_number(value) is None:
+                shown = f"{value!r}" if len(repr(value)) <= 40 else f"{repr(value)[:20]}..."
                 raise ValueError(
-                    f"{path}: line {number}: field '{key}' = {value!r} is not a finite number"
+                    f"{path}: line {number}: field '{key}' = {shown} is not a finite number"
                 )
 
 

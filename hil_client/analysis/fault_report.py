@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from rig_emulator.faults import COMM_KINDS, KINDS
+from rig_emulator.yamlio import finite_number
 
 INSTRUMENT_UNITS_ANY = 0
 _COMM_MARKS = {
@@ -53,7 +54,8 @@ _FAULT_MARKS = frozenset({"timeout", "no_reply", "exception", "late", "invalid",
 
 
 def _journal_error(source: str, line: int, key: str, value: Any, what: str) -> ValueError:
-    return ValueError(f"{source}: line {line}: field '{key}' = {value!r}: {what}")
+    shown = f"{value!r}" if len(repr(value)) <= 40 else f"{repr(value)[:20]}..."
+    return ValueError(f"{source}: line {line}: field '{key}' = {shown}: {what}")
 
 
 def check_journal(journal: Sequence[Mapping[str, Any]], source: str = "fault journal") -> None:
@@ -79,7 +81,7 @@ def check_journal(journal: Sequence[Mapping[str, Any]], source: str = "fault jou
         fid, t = event["id"], event["t_sim_s"]
         if isinstance(fid, bool) or not isinstance(fid, int):
             raise bad("id", "not an integer")
-        if isinstance(t, bool) or not isinstance(t, int | float) or not math.isfinite(t):
+        if finite_number(t) is None:  # (an int of 401 digits overflowed: a probe)
             raise bad("t_sim_s", "not a finite number of seconds")
         kind = event["kind"]
         if kind not in KINDS:
@@ -89,12 +91,7 @@ def check_journal(journal: Sequence[Mapping[str, Any]], source: str = "fault jou
             if isinstance(unit, bool) or not isinstance(unit, int) or not 0 <= unit <= 255:
                 raise bad("unit", "not a unit number 0..255")
             code = event.get("code")  # the server may write it as a float: 11.0
-            if code is not None and not (
-                isinstance(code, int | float)
-                and not isinstance(code, bool)
-                and math.isfinite(code)
-                and code == int(code)
-            ):
+            if code is not None and not (finite_number(code) is not None and code == int(code)):
                 raise bad("code", "not an exception code (a whole number)")
         elif not isinstance(event.get("signal"), str):
             raise bad("signal", "not the name of a lab-log column")

@@ -264,6 +264,8 @@ def read_log(
             text[name] = values
             continue
         try:
+            if any("_" in v for v in values):  # (float() reads '6_9' as 69: a probe)
+                raise ValueError
             out = np.array(
                 [
                     v if v.strip() and v.strip().upper() not in _NO_READING else "nan"
@@ -468,6 +470,8 @@ def _ends_unterminated(path: Path) -> bool:
 
 
 def _is_number(text: str) -> bool:
+    if "_" in text:  # (Python's float() reads '6_9' as 69; no lab writes it so)
+        return False
     try:
         float(text)
     except ValueError:

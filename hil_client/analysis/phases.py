@@ -22,12 +22,12 @@ A boundary is the time of the last row of the phase before it (as the runner rec
 from __future__ import annotations
 
 import itertools
-import math
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from hil_client.analysis.logio import EPOCH_KEPT, LabLog, LogError, fill_gaps, flow_column
+from rig_emulator.yamlio import finite_number
 
 NAMES = ("preheat", "start_up", "test", "cooling_1", "cooling_2")
 MARKS = ("t0_s", "t1_s", "t2_s", "t3_s", "t4_s")
@@ -148,9 +148,10 @@ def _meta_marks(log: LabLog, partial: bool) -> Phases | None:
     fix = "; remove t0_s..t4_s from it to find the phases from the signals"
     for key in MARKS:
         v = log.meta.get(key)
-        bad = isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v)
+        bad = finite_number(v) is None  # (an int of 401 digits overflowed: a probe)
         if v is not None and bad:  # null: not reached (an interrupted run writes that)
-            raise LogError(f"{meta_file}: {key} = {v!r} is not a finite number of seconds{fix}")
+            shown = f"{v!r}" if len(repr(v)) <= 40 else f"{repr(v)[:20]}..."
+            raise LogError(f"{meta_file}: {key} = {shown} is not a finite number of seconds{fix}")
     present = [key for key in MARKS if log.meta.get(key) is not None]
     reached = next((i for i, key in enumerate(MARKS) if log.meta.get(key) is None), 5)
     if reached < 5 and not (partial and reached and present == list(MARKS[:reached])):
@@ -170,6 +171,11 @@ def _meta_marks(log: LabLog, partial: bool) -> Phases | None:
                 f"{meta_file}: {MARKS[i]} = {values[i]:g} is not after "
                 f"{MARKS[i - 1]} = {values[i - 1]:g}{fix}"
             )
+    if values[4] > last + 1.0:  # (it was taken in silence: a stranger's probe)
+        log.notes.append(
+            f"{meta_file}: t4_s = {values[4]:g} lies after the record's last row ({last:g}):"
+            " the second cooling is read to that row (the log cut short?)"
+        )
     values[4] = min(values[4], last)
     if reached == 5:
         return Phases(*values, source="meta file")  # type: ignore[arg-type]

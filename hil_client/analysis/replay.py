@@ -143,7 +143,8 @@ def prepare(
     sensors' response times, None: as this log shows them, :func:`sensor_lags`)."""
     t = log.t
     dt = _step_lengths(t)
-    flow = np.clip(np.nan_to_num(fill_gaps(log["water_flow_kg_h"], t)), 0.0, None)
+    # (an empty flow column ran the model at zero flow and named an effect: a probe)
+    flow = np.clip(_filled(log, "water_flow_kg_h"), 0.0, None)
     t_in = _filled(log, "water_in_temp_C")
     room = _filled(log, "room_temp_C")
     water = _filled(log, "boiler_water_temp_C")

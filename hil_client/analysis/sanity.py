@@ -128,8 +128,15 @@ def _flue_gas(log: LabLog) -> list[str]:
 
 def _oxygen(log: LabLog) -> list[str]:
     x = _readings(log, "flue_gas_O2_pct")
-    if not len(x):
-        return []
+    if not len(x):  # (validate and diagnose said nothing of it: a stranger's probe)
+        return (
+            [
+                "column 'flue_gas_O2_pct' has no readings: lambda, the flue-gas loss and the "
+                "burner's firing seen by the analyser are unknown"
+            ]
+            if "flue_gas_O2_pct" in log.columns
+            else []
+        )
     top = float(np.max(x))
     above = float(np.mean(x > O2_AIR_PCT + O2_ABOVE_AIR_PCT))
     if above > 0.01:
@@ -262,6 +269,12 @@ TIME_STEP_REFUSE_S = 600.0
 TIME_SPAN_REFUSE_S = 30 * 86400.0
 
 
+#: The shortest median step between rows the analyses read [s]: a data logger at 100 Hz;
+#: a time in hours (1-s rows: 2.8e-4) or Excel's serial days (1.2e-5) gave balances of
+#: 51,532 kW with exit 0 (a stranger's probe); a 20-Hz export (0.05 s) is read.
+TIME_STEP_MIN_S = 0.01
+
+
 def check_time_step(log: LabLog) -> None:
     """:class:`LogError` if ``log``'s median step exceeds :data:`TIME_STEP_REFUSE_S` or it
     spans more than :data:`TIME_SPAN_REFUSE_S`."""
@@ -272,6 +285,12 @@ def check_time_step(log: LabLog) -> None:
             f"{log.path}: column 'time_s' advances a median of {step:g} s per row: a time in "
             f"milliseconds? (a lab logs every 1-10 s; the analyses need a row at least every "
             f"{TIME_STEP_REFUSE_S / 60:g} min)"
+        )
+    if 0.0 < step < TIME_STEP_MIN_S:
+        raise LogError(
+            f"{log.path}: column 'time_s' advances a median of {step:.3g} s per row: a time in "
+            f"hours, or Excel's days? (a lab logs every 1-10 s; the analyses read rows at "
+            f"most {1 / TIME_STEP_MIN_S:g} a second)"
         )
     span = float(t[-1] - t[0]) if len(t) else 0.0
     if span > TIME_SPAN_REFUSE_S:

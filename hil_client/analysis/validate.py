@@ -41,6 +41,14 @@ from rig_emulator.model.simulate import simulate
 from rig_emulator.model.water_heat import heat_to_water_kW
 
 SIGNALS = ("boiler_water_temp_C", "heat_to_water_kW", "flue_gas_loss_kW")
+#: The measured inputs the model is run with, and the boiler water it starts from
+MODEL_INPUTS = (
+    "water_flow_kg_h",
+    "water_in_temp_C",
+    "water_out_temp_C",
+    "room_temp_C",
+    "boiler_water_temp_C",
+)
 
 
 @dataclass
@@ -95,6 +103,9 @@ MIN_FIRING_ROWS = 2
 def check_length(log: LabLog, phases: Phases) -> None:
     """Refuse a log too short to validate: the model runs on the log's rows, and the burner
     is on from t0 to t2; fewer than two rows there compare nothing."""
+    for name in MODEL_INPUTS:  # (an empty one gave made-up figures, exit 0: a probe)
+        if np.isnan(log[name]).all():
+            raise LogError(f"{log.path}: column '{name}' has no values (the model runs on it)")
     rows = int((phases.mask("start_up", log.t) | phases.mask("test", log.t)).sum())
     if len(log) < MIN_FIRING_ROWS or rows < MIN_FIRING_ROWS:
         raise LogError(

@@ -217,8 +217,10 @@ def params_from_mapping(data: Any, source: str = "<parameters>") -> BoilerParams
     _check_unit(values["p_nom_kW"], P_NOM_RANGE_KW, "p_nom_kW", source)
     for key, per_kW in PER_KW_RANGES.items():
         _check_unit(values[key] / values["p_nom_kW"], per_kW, key, source, values[key])
-    for key in ("p_el_min_W", "p_el_max_W", "p_el_off_W", "w_el_Wh"):
-        if values[key] < 0:
+    # (a negative CO was served as a negative reading: a stranger's probe)
+    nonnegative = ("p_el_min_W", "p_el_max_W", "p_el_off_W", "w_el_Wh")
+    for key in (*nonnegative, "co_ppm_at_p_max", "co_ppm_at_p_min"):
+        if values.get(key, 0.0) < 0:
             raise ParameterError(f"{source}: key '{key}' must not be negative")
     if values["p_min_kW"] > values["p_max_kW"]:
         raise ParameterError(

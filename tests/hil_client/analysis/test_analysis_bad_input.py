@@ -465,3 +465,83 @@ def test_fault_report_and_calibrate_may_not_write_over_their_inputs(tmp_path, ca
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "would overwrite" in err, argv
     assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+
+
+def _edited(run_log, tmp_path, name: str, edit) -> str:
+    """The clean stationary 12-kW log with ``edit(header, row)`` applied to every row."""
+    import shutil
+
+    src = run_log("stationary", "windhager_12kw").path
+    lines = src.read_text().splitlines()
+    header = lines[0].split(",")
+    rows = [line.split(",") for line in lines[1:]]
+    for row in rows:
+        edit(header, row)
+    path = tmp_path / f"{name}.csv"
+    path.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    shutil.copy(src.with_name(src.stem + ".meta.json"), tmp_path / f"{name}.meta.json")
+    return str(path)
+
+
+@pytest.mark.parametrize("column", ["water_flow_kg_h", "room_temp_C", "water_in_temp_C"])
+def test_a_model_input_with_no_values_is_refused_by_validate(run_log, tmp_path, capsys, column):
+    """A stranger's probe: an empty flow column gave Table 4 figures of a model run at zero
+    flow (RMSD 10 K, fuel -99.5 %), exit 0, no warning."""
+
+    def empty(header, row):
+        row[header.index(column)] = ""
+
+    path = _edited(run_log, tmp_path, "empty", empty)
+    assert main(["validate", path, "--boiler", "windhager_12kw", "--out", str(tmp_path / "v")]) == 2
+    err = capsys.readouterr().err
+    assert f"column '{column}' has no values" in err and err.count("\n") == 1
+    assert not (tmp_path / "v").exists()
+
+
+@pytest.mark.parametrize(("unit", "per_s"), [("hours", 1 / 3600), ("days", 1 / 86400)])
+def test_a_time_in_hours_or_days_is_refused(run_log, tmp_path, capsys, unit, per_s):
+    """A stranger's probe: a time column in hours (or Excel's serial days) under the name
+    time_s gave a balance of Q_fuel 51,532 kW, exit 0."""
+
+    def rescale(header, row):
+        i = header.index("time_s")
+        row[i] = f"{float(row[i]) * per_s:.9f}"
+
+    path = _edited(run_log, tmp_path, unit, rescale)
+    (tmp_path / f"{unit}.meta.json").unlink()  # (its marks are in seconds)
+    assert main(["balance", path, "--boiler", "windhager_12kw"]) == 2
+    err = capsys.readouterr().err
+    assert "a time in hours, or Excel's days?" in err and err.count("\n") == 1
+
+
+def test_a_number_written_with_underscores_is_no_number(run_log, tmp_path, capsys):
+    """A stranger's probe: Python's float() read '6_9' as 69 (and '1_000' as 1000 C)."""
+
+    def underscore(header, row):
+        if row[header.index("time_s")].startswith("5000."):
+            row[header.index("water_out_temp_C")] = "6_9"
+
+    path = _edited(run_log, tmp_path, "us", underscore)
+    assert main(["balance", path, "--boiler", "windhager_12kw"]) == 2
+    assert "'6_9' is not a number" in capsys.readouterr().err
+
+
+def test_an_integer_too_large_for_a_float_in_a_meta_file_is_one_line(tmp_path, capsys):
+    """A stranger's probe: a 401-digit t1_s ended balance in OverflowError's traceback."""
+    path = _short_log(tmp_path, meta={"t0_s": 3.0, "t1_s": 10**400})
+    assert main(["balance", str(path), "--boiler", "windhager_6kw"]) == 2
+    err = capsys.readouterr().err
+    assert "t1_s = 10000000000000000000... is not a finite number" in err
+    assert err.count("\n") == 1
+
+
+def test_an_analyser_with_no_readings_is_said_by_validate(run_log, tmp_path, capsys):
+    """A stranger's probe: balance warned of an empty O2 column, validate and diagnose
+    said nothing (and the diagnosis changed)."""
+
+    def no_o2(header, row):
+        row[header.index("flue_gas_O2_pct")] = ""
+
+    path = _edited(run_log, tmp_path, "no_o2", no_o2)
+    assert main(["validate", path, "--boiler", "windhager_12kw", "--out", str(tmp_path / "v")]) == 0
+    assert "column 'flue_gas_O2_pct' has no readings" in capsys.readouterr().err
