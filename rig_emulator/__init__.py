@@ -7,6 +7,7 @@ Layers, imports pointing one way only:
 
 import hashlib
 import os
+import tempfile
 from pathlib import Path
 
 __version__ = "0.1.0"
@@ -27,8 +28,21 @@ def _set_numba_cache_dir() -> None:
         for path in sorted((root / sub).rglob("*.py")):
             digest.update(path.relative_to(root).as_posix().encode())
             digest.update(path.read_bytes())
+    key = digest.hexdigest()[:16]
     base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    os.environ["NUMBA_CACHE_DIR"] = str(base / "rig-emulator" / "numba" / digest.hexdigest()[:16])
+    for cache in (
+        base / "rig-emulator" / "numba" / key,
+        # a service account without a home (HOME=/nonexistent): numba found no cache
+        # directory, and every command, --help too, ended in a traceback (a stranger's probe)
+        Path(tempfile.gettempdir()) / f"rig-emulator-{os.getuid()}" / "numba" / key,
+    ):
+        try:
+            cache.mkdir(parents=True, exist_ok=True)
+        except OSError:
+            continue
+        if os.access(cache, os.W_OK):
+            os.environ["NUMBA_CACHE_DIR"] = str(cache)
+            return
 
 
 _set_numba_cache_dir()

@@ -280,3 +280,31 @@ def test_a_reference_that_cannot_be_written_leaves_the_old_one(tmp_path):
     assert f"writing {out}" in proc.stderr or str(out) in proc.stderr
     assert out.read_text() == "the old reference\n"
     assert [p.name for p in tmp_path.iterdir()] == ["m.md"]  # no temporary file left
+
+
+@pytest.mark.skipif(
+    __import__("os").geteuid() != 0 or __import__("shutil").which("setpriv") is None,
+    reason="needs root and setpriv to run as a user without a home",
+)
+def test_a_user_without_a_home_gets_the_commands():
+    """A stranger's probe: as a service account (nobody, HOME=/nonexistent) every command,
+    --help too, ended in numba's "cannot cache function ... no locator available"."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import rig_emulator
+
+    package_root = Path(rig_emulator.__file__).parents[1]
+    if not os.access(package_root, os.R_OK | os.X_OK) or (package_root.stat().st_mode & 0o005) != 5:
+        pytest.skip(f"{package_root} is not readable by other users")
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "XDG_CACHE_HOME")}
+    env["HOME"] = "/nonexistent"
+    proc = subprocess.run(
+        ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", sys.executable, "-m",
+         "rig_emulator.cli", "steady", "--boiler", "windhager_12kw", "--load", "63"],
+        capture_output=True, text=True, timeout=300, env=env, cwd=package_root,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-800:]
+    assert "Q_water" in proc.stdout and "Traceback" not in proc.stderr
