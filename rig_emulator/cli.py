@@ -48,7 +48,7 @@ from rig_emulator.modbus.fault_control import reading_ranges
 from rig_emulator.model import pack_constants, steady_state
 from rig_emulator.registers import MapError, RegisterMap, load_map
 from rig_emulator.registers.reference import markdown
-from rig_emulator.signals import MEASURED
+from rig_emulator.signals import MEASURED, SIGNALS
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -81,7 +81,7 @@ def _build_parser() -> argparse.ArgumentParser:
     pace = serve.add_mutually_exclusive_group()
     pace.add_argument(
         "--speed",
-        type=finite_float(-1e308, 1e308),
+        type=finite_float(SIGNALS["speed_factor"].minimum, SIGNALS["speed_factor"].maximum),
         default=1.0,
         help="simulated seconds per wall second [1 = real time]",
     )
@@ -362,6 +362,8 @@ def _cmd_serve(args: argparse.Namespace) -> int:
         )
     if args.http is not None and not 0 <= args.http <= 65535:
         raise UsageError(f"--http: {args.http} is not a TCP port")
+    if args.http and args.http == args.port:  # (it said "serving", then failed: a probe)
+        raise UsageError(f"--http: port {args.http} is the Modbus port (--port) too")
     if args.http_control and args.http is None:
         raise UsageError("--http-control needs --http PORT")
     args.transport_plan = transport_options.plan(args)
@@ -393,8 +395,10 @@ def _cmd_serve(args: argparse.Namespace) -> int:
     except OSError as exc:  # busy port, address not local, no permission: bad input
         if exc.strerror is None:
             raise UsageError(str(exc)) from None
-        if "attempting to bind" in str(exc):  # asyncio names the address: the HTTP port's too
-            raise UsageError(f"cannot serve: {exc}") from None
+        if "attempting to bind" in str(exc):  # asyncio names the address: the HTTP port's
+            option = "--http: " if args.http is not None and f", {args.http})" in str(exc) else ""
+            why = exc.strerror.split(": ")[-1] if exc.strerror else str(exc)
+            raise UsageError(f"{option}cannot serve on {args.host}:{args.http}: {why}") from None
         raise UsageError(
             f"cannot serve on {args.host}:{args.transport_plan.port}: {exc.strerror}"
         ) from None

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import errno
 import math
 import os
 import sys
@@ -64,7 +65,8 @@ def report_os_error(exc: OSError, prog: str, unnamed: str | None = None) -> int:
     probe with a 64-kB tmpfs)."""
     where = f"{exc.filename or unnamed}: " if exc.filename or unnamed else ""
     print(f"{prog}: error: {where}{exc.strerror or exc}", file=sys.stderr)
-    return 1
+    # a path too long or looping is the path given, bad input (exit 1 said otherwise: a probe)
+    return 2 if exc.errno in (errno.ENAMETOOLONG, errno.ELOOP) else 1
 
 
 def path_arg(text: str) -> Path:

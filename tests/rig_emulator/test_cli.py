@@ -95,6 +95,11 @@ def test_serve_runs_logs_connections_and_stops_on_sigterm():
         (["--profile", "nope"], "unknown profile 'nope'"),
         (["--speed", "-3"], "--speed"),
         (["--port", "70000"], "--port"),
+        # a stranger's probe: the range was -1e+308..1e+308 and the name speed_factor
+        (["--speed", ""], "argument --speed: '' is not a number (0.01..100000)"),
+        (["--speed", "-1"], "argument --speed: -1 is outside 0.01..100000"),
+        # ... and --http on the Modbus port said "serving", then failed naming neither
+        (["--port", "23999", "--http", "23999"], "--http: port 23999 is the Modbus port"),
     ],
 )
 def test_serve_refuses_bad_input_with_exit_2(capsys, args, message):
