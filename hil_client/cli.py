@@ -57,6 +57,7 @@ from hil_client.rigs.local import LocalRig, wire_only_faults
 from hil_client.rigs.modbus import WRITES, ModbusRig, check_map
 from hil_client.rigs.transports import RIG_TIMEOUT_S, connector, tls_files
 from hil_client.summary import RunSummary
+from rig_emulator.atomic import write_atomically
 from rig_emulator.boilers import BOILER_DIR, dump_boiler, load_boiler
 from rig_emulator.boilers import resolve as resolve_boiler
 from rig_emulator.certs import validity_problem
@@ -478,12 +479,12 @@ def _cmd_validate(args: argparse.Namespace) -> int:
         "phases": phases.as_dict() | {"source": phases.source},
         **result,
     }
-    (args.out / "validation.json").write_text(strict_json(result, indent=2) + "\n")
+    write_atomically(args.out / "validation.json", strict_json(result, indent=2) + "\n")
     figures = validation_figures(
         comp, phases, args.out / "validation", f"{args.log.name}: model ({params.name}) against lab"
     )
     report = validation_report(result, figures)
-    (args.out / "report.md").write_text(report)
+    write_atomically(args.out / "report.md", report)
     print(report.split("## Figures")[0].rstrip())
     print(
         f"\nwritten: {args.out / 'validation.json'}, {args.out / 'report.md'}, "
@@ -518,7 +519,8 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         lines.append(f"#   {key} = {f.value:.4g} +- {f.expanded:.2g}  ({f.method}){kept}")
     dump_boiler(params, output_file(args.out), header="\n".join(lines))
     side = args.out.with_suffix(".uncertainty.json")
-    side.write_text(
+    write_atomically(
+        side,
         json.dumps(
             {
                 key: {
@@ -553,7 +555,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
             indent=2,
             allow_nan=False,
         )
-        + "\n"
+        + "\n",
     )
     figures = calibration_figures(result, args.out.with_suffix(""))
     print(f"calibrated {params.name} from {len(args.logs)} log(s):")
@@ -612,7 +614,7 @@ def _cmd_balance(args: argparse.Namespace) -> int:
     out = output_file(out)
     # strict JSON: a figure a phase does not define (NaN, e.g. no fuel burnt) is null
     text = strict_json(balance_json(rows, phases), indent=2)
-    out.write_text(text + "\n", encoding="utf-8")
+    write_atomically(out, text + "\n")
     print(f"energy balance of {args.log} ({params.name}; phases from the {phases.source})")
     print(balance_table(rows))
     if log.has("balance_mass_kg"):  # taken out of the fuel, as said (it was not: a probe)

@@ -16,6 +16,7 @@ from typing import Any
 from hil_client.analysis.fault_report import check_journal, compare
 from hil_client.analysis.logio import read_log
 from hil_client.jsonio import strict_json
+from rig_emulator.atomic import write_atomically
 from rig_emulator.yamlio import finite_number
 
 
@@ -113,7 +114,7 @@ def _check_events(events: Sequence[dict[str, Any]], path: Path) -> None:
 
 
 def write_report(report: dict[str, Any], out: Path) -> None:
-    out.write_text(strict_json(report, indent=2) + "\n", encoding="utf-8")
+    write_atomically(out, strict_json(report, indent=2) + "\n")
 
 
 def summary(report: dict[str, Any]) -> str:

@@ -20,6 +20,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from rig_emulator import cli_transports as transport_options
+from rig_emulator.atomic import write_atomically
 from rig_emulator.certs import make_lab_certificates, validity_problem
 from rig_emulator.cli_support import (
     Parser,
@@ -37,7 +38,6 @@ from rig_emulator.cli_support import (
     report_os_error,
     text_file,
     text_input,
-    write_atomically,
 )
 from rig_emulator.dashboard import Dashboard
 from rig_emulator.emulator import CommandError, Emulator, check_command

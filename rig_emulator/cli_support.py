@@ -203,21 +203,6 @@ def output_file(path: Path) -> Path:
     return path
 
 
-def write_atomically(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file beside it: a disk that fills up
-    leaves the previous file as it was (map-doc left 8 kB of a reference in place of the
-    old one: a stranger's probe with an 8-kB tmpfs) and no temporary file."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, path)
-    except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        if exc.filename == str(tmp):
-            exc.filename = str(path)
-        raise
-
-
 @contextmanager
 def input_errors() -> Iterator[None]:
     """The last line of defence of both CLIs: unreadable or undecodable input files in the

@@ -11,6 +11,7 @@ import numpy as np
 from hil_client.analysis.diagnose import Diagnosis
 from hil_client.analysis.figures import diagnosis_figures
 from hil_client.analysis.report import diagnosis_report
+from rig_emulator.atomic import write_atomically
 
 
 def _json_safe(value):
@@ -38,6 +39,6 @@ def write_diagnosis(result: Diagnosis, out: Path, calibration: str, validation: 
     out.mkdir(parents=True, exist_ok=True)
     figures = diagnosis_figures(result, out)
     content = public(result)
-    (out / "diagnosis.json").write_text(json.dumps(content, indent=2, allow_nan=False) + "\n")
-    (out / "report.md").write_text(diagnosis_report(content, figures, calibration, validation))
+    write_atomically(out / "diagnosis.json", json.dumps(content, indent=2, allow_nan=False) + "\n")
+    write_atomically(out / "report.md", diagnosis_report(content, figures, calibration, validation))
     return content

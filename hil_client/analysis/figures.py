@@ -14,6 +14,7 @@ import numpy as np
 from hil_client.analysis.candidates import full_prediction
 from hil_client.analysis.logio import LabLog, fill_gaps
 from hil_client.analysis.phases import Phases
+from rig_emulator.atomic import replacing
 from rig_emulator.model.water_heat import heat_to_water_kW
 
 if TYPE_CHECKING:
@@ -41,8 +42,11 @@ def mark_phases(ax, phases: Phases) -> None:
 def _save(fig, path: Path, dpi: int = 110) -> Path:
     """Lay out, write and close a figure."""
     fig.tight_layout()
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
+    try:
+        with replacing(path) as tmp:
+            fig.savefig(tmp, dpi=dpi)
+    finally:
+        plt.close(fig)
     return path
 
 

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import yaml
 
+from rig_emulator.atomic import write_atomically
 from rig_emulator.model.params import BoilerParams, ParameterError, params_from_mapping
 from rig_emulator.yamlio import read_yaml, resolve_named
 
@@ -32,4 +33,4 @@ def load_boiler(name_or_path: str) -> BoilerParams:
 def dump_boiler(params: BoilerParams, path: Path, header: str = "") -> None:
     """Write a parameter file of CONTRACT section 2 form."""
     text = yaml.safe_dump(params.to_mapping(), sort_keys=False)
-    path.write_text((header + "\n" if header else "") + text, encoding="utf-8")
+    write_atomically(path, (header + "\n" if header else "") + text)

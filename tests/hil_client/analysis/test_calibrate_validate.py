@@ -478,3 +478,38 @@ def test_a_draught_read_backwards_gives_a_file_that_loads(round_trip, tmp_path, 
     assert calibrated.ua_amb_on_W_K == on["kept"] <= calibrated.ua_amb_off_W_K
     assert off["implausible"] is False  # the second cooling's fit stays
     assert "warning: ua_amb_on_W_K: ua_amb_on_W_K" in printed and "(Eq. 14-16)" in printed
+
+
+def test_outputs_cut_by_a_full_disk_leave_no_broken_file(run_log, tmp_path):
+    """A stranger's probe with an 8-kB tmpfs: validate left a 0-byte figure beside the old
+    report. Each output is now written beside and put in place whole: the disk that fills
+    up (here a file-size limit) costs the new files, never an old one, and leaves no
+    temporary file."""
+    import resource
+    import signal
+    import subprocess
+    import sys
+
+    rec = run_log("stationary", "windhager_12kw")
+    out = tmp_path / "v"
+    argv = ["validate", str(rec.path), "--boiler", "windhager_12kw", "--out", str(out)]
+    assert main(argv) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+
+    def small_files():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # EFBIG instead of a kill
+        resource.setrlimit(resource.RLIMIT_FSIZE, (8192, 8192))
+
+    proc = subprocess.run(
+        [sys.executable, "-m", "hil_client.cli", *argv],
+        preexec_fn=small_files,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr, proc.stderr[-500:]
+    after = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert set(after) == set(before)  # no temporary file left
+    for name, data in after.items():  # each file is a whole one: the old or a new
+        assert len(data) > 0, name
+    assert after["validation_timeseries.png"] == before["validation_timeseries.png"]
