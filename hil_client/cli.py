@@ -854,6 +854,18 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise UsageError("--fault-report needs --fault-journal JOURNAL.jsonl")
     if args.fault_report is not None and args.rig == "local":
         raise UsageError("--fault-report needs a Modbus rig (faults act in the server)")
+    if args.fault_report is not None:  # (it replaced the run's own log: a re-probe)
+        refuse_overwriting(
+            args.fault_report,
+            _log_files(out)
+            | {
+                "the fault journal (--fault-journal)": args.fault_journal,
+                "the protocol file": _file_given(args.protocol),
+                "the --boiler file": _file_given(args.boiler),
+                "the --map file": _file_given(args.map),
+            },
+            "--fault-report",
+        )
     register_map = _rig_map(args)
     # every setpoint the protocol writes for this boiler, against what the emulator (and
     # a Modbus rig's map) accepts: refused now, not after the log was begun

@@ -15,12 +15,17 @@ from pathlib import Path
 @contextlib.contextmanager
 def replacing(path: Path) -> Iterator[Path]:
     """A temporary path beside ``path`` (same suffix: a figure's format follows it) to write;
-    it replaces ``path`` when the block ends, and is removed if the block fails (an
-    OSError about it then names ``path``)."""
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
+    it replaces ``path`` (the file a link names, not the link) when the block ends, and is
+    removed if the block fails (an OSError about it then names ``path``). A ``path`` that is
+    a device or a pipe is written as it is."""
+    if path.exists() and not path.is_file():  # a device or a pipe (/dev/stdout): written
+        yield path  # to as it is (a file was put in its place: a re-probe)
+        return
+    real = Path(os.path.realpath(path))  # through links: the file they name is replaced
+    tmp = real.with_name(f".{real.stem}.{os.getpid()}.tmp{real.suffix}")
     try:
         yield tmp
-        os.replace(tmp, path)
+        os.replace(tmp, real)
     except BaseException as exc:
         with contextlib.suppress(OSError):
             tmp.unlink()

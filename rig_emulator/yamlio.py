@@ -110,8 +110,8 @@ def _within(data: Any, budget: int) -> bool:
         if isinstance(item, dict):
             stack.extend(item.keys())
             stack.extend(item.values())
-        elif isinstance(item, list):
-            stack.extend(item)
+        elif isinstance(item, list | tuple | set):  # (!!pairs and !!omap make tuples,
+            stack.extend(item)  # !!set a set: a re-probe's bomb went through them)
     return True
 
 
@@ -131,8 +131,12 @@ def read_yaml(path: Path, error: type[Exception]) -> Any:
         data = yaml.load(text, Loader=_Loader)  # a SafeLoader: no object construction
     except RecursionError:  # [[[[... a thousand deep
         raise error(f"{path}: not valid YAML (nested too deeply)") from None
-    except ValueError:  # an integer of more digits than Python converts (4300)
-        raise error(f"{path}: not valid YAML (a number of thousands of digits)") from None
+    except ValueError as exc:  # an integer of more digits than Python converts (4300), or a
+        if "digits" in str(exc) or "limit" in str(exc):  # tagged value: !!int abc
+            raise error(f"{path}: not valid YAML (a number of thousands of digits)") from None
+        raise error(f"{path}: not valid YAML (a value its !!tag cannot read)") from None
+    except (KeyError, AttributeError, TypeError):  # !!bool maybe, !!timestamp x (tracebacks:
+        raise error(f"{path}: not valid YAML (a value its !!tag cannot read)") from None  # a probe)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark is not None else ""

@@ -270,8 +270,8 @@ FUEL_WINDOW_S = 900.0
 def fuel_rate_from_balance(log: LabLog, params: BoilerParams) -> np.ndarray:
     """Dry fuel flow [kg/h] per row from the balance, refills taken out: slope of a
     centred linear fit over :data:`FUEL_WINDOW_S`."""
-    t = log.t
-    m = fill_gaps(log.balance_without_refills(), t)
+    t = log.t - log.t[0]  # (running sums of t^2 at Unix times lost the slope: a re-probe)
+    m = fill_gaps(log.balance_without_refills(), log.t)
     per_kg_dry = params.fuel.balance_loss_per_kg_dry
     # running sums give the least-squares slope over a centred window at every row
     cs, cm, ctt, ctm = (np.concatenate(([0.0], np.cumsum(a))) for a in (t, m, t * t, t * m))

@@ -269,9 +269,13 @@ def _plausible(doc: BoilerParams, fitted: dict[str, Fitted]) -> tuple[BoilerPara
     for low, high, why in ORDERED_PAIRS:  # a pair out of order: the lower one's fit goes
         if getattr(params, low) <= getattr(params, high):  # back to its documentation
             continue  # value, clamped at the higher one's where that is above it still
-        said = f"{low} {getattr(params, low):.4g} above {high} {getattr(params, high):.4g}"
+        above = f"above {high} {getattr(params, high):.4g}, where {why}"
+        if low in values:  # its fit out of order
+            flags[low] = f"fitted {low} {values[low]:.4g} {above}"
+        else:  # its documentation value (its fit, if any, already refused: said first)
+            said = f"the documentation value {getattr(doc, low):.4g} {above}"
+            flags[low] = f"{flags[low]}; {said}" if low in flags else f"{low}: {said}"
         params = replace(params, **{low: min(getattr(doc, low), getattr(params, high))})
-        flags[low] = f"{said}, where {why}"
     return params, flags
 
 

@@ -211,7 +211,7 @@ def params_from_mapping(data: Any, source: str = "<parameters>") -> BoilerParams
         "dt_nom_K",
         "startup_duration_s",
     )
-    for key in positive:
+    for key in (*positive, "co_transient_s"):  # (0 divided by zero in the bench: a probe)
         if key in values and values[key] <= 0:
             raise ParameterError(f"{source}: key '{key}' must be positive, got {values[key]}")
     _check_unit(values["p_nom_kW"], P_NOM_RANGE_KW, "p_nom_kW", source)
@@ -219,7 +219,8 @@ def params_from_mapping(data: Any, source: str = "<parameters>") -> BoilerParams
         _check_unit(values[key] / values["p_nom_kW"], per_kW, key, source, values[key])
     # (a negative CO was served as a negative reading: a stranger's probe)
     nonnegative = ("p_el_min_W", "p_el_max_W", "p_el_off_W", "w_el_Wh")
-    for key in (*nonnegative, "co_ppm_at_p_max", "co_ppm_at_p_min"):
+    co = ("co_ppm_at_p_max", "co_ppm_at_p_min", "co_start_peak_ppm", "co_stop_peak_ppm")
+    for key in (*nonnegative, *co):
         if values.get(key, 0.0) < 0:
             raise ParameterError(f"{source}: key '{key}' must not be negative")
     if values["p_min_kW"] > values["p_max_kW"]:

@@ -432,3 +432,18 @@ def test_an_output_that_cannot_be_written_is_one_line_naming_it(tmp_path, capsys
     )
     err = capsys.readouterr().err
     assert code == 1 and err.strip() == f"hil-client: error: writing {out}: No space left on device"
+
+
+@pytest.mark.parametrize("target", ["log", "meta", "journal"])
+def test_a_fault_report_may_not_replace_the_runs_own_files(tmp_path, capsys, target):
+    """A re-probe: ``run --fault-report`` naming the run's own log (or its meta file, or
+    its --fault-journal) replaced it with the report after the run, exit 0."""
+    out, journal = tmp_path / "run.csv", tmp_path / "j.jsonl"
+    journal.write_text("")
+    report = {"log": out, "meta": tmp_path / "run.meta.json", "journal": journal}[target]
+    argv = ["run", "stationary", "--boiler", "windhager_12kw", "--rig", "modbus://127.0.0.1:1"]
+    argv += ["--out", str(out), "--fault-journal", str(journal), "--fault-report", str(report)]
+    assert main(argv) == 2  # before any connection
+    err = capsys.readouterr().err
+    assert err.startswith(f"hil-client: error: --fault-report: '{report}' is the")
+    assert "which it would overwrite" in err and not out.exists()

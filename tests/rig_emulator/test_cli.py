@@ -313,3 +313,25 @@ def test_a_user_without_a_home_gets_the_commands():
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr[-800:]
     assert "Q_water" in proc.stdout and "Traceback" not in proc.stderr
+
+
+def test_an_output_through_a_link_is_written_to_what_it_names(tmp_path):
+    """A re-probe: writing beside and replacing put a file in place of the link (the
+    reference it named kept its old text) and of /dev/stdout."""
+    import subprocess
+    import sys
+
+    target = tmp_path / "shared" / "ref.md"
+    target.parent.mkdir()
+    target.write_text("old\n")
+    link = tmp_path / "link.md"
+    link.symlink_to(target)
+    assert main(["map-doc", "--out", str(link)]) == 0
+    assert link.is_symlink() and target.read_text().startswith("# Register map")
+    proc = subprocess.run(
+        [sys.executable, "-m", "rig_emulator.cli", "map-doc", "--out", "/dev/stdout"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 0 and proc.stdout.startswith("# Register map"), proc.stderr

@@ -98,3 +98,21 @@ def test_aliases_that_expand_to_millions_of_values_are_refused(tmp_path):
     with pytest.raises(Bad, match=r"aliases .* expand to more than 2,000,000 values"):
         _read(tmp_path, "\n".join([*levels, "p_nom_kW: *g"]) + "\n")
     assert _read(tmp_path, "\n".join(levels[:4]) + "\n")["d"][0][0][0] == ["x"] * 10  # 10^4
+
+
+def test_aliases_through_pairs_and_sets_are_bounded_too(tmp_path):
+    """A re-probe: !!pairs and !!omap build tuples, which the bound did not walk (a 1-kB
+    boiler file wrote a 58-MB error line)."""
+    levels = ["a: &a [x, x, x, x, x, x, x, x, x, x]"]
+    for name, below in zip("bcdefg", "abcdef", strict=True):
+        levels.append(f"{name}: &{name} !!pairs [{', '.join([f'k: *{below}'] * 10)}]")
+    with pytest.raises(Bad, match=r"aliases .* expand to more than 2,000,000 values"):
+        _read(tmp_path, "\n".join(levels) + "\n")
+
+
+@pytest.mark.parametrize("value", ["!!bool maybe", "!!timestamp x", "!!int abc", "!!float abc"])
+def test_a_tagged_value_its_tag_cannot_read_is_one_line(tmp_path, value):
+    """A re-probe: !!bool maybe ended in KeyError's traceback, !!timestamp x in an
+    AttributeError, !!int abc was "a number of thousands of digits"."""
+    with pytest.raises(Bad, match=r"not valid YAML \(a value its !!tag cannot read\)$"):
+        _read(tmp_path, f"a: {value}\n")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -213,3 +215,34 @@ def test_the_flue_gas_loss_of_a_load_cycle_weighs_each_row_by_its_fuel(run_log):
     model = compare(log, phases, params).model["flue_gas_loss_kW"][test].mean()  # 1-s rows
     rows = {r.phase: r for r in energy_balance(log, params, phases)}
     assert rows["test"].q_flue_gas_kW == pytest.approx(model, rel=0.01)
+
+
+def test_the_fuel_flow_of_a_log_in_unix_time_is_the_same(run_log, tmp_path):
+    """A re-probe: the fuel-flow fit's running sums of t^2 lost the slope at Unix times
+    (1.8e9 s): the test's flue-gas loss became unknown without a word."""
+    import shutil
+
+    from hil_client.analysis.logio import read_log
+    from hil_client.analysis.phases import find_phases
+    from rig_emulator.boilers import load_boiler
+
+    rec = run_log("load_cycle", "windhager_12kw")
+    lines = rec.path.read_text().splitlines()
+    col = lines[0].split(",").index("time_s")
+    shifted = tmp_path / "unix.csv"
+    rows = [line.split(",") for line in lines[1:]]
+    for row in rows:
+        row[col] = f"{float(row[col]) + 1.8e9:.3f}"
+    shifted.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    shutil.copy(rec.path.with_name(rec.path.stem + ".meta.json"), tmp_path / "unix.meta.json")
+    meta = json.loads((tmp_path / "unix.meta.json").read_text())
+    meta.update({k: meta[k] + 1.8e9 for k in ("t0_s", "t1_s", "t2_s", "t3_s", "t4_s")})
+    (tmp_path / "unix.meta.json").write_text(json.dumps(meta))
+    params = load_boiler("windhager_12kw")
+    results = []
+    for path in (rec.path, shifted):
+        log = read_log(path)
+        rows_ = {r.phase: r for r in energy_balance(log, params, find_phases(log))}
+        results.append(rows_["test"].q_flue_gas_kW)
+    # the same within the balance's readings written to 5 decimals (1e-5 kg in 8 h)
+    assert results[1] == pytest.approx(results[0], rel=1e-3)

@@ -477,7 +477,7 @@ def test_a_draught_read_backwards_gives_a_file_that_loads(round_trip, tmp_path, 
     assert on["implausible"] is True and on["value"] > off["value"]
     assert calibrated.ua_amb_on_W_K == on["kept"] <= calibrated.ua_amb_off_W_K
     assert off["implausible"] is False  # the second cooling's fit stays
-    assert "warning: ua_amb_on_W_K: ua_amb_on_W_K" in printed and "(Eq. 14-16)" in printed
+    assert "warning: ua_amb_on_W_K: fitted ua_amb_on_W_K" in printed and "(Eq. 14-16)" in printed
 
 
 def test_outputs_cut_by_a_full_disk_leave_no_broken_file(run_log, tmp_path):

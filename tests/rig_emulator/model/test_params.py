@@ -55,6 +55,8 @@ def _write(tmp_path: Path, mutate) -> Path:
         (lambda d: d.update(ua_amb_on_W_K=9.0), "'ua_amb_on_W_K' (9) exceeds 'ua_amb_off_W_K'"),
         (lambda d: d.update(p_el_min_W=70.0), "'p_el_min_W' (70) exceeds 'p_el_max_W' (50)"),
         (lambda d: d.update(co_ppm_at_p_max=-60.0), "'co_ppm_at_p_max' must not be negative"),
+        (lambda d: d.update(co_stop_peak_ppm=-600.0), "'co_stop_peak_ppm' must not be negative"),
+        (lambda d: d.update(co_transient_s=0.0), "'co_transient_s' must be positive"),
         # a unit off by 1000 (a stranger's probe: each was accepted, and the analyses
         # blamed the log's flow or balance for what followed)
         (lambda d: d["fuel"].update(hhv_dry_kJ_kg=20.07), "(written in MJ/kg?)"),
