@@ -21,6 +21,7 @@ from pathlib import Path
 
 from rig_emulator import cli_transports as transport_options
 from rig_emulator.atomic import write_atomically
+from rig_emulator.boilers import resolve as resolve_boiler
 from rig_emulator.certs import make_lab_certificates, validity_problem
 from rig_emulator.cli_support import (
     Parser,
@@ -43,12 +44,14 @@ from rig_emulator.dashboard import Dashboard
 from rig_emulator.emulator import CommandError, Emulator, check_command
 from rig_emulator.faults import FaultError, check_spikes, check_units, load_faults
 from rig_emulator.instruments import ProfileError, load_profile
+from rig_emulator.instruments.profile import PROFILE_DIR
 from rig_emulator.modbus import BenchServer
 from rig_emulator.modbus.fault_control import reading_ranges
 from rig_emulator.model import pack_constants, steady_state
 from rig_emulator.registers import MapError, RegisterMap, load_map
 from rig_emulator.registers.reference import markdown
 from rig_emulator.signals import MEASURED, SIGNALS
+from rig_emulator.yamlio import resolve_named
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -291,13 +294,13 @@ _HOST_LABEL = re.compile(r"[A-Za-z0-9](?:[A-Za-z0-9-]{0,61}[A-Za-z0-9])?")
 
 def _cmd_map_doc(args: argparse.Namespace) -> int:
     with bad_input(MapError):
-        text = markdown(load_map(args.map))
+        register_map = load_map(args.map)
+        text = markdown(register_map)
     if args.out is not None:
         if not args.out.strip():
             raise UsageError("--out: empty (a file to write; leave --out out for stdout)")
-        out = Path(args.out)
-        given = Path(args.map) if args.map is not None and Path(args.map).is_file() else None
-        refuse_overwriting(out, {"the --map file": given})
+        out = Path(args.out)  # (the shipped map was replaced without --map: a re-probe)
+        refuse_overwriting(out, {"the register map (--map)": Path(register_map.source)})
         write_atomically(output_file(out), text)
     else:
         sys.stdout.write(text)
@@ -341,16 +344,21 @@ def _cmd_serve(args: argparse.Namespace) -> int:
             output_file(args.fault_log)
         except UsageError as exc:
             raise UsageError(str(exc).replace("--out:", "--fault-log:", 1)) from None
-        named = {  # (the journal replaced the fault file or the boiler file: a probe)
+        named = {  # (the journal replaced the fault, boiler, map or key file: probes)
             "the --faults file": args.faults,
-            "the --boiler file": args.boiler,
-            "the --map file": args.map,
-            "the --profile file": args.profile,
+            "the boiler file (--boiler)": resolve_boiler(args.boiler),
+            "the register map (--map)": register_map.source,
+            "the profile file (--profile)": resolve_named(
+                args.profile, PROFILE_DIR, "profile", ProfileError
+            ),
             "the --roles file": getattr(args, "roles", None),
+            "the --tls-cert file": getattr(args, "tls_cert", None),
+            "the --tls-key file": getattr(args, "tls_key", None),
+            "the --tls-ca file": getattr(args, "tls_ca", None),
         }
         refuse_overwriting(
             args.fault_log,
-            {what: Path(v) for what, v in named.items() if v is not None and Path(v).is_file()},
+            {what: Path(v) for what, v in named.items() if v is not None},
             "--fault-log",
         )
     if args.lockstep and not any(
@@ -410,7 +418,7 @@ async def _serve(server: BenchServer, args: argparse.Namespace) -> None:
     loop = asyncio.get_running_loop()
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, stop.set)
-    await server.start()
+    await server.start(begin_journal=False)  # (begun once every port is open: a re-probe)
     try:
         transports = await transport_options.start(server, args.transport_plan)
     except UsageError:
@@ -442,6 +450,7 @@ async def _serve(server: BenchServer, args: argparse.Namespace) -> None:
             dashboard.port,
             "on" if args.http_control else "off",
         )
+    server.faults.begin_journal()
     await stop.wait()
     # the stop is under way: a second Ctrl-C or SIGTERM (GNU timeout signals the group
     # again) interrupted the shutdown's own clean-up, with a traceback ("Exception ignored

@@ -43,18 +43,21 @@ class FaultJournal:
     advanced (the client's next step went two), with a traceback in the log and a false
     "cannot serve" at the stop (a stranger's probe)."""
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, begin: bool = True) -> None:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._file: TextIO | None = None
         self._begun = False
         self._failed = False  # the file could not be written: its lines are lost
         self.lost = 0  # lines that could not be written
+        if begin:
+            self.begin()
 
     def begin(self) -> None:
         """Start the file (an earlier journal there is replaced), unless begun: a server
-        begins it once it listens, so a start that fails (a busy port) leaves an earlier
-        journal as it was (it was emptied: a stranger's probe); a first line begins it too."""
+        begins it once it serves on every port asked for, so a start that fails (a busy
+        Modbus, HTTP or serial port) leaves an earlier journal as it was (it was emptied:
+        strangers' probes); a first line begins it too."""
         if self._begun:
             return
         self._begun = True
@@ -93,7 +96,6 @@ class FaultJournal:
                 file.close()
 
     def close(self) -> None:
-        self.begin()  # (a run without a fault has an empty journal)
         if self._file is not None:
             try:
                 self._file.close()

@@ -87,7 +87,8 @@ class ServerFaults:
         journal_path: str | Path | None = None,
     ) -> None:
         self.emulator = emulator
-        journal = FaultJournal(journal_path) if journal_path is not None else None
+        # begun by the server once it serves (begin_journal): a failed start keeps the old
+        journal = FaultJournal(journal_path, begin=False) if journal_path is not None else None
         self.engine = FaultEngine([], journal, plant=emulator.plant)
         profile_faults = getattr(emulator.profile, "faults", ()) or ()
         self.engine.add_initial(profile_faults, "profile")
@@ -102,10 +103,7 @@ class ServerFaults:
     # ------------------------------------------------------------------ wiring
     def attach(self, modbus_server: Any) -> bool:
         """Put the gate on ``modbus_server.gates`` and let ``disconnect`` close its
-        connections; False if that server has no gates (communication faults then act not).
-        The server listens: the journal begins (:meth:`FaultJournal.begin`)."""
-        if self.engine.journal is not None:
-            self.engine.journal.begin()
+        connections; False if that server has no gates (communication faults then act not)."""
         gates = getattr(modbus_server, "gates", None)
         close = getattr(modbus_server, "close_all_connections", None)
         if close is not None:
@@ -139,6 +137,12 @@ class ServerFaults:
         return GateDecision(  # type: ignore[misc]
             delay_s=decision.delay_s, drop=decision.drop, exception_code=decision.exception_code
         )
+
+    def begin_journal(self) -> None:
+        """The server serves on every port asked for: the journal file begins (replacing
+        an earlier one there)."""
+        if self.engine.journal is not None:
+            self.engine.journal.begin()
 
     def close(self) -> None:
         if self.engine.journal is not None:

@@ -262,8 +262,10 @@ class BenchServer:
         return devices
 
     # ------------------------------------------------------------------ lifecycle
-    async def start(self) -> None:
-        """Listen, publish the initial state and start the tick."""
+    async def start(self, begin_journal: bool = True) -> None:
+        """Listen, publish the initial state and start the tick; the fault journal begins
+        once listening (``begin_journal`` False: the caller begins it, when every other
+        port it serves is open too: :meth:`ServerFaults.begin_journal`)."""
         loop = asyncio.get_running_loop()
         identity = DeviceIdentity(
             vendor_name="boiler-rig-emulator",
@@ -291,6 +293,8 @@ class BenchServer:
                 f"cannot listen on {self.host}:{self.port}: {_listen_error(self.host, self.port)}"
             ) from None
         self.faults.attach(self._server)
+        if begin_journal:
+            self.faults.begin_journal()
         self._loop = loop
         sock = self._server.transport.sockets[0] if self._server.transport else None
         if sock is not None:

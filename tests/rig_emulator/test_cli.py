@@ -221,14 +221,17 @@ def test_outputs_never_replace_an_input(tmp_path, capsys):
     mapped = tmp_path / "m.yaml"
     before = mapped.read_bytes()
     assert main(["map-doc", "--map", str(mapped), "--out", str(mapped)]) == 2
-    assert "is the --map file, which it would overwrite" in capsys.readouterr().err
+    assert "is the register map (--map), which it would overwrite" in capsys.readouterr().err
     assert mapped.read_bytes() == before
 
 
-def test_a_server_that_cannot_listen_leaves_an_earlier_journal(tmp_path, capsys):
+@pytest.mark.parametrize("busy_option", ["--port", "--http"])
+def test_a_server_that_cannot_listen_leaves_an_earlier_journal(tmp_path, capsys, busy_option):
     """A stranger's probe: a serve that failed on a busy port emptied the journal its
-    --fault-log named (59 bytes to 0)."""
+    --fault-log named (59 bytes to 0); a re-probe: also on a busy --http port."""
     import socket
+
+    from hil_client.wait_for_port import free_port
 
     journal = tmp_path / "journal.jsonl"
     journal.write_text('{"event": "start"}\n')
@@ -236,7 +239,10 @@ def test_a_server_that_cannot_listen_leaves_an_earlier_journal(tmp_path, capsys)
         busy.bind(("127.0.0.1", 0))
         busy.listen()
         port = busy.getsockname()[1]
-        argv = ["serve", "--boiler", "windhager_12kw", "--port", str(port), "--lockstep"]
+        ports = [busy_option, str(port)]
+        if busy_option == "--http":
+            ports += ["--port", str(free_port())]
+        argv = ["serve", "--boiler", "windhager_12kw", *ports, "--lockstep"]
         assert main([*argv, "--fault-log", str(journal)]) == 2
     assert "cannot" in capsys.readouterr().err
     assert journal.read_text() == '{"event": "start"}\n'
@@ -335,3 +341,26 @@ def test_an_output_through_a_link_is_written_to_what_it_names(tmp_path):
         timeout=120,
     )
     assert proc.returncode == 0 and proc.stdout.startswith("# Register map"), proc.stderr
+
+
+@pytest.mark.parametrize("option", ["--profile", "--tls-key"])
+def test_the_fault_journal_may_not_replace_a_profile_or_a_key(tmp_path, capsys, option):
+    """A re-probe: --fault-log naming the server's TLS key emptied it (only --faults,
+    --boiler and --map were checked)."""
+    import shutil
+
+    from rig_emulator.instruments.profile import PROFILE_DIR
+
+    target = tmp_path / ("lab.yaml" if option == "--profile" else "server.key")
+    shutil.copy(PROFILE_DIR / "lab.yaml", target)  # (any file: the journal may not name it)
+    before = target.read_bytes()
+    argv = ["serve", "--boiler", "windhager_12kw", "--port", "0", "--lockstep"]
+    if option == "--profile":
+        argv += ["--profile", str(target)]
+    else:
+        argv += ["--tls-cert", str(tmp_path / "c.pem"), "--tls-key", str(target)]
+        argv += ["--tls-ca", str(tmp_path / "ca.pem")]
+    assert main([*argv, "--fault-log", str(target)]) == 2
+    err = capsys.readouterr().err
+    assert "which it would overwrite" in err and err.count("\n") == 1, err
+    assert target.read_bytes() == before

@@ -317,5 +317,4 @@ def test_clear_names_the_scheduled_faults_it_drops(tmp_path, caplog):
     assert engine.clear() == 0 and engine.idle
     assert "dropped before they started: disconnect at 40 s (file)" in caplog.text
     engine.apply({}, 45.0)
-    engine.journal.close()
     assert read_journal(path) == []  # it never started
