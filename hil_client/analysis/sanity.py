@@ -184,6 +184,31 @@ def _flow(log: LabLog) -> list[str]:
     return []
 
 
+#: The most the balance may lose over the record, over what the boiler burns at full power
+#: for as long (its start-up's Pstart is at most 1.5 Pmax; the balance's steps add little)
+FUEL_RATE_MAX_FACTOR = 2.0
+
+
+def _fuel_rate(log: LabLog, params: BoilerParams) -> list[str]:
+    """The balance losing more over the record than the boiler could burn firing at full
+    power throughout: a time in minutes read as seconds gave 847 kW of a 12-kW boiler
+    with no word (a re-probe)."""
+    fuel_kg = _fuel_lost_kg(log)
+    span_h = float(log.t[-1] - log.t[0]) / 3600.0 if len(log) > 1 else 0.0
+    if not (fuel_kg > CLOSURE_FUEL_MIN_KG and span_h > 0):
+        return []
+    fuel = params.fuel
+    full_kg_h = params.p_max_kW / fuel.hhv_dry_kJ_kg * 3600.0 * fuel.balance_loss_per_kg_dry
+    rate = fuel_kg / span_h
+    if rate <= FUEL_RATE_MAX_FACTOR * full_kg_h:
+        return []
+    return [
+        f"the balance loses {fuel_kg:.3g} kg in {span_h * 3600:.4g} s, {rate:.3g} kg/h, "
+        f"{rate / full_kg_h:.0f} times what the boiler burns at full power ({full_kg_h:.2f} "
+        "kg/h): is time_s in seconds (not minutes), and the balance in kg?"
+    ]
+
+
 def _closure(log: LabLog, params: BoilerParams, burning: np.ndarray) -> list[str]:
     """Heat to water over the fuel's energy from the first firing row to the last (the
     preheat's bench-heated water and a stand-by's losses are no part of it: a clean run of
@@ -324,6 +349,7 @@ def suspicious(log: LabLog, params: BoilerParams | None = None) -> list[str]:
         *_oxygen(log),
         *_stuck(log),
         *_flow(log),
+        *(_fuel_rate(log, params) if params is not None else []),
         *(_closure(log, params, burning) if params is not None else []),
         *_quiet_gain(log, burning),
     ]

@@ -545,3 +545,21 @@ def test_an_analyser_with_no_readings_is_said_by_validate(run_log, tmp_path, cap
     path = _edited(run_log, tmp_path, "no_o2", no_o2)
     assert main(["validate", path, "--boiler", "windhager_12kw", "--out", str(tmp_path / "v")]) == 0
     assert "column 'flue_gas_O2_pct' has no readings" in capsys.readouterr().err
+
+
+def test_a_time_in_minutes_is_warned_by_the_fuel_it_would_burn(run_log, tmp_path, capsys):
+    """A re-probe: 1-s rows written in minutes (0.0167 per row) pass the step's bound and
+    gave a 12-kW boiler 847 kW with no word. The balance cannot lose more than the
+    boiler burns at full power for as long as the record lasts (twice that, for Pstart)."""
+
+    def minutes(header, row):
+        i = header.index("time_s")
+        row[i] = f"{float(row[i]) / 60:.6f}"
+
+    path = _edited(run_log, tmp_path, "minutes", minutes)
+    (tmp_path / "minutes.meta.json").unlink()  # (its marks are in seconds)
+    main(["balance", path, "--boiler", "windhager_12kw"])
+    assert "is time_s in seconds (not minutes)" in capsys.readouterr().err
+    clean = str(run_log("stationary", "windhager_12kw").path)
+    assert main(["balance", clean, "--boiler", "windhager_12kw"]) == 0
+    assert "not minutes" not in capsys.readouterr().err
