@@ -48,7 +48,7 @@ from rig_emulator.instruments.profile import PROFILE_DIR
 from rig_emulator.modbus import BenchServer
 from rig_emulator.modbus.fault_control import reading_ranges
 from rig_emulator.model import pack_constants, steady_state
-from rig_emulator.registers import MapError, RegisterMap, load_map
+from rig_emulator.registers import MapError, RegisterMap, emulator_units, load_map
 from rig_emulator.registers.reference import markdown
 from rig_emulator.signals import MEASURED, SIGNALS
 from rig_emulator.yamlio import resolve_named
@@ -334,10 +334,10 @@ def _cmd_serve(args: argparse.Namespace) -> int:
     with bad_input(FaultError, prefix="--faults: "):
         faults = load_faults(args.faults) if args.faults is not None else []
         units = {d.unit_id for d in register_map.devices}
-        check_units(faults, units, f"{args.faults}: faults")
+        check_units(faults, units, f"{args.faults}: faults", emulator_units(register_map))
         check_spikes(faults, reading_ranges(register_map), f"{args.faults}: faults")
     with bad_input(FaultError, prefix="--profile: "):
-        check_units(profile.faults, units, f"{args.profile}: faults")
+        check_units(profile.faults, units, f"{args.profile}: faults", emulator_units(register_map))
         check_spikes(profile.faults, reading_ranges(register_map), f"{args.profile}: faults")
     if args.fault_log is not None:
         try:

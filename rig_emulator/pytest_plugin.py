@@ -338,7 +338,7 @@ class RigEmulator:
         from rig_emulator.faults.spec import FaultError, check_spikes, check_units
         from rig_emulator.faults.wire import block_values, fault_dict_to_spec
         from rig_emulator.modbus.fault_control import reading_ranges
-        from rig_emulator.registers import encode
+        from rig_emulator.registers import emulator_units, encode
 
         __tracebackhide__ = True  # a bad fault fails the user's line, not the plugin's
         if not isinstance(fault, Mapping):
@@ -349,7 +349,8 @@ class RigEmulator:
         try:
             spec = fault_dict_to_spec(fault)
             # the server's own checks (the emulator's units are refused with the spec above)
-            check_units([spec], {d.unit_id for d in self.map.devices}, "fault")
+            units = {d.unit_id for d in self.map.devices}
+            check_units([spec], units, "fault", emulator_units(self.map))
             check_spikes([spec], reading_ranges(self.map), "fault")
         except FaultError as exc:
             raise FaultError(str(exc)) from None

@@ -115,3 +115,13 @@ for _name in MEASURED:
         "true_" + _name, SIGNALS[_name].unit, "status", f"true plant value: {_name}"
     )
 COMMANDS: tuple[str, ...] = tuple(n for n, s in SIGNALS.items() if s.kind == "command")
+#: The commands that act on the plant (the bench's and the boiler's): the rest drive the
+#: emulator itself (its clock and its faults)
+PLANT_COMMANDS: tuple[str, ...] = (
+    "water_flow_setpoint_kg_h",
+    "return_setpoint_C",
+    "pump_on",
+    "return_heating",
+    "boiler_command",
+    "boiler_set_temp_C",
+)

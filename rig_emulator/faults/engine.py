@@ -132,6 +132,9 @@ class FaultEngine:
         source: str = "file",
     ) -> None:
         self.journal = journal
+        #: the emulator's own units, which a fault on every unit (0) leaves alone (a server
+        #: sets its map's: :func:`~rig_emulator.registers.emulator_units`)
+        self.never_faulted: frozenset[int] = frozenset(NEVER_FAULTED)
         self.plant = plant
         #: closes every client connection; returns how many (set by the server)
         self.on_disconnect: Callable[[str], int] | None = None
@@ -201,12 +204,12 @@ class FaultEngine:
         if not self._decisions:
             return None
         decision = self._decisions.get(unit_id)
-        if decision is None and unit_id not in NEVER_FAULTED:
+        if decision is None and unit_id not in self.never_faulted:
             decision = self._decisions.get(0)
         if decision is not None:
             for fault in self._by_unit.get(unit_id, ()):
                 fault.requests += 1
-            if unit_id not in NEVER_FAULTED:
+            if unit_id not in self.never_faulted:
                 for fault in self._by_unit.get(0, ()):
                     fault.requests += 1
         return decision

@@ -196,12 +196,7 @@ def _integer(where: str, value: Any, low: int, high: int) -> int:
 
 
 def _unit(where: str, value: Any) -> int:
-    unit = _integer(where, value, 0, 247)
-    if unit in NEVER_FAULTED:
-        raise FaultError(
-            f"{where}: unit {unit} is the emulator's own (simulation control, truth), never faulted"
-        )
-    return unit
+    return _integer(where, value, 0, 247)
 
 
 def _signal(where: str, value: Any) -> str:
@@ -323,9 +318,16 @@ def _field(where: str, i: int, entries: Sequence[Entry], name: str) -> str:
     return f"{where}[{i}].{name}" if listed else f"{where}.{name}"
 
 
-def check_units(entries: Sequence[Entry], units: frozenset[int] | set[int], where: str) -> None:
+def check_units(
+    entries: Sequence[Entry],
+    units: frozenset[int] | set[int],
+    where: str,
+    own: frozenset[int] = frozenset(EMULATOR_UNITS),
+) -> None:
     """Each communication fault names a unit the bench has, or 0 (every unit): a fault on a
-    unit nobody polls would hit nothing, silently (a typo, 99 for 9)."""
+    unit nobody polls would hit nothing, silently (a typo, 99 for 9); never one of the
+    emulator's own units ``own`` (the map's: :func:`~rig_emulator.registers.emulator_units`),
+    so faults can always be cleared."""
     for i, entry in enumerate(entries):
         if isinstance(entry, RandomSpec):
             named = [(_field(where, i, entries, "units"), u) for u in entry.units]
@@ -334,8 +336,13 @@ def check_units(entries: Sequence[Entry], units: frozenset[int] | set[int], wher
         else:
             named = []
         for field_name, unit in named:
+            if unit in own:
+                raise FaultError(
+                    f"{field_name}: unit {unit} is the emulator's own (simulation control, "
+                    "truth), never faulted"
+                )
             if unit and unit not in units:
-                known = ", ".join(str(u) for u in sorted(units) if u not in NEVER_FAULTED)
+                known = ", ".join(str(u) for u in sorted(units) if u not in own)
                 raise FaultError(
                     f"{field_name}: unit {unit} is not on the bench (units {known}, 0: all)"
                 )

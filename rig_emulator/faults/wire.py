@@ -49,8 +49,6 @@ BLOCK_SIGNALS = (
 )
 COMMAND_SET = 1
 COMMAND_CLEAR = 2
-TRUTH_PREFIX = "true_"
-TRUTH_UNIT = 101
 
 
 def block_values(spec: FaultSpec) -> dict[str, float]:

@@ -41,7 +41,7 @@ from rig_emulator.faults.wire import (
     fault_dict_to_spec,
     spec_from_block,
 )
-from rig_emulator.registers import RegisterMap, reading_range
+from rig_emulator.registers import RegisterMap, emulator_units, reading_range
 from rig_emulator.signals import MEASURED
 
 #: Command signals of the fault block (written by clients, never plant commands).
@@ -90,6 +90,9 @@ class ServerFaults:
         # begun by the server once it serves (begin_journal): a failed start keeps the old
         journal = FaultJournal(journal_path, begin=False) if journal_path is not None else None
         self.engine = FaultEngine([], journal, plant=emulator.plant)
+        #: the map's own units (simulation control, truth): never faulted
+        self.own_units = emulator_units(register_map)
+        self.engine.never_faulted = self.own_units
         profile_faults = getattr(emulator.profile, "faults", ()) or ()
         self.engine.add_initial(profile_faults, "profile")
         self.engine.add_initial(entries, "file")
@@ -166,7 +169,7 @@ class ServerFaults:
         """A fault given as a dict (as in ``FAULTS.yaml``) or a parsed entry, checked
         against this bench's units; :class:`FaultError` names what is wrong."""
         entry = fault if not isinstance(fault, Mapping) else fault_dict_to_spec(fault)
-        check_units([entry], self.units, "fault")
+        check_units([entry], self.units, "fault", self.own_units)
         check_spikes([entry], self._ranges, "fault")
         return entry
 
@@ -182,7 +185,7 @@ class ServerFaults:
         try:
             spec = spec_from_block(block) if command == COMMAND_SET else None
             if spec is not None:
-                check_units([spec], self.units, "fault")
+                check_units([spec], self.units, "fault", self.own_units)
                 check_spikes([spec], self._ranges, "fault")
         except FaultError:
             return ExcCodes.ILLEGAL_VALUE

@@ -448,6 +448,7 @@ class BenchModbusServer:
         ssl: an ``ssl.SSLContext`` for Modbus/TCP Security, or None.
         bits: per unit, the bit addresses it has per read function (1: coils, 2: discrete
             inputs); a read of others gets 02 (:class:`DocumentedBits`).
+        own_units: the emulator's own units, never reached by a broadcast.
     """
 
     def __init__(
@@ -460,8 +461,12 @@ class BenchModbusServer:
         max_connections: int = DEFAULT_MAX_CONNECTIONS,
         ssl: Any = None,
         bits: Mapping[int, Mapping[int, frozenset[int]]] | None = None,
+        own_units: frozenset[int] = frozenset((100, 101)),
     ) -> None:
         self.context = SimCore(devices)
+        #: the emulator's own units (simulation control, truth), which a broadcast leaves
+        #: alone (:func:`rig_emulator.registers.emulator_units`)
+        self.own_units = own_units
         #: what requests read and write: the datastore, its bit tables as documented
         self.requests_store = DocumentedBits(self.context, bits or {})
         self.units = frozenset(d.id for d in devices if d.id != 0)

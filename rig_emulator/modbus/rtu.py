@@ -47,7 +47,6 @@ import tty
 from concurrent.futures import Future
 from typing import Any
 
-from rig_emulator.faults.spec import EMULATOR_UNITS
 from rig_emulator.modbus.handler import BenchModbusServer, RequestInfo
 from rig_emulator.modbus.rtu_wire import (
     BROADCAST_UNIT,
@@ -316,7 +315,7 @@ class RtuLine:
                 return True
 
     async def _broadcast(self, pdu: bytes) -> None:
-        for unit_id in sorted(self.server.units - set(EMULATOR_UNITS)):
+        for unit_id in sorted(self.server.units - self.server.own_units):
             await self.server.answer(RequestInfo(unit_id, pdu[0], self.path, None), pdu)
 
     def _run(self, coro) -> None:

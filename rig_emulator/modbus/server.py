@@ -51,6 +51,7 @@ from rig_emulator.registers import (
     Device,
     Point,
     RegisterMap,
+    emulator_units,
     encode,
     map_identity,
     reading_range,
@@ -279,6 +280,7 @@ class BenchServer:
             idle_timeout_s=self.idle_timeout_s,
             max_connections=self.max_connections,
             ssl=self.ssl_context,
+            own_units=emulator_units(self.map),
             bits={
                 dev.unit_id: {
                     fc: frozenset(p.address for p in dev.table(_READ_FC[fc])) for fc in (1, 2)

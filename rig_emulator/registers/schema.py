@@ -37,7 +37,7 @@ from pathlib import Path
 from typing import Any
 
 from rig_emulator.registers.datatypes import DATATYPES
-from rig_emulator.signals import SIGNALS
+from rig_emulator.signals import PLANT_COMMANDS, SIGNALS
 from rig_emulator.yamlio import finite_number, read_yaml
 
 #: The shipped maps, package data (the checkout's top-level ``register_maps/`` links here,
@@ -305,6 +305,23 @@ def load_map(path: str | Path | None = None) -> RegisterMap:
     path = Path(path) if path is not None else MAP_DIR / "wieselburg_bench.yaml"
     data = read_yaml(path, MapError)
     return map_from_mapping(data, source=str(path))
+
+
+def emulator_units(register_map: RegisterMap) -> frozenset[int]:
+    """The emulator's own units in ``register_map``: the devices that drive the emulator
+    (its clock or its faults) or publish neither a measured signal nor a plant command (the
+    simulation control and the truth; units 100 and 101 of the shipped map). They are never
+    faulted and never reached by a broadcast, wherever a map puts them (they were unit
+    numbers: a map with the simulation control at unit 7 let a fault silence it, and an
+    RTU broadcast reset the plant: a re-probe)."""
+    own = set()
+    for device in register_map.devices:
+        signals = {p.signal for p in device.points}
+        drives = any(SIGNALS[s].kind == "command" and s not in PLANT_COMMANDS for s in signals)
+        plant = any(SIGNALS[s].kind == "measured" or s in PLANT_COMMANDS for s in signals)
+        if drives or not plant:
+            own.add(device.unit_id)
+    return frozenset(own)
 
 
 def map_identity(register_map: RegisterMap) -> int:

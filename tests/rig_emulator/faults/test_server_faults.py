@@ -295,3 +295,23 @@ def test_a_journal_that_cannot_be_written_costs_its_lines_not_the_run(tmp_path):
     assert code == 0, err
     assert "Traceback" not in err and "cannot serve" not in err, err
     assert err.count("fault journal /dev/full: cannot write") == 1, err
+
+
+def test_a_fault_on_every_unit_leaves_the_maps_own_units_wherever_they_are(serve):
+    """A re-probe: with the simulation control at unit 7 (and the boiler controller at
+    100), a no_reply on every unit (0) silenced the simulation control, so no client could
+    advance the clock or clear the fault, while a fault on the controller at 100 was
+    refused as "the emulator's own"."""
+    from tests.rig_emulator.transports.remapped import shipped_map_with_units
+
+    swapped = shipped_map_with_units(sim_control=7, boiler_controller=100)
+    faults = faults_from_list([{"kind": "no_reply", "unit": 0}])
+    srv = serve(register_map=swapped, faults=faults)
+    c = client(srv.port, timeout_s=1.0)
+    try:
+        answer = c.read_input_registers(0, count=4, device_id=7)  # sim_time, unit 7 now
+        assert not answer.isError()
+        with pytest.raises(ModbusIOException):  # the controller, unit 100 now: faulted
+            c.read_input_registers(0, count=1, device_id=100)
+    finally:
+        c.close()

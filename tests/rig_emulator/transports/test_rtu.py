@@ -520,3 +520,33 @@ def test_line_options_without_a_line_are_refused(option, capsys):
     assert main(["serve", "--boiler", "windhager_12kw", "--lockstep", *option]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and f"{option[0]} sets the RTU line: it needs --serial" in err
+
+
+def test_a_broadcast_spares_the_maps_own_units_wherever_they_are(serve):
+    """A re-probe: with the simulation control moved to unit 7 (the boiler controller to
+    100), a broadcast of holding 6 = 1 reset the plant: the units spared were 100 and 101,
+    not the map's own."""
+    from tests.rig_emulator.transports.remapped import shipped_map_with_units
+
+    srv = serve(register_map=shipped_map_with_units(sim_control=7, boiler_controller=100))
+
+    async def setup():
+        transports = Transports(srv.server.modbus_server)
+        return transports, await transports.add_rtu("pty", BAUD, "E")
+
+    transports, rtu = srv.call(setup())
+    tcp = client(srv.port)
+    line = Line(rtu.path)
+    try:
+        assert not tcp.write_registers(4, [0, 60], device_id=7).isError()  # 60 s in
+        before = tcp.read_input_registers(0, count=4, device_id=7).registers
+        frame = rtu_frame(0, struct.pack(">BHH", 6, 6, 1))  # holding 6 = 1: reset
+        line.send(frame)
+        time.sleep(2 * (len(frame) * character_s(BAUD) + silence_s(BAUD)))
+        line.send(rtu_frame(1, _fc4(0, 2)))  # answered after the broadcast was done
+        assert len(line.read(9)) == 9
+        assert tcp.read_input_registers(0, count=4, device_id=7).registers == before
+    finally:
+        line.close()
+        tcp.close()
+        srv.call(transports.stop())
