@@ -4,11 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import yaml
-
 from rig_emulator.atomic import write_atomically
 from rig_emulator.model.params import BoilerParams, ParameterError, params_from_mapping
-from rig_emulator.yamlio import read_yaml, resolve_named
+from rig_emulator.yamlio import dump_yaml, read_yaml, resolve_named
 
 BOILER_DIR = Path(__file__).parent
 
@@ -32,5 +30,5 @@ def load_boiler(name_or_path: str) -> BoilerParams:
 
 def dump_boiler(params: BoilerParams, path: Path, header: str = "") -> None:
     """Write a parameter file of CONTRACT section 2 form."""
-    text = yaml.safe_dump(params.to_mapping(), sort_keys=False)
+    text = dump_yaml(params.to_mapping())
     write_atomically(path, (header + "\n" if header else "") + text)

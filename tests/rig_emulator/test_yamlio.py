@@ -116,3 +116,16 @@ def test_a_tagged_value_its_tag_cannot_read_is_one_line(tmp_path, value):
     AttributeError, !!int abc was "a number of thousands of digits"."""
     with pytest.raises(Bad, match=r"not valid YAML \(a value its !!tag cannot read\)$"):
         _read(tmp_path, f"a: {value}\n")
+
+
+def test_dates_are_text_and_what_is_written_reads_back(tmp_path):
+    """A re-probe: YAML 1.1's dates were still read (a map named 2024-05-01 was 'a date'),
+    and calibrate wrote a boiler named "0o17" bare, read back as the number 15."""
+    from rig_emulator.yamlio import dump_yaml
+
+    assert _read(tmp_path, "a: 2024-05-01\n") == {"a": "2024-05-01"}
+    names = ["0o17", "1e3", "010", "true", "2024-05-01", "on", " padded", "a: b", "", "-"]
+    data = {"names": names, "n": 3, "x": 1.5}
+    path = tmp_path / "round.yaml"
+    path.write_text(dump_yaml(data))
+    assert read_yaml(path, Bad) == data
