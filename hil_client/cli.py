@@ -82,7 +82,7 @@ from rig_emulator.emulator import CommandError, boiler_identity
 from rig_emulator.instruments import ProfileError, load_profile
 from rig_emulator.model.params import BoilerParams, ParameterError, params_from_mapping
 from rig_emulator.registers import MapError, RegisterMap, load_map
-from rig_emulator.registers.codec import accepted_range
+from rig_emulator.registers.codec import accepted_range, decode, encode
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -331,6 +331,21 @@ def _warn_other_boiler(log: LabLog, boiler: BoilerParams) -> None:
             f"hil-client: warning: {log.path} was recorded with boiler '{recorded}' (its meta "
             f"file) and is analysed as '{boiler.name}' (--boiler)",
             file=sys.stderr,
+        )
+
+
+def _check_advance(register_map: RegisterMap, period_s: float) -> None:
+    """UsageError where the map's lockstep_advance cannot carry the acquisition period as
+    it is (a uint16 at scale 0.001 tops at 65.5 s, one at 0.3 sends 9.9 for 10: the server
+    moved on by another time, and the run stopped blaming "another client": a re-probe)."""
+    _, point = register_map.point("lockstep_advance_s")
+    low, high = accepted_range(point)
+    carried = decode(point, encode(point, period_s))
+    if not (low <= period_s <= high and carried == period_s):
+        raise UsageError(
+            f"--map {register_map.source}: its lockstep_advance point '{point.name}' "
+            f"({point.datatype}, scale {point.scale:g}) carries {carried:g} s for the "
+            f"protocol's {period_s:g} s steps (it accepts {low:g}..{high:g})"
         )
 
 
@@ -882,6 +897,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print(f"hil-client: error: {exc}", file=sys.stderr)
         return 1
     try:
+        if isinstance(rig, ModbusRig) and rig.lockstep and register_map is not None:
+            _check_advance(register_map, protocol.acquisition_period_s)
         output_file(out)
     except UsageError:
         rig.close()

@@ -100,3 +100,26 @@ def test_a_time_its_point_cannot_count_stops_the_run_naming_it(serve, tmp_path, 
     assert "sim_time stands at 327.67 s" in error and "int16 x0.01" in error, error
     assert "another client" not in error
     assert rig.gaps[-1]["action"] == "abort"
+
+
+@pytest.mark.parametrize(
+    ("change", "carried"),
+    [({"datatype": "uint16", "scale": 0.3}, "9.9 s"), ({"datatype": "uint16", "scale": 0.001}, "")],
+)
+def test_run_refuses_an_advance_its_point_cannot_carry(serve, tmp_path, capsys, change, carried):
+    """A re-probe: lockstep_advance as uint16 x0.3 sent 9.9 s for 10 (x0.001 tops at
+    65.5 s, under a 120-s step), and the run stopped blaming "another client". Refused
+    before the first row, naming the point."""
+    path = _map_file(tmp_path, lockstep_advance=change)
+    srv = serve(register_map=load_map(path))
+    step = "10" if carried else "120"
+    protocol = tmp_path / "p.yaml"
+    shipped = Path(__file__).parents[2] / "hil_client" / "protocol" / "definitions"
+    text = (shipped / "stationary.yaml").read_text()
+    protocol.write_text(text.replace("acquisition_period_s: 1", f"acquisition_period_s: {step}"))
+    argv = ["run", str(protocol), "--boiler", "windhager_12kw", "--rig"]
+    argv += [f"modbus://127.0.0.1:{srv.port}", "--map", str(path), "--out", str(tmp_path / "r.csv")]
+    assert main([*argv, "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "its lockstep_advance point 'lockstep_advance'" in err and carried in err, err
+    assert not (tmp_path / "r.csv").exists()
