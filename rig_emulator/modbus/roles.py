@@ -8,7 +8,7 @@ not by their unit IDs (:func:`default_policy`):
 - ``operator`` also writes the instruments: the devices publishing a measured signal or a
   command of the plant (the shipped map's units 1-7);
 - ``engineer`` also writes the simulation control: the devices publishing a clock or fault
-  command (:data:`SIM_CONTROL_SIGNALS`; the shipped map's unit 100).
+  command (:func:`~rig_emulator.registers.control_units`; the shipped map's unit 100).
 
 Any other device (the truth unit, a device of status signals only) is read only. A device
 publishing a simulation-control command is simulation control as a whole, even if it also
@@ -40,10 +40,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from rig_emulator.modbus.fault_control import FAULT_COMMANDS
-from rig_emulator.modbus.server import CLOCK_COMMANDS
-from rig_emulator.registers import RegisterMap
-from rig_emulator.signals import SIGNALS
+from rig_emulator.registers import RegisterMap, control_units, instrument_units
 from rig_emulator.yamlio import read_yaml
 
 READ_FUNCTIONS = frozenset({1, 2, 3, 4, 7, 11, 12, 17, 43})
@@ -51,9 +48,6 @@ ALL_UNITS = frozenset(range(256))
 #: The instruments and the simulation control of the shipped map (:data:`DEFAULT_POLICY`)
 INSTRUMENT_UNITS = frozenset(range(1, 8))
 SIM_CONTROL_UNIT = 100
-#: The signals whose device is the simulation control: the clock and fault commands the
-#: server executes rather than hands to the plant
-SIM_CONTROL_SIGNALS = frozenset(CLOCK_COMMANDS) | frozenset(FAULT_COMMANDS)
 
 
 class RolesError(ValueError):
@@ -126,34 +120,13 @@ def _default_roles(instruments: frozenset[int], control: frozenset[int]) -> Role
 DEFAULT_POLICY = _default_roles(INSTRUMENT_UNITS, frozenset({SIM_CONTROL_UNIT}))
 
 
-def sim_control_units(register_map: RegisterMap) -> frozenset[int]:
-    """The units of ``register_map`` publishing a clock or fault command."""
-    return frozenset(
-        d.unit_id
-        for d in register_map.devices
-        if any(p.signal in SIM_CONTROL_SIGNALS for p in d.points)
-    )
-
-
-def instrument_units(register_map: RegisterMap) -> frozenset[int]:
-    """The units of ``register_map`` publishing a measured signal or a command of the plant,
-    the simulation control left out."""
-    control = sim_control_units(register_map)
-    return frozenset(
-        d.unit_id
-        for d in register_map.devices
-        if d.unit_id not in control
-        and any(SIGNALS[p.signal].kind in ("measured", "command") for p in d.points)
-    )
-
-
 def default_policy(register_map: RegisterMap) -> RolePolicy:
     """The default roles (module docstring) of a server of ``register_map``: the units each
     role writes follow what the devices publish, not their numbers (with the simulation
     control at unit 7 and an instrument at unit 100, the operator could advance and reset
     the clock, and with instruments at units 31 and 247 it was refused its pump and
     setpoint writes: a stranger's probe). The shipped map gives :data:`DEFAULT_POLICY`."""
-    return _default_roles(instrument_units(register_map), sim_control_units(register_map))
+    return _default_roles(instrument_units(register_map), control_units(register_map))
 
 
 def _units(value: Any, where: str) -> frozenset[int]:

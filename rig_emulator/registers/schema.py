@@ -307,21 +307,38 @@ def load_map(path: str | Path | None = None) -> RegisterMap:
     return map_from_mapping(data, source=str(path))
 
 
+def control_units(register_map: RegisterMap) -> frozenset[int]:
+    """The units of ``register_map`` that drive the emulator: a device publishing a clock
+    or fault command (a command that is no plant command) is the simulation control as a
+    whole (roles are per unit: an operator allowed the unit would reach the clock)."""
+    return frozenset(
+        d.unit_id
+        for d in register_map.devices
+        if any(SIGNALS[p.signal].kind == "command" and p.signal not in PLANT_COMMANDS
+               for p in d.points)
+    )  # fmt: skip
+
+
+def instrument_units(register_map: RegisterMap) -> frozenset[int]:
+    """The units of ``register_map`` that are the bench's instruments: they publish a
+    measured signal or a plant command, and drive nothing of the emulator."""
+    control = control_units(register_map)
+    return frozenset(
+        d.unit_id
+        for d in register_map.devices
+        if d.unit_id not in control
+        and any(SIGNALS[p.signal].kind == "measured" or p.signal in PLANT_COMMANDS
+                for p in d.points)
+    )  # fmt: skip
+
+
 def emulator_units(register_map: RegisterMap) -> frozenset[int]:
-    """The emulator's own units in ``register_map``: the devices that drive the emulator
-    (its clock or its faults) or publish neither a measured signal nor a plant command (the
+    """The emulator's own units in ``register_map``, every one that is no instrument (the
     simulation control and the truth; units 100 and 101 of the shipped map). They are never
     faulted and never reached by a broadcast, wherever a map puts them (they were unit
     numbers: a map with the simulation control at unit 7 let a fault silence it, and an
     RTU broadcast reset the plant: a re-probe)."""
-    own = set()
-    for device in register_map.devices:
-        signals = {p.signal for p in device.points}
-        drives = any(SIGNALS[s].kind == "command" and s not in PLANT_COMMANDS for s in signals)
-        plant = any(SIGNALS[s].kind == "measured" or s in PLANT_COMMANDS for s in signals)
-        if drives or not plant:
-            own.add(device.unit_id)
-    return frozenset(own)
+    return frozenset(d.unit_id for d in register_map.devices) - instrument_units(register_map)
 
 
 def map_identity(register_map: RegisterMap) -> int:
