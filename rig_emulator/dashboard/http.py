@@ -121,6 +121,12 @@ class Dashboard:
         self._task = asyncio.create_task(self._push_loop(), name="dashboard push")
 
     async def stop(self) -> None:
+        if self._evicted:  # (those after the last line were never counted: a re-probe)
+            log.warning(
+                "dashboard: %d more live stream(s) closed for new ones since the last such line",
+                self._evicted,
+            )
+            self._evicted = 0
         if self._task is not None:
             self._task.cancel()
             with contextlib.suppress(asyncio.CancelledError):

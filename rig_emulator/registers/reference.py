@@ -27,6 +27,13 @@ def _number(x: float) -> str:
     return short if float(short) == x else f"{x:.12g}"
 
 
+def _code(text: str) -> str:
+    """A name as inline code on one line (a backtick in it ended a single-backtick span: a
+    re-probe)."""
+    text = _BREAK.sub(" ", text)
+    return f"`` {text} ``" if "`" in text else f"`{text}`"
+
+
 def _cell(text: str) -> str:
     """Free text as one table cell: a line break would end the row and a ``|`` open a
     column (a stranger's probe: a two-line description with a pipe broke the table)."""
@@ -56,7 +63,7 @@ def _range(point: Point) -> str:
 def markdown(register_map: RegisterMap) -> str:
     """Reference tables, one per device, with everything a lab needs to configure a client."""
     lines = [
-        f"# Register map `{_BREAK.sub(' ', register_map.name)}`",
+        f"# Register map {_code(register_map.name)}",
         "",
         "Generated from the YAML map by `rig-emulator map-doc`; do not edit by hand.",
         "",
@@ -97,9 +104,9 @@ def markdown(register_map: RegisterMap) -> str:
     ]
     for device in register_map.devices:
         lines += [
-            f"## Unit {device.unit_id}: `{_BREAK.sub(' ', device.name)}`",
+            f"## Unit {device.unit_id}: {_code(device.name)}",
             "",
-            device.instrument,
+            _BREAK.sub(" ", device.instrument).strip(),  # (its lines made a table: a probe)
             "",
         ]
         for table in ("input", "holding", "discrete", "coil"):

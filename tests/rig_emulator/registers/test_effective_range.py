@@ -131,3 +131,18 @@ def test_map_doc_cells_hold_line_breaks_and_pipes() -> None:
         "| 0-1 | 30001 | a\\|b | float32 | ABCD |  |  | °C \\| K | r |  | `room_temp_C` "
         "| line one line two \\| with pipe |"
     )
+
+
+def test_names_with_backticks_and_instrument_text_with_lines_stay_in_their_place():
+    """A re-probe: a backtick in a device name broke its heading's code span, and an
+    instrument text of several lines starting with '|' made a table in the reference."""
+    from dataclasses import replace
+
+    from rig_emulator.registers import load_map
+    from rig_emulator.registers.reference import markdown
+
+    shipped = load_map()
+    odd = replace(shipped.devices[0], name="dev`x", instrument="a\n| a | b |\n|---|---|")
+    text = markdown(replace(shipped, devices=(odd, *shipped.devices[1:])))
+    assert "## Unit 1: `` dev`x ``" in text
+    assert "\n| a | b |" not in text and "a | a | b | |---|---|" in text
