@@ -341,11 +341,15 @@ def _check_advance(register_map: RegisterMap, period_s: float) -> None:
     _, point = register_map.point("lockstep_advance_s")
     low, high = accepted_range(point)
     carried = decode(point, encode(point, period_s))
-    if not (low <= period_s <= high and carried == period_s):
+    where = f"--map {register_map.source}: its lockstep_advance point '{point.name}'"
+    if not low <= period_s <= high:  # (the message said "carries 0.3 s for 0.3 s": a probe)
         raise UsageError(
-            f"--map {register_map.source}: its lockstep_advance point '{point.name}' "
-            f"({point.datatype}, scale {point.scale:g}) carries {carried:g} s for the "
-            f"protocol's {period_s:g} s steps (it accepts {low:g}..{high:g})"
+            f"{where} accepts {low:g}..{high:g} s, not the protocol's {period_s:g}-s steps"
+        )
+    if carried != period_s:
+        raise UsageError(
+            f"{where} ({point.datatype}, scale {point.scale:g}) carries {carried:.10g} s for the "
+            f"protocol's {period_s:.10g}-s steps"
         )
 
 
@@ -878,6 +882,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
                 "the protocol file": _file_given(args.protocol),
                 "the --boiler file": _file_given(args.boiler),
                 "the --map file": _file_given(args.map),
+                "the --tls-cert file": _file_given(args.tls_cert),
+                "the --tls-key file": _file_given(args.tls_key),
+                "the --tls-ca file": _file_given(args.tls_ca),
             },
             "--fault-report",
         )

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import stat
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -16,14 +17,26 @@ from pathlib import Path
 def replacing(path: Path) -> Iterator[Path]:
     """A temporary path beside ``path`` (same suffix: a figure's format follows it) to write;
     it replaces ``path`` (the file a link names, not the link) when the block ends, and is
-    removed if the block fails (an OSError about it then names ``path``). A ``path`` that is
-    a device or a pipe is written as it is."""
-    if path.exists() and not path.is_file():  # a device or a pipe (/dev/stdout): written
-        yield path  # to as it is (a file was put in its place: a re-probe)
+    removed if the block fails (an OSError about it then names ``path``); the old file's mode
+    and owner are kept. Written as it is instead: see :func:`_in_place`, and a directory
+    that allows no new file."""
+    if _in_place(path):
+        yield path
         return
     real = Path(os.path.realpath(path))  # through links: the file they name is replaced
-    tmp = real.with_name(f".{real.stem}.{os.getpid()}.tmp{real.suffix}")
+    # (a short name: one of 245 bytes grew past the file system's 255 with the suffixes)
+    tmp = real.with_name(f".{real.stem[:64]}.{os.getpid()}.tmp{real.suffix[:16]}")
     try:
+        tmp.touch()
+    except OSError:  # a directory it may not create files in (a re-probe: the writable
+        yield path  # file of a read-only directory could no longer be written)
+        return
+    try:
+        if real.exists():  # the old file's mode, and owner where allowed (a private file
+            st = real.stat()  # became world-readable: a re-probe)
+            os.chmod(tmp, stat.S_IMODE(st.st_mode))
+            with contextlib.suppress(OSError):
+                os.chown(tmp, st.st_uid, st.st_gid)
         yield tmp
         os.replace(tmp, real)
     except BaseException as exc:
@@ -34,7 +47,25 @@ def replacing(path: Path) -> Iterator[Path]:
         raise
 
 
+def _in_place(path: Path) -> bool:
+    """Whether ``path`` is written as it is, not replaced: a device or a pipe, anything under
+    /dev or /proc (/dev/stdout redirected to a file replaced that file, and a file was put
+    in place of the link: re-probes), and a file of several hard links (the others kept
+    the old text)."""
+    if not path.exists():
+        return False
+    if not path.is_file() or str(path.absolute()).startswith(("/dev/", "/proc/")):
+        return True
+    return path.stat().st_nlink > 1
+
+
 def write_atomically(path: Path, text: str) -> None:
-    """Write ``text`` (UTF-8) to ``path`` through :func:`replacing`."""
+    """Write ``text`` (UTF-8) to ``path`` through :func:`replacing`; a stream under /dev or
+    /proc is appended to (``/dev/stdout`` opened for writing truncated the file the shell
+    appended standard output to: a re-probe)."""
+    if path.exists() and str(path.absolute()).startswith(("/dev/", "/proc/")):
+        with path.open("a", encoding="utf-8") as stream:
+            stream.write(text)
+        return
     with replacing(path) as tmp:
         tmp.write_text(text, encoding="utf-8")

@@ -186,14 +186,30 @@ def refuse_overwriting(out: Path, inputs: Mapping[str, Path | None], option: str
             raise UsageError(f"{option}: '{out}' is {what}, which it would overwrite; name another")
 
 
+#: The installed packages' directories (their shipped boilers, profiles, maps, protocols):
+#: no output goes there
+_PACKAGE_ROOTS = tuple(
+    root
+    for root in (
+        Path(__file__).resolve().parent,
+        Path(__file__).resolve().parents[1] / "hil_client",
+    )
+    if root.is_dir()
+)
+
+
 def output_file(path: Path) -> Path:
     """``path``, its missing parent directories created (as ``--out`` users expect);
     a parent that is a file, or a ``path`` that is a directory or a loop of symbolic links,
     is a :class:`UsageError`."""
     try:
-        path.resolve()
+        real = path.resolve()
     except (RuntimeError, OSError):  # (a traceback: a stranger's probe)
         raise UsageError(f"--out: '{path}' is a loop of symbolic links") from None
+    if any(real.is_relative_to(root) for root in _PACKAGE_ROOTS):  # (the shipped map or
+        raise UsageError(  # boiler a NAME resolves to was replaced: a re-probe)
+            f"--out: '{path}' lies in the installed package (its shipped data); name another"
+        )
     if path.is_dir():
         raise UsageError(f"--out: '{path}' is a directory")
     try:

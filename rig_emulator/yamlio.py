@@ -158,8 +158,9 @@ def read_yaml(path: Path, error: type[Exception]) -> Any:
         if "digits" in str(exc) or "limit" in str(exc):  # tagged value: !!int abc
             raise error(f"{path}: not valid YAML (a number of thousands of digits)") from None
         raise error(f"{path}: not valid YAML (a value its !!tag cannot read)") from None
-    except (KeyError, AttributeError, TypeError):  # !!bool maybe, !!timestamp x (tracebacks:
-        raise error(f"{path}: not valid YAML (a value its !!tag cannot read)") from None  # a probe)
+    except (KeyError, AttributeError, TypeError, IndexError):  # !!bool maybe, !!float ''
+        # (tracebacks: probes)
+        raise error(f"{path}: not valid YAML (a value its !!tag cannot read)") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark is not None else ""

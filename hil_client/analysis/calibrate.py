@@ -115,16 +115,21 @@ def _mean_read(log: LabLog, column: str, mask: np.ndarray) -> float | None:
 
 
 def _linfit(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float, float]:
-    """(intercept, slope, se_intercept, se_slope) of an ordinary least-squares line."""
+    """(intercept, slope, se_intercept, se_slope) of an ordinary least-squares line, fitted
+    about the mean of ``x`` (at Unix times, 1.8e9 s, the raw fit lost the slope: UA_off came
+    out -0.0004 W/K and no fuel flow was found; a re-probe)."""
     n = len(x)
-    A = np.column_stack([np.ones(n), x])
+    x0 = float(np.mean(x)) if n else 0.0
+    A = np.column_stack([np.ones(n), x - x0])
     coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+    slope = float(coef[1])
+    intercept = float(coef[0]) - slope * x0
     if n <= 2:
-        return float(coef[0]), float(coef[1]), 0.0, 0.0
+        return intercept, slope, 0.0, 0.0
     resid = y - A @ coef
     s2 = float(resid @ resid) / (n - 2)
-    cov = s2 * np.linalg.inv(A.T @ A)
-    return float(coef[0]), float(coef[1]), math.sqrt(cov[0, 0]), math.sqrt(cov[1, 1])
+    cov = s2 * np.linalg.inv(A.T @ A)  # (centred: intercept and slope uncorrelated)
+    return intercept, slope, math.sqrt(cov[0, 0] + x0 * x0 * cov[1, 1]), math.sqrt(cov[1, 1])
 
 
 #: How closely the boiler water must hold over a stationary interval [K] ...

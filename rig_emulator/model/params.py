@@ -223,6 +223,9 @@ def params_from_mapping(data: Any, source: str = "<parameters>") -> BoilerParams
     for key in (*nonnegative, *co):
         if values.get(key, 0.0) < 0:
             raise ParameterError(f"{source}: key '{key}' must not be negative")
+    for key in co:  # (1e300 ppm was served: a re-probe)
+        if values.get(key, 0.0) > 1e6:
+            raise ParameterError(f"{source}: key '{key}' is above 1e6 ppm, the whole flue gas")
     if values["p_min_kW"] > values["p_max_kW"]:
         raise ParameterError(
             f"{source}: key 'p_min_kW' ({values['p_min_kW']}) exceeds 'p_max_kW' "

@@ -447,3 +447,18 @@ def test_a_fault_report_may_not_replace_the_runs_own_files(tmp_path, capsys, tar
     err = capsys.readouterr().err
     assert err.startswith(f"hil-client: error: --fault-report: '{report}' is the")
     assert "which it would overwrite" in err and not out.exists()
+
+
+def test_no_output_goes_into_the_installed_package(capsys):
+    """A re-probe: ``balance --out`` replaced the shipped boiler file its --boiler NAME
+    resolves to (and run --fault-report the shipped map): no output goes there."""
+    from rig_emulator.boilers import BOILER_DIR
+    from rig_emulator.cli import main as rig_main
+
+    stray = BOILER_DIR / "reference.md"
+    try:
+        assert rig_main(["map-doc", "--out", str(stray)]) == 2
+        assert "lies in the installed package" in capsys.readouterr().err
+        assert not stray.exists()
+    finally:
+        stray.unlink(missing_ok=True)

@@ -110,7 +110,9 @@ def test_aliases_through_pairs_and_sets_are_bounded_too(tmp_path):
         _read(tmp_path, "\n".join(levels) + "\n")
 
 
-@pytest.mark.parametrize("value", ["!!bool maybe", "!!timestamp x", "!!int abc", "!!float abc"])
+@pytest.mark.parametrize(
+    "value", ["!!bool maybe", "!!timestamp x", "!!int abc", "!!float abc", "!!float", "!!float ''"]
+)
 def test_a_tagged_value_its_tag_cannot_read_is_one_line(tmp_path, value):
     """A re-probe: !!bool maybe ended in KeyError's traceback, !!timestamp x in an
     AttributeError, !!int abc was "a number of thousands of digits"."""

@@ -513,3 +513,26 @@ def test_outputs_cut_by_a_full_disk_leave_no_broken_file(run_log, tmp_path):
     for name, data in after.items():  # each file is a whole one: the old or a new
         assert len(data) > 0, name
     assert after["validation_timeseries.png"] == before["validation_timeseries.png"]
+
+
+def test_calibrate_at_unix_times_fits_as_from_zero(run_log, tmp_path):
+    """A re-probe: the least-squares fits on raw Unix times (1.8e9 s) lost their slopes:
+    UA_off -0.0004 W/K, and no fuel flow in the stationary intervals."""
+    rec = run_log("stationary", "windhager_12kw")
+    lines = rec.path.read_text().splitlines()
+    col = lines[0].split(",").index("time_s")
+    rows = [line.split(",") for line in lines[1:]]
+    for row in rows:
+        row[col] = f"{float(row[col]) + 1.8e9:.3f}"
+    shifted = tmp_path / "unix.csv"
+    shifted.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    meta = json.loads(rec.path.with_name(rec.path.stem + ".meta.json").read_text())
+    meta.update({k: meta[k] + 1.8e9 for k in ("t0_s", "t1_s", "t2_s", "t3_s", "t4_s")})
+    (tmp_path / "unix.meta.json").write_text(json.dumps(meta))
+    fits = []
+    for log, out in ((rec.path, tmp_path / "a.yaml"), (shifted, tmp_path / "b.yaml")):
+        assert main(["calibrate", str(log), "--boiler", "windhager_12kw", "--out", str(out)]) == 0
+        fits.append(json.loads(out.with_suffix(".uncertainty.json").read_text()))
+    assert set(fits[0]) == set(fits[1])
+    for key, fit in fits[0].items():  # the same fits, to the time column's 1-ms rounding
+        assert fits[1][key]["value"] == pytest.approx(fit["value"], rel=1e-3, abs=1e-6), key
