@@ -10,7 +10,6 @@ caller might not) is quoted as RFC 4180 says, so every row keeps its width.
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import io
 import math
@@ -22,6 +21,7 @@ from typing import Any
 
 from hil_client.jsonio import strict_json
 from hil_client.protocol.runner import LOG_COLUMNS, Row
+from rig_emulator.atomic import replacing
 
 #: Decimals written per column: finer than any instrument's resolution.
 DECIMALS = {
@@ -120,15 +120,8 @@ def write_meta(log_path: Path, meta: dict[str, Any]) -> Path:
     moment sees either the previous or the new file whole. ``hil-client run`` calls this
     at the start, at each phase mark and each gap, and at the end."""
     path = meta_path(log_path)
-    tmp = path.with_name(path.name + ".tmp")
-    try:
-        with tmp.open("w", encoding="utf-8") as fh:
-            fh.write(strict_json(meta, indent=2) + "\n")
-            fh.flush()
-            os.fsync(fh.fileno())
-    except OSError:  # a full disk: no half-written temporary file left beside the log
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        raise
-    os.replace(tmp, path)
+    with replacing(path) as tmp, tmp.open("w", encoding="utf-8") as fh:  # (a symlinked
+        fh.write(strict_json(meta, indent=2) + "\n")  # meta file was replaced by a plain
+        fh.flush()  # file with its own temporary name: a re-probe)
+        os.fsync(fh.fileno())
     return path

@@ -406,6 +406,13 @@ def test_meta_file_is_replaced_atomically(tmp_path):
     assert json.loads(meta_path(out).read_text()) == {"gaps": [1, 2]}
     assert sorted(p.name for p in tmp_path.iterdir()) == ["x.meta.json"]  # no temporary left
     assert os.path.exists(meta_path(out))
+    # a re-probe: a symlinked meta file was replaced by a plain file, its target left as was
+    target = tmp_path / "other.json"
+    target.write_text("{}")
+    linked = tmp_path / "y.csv"
+    meta_path(linked).symlink_to(target)
+    write_meta(linked, {"gaps": []})
+    assert meta_path(linked).is_symlink() and json.loads(target.read_text()) == {"gaps": []}
 
 
 def test_servers_publish_a_new_epoch_per_start_and_their_set_up(serve):
