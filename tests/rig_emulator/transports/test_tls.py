@@ -84,6 +84,22 @@ def _write(c, srv, device: str, name: str, value: float):
     return c.write_registers(p.address, encode(p, value), device_id=dev.unit_id)
 
 
+def _only_the_engineer_moves_the_clock(c, srv, stem: str, also_reset: bool = False) -> None:
+    """An advance of 5 s on the simulation control: done for the engineer, refused with 01
+    and the time unchanged for every other role (and a reset refused too, ``also_reset``)."""
+    time_before = srv.values()["sim_time_s"]
+    r = _write(c, srv, "sim_control", "lockstep_advance", 5)
+    if stem == "engineer":
+        assert not r.isError(), r
+        assert srv.values()["sim_time_s"] == pytest.approx(time_before + 5.0)
+        return
+    assert r.isError() and r.exception_code == 1, r
+    if also_reset:
+        r = _write(c, srv, "sim_control", "reset", 1)
+        assert r.isError() and r.exception_code == 1, r
+    assert srv.values()["sim_time_s"] == time_before
+
+
 @pytest.mark.parametrize("stem", ROLES)
 def test_each_role_allowed_or_refused_with_01_and_no_change(tls_server, certs, stem):
     srv = tls_server
@@ -93,7 +109,6 @@ def test_each_role_allowed_or_refused_with_01_and_no_change(tls_server, certs, s
         flow_before = _read_holding(c, srv, "bench_plc", "flow_setpoint")
         r = c.read_input_registers(0, count=7, device_id=100)
         assert not r.isError()
-        time_before = srv.values()["sim_time_s"]
         counter_before = srv.values()["lockstep_counter"]
 
         # instruments (unit 1): operator and engineer write, observer and no role do not
@@ -115,13 +130,8 @@ def test_each_role_allowed_or_refused_with_01_and_no_change(tls_server, certs, s
             assert srv.values()["boiler_command"] == before
 
         # simulation control (unit 100): only the engineer advances the plant
-        r = _write(c, srv, "sim_control", "lockstep_advance", 5)
-        if stem == "engineer":
-            assert not r.isError(), r
-            assert srv.values()["sim_time_s"] == pytest.approx(time_before + 5.0)
-        else:
-            assert r.isError() and r.exception_code == 1, r
-            assert srv.values()["sim_time_s"] == time_before
+        _only_the_engineer_moves_the_clock(c, srv, stem)
+        if stem != "engineer":
             assert srv.values()["lockstep_counter"] == counter_before
     finally:
         c.close()
@@ -531,16 +541,7 @@ def test_serve_gives_the_roles_of_the_devices_not_of_their_unit_ids(serve, certs
                 on_command, _ = _point(srv, "boiler_controller", "on_command")
                 assert not c.write_coil(0, True, device_id=on_command.unit_id).isError()
 
-                time_before = srv.values()["sim_time_s"]
-                r = _write(c, srv, "sim_control", "lockstep_advance", 5)
-                if stem == "engineer":
-                    assert not r.isError(), r
-                    assert srv.values()["sim_time_s"] == pytest.approx(time_before + 5.0)
-                else:
-                    assert r.isError() and r.exception_code == 1, r
-                    r = _write(c, srv, "sim_control", "reset", 1)
-                    assert r.isError() and r.exception_code == 1, r
-                    assert srv.values()["sim_time_s"] == time_before
+                _only_the_engineer_moves_the_clock(c, srv, stem, also_reset=True)
             finally:
                 c.close()
         observer = tls_client(srv.port, certs, "observer")
