@@ -33,6 +33,7 @@ from rig_emulator.faults.journal import FaultJournal
 from rig_emulator.faults.spec import (
     NEVER_FAULTED,
     PARAMETER,
+    SHIPPED_INSTRUMENT_UNITS,
     SPIKE_FOR_S,
     Entry,
     FaultSpec,
@@ -89,8 +90,9 @@ class _RandomState:
     def _gap(self) -> float:
         return self.rng.expovariate(self.spec.rate_per_h / 3600.0)
 
-    def draw(self, until_s: float) -> list[FaultSpec]:
-        """The faults due up to ``until_s`` (their ``at_s`` the drawn instant)."""
+    def draw(self, until_s: float, instrument_units: tuple[int, ...]) -> list[FaultSpec]:
+        """The faults due up to ``until_s`` (their ``at_s`` the drawn instant), a
+        communication fault on one of the spec's units or else of ``instrument_units``."""
         spec = self.spec
         stop_s = math.inf if spec.for_s is None else spec.at_s + spec.for_s
         drawn: list[FaultSpec] = []
@@ -106,7 +108,8 @@ class _RandomState:
             # short steps (the same seed gives the same faults whatever the advances)
             for_s = SPIKE_FOR_S if kind == "spike" else spec.fault_for_s
             if kind in ("delay", "no_reply", "exception"):
-                target: dict[str, Any] = {"unit": self.rng.choice(spec.units)}
+                units = spec.units or instrument_units
+                target: dict[str, Any] = {"unit": self.rng.choice(units)}
             elif kind == "offset" and "offset" not in spec.params:
                 target = {"signal": "balance_mass_kg"}  # the default offset: a refill
             else:
@@ -135,6 +138,10 @@ class FaultEngine:
         #: the emulator's own units, which a fault on every unit (0) leaves alone (a server
         #: sets its map's: :func:`~rig_emulator.registers.emulator_units`)
         self.never_faulted: frozenset[int] = frozenset(NEVER_FAULTED)
+        #: the units a random communication fault without ``units`` draws from (a server
+        #: sets its map's: :func:`~rig_emulator.registers.instrument_units`; the shipped
+        #: map's instruments are units 1-7)
+        self.instrument_units: tuple[int, ...] = SHIPPED_INSTRUMENT_UNITS
         self.plant = plant
         #: closes every client connection; returns how many (set by the server)
         self.on_disconnect: Callable[[str], int] | None = None
@@ -236,7 +243,7 @@ class FaultEngine:
         if due:
             self._pending = [p for p in self._pending if p not in due]
         for state in self._random:
-            due += [(s, "random", -math.inf) for s in state.draw(t_sim_s)]
+            due += [(s, "random", -math.inf) for s in state.draw(t_sim_s, self.instrument_units)]
         for fault in ended:
             del self.active[fault.id]
         started: list[ActiveFault] = []

@@ -20,9 +20,9 @@ name a lab-log ``signal`` (a measured signal of :mod:`rig_emulator.signals`).
 
 ``kind: random`` draws faults at ``rate_per_h`` (a Poisson process in simulated time,
 seeded by ``seed``) from ``kinds``, each lasting ``fault_for_s`` [60 s], on ``units``
-[1-7] or ``signals`` [every measured signal], from ``at_s`` [0] for ``for_s`` [forever];
-``params`` may set each drawn kind's parameters, e.g. ``{delay: {delay_ms: 500}}``
-(defaults: :data:`RANDOM_DEFAULTS`).
+[every instrument unit of the server's map] or ``signals`` [every measured signal], from
+``at_s`` [0] for ``for_s`` [forever]; ``params`` may set each drawn kind's parameters,
+e.g. ``{delay: {delay_ms: 500}}`` (defaults: :data:`RANDOM_DEFAULTS`).
 
 A bad entry raises :class:`FaultError` naming the file, the entry and the field.
 """
@@ -62,6 +62,8 @@ TRUTH_UNIT = 101  # the plant's true values: never faulted
 #: the emulator's own units, not instruments: never faulted, never reached by a broadcast
 EMULATOR_UNITS = (CONTROL_UNIT, TRUTH_UNIT)
 NEVER_FAULTED = EMULATOR_UNITS
+#: the shipped map's instrument units: random faults draw from them without a map
+SHIPPED_INSTRUMENT_UNITS = (1, 2, 3, 4, 5, 6, 7)
 SPIKE_FOR_S = 1.0  # a spike without for_s: one acquisition at the usual 1 s period
 MAX_DELAY_MS = 600_000.0
 #: Parameters of randomly drawn faults unless the entry's ``params`` says otherwise.
@@ -138,7 +140,8 @@ class RandomSpec:
     at_s: float = 0.0
     for_s: float | None = None
     fault_for_s: float = 60.0
-    units: tuple[int, ...] = (1, 2, 3, 4, 5, 6, 7)
+    #: () : every instrument unit of the map served (:attr:`FaultEngine.instrument_units`)
+    units: tuple[int, ...] = ()
     signals: tuple[str, ...] = MEASURED
     params: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
 
@@ -277,8 +280,10 @@ def _random_from_mapping(data: Mapping, where: str) -> RandomSpec:
     fault_for_s = _number(
         f"{where}.fault_for_s", data.get("fault_for_s", 60.0), 0.0, 1e9, low_open=True
     )
-    units = data.get("units", [1, 2, 3, 4, 5, 6, 7])
-    if not isinstance(units, list) or not units:
+    # absent: every instrument unit of the map served, whichever those are (a fixed 1-7
+    # refused the whole file with a map whose instruments sit elsewhere: a stranger's probe)
+    units = data.get("units", [])
+    if not isinstance(units, list) or ("units" in data and not units):
         raise FaultError(f"{where}.units: must be a non-empty list of unit IDs")
     units = [_unit(f"{where}.units[{i}]", u) for i, u in enumerate(units)]
     signals = data.get("signals", list(MEASURED))
@@ -331,6 +336,12 @@ def check_units(
     for i, entry in enumerate(entries):
         if isinstance(entry, RandomSpec):
             named = [(_field(where, i, entries, "units"), u) for u in entry.units]
+            comm = [k for k in entry.kinds if k in ("delay", "no_reply", "exception")]
+            if comm and not entry.units and not units - own:
+                raise FaultError(
+                    f"{_field(where, i, entries, 'kinds')}: {', '.join(comm)} need an "
+                    "instrument unit, and the map has none"
+                )
         elif entry.is_comm:
             named = [(_field(where, i, entries, "unit"), entry.unit)]
         else:

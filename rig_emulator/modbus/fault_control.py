@@ -41,7 +41,7 @@ from rig_emulator.faults.wire import (
     fault_dict_to_spec,
     spec_from_block,
 )
-from rig_emulator.registers import RegisterMap, emulator_units, reading_range
+from rig_emulator.registers import RegisterMap, emulator_units, instrument_units, reading_range
 from rig_emulator.signals import MEASURED
 
 #: Command signals of the fault block (written by clients, never plant commands).
@@ -93,6 +93,7 @@ class ServerFaults:
         #: the map's own units (simulation control, truth): never faulted
         self.own_units = emulator_units(register_map)
         self.engine.never_faulted = self.own_units
+        self.engine.instrument_units = tuple(sorted(instrument_units(register_map)))
         profile_faults = getattr(emulator.profile, "faults", ()) or ()
         self.engine.add_initial(profile_faults, "profile")
         self.engine.add_initial(entries, "file")

@@ -315,3 +315,51 @@ def test_a_fault_on_every_unit_leaves_the_maps_own_units_wherever_they_are(serve
             c.read_input_registers(0, count=1, device_id=100)
     finally:
         c.close()
+
+
+def test_random_faults_without_units_draw_from_the_maps_instruments(tmp_path):
+    """A stranger's map with the simulation control at unit 7 and the balance at 31: a
+    random generator without ``units`` defaulted to 1-7, so ``serve`` refused the whole
+    file ("unit 7 is the emulator's own"), and with 31 never drawn. It now draws from the
+    instrument units of the map served."""
+    import signal
+
+    from rig_emulator.registers import instrument_units
+    from rig_emulator.yamlio import dump_yaml, read_yaml
+    from tests.rig_emulator.transports.remapped import MAP_DIR, shipped_map_with_units
+
+    units = {"sim_control": 7, "balance": 31}
+    data = read_yaml(MAP_DIR / "wieselburg_bench.yaml", ValueError)
+    names = {d["name"]: d["unit_id"] for d in data["devices"]}
+    moved = {name: unit for name, unit in units.items() if name in names}
+    displaced = [n for n, u in names.items() if u == 7 and n != "sim_control"]
+    moved.update(dict.fromkeys(displaced, 1 + max(names.values())))  # the device at 7
+    for device in data["devices"]:
+        device["unit_id"] = moved.get(device["name"], device["unit_id"])
+    map_file = tmp_path / "moved.yaml"
+    map_file.write_text(dump_yaml(data))
+    bench = instrument_units(shipped_map_with_units(**moved))
+    assert 7 not in bench and 31 in bench
+    faults = tmp_path / "faults.yaml"
+    faults.write_text(
+        "faults:\n  - {kind: random, rate_per_h: 3600, kinds: [no_reply], fault_for_s: 1,"
+        " seed: 3}\n"
+    )
+    journal = tmp_path / "j.jsonl"
+    options = ("--lockstep", "--map", str(map_file), "--faults", str(faults))
+    options += ("--fault-log", str(journal))
+    with rig_emulator_serve("windhager_12kw", *options, stderr=subprocess.PIPE) as (port, proc):
+        from rig_emulator.registers import load_map
+
+        sim = load_map(map_file).device("sim_control")
+        advance = next(p for p in sim.points if p.name == "lockstep_advance")
+        c = client(port, timeout_s=60)
+        assert not c.write_registers(advance.address, encode(advance, 120), device_id=7).isError()
+        c.close()
+        proc.send_signal(signal.SIGINT)
+        code = proc.wait(timeout=60)
+        err = proc.stderr.read().decode()
+    assert code == 0, err
+    drawn = {e["unit"] for e in read_journal(journal) if e["event"] == "start"}
+    # 120 draws at one a second from eight units: each one drawn, no other
+    assert drawn == set(bench), (drawn, bench)
