@@ -56,6 +56,7 @@ from hil_client.protocol.runner import RunResult, check_setpoints, run_protocol
 from hil_client.rigs.local import LocalRig, wire_only_faults
 from hil_client.rigs.modbus import WRITES, ModbusRig, check_map
 from hil_client.rigs.transports import RIG_TIMEOUT_S, connector, tls_files
+from hil_client.run_lock import RunBusy, run_lock
 from hil_client.summary import RunSummary
 from rig_emulator.atomic import write_atomically
 from rig_emulator.boilers import BOILER_DIR, dump_boiler, load_boiler
@@ -851,6 +852,17 @@ def _what_is_kept(rows: int, previous: list, gaps: list) -> str:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    try:
+        with run_lock(args.out):
+            return _run(args)
+    except RunBusy as busy:
+        raise UsageError(
+            f"--out: '{args.out}' is being written by another run ({busy}); give another "
+            "--out, or wait until that run ends"
+        ) from None
+
+
+def _run(args: argparse.Namespace) -> int:
     # validate everything before any file is written
     params = boiler_arg(args.boiler)
     with bad_input(ProtocolError):

@@ -1,0 +1,65 @@
+"""One run at a time per log (:mod:`hil_client.run_lock`), with real processes: a run
+writing a log against a real-time server, a second ``hil-client run`` given the same
+``--out``, and the first killed with -9."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from hil_client.cli import main
+from hil_client.demo import rig_emulator_serve
+from hil_client.run_lock import lock_path
+
+SHORT = Path(__file__).resolve().parents[1] / "data" / "short_protocol.yaml"
+
+
+def _rows(path: Path) -> int:
+    return max(len(path.read_text().splitlines()) - 1, 0) if path.exists() else 0
+
+
+def _wait_rows(path: Path, rows: int, proc: subprocess.Popen, timeout_s: float = 60.0) -> None:
+    end = time.monotonic() + timeout_s
+    while _rows(path) < rows:
+        assert proc.poll() is None, f"the first run ended with {proc.returncode}"
+        assert time.monotonic() < end, f"{path}: fewer than {rows} rows in {timeout_s} s"
+        time.sleep(0.2)
+
+
+def test_a_second_run_on_a_log_being_written_is_refused_and_moves_nothing(tmp_path, capsys):
+    """A probe: two runs given one ``--out``. The second set the first one's live log
+    aside as ``.previous`` and deleted it at its own first row, while the first went on
+    writing into the deleted file: both exit 0, one log lost. The second is now refused
+    in one line naming the first's pid; a run killed with -9 leaves no lock behind it."""
+    out = tmp_path / "log.csv"
+    with rig_emulator_serve("windhager_12kw") as (port, _server):  # real time: a row a second
+        first = subprocess.Popen(
+            [sys.executable, "-m", "hil_client.cli", "run", "--boiler", "windhager_12kw",
+             str(SHORT), "--rig", f"modbus://127.0.0.1:{port}", "--out", str(out), "--quiet"],
+            stderr=subprocess.PIPE,
+        )  # fmt: skip
+        try:
+            _wait_rows(out, 2, first)
+            code = main(["run", "--boiler", "windhager_12kw", str(SHORT), "--out", str(out)])
+            err = capsys.readouterr().err
+            assert code == 2, err
+            assert f"is being written by another run (pid {first.pid})" in err, err
+            assert err.count("\n") == 1, err
+            before = _rows(out)
+            _wait_rows(out, before + 2, first)  # the first run's log is the live one still
+            assert not out.with_name(out.name + ".previous").exists()
+            first.send_signal(signal.SIGKILL)
+            first.wait(timeout=30)
+        finally:
+            if first.poll() is None:
+                first.kill()
+            first.wait(timeout=30)
+    assert lock_path(out).exists()  # what kill -9 leaves: a file nobody holds
+    code = main(["run", "--boiler", "windhager_12kw", str(SHORT), "--out", str(out), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert "holds an earlier run's log" in err, err
+    assert not lock_path(out).exists()  # a run that ends removes its lock
