@@ -76,6 +76,7 @@ from rig_emulator.cli_support import (
     refuse_overwriting,
     report,
     report_os_error,
+    standard_output_named,
     text_file,
     text_input,
 )
@@ -1199,9 +1200,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         try:
             args = _build_parser().parse_args(argv)
         except OSError as exc:  # --help's text
-            return report_os_error(exc, "hil-client", "writing standard output")
+            return report_os_error(exc, "hil-client", "standard output")
         out = getattr(args, "out", None)
-        with input_errors(), warnings.catch_warnings():
+        with standard_output_named(), input_errors(), warnings.catch_warnings():
             # numpy's "mean of empty slice" on a column with no readings where a figure is
             # read: the figure is NaN and reported as missing, the warning says nothing more
             warnings.simplefilter("ignore", RuntimeWarning)

@@ -37,6 +37,7 @@ from rig_emulator.cli_support import (
     refuse_overwriting,
     report,
     report_os_error,
+    standard_output_named,
     text_file,
     text_input,
 )
@@ -474,7 +475,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         try:
             args = _build_parser().parse_args(argv)
         except OSError as exc:  # --help's text
-            return report_os_error(exc, "rig-emulator", "writing standard output")
+            return report_os_error(exc, "rig-emulator", "standard output")
         out = getattr(args, "out", None)
         commands = {
             "check": _cmd_check,
@@ -483,12 +484,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             "map-doc": _cmd_map_doc,
             "certs": _cmd_certs,
         }
-        with input_errors():
+        with standard_output_named(), input_errors():
             return commands[args.command](args)
     except UsageError as exc:
         return report(exc, "rig-emulator")
     except OSError as exc:  # a write's error names no file: --out's, or standard output
-        return report_os_error(exc, "rig-emulator", f"writing {out or 'standard output'}")
+        return report_os_error(exc, "rig-emulator", f"writing {out}" if out else None)
     except KeyboardInterrupt:  # serve stops on its own; the other commands end here
         print("rig-emulator: interrupted", file=sys.stderr)
         return 1

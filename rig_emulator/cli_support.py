@@ -52,6 +52,49 @@ def boiler_arg(name: str) -> BoilerParams:
         return load_boiler(name)
 
 
+class _NamedStdout:
+    """Standard output whose write errors name it: a full or closed standard output is no
+    output file's fault (``balance --out x.json > /dev/full`` said "writing x.json: No
+    space left on device" of a file written whole: a probe)."""
+
+    def __init__(self, stream: IO[str]) -> None:
+        self._stream = stream
+
+    def _named(self, exc: OSError) -> OSError:
+        if exc.filename is None:
+            exc.filename = "standard output"
+        return exc
+
+    def write(self, text: str) -> int:
+        try:
+            return self._stream.write(text)
+        except OSError as exc:
+            raise self._named(exc) from None
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except OSError as exc:
+            raise self._named(exc) from None
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self._stream, name)
+
+
+@contextmanager
+def standard_output_named() -> Iterator[None]:
+    """In the block, an error writing standard output names it (:class:`_NamedStdout`);
+    what is left in its buffer is written before the block ends, so the error comes
+    while the command can still say it in one line."""
+    stream = sys.stdout
+    sys.stdout = _NamedStdout(stream)  # type: ignore[assignment]
+    try:
+        yield
+        sys.stdout.flush()
+    finally:
+        sys.stdout = stream
+
+
 def report(exc: UsageError, default_prog: str) -> int:
     """Print ``PROG: error: MESSAGE`` on stderr and return exit code 2."""
     print(f"{exc.prog or default_prog}: error: {exc}", file=sys.stderr)

@@ -1,5 +1,7 @@
 """``rig-emulator`` commands available before the Modbus server."""
 
+import json
+
 import pytest
 
 from rig_emulator.cli import main
@@ -174,17 +176,23 @@ def test_serve_stopped_twice_stops_once_without_a_traceback():
         ["rig_emulator.cli", "serve", "--help"],
         ["hil_client.cli", "--help"],
         ["hil_client.cli", "diagnose", "--help"],
+        ["rig_emulator.cli", "steady", "--boiler", "windhager_12kw", "--load", "63"],
+        ["hil_client.cli", "balance", "LOG", "--out", "OUT"],
     ],
 )
-def test_a_full_standard_output_is_one_line_naming_it(argv):
+def test_a_full_standard_output_is_one_line_naming_it(argv, run_log, tmp_path):
     """A re-probe: map-doc to a full disk said "No space left on device" naming nothing;
-    ``--help`` into it exited 0 without a word (argparse drops its write's error)."""
+    ``--help`` into it exited 0 without a word (argparse drops its write's error); a probe:
+    ``balance --out x.json`` into it blamed x.json, which it had written whole."""
     import subprocess
     import sys
     from pathlib import Path
 
     if not Path("/dev/full").exists():
         pytest.skip("no /dev/full on this system")
+    out = tmp_path / "balance.json"
+    log = run_log("stationary", "windhager_12kw").path if "LOG" in argv else None
+    argv = [{"LOG": str(log), "OUT": str(out)}.get(a, a) for a in argv]
     with open("/dev/full", "w") as full:
         proc = subprocess.run(
             [sys.executable, "-m", *argv],
@@ -195,7 +203,9 @@ def test_a_full_standard_output_is_one_line_naming_it(argv):
         )
     prog = "rig-emulator" if argv[0].startswith("rig") else "hil-client"
     assert proc.returncode == 1
-    assert proc.stderr.strip() == f"{prog}: error: writing standard output: No space left on device"
+    assert proc.stderr.strip() == f"{prog}: error: standard output: No space left on device"
+    if "--out" in argv:  # the file was written whole, and is not blamed
+        assert json.loads(out.read_text())
 
 
 def test_outputs_never_replace_an_input(tmp_path, capsys):
