@@ -70,7 +70,7 @@ from hil_client.modbus_client import (
     write_registers_pdu,
 )
 from hil_client.protocol.rig import READING_KEYS, RigCommand, RigError
-from hil_client.rigs.transports import url_port
+from hil_client.rigs.transports import RtuConnection, url_port
 from rig_emulator.emulator import check_command
 from rig_emulator.registers import (
     MapError,
@@ -801,6 +801,25 @@ class ModbusRig:
         )
         return True
 
+    @staticmethod
+    def _timed_out(replies: list[Reply]) -> bool:
+        return any(isinstance(r, NoReply) and r.reason == "timeout" for r in replies)
+
+    def _rebuilt_under_timeouts(self) -> bool:
+        """After instruments that timed out in a step, whether the server is still this
+        run's: on a serial line a server killed and restarted under a step loses no
+        connection, and its row was logged with every instrument empty before the next
+        step found the new plant. True: a new server, rebuilt (reset, the journal to be
+        replayed); False: the same plant; a :class:`_Break` where it cannot be rebuilt, and
+        ConnectionLost while it is down (settled by :meth:`_recover`)."""
+        status = self._read_status()
+        reason = self._same_plant(status)
+        if reason is None:
+            return False
+        if status["epoch_id"] != self._epoch_id and self._rebuild_under_step():
+            return True
+        raise _Break(reason, dict(status))
+
     def _fresh(self, status: dict[str, float]) -> bool:
         return status["lockstep_counter"] == 0 and status["sim_time_s"] == 0.0
 
@@ -921,9 +940,13 @@ class ModbusRig:
         n_checks = len(self._check_plan) if self.checks else 0
         own = range(max(len(requests) - 1, 0), len(requests) + n_checks)
         replies = self._exchange_tolerant(requests + self._read_requests, own, patient=True)
-        if any(isinstance(replies[i], NoReply) for i in own) and self._head_own:
-            # the rig's own request unanswered for --reconnect-timeout, no slow unit ahead:
-            # the connection died under it (never a fault: the emulator's units have none)
+        line = isinstance(self._conn, RtuConnection)  # one transaction at a time
+        if any(isinstance(replies[i], NoReply) for i in own) and (self._head_own or line):
+            # the rig's own request unanswered for --reconnect-timeout, no slow unit ahead
+            # (on a serial line none can be: each transaction ends before the next): the
+            # connection or the server died under it (never a fault: the emulator's units
+            # have none), and the server is asked again (a server restarted under the
+            # step's advance on a line stopped the run as "stalled")
             self._dead = True
         if not self._dead and any(isinstance(replies[i], NoReply) for i in own):
             # held more than --reconnect-timeout behind a slow unit: sending the step again
@@ -946,6 +969,10 @@ class ModbusRig:
                 if values["epoch_id"] != self._epoch_id and self._rebuild_under_step():
                     return self._step_lockstep(dt_s)  # the journal replayed, this step too
                 raise _Break(reason, dict(values))
+            # (a serial line loses no connection: a server restarted under the step)
+            timed_out = self._timed_out(replies[len(replies) - self._n_reads :])
+            if timed_out and self._rebuilt_under_timeouts():
+                return self._step_lockstep(dt_s)  # the journal replayed, this step too
         self._check_boiler_switch(values)
         self._logged = len(journal)
         server_time = self._journal_time[-1]
