@@ -46,6 +46,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/bench_faults.py
 	$(BIN)/python bench/fuzz_modbus.py
 	$(BIN)/python bench/bench_transports.py
+	$(BIN)/python bench/bench_logio.py
 
 # the gap diagnosis against the independent plants (about 30 min on 2 cores)
 bench-diagnosis: $(STAMP)

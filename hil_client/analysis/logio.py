@@ -25,10 +25,11 @@ The optional ``NAME.meta.json`` beside the log is read when present.
 from __future__ import annotations
 
 import csv
-import io
 import json
 import math
+import re
 from collections import deque
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -196,7 +197,7 @@ def read_log(
     injected values, error codes included, with what was logged)."""
     path = Path(path)
     notes: list[str] = []  # what was tolerated, one line each
-    reader = csv.reader(io.StringIO(_text_of(path, notes), newline=""))
+    reader = csv.reader(_lines(_text_of(path, notes)))
     header = _header(path, reader, notes)
     for name in required:
         if name not in header:
@@ -210,7 +211,8 @@ def read_log(
     named_width = len(header)
     while named_width and not header[named_width - 1]:
         named_width -= 1
-    raw: list[list[str]] = []
+    parsed = _Parsed(path, header, as_read)
+    raw: list[list[str]] = []  # rows not parsed yet: the last two wait for the checks below
     comments = 0
     odd: tuple[int, int] | None = None  # (line, fields) of a row of the wrong width
     try:
@@ -229,6 +231,9 @@ def read_log(
                 odd = (reader.line_num, len(row))
                 continue
             raw.append(row)
+            if len(raw) >= _CHUNK_ROWS + 2:  # (rows as lists of text took 14 times the
+                parsed.add(raw[:-2])  # file's size: a million-row log did not fit)
+                del raw[:-2]
     except csv.Error as exc:
         raise LogError(f"{path}: line {reader.line_num}: {exc}") from None
     if comments:
@@ -250,59 +255,10 @@ def read_log(
             "acquisition stopped while writing it); ignored"
         )
         raw.pop()
-    if not raw:
+    parsed.add(raw)
+    if not parsed.rows:
         raise LogError(f"{path}: no data rows")
-    columns: dict[str, np.ndarray] = {}
-    text: dict[str, list[str]] = {}
-    for j, name in enumerate(header):
-        values = [r[j] for r in raw]
-        if not name:  # a column without a name (Excel's trailing empty ones): not a reading
-            if any(v.strip() for v in values):
-                notes.append(f"{path}: column {j + 1} has no name; not analysed")
-            continue
-        if name in TEXT_COLUMNS:
-            text[name] = values
-            continue
-        try:
-            if any("_" in v for v in values):  # (float() reads '6_9' as 69: a probe)
-                raise ValueError
-            out = np.array(
-                [
-                    v if v.strip() and v.strip().upper() not in _NO_READING else "nan"
-                    for v in values
-                ],
-                dtype=float,
-            )
-        except ValueError:
-            if name not in KNOWN_COLUMNS:  # a column of the lab's own: kept, not analysed
-                text[name] = values
-                notes.append(f"{path}: column '{name}' is text, not a reading; not analysed")
-                continue
-            i, v = next((i, v) for i, v in enumerate(values) if v.strip() and not _is_number(v))
-            raise LogError(
-                f"{path}: column '{name}' row {i + 2}: '{_shown(v)}' is not a number"
-            ) from None
-        if as_read:
-            columns[name] = out
-            continue
-        low, high = _plausible_range(name)
-        wild = np.isinf(out) | (out < low) | (out > high)
-        if wild.any():
-            i = int(np.flatnonzero(wild)[0])
-            if name == "time_s":
-                raise LogError(
-                    f"{path}: column 'time_s' row {i + 2}: '{_shown(values[i])}' is not finite"
-                )
-            beyond = f"outside {low:g}..{high:g}" if math.isfinite(high) else "not finite"
-            why = "an instrument's error code"
-            if wild.all() or wild.sum() > 0.5 * np.isfinite(out).sum():  # most: not codes
-                why = f"most readings: is the column in another unit than its name's ({name})?"
-            notes.append(
-                f"{path}: column '{name}': {int(wild.sum())} reading(s) {beyond} (first row "
-                f"{i + 2}: '{_shown(values[i])}'), taken as missing ({why})"
-            )
-            out[wild] = np.nan
-        columns[name] = out
+    columns, text = parsed.finish(notes)
     t = columns["time_s"]
     if np.isnan(t).any():
         i = int(np.flatnonzero(np.isnan(t))[0])
@@ -331,6 +287,141 @@ def read_log(
         if not isinstance(meta, dict):
             raise LogError(f"{meta_file}: expected a JSON object")
     return LabLog(path, columns, text, meta, notes)
+
+
+#: Rows parsed into columns at a time (a few tens of MB of text fields at most)
+_CHUNK_ROWS = 20_000
+_LINE_END = re.compile(r"\r\n|\r|\n")
+
+
+def _lines(text: str) -> Iterator[str]:
+    """The lines of ``text`` with their ends, as a file opened with ``newline=""`` gives
+    them to :mod:`csv` (a StringIO of a long log held four bytes a character)."""
+    start = 0
+    for end in _LINE_END.finditer(text):
+        yield text[start : end.end()]
+        start = end.end()
+    if start < len(text):
+        yield text[start:]
+
+
+class _Parsed:
+    """The rows of a log parsed into columns a chunk at a time (see :func:`read_log`):
+    numbers as float arrays, text as lists, a number column's first unreadable field and
+    first implausible reading kept as written for the messages."""
+
+    def __init__(self, path: Path, header: list[str], as_read: bool) -> None:
+        self.path = path
+        self.header = header
+        self.as_read = as_read
+        self.rows = 0
+        #: per column: float parts, or text (TEXT_COLUMNS, the lab's own, unnamed ones)
+        self.parts: dict[int, list[np.ndarray]] = {}
+        self.strings: dict[int, list[str]] = {}
+        for j, name in enumerate(header):
+            if not name or name in TEXT_COLUMNS or name not in KNOWN_COLUMNS:
+                self.strings[j] = []
+            else:
+                self.parts[j] = []
+        #: per number column: (row, field as written) of its first implausible reading
+        self.first_wild: dict[int, tuple[int, str]] = {}
+
+    def add(self, rows: list[list[str]]) -> None:
+        if not rows:
+            return
+        for j, values in enumerate(zip(*rows, strict=True)):
+            if j in self.strings:
+                self.strings[j].extend(values)
+                continue
+            out = _numbers(values)
+            if out is None:
+                name = self.header[j]
+                i, v = next((i, v) for i, v in enumerate(values) if v.strip() and not _is_number(v))
+                raise LogError(
+                    f"{self.path}: column '{name}' row {self.rows + i + 2}: '{_shown(v)}' is "
+                    "not a number"
+                )
+            if not self.as_read and j not in self.first_wild:
+                low, high = _plausible_range(self.header[j])
+                wild = np.isinf(out) | (out < low) | (out > high)
+                if wild.any():
+                    i = int(np.flatnonzero(wild)[0])
+                    self.first_wild[j] = (self.rows + i, values[i])
+            self.parts[j].append(out)
+        self.rows += len(rows)
+
+    def finish(self, notes: list[str]) -> tuple[dict[str, np.ndarray], dict[str, list[str]]]:
+        """The columns and the text columns, with what was tolerated added to ``notes``."""
+        path = self.path
+        columns: dict[str, np.ndarray] = {}
+        text: dict[str, list[str]] = {}
+        for j, name in enumerate(self.header):
+            if j in self.strings:
+                values = self.strings.pop(j)
+                if not name:  # a column without a name (Excel's trailing ones): no reading
+                    if any(v.strip() for v in values):
+                        notes.append(f"{path}: column {j + 1} has no name; not analysed")
+                    continue
+                if name in TEXT_COLUMNS:
+                    text[name] = values
+                    continue
+                out = _numbers(values)  # a column of the lab's own: kept, not analysed
+                if out is None:
+                    text[name] = values
+                    notes.append(f"{path}: column '{name}' is text, not a reading; not analysed")
+                    continue
+                if self.as_read:
+                    columns[name] = out
+                    continue
+                low, high = _plausible_range(name)
+                wild = np.isinf(out) | (out < low) | (out > high)
+                if wild.any():
+                    i = int(np.flatnonzero(wild)[0])
+                    self.first_wild[j] = (i, values[i])
+            else:
+                parts = self.parts.pop(j)
+                out = np.concatenate(parts) if len(parts) != 1 else parts[0]
+                del parts
+            if j in self.first_wild:
+                self._implausible(name, out, *self.first_wild[j], notes)
+            columns[name] = out
+        return columns, text
+
+    def _implausible(
+        self, name: str, out: np.ndarray, i: int, written: str, notes: list[str]
+    ) -> None:
+        """Readings beyond what the column's instrument can read taken as missing (in
+        ``out``) and said; in ``time_s`` refused."""
+        path = self.path
+        if name == "time_s":
+            raise LogError(
+                f"{path}: column 'time_s' row {i + 2}: '{_shown(written)}' is not finite"
+            )
+        low, high = _plausible_range(name)
+        wild = np.isinf(out) | (out < low) | (out > high)
+        beyond = f"outside {low:g}..{high:g}" if math.isfinite(high) else "not finite"
+        why = "an instrument's error code"
+        if wild.all() or wild.sum() > 0.5 * np.isfinite(out).sum():  # most: not codes
+            why = f"most readings: is the column in another unit than its name's ({name})?"
+        notes.append(
+            f"{path}: column '{name}': {int(wild.sum())} reading(s) {beyond} (first row "
+            f"{i + 2}: '{_shown(written)}'), taken as missing ({why})"
+        )
+        out[wild] = np.nan
+
+
+def _numbers(values: tuple[str, ...] | list[str]) -> np.ndarray | None:
+    """Fields as numbers, an empty one or a spreadsheet's no-reading code NaN; None if one
+    is not a number (float() reads '6_9' as 69: a probe)."""
+    if any("_" in v for v in values):
+        return None
+    try:
+        return np.array(
+            [v if v.strip() and v.strip().upper() not in _NO_READING else "nan" for v in values],
+            dtype=float,
+        )
+    except ValueError:
+        return None
 
 
 #: What spreadsheets write for no reading, read as an empty field (NaN is already one).
