@@ -233,11 +233,22 @@ def _build_parser() -> argparse.ArgumentParser:
         help="compare what a run saw with the server's fault journal",
         description="Compare a Modbus run's events (LOG.modbus_events.jsonl) and log with "
         "the server's fault journal (serve --fault-log): each fault detected or missed, "
-        "and the client's false alarms. Writes REPORT.json.",
+        "and the client's false alarms. The log of another acquisition program (no events "
+        "file) is compared alone: a unit's silence or exception must show as its readings "
+        "left empty. Writes REPORT.json.",
     )
-    frep.add_argument("log", type=data_file, help="lab log (CSV) of a Modbus run")
+    frep.add_argument(
+        "log", type=data_file, help="lab log (CSV) of a Modbus run, hil-client's or your own"
+    )
     frep.add_argument("--journal", required=True, type=text_file, help="fault journal (JSONL)")
     frep.add_argument("--out", required=True, type=path_arg, help="report to write (JSON)")
+    frep.add_argument(
+        "--map",
+        default=None,
+        type=text_input,
+        help="register map the server served, for a log without events: which readings "
+        "each unit gives [shipped map]",
+    )
     gap = sub.add_parser(
         "gap-benchmark",
         help="blind benchmark of the diagnosis on generated cases",
@@ -1172,9 +1183,15 @@ def _coarse_sampling(median_s: float | None, period_s: float, meta: dict) -> str
 
 
 def _cmd_fault_report(args: argparse.Namespace) -> int:
-    refuse_overwriting(args.out, _log_files(args.log) | {"the fault journal": args.journal})
+    refuse_overwriting(
+        args.out,
+        _log_files(args.log)
+        | {"the fault journal": args.journal, "the --map file": _file_given(args.map)},
+    )
+    with bad_input(MapError, prefix="--map: "):
+        register_map = load_map(args.map)
     with bad_input(ValueError, LogError):
-        rep = fault_report(args.log, args.journal)
+        rep = fault_report(args.log, args.journal, register_map=register_map)
     for note in rep["notes"]:
         print(f"hil-client: warning: {note}", file=sys.stderr)
     write_report(rep, output_file(args.out))

@@ -16,8 +16,14 @@ from typing import Any
 from hil_client.analysis.fault_report import check_journal, compare
 from hil_client.analysis.logio import read_log
 from hil_client.jsonio import strict_json
+from hil_client.protocol.rig import LOG_COLUMNS
 from rig_emulator.atomic import write_atomically
+from rig_emulator.registers import RegisterMap, instrument_units, load_map
+from rig_emulator.signals import MEASURED
 from rig_emulator.yamlio import finite_number
+
+#: the instruments' readings a lab log holds (not the commands and setpoints it echoes)
+READINGS = frozenset(LOG_COLUMNS) & frozenset(MEASURED)
 
 
 def events_path(log_path: Path) -> Path:
@@ -73,25 +79,54 @@ def read_jsonl(path: Path, what: str, notes: list[str] | None = None) -> list[di
     return out
 
 
-def fault_report(log_path: Path, journal_path: Path, slack_s: float = 2.0) -> dict[str, Any]:
+def unit_signals(register_map: RegisterMap) -> dict[int, list[str]]:
+    """The lab-log signals each instrument unit of ``register_map`` serves."""
+    units = instrument_units(register_map)
+    return {
+        d.unit_id: list(dict.fromkeys(p.signal for p in d.points if p.signal in READINGS))
+        for d in register_map.devices
+        if d.unit_id in units
+    }
+
+
+def fault_report(
+    log_path: Path,
+    journal_path: Path,
+    slack_s: float = 2.0,
+    register_map: RegisterMap | None = None,
+) -> dict[str, Any]:
     """Compare the run's events and log with the server's journal (ValueError if a file
-    is not what it should be)."""
+    is not what it should be). A log without a Modbus events file beside it (another
+    acquisition program's) is compared alone, its units' readings found through
+    ``register_map`` (the shipped map if None)."""
     notes: list[str] = []
     journal = read_jsonl(journal_path, "the server's fault journal", notes)
     check_journal(journal, str(journal_path))
     events_file = events_path(log_path)
-    if not events_file.exists():
-        raise ValueError(
-            f"{log_path}: no Modbus events file beside it ({events_file.name}): not a log of "
-            "hil-client run on a Modbus rig, so there is nothing to compare with the journal"
+    events = None
+    if events_file.exists():
+        events = read_jsonl(events_file, "Modbus events", notes)
+        _check_events(events, events_file)
+    else:  # (it was refused: a lab's own acquisition program writes no such file)
+        notes.append(
+            f"{log_path}: no Modbus events file beside it ({events_file.name}): the log alone "
+            "is compared: a unit's silence or exception shows as its readings left empty, a "
+            "delay or a disconnect leaves no mark in them (unjudged), and false alarms are "
+            "not counted"
         )
-    events = read_jsonl(events_file, "Modbus events", notes)
-    _check_events(events, events_file)
     log = read_log(Path(log_path), as_read=True)
     offset = log.meta.get("server_time_offset_s", 0.0)
     offset = finite_number(offset) or 0.0
     server_time = log.t - offset
-    report = compare(journal, events, log.columns, server_time, slack_s, str(journal_path))
+    report = compare(
+        journal,
+        events,
+        log.columns,
+        server_time,
+        slack_s,
+        str(journal_path),
+        unit_signals(register_map or load_map()) if events is None else None,
+    )
     report["log"] = str(log_path)
     report["journal"] = str(journal_path)
     report["notes"] = notes
@@ -136,9 +171,14 @@ def summary(report: dict[str, Any]) -> str:
             f"; {beyond} of the client's events lie beyond the log's rows and are not counted"
             " (the events file of a longer run, or a log cut or shifted?)"
         )
+    unjudged = len(report.get("unjudged", ()))
+    if unjudged:
+        never += f", {unjudged} unjudged (no mark in the readings, and no Modbus events)"
     journalled = len(report["faults"]) + outside + len(report.get("unseen", ())) + still
+    journalled += unjudged
     none = "none in the run" if journalled else "none journalled"
+    false = "false not counted" if report["false"] is None else f"{report['false']} false"
     return (
         f"faults: {report['detected']} detected, {report['missed']} missed, "
-        f"{report['false']} false{never} ({kinds or none})"
+        f"{false}{never} ({kinds or none})"
     )

@@ -27,6 +27,13 @@ size between consecutive rows whose new level holds for the next 5 rows; stuck a
 
 Everything the client saw that no journalled fault explains is **false** (client events
 only: the detectors run inside fault windows).
+
+Without client events (``client_events`` None: the log of another acquisition program,
+with no ``LOG.modbus_events.jsonl``) the log alone is compared: a ``no_reply`` or
+``exception`` is detected where the unit's readings (``unit_signals``, from the register
+map) are empty in a row of its window, a ``dropout`` where its signal's is; a ``delay``
+or ``disconnect`` leaves no mark in the readings and is listed under ``unjudged``, and
+false alarms are not counted (``false`` None).
 """
 
 from __future__ import annotations
@@ -196,13 +203,25 @@ def _already_still(x: np.ndarray, rows: np.ndarray) -> bool:
     return bool(np.all(span == x[rows[0]]))
 
 
+def _first_empty(
+    columns: Mapping[str, np.ndarray], signals: Sequence[str], rows: np.ndarray
+) -> int | None:
+    """The first of ``rows`` where a reading of ``signals`` is empty in the log, or None."""
+    empty = np.zeros(rows.size, dtype=bool)
+    for signal in signals:
+        if signal in columns:
+            empty |= np.isnan(np.asarray(columns[signal], dtype=float)[rows])
+    return int(rows[int(np.argmax(empty))]) if empty.any() else None
+
+
 def compare(
     journal: Sequence[Mapping[str, Any]],
-    client_events: Sequence[Mapping[str, Any]],
+    client_events: Sequence[Mapping[str, Any]] | None,
     log_columns: Mapping[str, np.ndarray] | None = None,
     server_time: np.ndarray | None = None,
     slack_s: float = 2.0,
     journal_name: str = "fault journal",
+    unit_signals: Mapping[int, Sequence[str]] | None = None,
 ) -> dict[str, Any]:
     """The report: every fault detected or missed, and the client's false alarms
     (``journal_name``: the journal's file, for its errors). Neither detected nor missed:
@@ -213,7 +232,10 @@ def compare(
     listed under ``outside_run``; and a ``stuck`` fault on a column that was not moving
     before it or in it (:func:`_already_still`), under ``no_trace``. Client events beyond
     the log's rows (an events file of a longer run beside a log cut short) are no false
-    alarms: counted under ``events_outside_run``, as the summary says."""
+    alarms: counted under ``events_outside_run``, as the summary says. Without client
+    events (None) the log alone is compared (see the module docstring)."""
+    log_only = client_events is None
+    client_events = [] if client_events is None else client_events
     windows = fault_windows(journal, journal_name)
     served = [f for f in windows if f["seen"]]  # an unserved fault: neither caught nor missed
     end_of_run = max(
@@ -242,12 +264,38 @@ def compare(
     explained: set[int] = set()
     rows_out = []
     no_trace: list[dict[str, Any]] = []
+    unjudged: list[dict[str, Any]] = []
     for fault in faults:
         start = fault["start_s"]
         end = (fault["end_s"] if fault["end_s"] is not None else end_of_run) + slack_s
         kind = fault["kind"]
         detected, how, first = False, None, None
         code_match = None
+        if log_only and kind in ("delay", "disconnect"):  # no mark in the readings
+            unjudged.append(fault)
+            continue
+        if log_only and kind in ("no_reply", "exception", "dropout"):
+            if log_columns is None or server_time is None:
+                unjudged.append(fault)
+                continue
+            if kind == "dropout":
+                signals: Sequence[str] = [fault["signal"]]
+            elif fault["unit"] == INSTRUMENT_UNITS_ANY:
+                signals = [s for unit in (unit_signals or {}).values() for s in unit]
+            else:
+                signals = (unit_signals or {}).get(fault["unit"], [])
+            if not any(s in log_columns for s in signals):  # none of its readings logged
+                unjudged.append(fault)
+                continue
+            rows = np.flatnonzero((server_time >= start - 1e-9) & (server_time <= end))
+            empty = _first_empty(log_columns, signals, rows)
+            if empty is not None:
+                detected, how, first = True, "log: empty readings", float(server_time[empty])
+            row = {**fault, "detected": detected, "how": how, "first_seen_s": first}
+            if kind == "exception":
+                row["code_match"] = None  # an empty field does not say which code
+            rows_out.append(row)
+            continue
         for index, event in enumerate(client_events):
             t = float(event.get("server_time_s", math.nan))
             if not start - 1e-9 <= t <= end:
@@ -301,7 +349,8 @@ def compare(
         "unseen": [f for f in windows if not f["seen"]],
         "outside_run": outside,
         "no_trace": no_trace,
-        "false": len(false_events),
+        "unjudged": unjudged,
+        "false": None if log_only else len(false_events),
         "false_events": false_events,
         "events_outside_run": events_outside,
         "by_kind": by_kind,

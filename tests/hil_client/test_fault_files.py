@@ -1,0 +1,95 @@
+"""``hil-client fault-report`` on the log of another acquisition program: a loop written
+with pyModbusTCP (not the project's client) polls a lockstep server with faults and writes
+its own CSV, with no Modbus events file; the report compares the log alone."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+from pyModbusTCP.client import ModbusClient
+
+from hil_client.cli import main as hil_client_main
+from hil_client.fault_files import unit_signals
+from rig_emulator.faults import faults_from_list
+from rig_emulator.registers import decode, encode, load_map
+
+STEPS = 100
+
+
+def _acquire(port: int, out, failed: str) -> None:
+    """A foreign acquisition: each second advance the lockstep clock, read every reading of
+    the bench's instrument units, write a row; a failed read gives an empty field
+    (``failed="empty"``) or repeats the last value (``"hold"``, a common bug)."""
+    register_map = load_map()
+    sim = register_map.device("sim_control")
+    advance = next(p for p in sim.points if p.name == "lockstep_advance")
+    units = unit_signals(register_map)
+    points = [
+        (d.unit_id, p)
+        for d in register_map.devices
+        if d.unit_id in units
+        for p in d.points
+        if p.signal in units[d.unit_id]
+    ]
+    names = list(dict.fromkeys(p.signal for _, p in points))
+    last: dict[str, str] = dict.fromkeys(names, "")
+    mb = ModbusClient(host="127.0.0.1", port=port, timeout=0.3, auto_open=True)
+    lines = [",".join(["time_s", *names])]
+    for step in range(1, STEPS + 1):
+        mb.unit_id = sim.unit_id
+        assert mb.write_multiple_registers(advance.address, encode(advance, 1.0)), (
+            mb.last_error_as_txt
+        )
+        row = dict.fromkeys(names, "")
+        for unit, p in points:
+            mb.unit_id = unit
+            read = mb.read_input_registers if p.table == "input" else mb.read_holding_registers
+            regs = read(p.address, p.width)
+            value = decode(p, regs) if regs is not None else math.nan
+            text = "" if math.isnan(value) else f"{value:.5f}"
+            row[p.signal] = text if text or failed == "empty" else last[p.signal]
+        last.update(row)
+        lines.append(",".join([f"{step:.3f}", *(row[n] for n in names)]))
+    mb.close()
+    out.write_text("\n".join(lines) + "\n")
+
+
+@pytest.mark.parametrize("failed", ["empty", "hold"])
+def test_a_log_of_another_acquisition_program_is_compared_alone(serve, tmp_path, failed, capsys):
+    """A probe: a lab testing its own acquisition software got "no Modbus events file
+    beside it ... nothing to compare with the journal", exit 2. The log is now compared
+    alone: a silent or refusing unit is detected where its readings are empty, missed
+    where the program held the last value; a delay leaves no mark (unjudged)."""
+    units = unit_signals(load_map())
+    balance = next(u for u, s in units.items() if "balance_mass_kg" in s)
+    flue = next(u for u, s in units.items() if "flue_gas_temp_C" in s)
+    faults = [
+        {"kind": "no_reply", "unit": balance, "at_s": 20, "for_s": 10},
+        {"kind": "exception", "unit": flue, "code": 6, "at_s": 40, "for_s": 5},
+        {"kind": "delay", "unit": flue, "delay_ms": 50, "at_s": 60, "for_s": 5},
+        {"kind": "spike", "signal": "water_out_temp_C", "value": 300.0, "at_s": 80},
+    ]
+    journal = tmp_path / "journal.jsonl"
+    srv = serve(faults=faults_from_list(faults), fault_log=journal, profile="lab", seed=1)
+    log = tmp_path / "theirs.csv"
+    _acquire(srv.port, log, failed)
+    report = tmp_path / "report.json"
+    code = hil_client_main(
+        ["fault-report", str(log), "--journal", str(journal), "--out", str(report)]
+    )
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert "no Modbus events file beside it" in err and "compared alone" not in out
+    rep = json.loads(report.read_text())
+    rows = {f["kind"]: f for f in rep["faults"]}
+    assert set(rows) == {"no_reply", "exception", "spike"}
+    assert [f["kind"] for f in rep["unjudged"]] == ["delay"]
+    assert rep["false"] is None and "false not counted" in out
+    assert rows["spike"]["detected"]  # in the readings either way
+    for kind in ("no_reply", "exception"):
+        assert rows[kind]["detected"] is (failed == "empty"), rows[kind]
+    if failed == "empty":
+        assert rows["no_reply"]["how"] == "log: empty readings"
+        assert 20.0 <= rows["no_reply"]["first_seen_s"] <= 21.0  # the first step inside
