@@ -50,6 +50,7 @@ from rig_emulator.modbus import BenchServer
 from rig_emulator.modbus.fault_control import reading_ranges
 from rig_emulator.model import pack_constants, steady_state
 from rig_emulator.registers import MapError, RegisterMap, emulator_units, load_map
+from rig_emulator.registers.codec import accepted_range
 from rig_emulator.registers.reference import markdown
 from rig_emulator.signals import MEASURED, SIGNALS
 from rig_emulator.yamlio import resolve_named
@@ -362,12 +363,17 @@ def _cmd_serve(args: argparse.Namespace) -> int:
             {what: Path(v) for what, v in named.items() if v is not None},
             "--fault-log",
         )
-    if args.lockstep and not any(
-        p.signal == "lockstep_advance_s" for d in register_map.devices for p in d.points
-    ):  # (a plant that could never move: a stranger's probe)
+    advances = [
+        p for d in register_map.devices for p in d.points if p.signal == "lockstep_advance_s"
+    ]
+    if args.lockstep and not any(  # (a plant that could never move: a stranger's probe;
+        p.writable and accepted_range(p)[1] > 0.0
+        for p in advances  # read-only, or a
+    ):  # range with no positive step: served all the same, a re-probe)
+        why = "is read-only or accepts no positive step" if advances else "has no point for it"
         raise UsageError(
-            f"--lockstep: the map {register_map.source} publishes no point for "
-            "lockstep_advance_s, so nothing could advance this server"
+            f"--lockstep: the map {register_map.source}'s lockstep_advance_s {why}, so "
+            "nothing could advance this server"
         )
     if args.http is not None and not 0 <= args.http <= 65535:
         raise UsageError(f"--http: {args.http} is not a TCP port")

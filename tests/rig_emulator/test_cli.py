@@ -258,21 +258,36 @@ def test_a_server_that_cannot_listen_leaves_an_earlier_journal(tmp_path, capsys,
     assert journal.read_text() == '{"event": "start"}\n'
 
 
-def test_lockstep_needs_a_map_that_can_advance(tmp_path, capsys):
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ("drop", "lockstep_advance_s has no point for it"),
+        ("read_only", "lockstep_advance_s is read-only or accepts no positive step"),
+        ("no_positive", "lockstep_advance_s is read-only or accepts no positive step"),
+    ],
+)
+def test_lockstep_needs_a_map_that_can_advance(tmp_path, capsys, change, message):
     """A stranger's probe: ``serve --lockstep`` with a map that publishes no
-    lockstep_advance started a plant nothing could move."""
+    lockstep_advance started a plant nothing could move; a re-probe: so did one whose
+    advance was read-only, or accepted no positive step (max 0)."""
     import yaml
 
     from rig_emulator.registers import MAP_DIR
 
     data = yaml.safe_load((MAP_DIR / "wieselburg_bench.yaml").read_text())
     for device in data["devices"]:
-        device["points"] = [p for p in device["points"] if p["signal"] != "lockstep_advance_s"]
+        for p in device["points"]:
+            if p["signal"] == "lockstep_advance_s" and change == "read_only":
+                p["access"] = "r"
+            if p["signal"] == "lockstep_advance_s" and change == "no_positive":
+                p["scale"] = -1  # a uint32 carries no positive step then
+        if change == "drop":
+            device["points"] = [p for p in device["points"] if p["signal"] != "lockstep_advance_s"]
     path = tmp_path / "m.yaml"
     path.write_text(yaml.safe_dump(data))
     assert main(["serve", "--boiler", "windhager_12kw", "--lockstep", "--map", str(path)]) == 2
     err = capsys.readouterr().err
-    assert "publishes no point for lockstep_advance_s" in err and err.count("\n") == 1
+    assert message in err and err.count("\n") == 1, err
 
 
 def test_a_reference_that_cannot_be_written_leaves_the_old_one(tmp_path):
