@@ -10,6 +10,7 @@ caller might not) is quoted as RFC 4180 says, so every row keeps its width.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import math
@@ -60,14 +61,16 @@ def _row_format() -> str:
 
 
 class LabLogWriter:
-    """CSV writer of lab-log rows, one flushed line per row."""
+    """CSV writer of lab-log rows, one line per row written through to the file at once. A
+    row that cannot be written whole (a full disk) is taken back out, so the log ends on
+    its last whole row (a probe: the rows before were kept, and half of the last one)."""
 
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._file = self.path.open("w", encoding="utf-8", newline="")
-        self._file.write(",".join(LOG_COLUMNS) + "\n")
-        self._file.flush()
+        self._file = self.path.open("wb", buffering=0)
+        self._size = 0  # bytes of whole lines in the file
+        self._write(",".join(LOG_COLUMNS) + "\n")
         self._format = _row_format()
         self._text: tuple[object, ...] = ()  # the last row's text fields, and whether plain
         self._plain = True
@@ -84,9 +87,21 @@ class LabLogWriter:
                 line = _MISSING.sub("", line)
         else:
             line = self._quoted(row)
-        self._file.write(line)
-        self._file.flush()
+        self._write(line)
         self.rows += 1
+
+    def _write(self, line: str) -> None:
+        """Write ``line`` whole, or take what went of it back out and raise the error."""
+        data = memoryview(line.encode("utf-8"))
+        done = 0
+        try:
+            while done < len(data):
+                done += self._file.write(data[done:]) or 0
+        except OSError:
+            with contextlib.suppress(OSError):
+                os.ftruncate(self._file.fileno(), self._size)
+            raise
+        self._size += done
 
     def _quoted(self, row: Row) -> str:
         """The row through :mod:`csv`: its text fields quoted, a missing number empty."""

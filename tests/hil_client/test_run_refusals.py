@@ -413,6 +413,11 @@ def test_a_disk_that_fills_up_ends_the_run_in_one_line_and_keeps_the_rows(tmp_pa
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and f"cannot write {out}" in lines[0], lines
     assert 0 < out.stat().st_size <= 64 * 1024
+    # the log ends on its last whole row (a probe: half of the last one was left there)
+    text = out.read_text()
+    assert text.endswith("\n")
+    widths = {len(line.split(",")) for line in text.splitlines()}
+    assert widths == {len(LOG_COLUMNS)}, widths
 
 
 @pytest.mark.skipif(not Path("/dev/full").exists(), reason="no /dev/full on this system")
