@@ -112,6 +112,10 @@ class Dashboard:
         self._last: dict = {}
         self._evicted = 0  # streams closed for new ones since the last line said so
         self._evicted_said = -math.inf  # when that line was logged (monotonic) [s]
+        #: the connections being served: ended before the loop stops (cancelled by the
+        #: loop's shutdown, one with a request half sent logged a CancelledError traceback
+        #: from asyncio's own callback: a probe)
+        self._handlers: dict[asyncio.Task, asyncio.StreamWriter] = {}
 
     # ------------------------------------------------------------------ lifecycle
     async def start(self) -> None:
@@ -136,6 +140,11 @@ class Dashboard:
             _end(queue)
         if self._srv is not None:
             self._srv.close()
+        for writer in list(self._handlers.values()):
+            writer.transport.abort()
+        if self._handlers:  # each ends on its aborted connection
+            await asyncio.wait(list(self._handlers), timeout=2.0)
+        if self._srv is not None:
             with contextlib.suppress(asyncio.TimeoutError):
                 await asyncio.wait_for(self._srv.wait_closed(), 2.0)
 
@@ -184,6 +193,9 @@ class Dashboard:
 
     # ------------------------------------------------------------------ HTTP
     async def _handle(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        task = asyncio.current_task()
+        if task is not None:
+            self._handlers[task] = writer
         try:
             method, target, headers, body = await asyncio.wait_for(
                 _read_request(reader), REQUEST_TIMEOUT_S
@@ -199,6 +211,7 @@ class Dashboard:
         except (TimeoutError, ConnectionError, asyncio.IncompleteReadError):
             pass
         finally:
+            self._handlers.pop(task, None)  # type: ignore[arg-type]
             with contextlib.suppress(ConnectionError, RuntimeError):
                 writer.close()
 

@@ -412,3 +412,31 @@ def test_streams_closed_for_new_ones_are_logged_at_most_once_a_minute(serve, cap
             srv.call(board.stop())
     # the rest are counted when the dashboard stops (a re-probe: they never were)
     assert "39 more live stream(s) closed for new ones" in caplog.text
+
+
+def test_a_stop_with_requests_half_sent_logs_no_traceback():
+    """A probe: SIGTERM with dashboard connections that had sent half a request (and a
+    live stream) stopped cleanly but logged asyncio's CancelledError traceback twice per
+    connection (88 under a storm). The connections are now ended before the loop stops."""
+    import signal
+
+    http = free_port()
+    with rig_emulator_serve("windhager_12kw", "--http", str(http), stderr=subprocess.PIPE) as (
+        _port,
+        proc,
+    ):
+        assert wait_for_port("127.0.0.1", http, 30.0)
+        half = [socket.create_connection(("127.0.0.1", http), timeout=5) for _ in range(3)]
+        for s in half:
+            s.sendall(b"GET / HTTP/1.1\r\n")  # the request's end never comes
+        stream = socket.create_connection(("127.0.0.1", http), timeout=5)
+        stream.sendall(b"GET /api/stream HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
+        assert stream.recv(64).startswith(b"HTTP/1.1 200")
+        time.sleep(0.5)
+        proc.send_signal(signal.SIGTERM)
+        code = proc.wait(timeout=30)
+        err = proc.stderr.read().decode()
+        for s in (*half, stream):
+            s.close()
+    assert code == 0, err
+    assert "Traceback" not in err and "CancelledError" not in err, err
