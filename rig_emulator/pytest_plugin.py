@@ -99,6 +99,20 @@ def _no_reply(exc: Exception) -> bool:
     return "No response received" in str(exc) and not isinstance(exc.__cause__, OSError)
 
 
+def _switch(signal_name: str, value: object) -> bool:
+    """``value`` as a coil carries it: 0 or 1, False or True (numpy's too), nothing else."""
+    import numpy as np
+
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
+    if isinstance(value, numbers.Real) and value in (0, 1):
+        return bool(value)
+    raise ValueError(
+        f"write({signal_name!r}, {value!r}): {signal_name} is a switch (a coil):"
+        " expected 0 or 1, False or True"
+    )
+
+
 class RigEmulatorError(RuntimeError):
     """The emulator did not start or refused a request."""
 
@@ -396,16 +410,25 @@ class RigEmulator:
 
     def write(self, signal_name: str, value: float) -> None:
         """Write a command (a setpoint, a switch) by signal name, e.g.
-        ``write("boiler_command", 1)``, as the map encodes it."""
+        ``write("boiler_command", 1)``, as the map encodes it.
+
+        A switch (a coil) takes 0 or 1, False or True; anything else is refused with
+        ``ValueError`` before anything is sent, as a value that is no number is for any
+        command (a stranger's probe: 2, 0.5 and -1 were sent as on or off, NaN as off, where
+        the server refuses such values with 03; ``"off"`` was a TypeError)."""
         from rig_emulator.registers import encode
 
+        __tracebackhide__ = True  # a bad value fails the user's line, not the plugin's
         device, point = self.map.point(signal_name)
         if point.table == "coil":
+            on = _switch(signal_name, value)
             reply = self._call(
-                lambda c: c.write_coil(point.address, value >= 0.5, device_id=device.unit_id),
+                lambda c: c.write_coil(point.address, on, device_id=device.unit_id),
                 f"write of {signal_name}",
             )
         else:
+            if not isinstance(value, numbers.Real):  # (a bool is 0 or 1)
+                raise ValueError(f"write({signal_name!r}, {value!r}): expected a number")
             words = encode(point, float(value))
             reply = self._call(
                 lambda c: c.write_registers(point.address, words, device_id=device.unit_id),

@@ -12,7 +12,9 @@ lockstep advance) is journalled as started and ended, unseen. The journal gives 
 window's own times. A fault set once its ``at_s`` has passed starts when it is set.
 
 - Communication faults are decided per request by :meth:`decide` (unit ID in, delay / drop
-  / exception out); a ``disconnect`` calls :attr:`on_disconnect` once.
+  / exception out); a ``disconnect`` calls :attr:`on_disconnect` once. A request a delay
+  holds is let go when its delay faults end (cleared, ``for_s`` elapsed, a reset): a server
+  that waits out the delay inside :func:`holding` gets a :class:`DelayHold` for it.
 - Instrument faults change only the readings handed to :meth:`apply` (a dict the emulator
   publishes); the plant, its state and the instruments' own random draws are never touched.
 
@@ -21,11 +23,13 @@ Journal events (:mod:`rig_emulator.faults.journal`) go to :attr:`journal` when s
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import random
 import time
-from collections.abc import Callable, Iterable, Mapping, MutableMapping
+from collections.abc import Callable, Iterable, Iterator, Mapping, MutableMapping
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -67,6 +71,8 @@ class ActiveFault:
     served: float = math.nan  # instrument: the reading last served
     requests: int = 0  # communication: requests answered (or not) by this fault
     closed: int = 0  # disconnect: the connections it closed
+    #: delay: the requests it holds now (:class:`DelayHold`), let go when it ends
+    holds: set[DelayHold] = field(default_factory=set, repr=False, compare=False)
 
     def as_dict(self) -> dict[str, Any]:
         out = {"id": self.id, **self.spec.as_dict(), "source": self.source}
@@ -75,6 +81,62 @@ class ActiveFault:
         out.pop("at_s", None)
         out.pop("for_s", None)
         return out
+
+
+class DelayHold:
+    """A request held by delay faults (a stranger's probe: a cleared 20 s delay still held
+    the read it had taken, answered 19 s after the clear, though the journal said delay 0).
+
+    The delay it still asks is the longest of its faults still active, from when it was
+    taken: each fault that ends (cleared, ``for_s`` elapsed, a reset) drops out and calls
+    :attr:`on_change`, from whichever thread ended it; :meth:`close` once it is answered."""
+
+    __slots__ = ("_delays", "_faults", "on_change")
+
+    def __init__(self, faults: list[ActiveFault]) -> None:
+        self._faults = faults
+        self._delays = {f.id: float(f.spec.parameter or 0.0) / 1000.0 for f in faults}
+        #: called when one of its faults ends (the server wakes the request to look again)
+        self.on_change: Callable[[], None] | None = None
+        for fault in faults:
+            fault.holds.add(self)
+
+    @property
+    def delay_s(self) -> float:
+        """The delay its faults still active ask (0: none is, let it go) [s]."""
+        return max(self._delays.values(), default=0.0)
+
+    def ended(self, fault_id: int) -> None:
+        """Fault ``fault_id`` ended: it holds the request no longer."""
+        if fault_id not in self._delays:
+            return
+        # a new dict, not a pop: the server may be reading it in its own thread
+        self._delays = {i: d for i, d in self._delays.items() if i != fault_id}
+        if self.on_change is not None:
+            self.on_change()
+
+    def close(self) -> None:
+        """The request is answered (or abandoned): its faults forget it."""
+        for fault in self._faults:
+            fault.holds.discard(self)
+        self._faults = []
+
+
+#: the holds of the request being decided, while a server collects them (:func:`holding`)
+_HOLDS: ContextVar[list[DelayHold] | None] = ContextVar("fault_delay_holds", default=None)
+
+
+@contextlib.contextmanager
+def holding() -> Iterator[list[DelayHold]]:
+    """Decide a request inside this: the list it gives gets a :class:`DelayHold` for each
+    delay :meth:`FaultEngine.decide` hands out meanwhile, for the server to wait on (a delay
+    decided outside one is a plain number: the server waits it out whole)."""
+    held: list[DelayHold] = []
+    token = _HOLDS.set(held)
+    try:
+        yield held
+    finally:
+        _HOLDS.reset(token)
 
 
 @dataclass(slots=True)
@@ -219,7 +281,16 @@ class FaultEngine:
             if unit_id not in self.never_faulted:
                 for fault in self._by_unit.get(0, ()):
                     fault.requests += 1
+            if decision.delay_s > 0 and (held := _HOLDS.get()) is not None:
+                held.append(DelayHold(self._delays_on(unit_id)))
         return decision
+
+    def _delays_on(self, unit_id: int) -> list[ActiveFault]:
+        """The delay faults acting on ``unit_id`` (as :meth:`_rebuild` combines them)."""
+        faults = list(self._by_unit.get(unit_id, ()))
+        if unit_id != 0 and (unit_id in self._by_unit or unit_id not in self.never_faulted):
+            faults = list(self._by_unit.get(0, ())) + faults
+        return [f for f in faults if f.spec.kind == "delay"]
 
     # ------------------------------------------------------------------ per evaluation
     def apply(self, readings: MutableMapping[str, float], t_sim_s: float) -> None:
@@ -246,6 +317,7 @@ class FaultEngine:
             due += [(s, "random", -math.inf) for s in state.draw(t_sim_s, self.instrument_units)]
         for fault in ended:
             del self.active[fault.id]
+            _let_go(fault)
         started: list[ActiveFault] = []
         unseen: list[ActiveFault] = []  # windows wholly between two evaluations: act not
         for spec, src, set_s in due:
@@ -305,6 +377,7 @@ class FaultEngine:
 
     def _end(self, fault: ActiveFault, reason: str) -> None:
         self.active.pop(fault.id, None)
+        _let_go(fault)
         self._rebuild()
         self._journal("end", fault, self.now_s, None, reason=reason)
 
@@ -419,6 +492,13 @@ def _start_s(spec: FaultSpec, set_s: float, t_sim_s: float) -> float:
     if spec.at_s is not None and spec.at_s >= set_s - _EPS_S:
         return min(spec.at_s, t_sim_s)
     return t_sim_s
+
+
+def _let_go(fault: ActiveFault) -> None:
+    """``fault`` ended: the requests it held wait for it no longer."""
+    for hold in list(fault.holds):
+        hold.ended(fault.id)
+    fault.holds.clear()
 
 
 def _over(fault: ActiveFault, t_sim_s: float) -> bool:

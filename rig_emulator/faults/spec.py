@@ -177,6 +177,7 @@ def _number(where: str, value: Any, low: float, high: float, low_open: bool = Fa
     if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real):
         shown = f"'{value}'" if isinstance(value, datetime.date | datetime.time) else repr(value)
         raise FaultError(f"{where}: must be a number, not {shown}")
+    given = value
     try:
         value = float(value)
     except OverflowError:  # an integer of hundreds of digits
@@ -184,8 +185,16 @@ def _number(where: str, value: Any, low: float, high: float, low_open: bool = Fa
     too_low = value <= low if low_open else value < low
     if not math.isfinite(value) or too_low or value > high:
         bound = f"> {low:g}" if low_open else f">= {low:g}"
-        raise FaultError(f"{where}: {value:g} must be finite, {bound} and <= {high:g}")
+        raise FaultError(f"{where}: {_given(given)} must be finite, {bound} and <= {high:g}")
     return value
+
+
+def _given(value: Any) -> str:
+    """A number as given, every digit (a stranger's probe: ``:g`` showed an at_s of
+    1000000001 as 1e+09, which looked within its bound of 1e+09)."""
+    if isinstance(value, numbers.Integral):
+        return str(int(value))
+    return repr(float(value))
 
 
 def _integer(where: str, value: Any, low: int, high: int) -> int:
@@ -398,7 +407,7 @@ def check_spikes(entries: Sequence[Entry], ranges: Mapping[str, ReadingRange], w
         slack = 0.5 * step
         if not lo - slack <= value <= hi + slack:
             raise FaultError(
-                f"{_field(where, i, entries, 'value')}: {value:g} is outside what"
+                f"{_field(where, i, entries, 'value')}: {_given(value)} is outside what"
                 f" {entry.signal}'s register serves ({lo:.10g}..{hi:.10g}: {register})"
             )
 

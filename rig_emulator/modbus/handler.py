@@ -8,7 +8,8 @@ is here, written from the Modbus specs rather than from pymodbus's server:
   trusted (over 254) closes the connection, each with a log line;
 - :meth:`BenchModbusServer.execute` is transport-neutral (TCP, TLS and RTU use it): the
   gates first (:class:`GateDecision`: delay, drop or force an exception), then the unit
-  check (0B), then :func:`rig_emulator.modbus.conformance.process`;
+  check (0B), then :func:`rig_emulator.modbus.conformance.process`; a fault's delay ends
+  early when the fault does (:func:`rig_emulator.faults.engine.holding`);
 - answers go out in the order the requests came, per connection. A request that never
   waits is answered at once, without a task (the answers of one turn leave in one write);
   one that waits (a gate's delay, a long lockstep advance) holds the later requests of
@@ -37,6 +38,7 @@ from typing import Any
 from pymodbus.simulator import SimDevice
 from pymodbus.simulator.simcore import SimCore
 
+from rig_emulator.faults.engine import DelayHold, holding
 from rig_emulator.modbus.conformance import (
     GATEWAY_TARGET_FAILED,
     SERVER_DEVICE_FAILURE,
@@ -103,6 +105,43 @@ def _resume(coro: Coroutine[Any, Any, Any], future: Any) -> Generator[Any, None,
             future = coro.send(None)
         except StopIteration as stop:
             return stop.value
+
+
+async def _hold(delay_s: float, holds: list[DelayHold]) -> None:
+    """Wait out a gate's delay of ``delay_s``; with ``holds`` (the delay faults that asked
+    it), no longer than they last: a fault that ends (cleared, its ``for_s`` elapsed, a
+    reset) lets the request go at once if no other delay still holds it (a stranger's
+    probe: a cleared 20 s delay still held the read it had taken for 19 s more)."""
+    if not holds:
+        await asyncio.sleep(delay_s)
+        return
+    loop = asyncio.get_running_loop()
+    taken = loop.time()
+    woken: asyncio.Future[None] | None = None
+
+    def wake() -> None:
+        if woken is not None and not woken.done():
+            woken.set_result(None)
+
+    def wake_threadsafe() -> None:  # a fault may end in another thread
+        loop.call_soon_threadsafe(wake)
+
+    for hold in holds:
+        hold.on_change = wake_threadsafe
+    try:
+        while True:
+            left_s = taken + min(delay_s, max(h.delay_s for h in holds)) - loop.time()
+            if left_s <= 0:
+                return
+            woken = loop.create_future()
+            timer = loop.call_later(left_s, wake)
+            try:
+                await woken
+            finally:
+                timer.cancel()
+    finally:
+        for hold in holds:
+            hold.close()
 
 
 class RequestHandler(asyncio.Protocol):
@@ -634,10 +673,14 @@ class BenchModbusServer:
         """The response PDU to ``pdu`` (None: no reply): the gates, then the unit check
         (0B for a unit the bench does not have, whatever the function), then the request
         itself, checked per the spec (:mod:`rig_emulator.modbus.conformance`). A gate's
-        delay passes before the request is carried out."""
-        decision = self.decide(info) if self.gates else _PASS
+        delay passes before the request is carried out; a fault's, no longer than the fault
+        lasts (:func:`_hold`)."""
+        if not self.gates:
+            return await self._carry_out(_PASS, info, pdu)
+        with holding() as holds:
+            decision = self.decide(info)
         if decision.delay_s > 0:
-            await asyncio.sleep(decision.delay_s)
+            await _hold(decision.delay_s, holds)
         return await self._carry_out(decision, info, pdu)
 
     async def answer(self, info: RequestInfo, pdu: bytes) -> tuple[float, bytes | None]:
