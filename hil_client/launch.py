@@ -8,7 +8,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Callable, Sequence
 
-from rig_emulator.launch import loaded_unless_stopped
+from rig_emulator.launch import loaded_unless_stopped, standard_streams
 
 
 def _cli() -> Callable[[Sequence[str] | None], int]:
@@ -18,6 +18,7 @@ def _cli() -> Callable[[Sequence[str] | None], int]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    standard_streams()
     cli_main = loaded_unless_stopped(_cli)
     if cli_main is None:
         print("hil-client: interrupted", file=sys.stderr)

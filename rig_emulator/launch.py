@@ -4,6 +4,7 @@ traceback from the middle of an import."""
 
 from __future__ import annotations
 
+import os
 import signal
 import sys
 import threading
@@ -11,6 +12,23 @@ from collections.abc import Callable, Sequence
 from typing import TypeVar
 
 T = TypeVar("T")
+
+
+def standard_streams() -> None:
+    """Standard input, output and error opened on /dev/null where the command was started
+    without them (``>&- 2>&-``, a daemon): Python sets them to None, and ``hil-client run``
+    ended in an AttributeError; worse, the log file opened next would take descriptor 1 or
+    2 and anything written there would land in the log (a probe)."""
+    for fd, name, mode in ((0, "stdin", "r"), (1, "stdout", "w"), (2, "stderr", "w")):
+        try:
+            os.fstat(fd)
+        except OSError:
+            null = os.open(os.devnull, os.O_RDWR)
+            if null != fd:  # (the lowest free descriptor is this one, unless it is not)
+                os.dup2(null, fd)
+                os.close(null)
+            if getattr(sys, name) is None:
+                setattr(sys, name, open(fd, mode, closefd=False))  # noqa: SIM115
 
 
 def loaded_unless_stopped(load: Callable[[], T]) -> T | None:
@@ -41,6 +59,7 @@ def _cli() -> Callable[[Sequence[str] | None], int]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    standard_streams()
     cli_main = loaded_unless_stopped(_cli)
     if cli_main is None:
         print("rig-emulator: interrupted", file=sys.stderr)
