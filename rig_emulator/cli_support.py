@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import errno
 import math
 import os
@@ -52,30 +53,55 @@ def boiler_arg(name: str) -> BoilerParams:
         return load_boiler(name)
 
 
-class _NamedStdout:
-    """Standard output whose write errors name it: a full or closed standard output is no
-    output file's fault (``balance --out x.json > /dev/full`` said "writing x.json: No
-    space left on device" of a file written whole: a probe)."""
+class _GuardedStream:
+    """A standard stream whose failures do not end the command's work.
 
-    def __init__(self, stream: IO[str]) -> None:
+    - A reader gone (a broken pipe: ``| head -1``) ends the messages, not the work: what
+      follows is dropped and the command goes on (``hil-client run 2>&1 | head -1`` stopped
+      acquiring at its next message, its meta saying nothing: a probe).
+    - On standard error any failure does (there is nowhere left to say it).
+    - On standard output another failure (a full disk) names it: it is no output file's
+      fault (``balance --out x.json > /dev/full`` said "writing x.json: No space left on
+      device" of a file written whole: a probe).
+
+    The descriptor of a stream given up on is pointed at /dev/null, so the interpreter's
+    last flush at exit finds nothing to complain about."""
+
+    def __init__(self, stream: IO[str], name: str, fd: int, quiet_on_any: bool) -> None:
         self._stream = stream
+        self._name = name
+        self._fd = fd
+        self._quiet_on_any = quiet_on_any
+        self._gone = False
 
-    def _named(self, exc: OSError) -> OSError:
+    def _failed(self, exc: OSError) -> None:
+        if self._quiet_on_any or exc.errno == errno.EPIPE:
+            self._gone = True
+            with contextlib.suppress(OSError):
+                null = os.open(os.devnull, os.O_WRONLY)
+                os.dup2(null, self._fd)
+                os.close(null)
+            return
         if exc.filename is None:
-            exc.filename = "standard output"
-        return exc
+            exc.filename = self._name
+        raise exc
 
     def write(self, text: str) -> int:
+        if self._gone:
+            return len(text)
         try:
             return self._stream.write(text)
         except OSError as exc:
-            raise self._named(exc) from None
+            self._failed(exc)
+            return len(text)
 
     def flush(self) -> None:
+        if self._gone:
+            return
         try:
             self._stream.flush()
         except OSError as exc:
-            raise self._named(exc) from None
+            self._failed(exc)
 
     def __getattr__(self, name: str) -> object:
         return getattr(self._stream, name)
@@ -83,16 +109,19 @@ class _NamedStdout:
 
 @contextmanager
 def standard_output_named() -> Iterator[None]:
-    """In the block, an error writing standard output names it (:class:`_NamedStdout`);
-    what is left in its buffer is written before the block ends, so the error comes
-    while the command can still say it in one line."""
-    stream = sys.stdout
-    sys.stdout = _NamedStdout(stream)  # type: ignore[assignment]
+    """In the block, standard output and error are guarded (:class:`_GuardedStream`): a
+    reader gone ends the messages, not the work; another error writing standard output
+    names it. What is left in their buffers is written before the block ends, so an error
+    comes while the command can still say it in one line."""
+    out, err = sys.stdout, sys.stderr
+    sys.stdout = _GuardedStream(out, "standard output", 1, False)  # type: ignore[assignment]
+    sys.stderr = _GuardedStream(err, "standard error", 2, True)  # type: ignore[assignment]
     try:
         yield
+        sys.stderr.flush()
         sys.stdout.flush()
     finally:
-        sys.stdout = stream
+        sys.stdout, sys.stderr = out, err
 
 
 def report(exc: UsageError, default_prog: str) -> int:

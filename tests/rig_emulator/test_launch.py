@@ -40,3 +40,31 @@ def test_a_check_started_without_standard_streams_exits_as_it_would():
         [sys.executable, "-c", code, *argv], preexec_fn=_closed_streams, timeout=120
     )
     assert proc.returncode == 0
+
+
+def test_a_run_whose_message_readers_go_away_goes_on_to_the_end(tmp_path):
+    """A probe: ``hil-client run ... 2>&1 | head -1`` stopped acquiring at its next
+    message (1718 of 3518 rows, exit 1, a meta that said nothing), and with only standard
+    output cut the complete log came with exit 1. A reader gone ends the messages, not
+    the work."""
+    import json
+
+    out = tmp_path / "log.csv"
+    code = "from hil_client.launch import main; import sys; sys.exit(main())"
+    argv = ["run", "--boiler", "windhager_12kw", str(SHORT), "--out", str(out)]
+    proc = subprocess.Popen(
+        [sys.executable, "-c", code, *argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
+    try:
+        first = proc.stderr.readline()  # the first phase mark: then both readers go
+        proc.stderr.close()
+        proc.stdout.close()
+        assert proc.wait(timeout=300) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert first.startswith(b"hil-client: ")
+    meta = json.loads(out.with_name("log.meta.json").read_text())
+    assert meta["complete"] is True and meta["t4_s"] is not None
+    rows = len(out.read_text().splitlines()) - 1
+    assert rows >= meta["t4_s"]  # a row a second to t4
