@@ -6,11 +6,21 @@ one acquisition step (setpoint writes, the lockstep advance, one read per instru
 segment and then collects the replies, so a step costs one round trip, not one per request.
 
 Errors: :class:`ModbusExceptionResponse` for an exception reply (with its code),
-:class:`ConnectionLost` for a closed, reset or timed-out connection.
+:class:`ConnectionLost` for a closed, reset or timed-out connection, :class:`BadReply` (one)
+for a reply that does not answer its request.
 
 :meth:`Connection.receive_all` survives a faulty unit: it returns, per request, the reply,
 the exception, or a :class:`NoReply` (the unit never answered: a later request's reply came
-first, which an in-order server only does when it dropped this one; or the timeout passed).
+first, which an in-order server only does when it dropped this one; or the timeout passed;
+or what came does not answer the request).
+
+A reply is used only if it answers its request (:func:`reply_problem`): the MBAP header's
+protocol ID 0 and a length a frame can have, the transaction ID, unit and function of the
+request (or the function's exception, with its code), and the size the request asks for (a
+stranger's probe: a reply whose transaction ID named the next request was decoded as that
+request's, the bench PLC's 14 registers logged as the flue-gas probe's 3; well-framed
+replies with 2 registers fewer, a byte count their data did not fill, no function code, or
+an exception without its code ended the run with a traceback).
 """
 
 from __future__ import annotations
@@ -41,15 +51,25 @@ class ReplyTimeout(ConnectionLost):
     """No reply within the connection's timeout."""
 
 
+class BadReply(ConnectionLost):
+    """What came is no reply to the request: another unit's, function's or size's, or a
+    frame no Modbus server sends. Never decoded; the transaction failed, and the connection
+    is not to be trusted (reset it, as after a timeout)."""
+
+
 class NoReply(Exception):
     """A request that got no reply (``reason``: ``no reply``, ``timeout``, or ``too late``:
-    it came, after the timeout, and is not used)."""
+    it came, after the timeout, and is not used). A reply that does not answer its request
+    counts as none: ``timeout``, so the rig resets the connection and leaves the unit's
+    fields empty; ``detail`` says what was wrong with it."""
 
-    def __init__(self, unit: int, function: int, reason: str) -> None:
-        super().__init__(f"unit {unit}: function {function}: {reason}")
+    def __init__(self, unit: int, function: int, reason: str, detail: str = "") -> None:
+        why = f" ({detail})" if detail else ""
+        super().__init__(f"unit {unit}: function {function}: {reason}{why}")
         self.unit = unit
         self.function = function
         self.reason = reason
+        self.detail = detail
 
 
 Reply = bytes | ModbusExceptionResponse | NoReply
@@ -59,6 +79,39 @@ _HEADER = struct.Struct(">HHHB")
 #: that write (single and multiple coils and registers, read/write multiple)
 READ_FUNCTIONS = frozenset({1, 2, 3, 4})
 WRITE_FUNCTIONS = frozenset({5, 6, 15, 16, 23})
+#: the most an MBAP length counts: the unit ID and a PDU of up to 253 bytes (Modbus
+#: Messaging on TCP/IP Implementation Guide V1.0b, 3.1.3: an ADU of at most 260 bytes)
+MAX_MBAP_LENGTH = 254
+
+
+def reply_problem(unit: int, request: bytes, got_unit: int, reply: bytes) -> str | None:
+    """Why ``reply``, a PDU from unit ``got_unit``, does not answer ``request``, a PDU sent
+    to ``unit`` (None if it does): another unit, another function, an exception without
+    its code, or another size than the request asks for (a read's byte count and data; a
+    write's echo of address and quantity)."""
+    function = request[0]
+    if got_unit != unit:
+        return f"unit {got_unit} answered"
+    if not reply:
+        return "no function code"
+    if reply[0] == function | 0x80:
+        return None if len(reply) == 2 else f"an exception of {len(reply) - 1} bytes, not 1"
+    if reply[0] != function:
+        return f"function {reply[0]} answered"
+    if function in (1, 2, 3, 4, 23) and len(request) >= 5:
+        quantity = int.from_bytes(request[3:5], "big")
+        size = (quantity + 7) // 8 if function in (1, 2) else 2 * quantity
+        if len(reply) < 2 or reply[1] != size or len(reply) != 2 + size:
+            count = reply[1] if len(reply) >= 2 else "none"
+            return (
+                f"byte count {count} and {max(len(reply) - 2, 0)} data bytes for "
+                f"{quantity} {'bits' if function in (1, 2) else 'registers'} ({size})"
+            )
+    elif function in (5, 6) and reply != request:
+        return "not the echo of the request"
+    elif function in (15, 16) and reply != request[:5]:
+        return "not the request's address and quantity"
+    return None
 
 
 class Connection:
@@ -66,8 +119,9 @@ class Connection:
 
     def __init__(self, host: str, port: int, timeout_s: float) -> None:
         self._tid = 0
-        self._expect: deque[tuple[int, int, int]] = deque()  # (tid, unit, function)
+        self._expect: deque[tuple[int, int, bytes]] = deque()  # (tid, unit, request PDU)
         self._buffer = b""
+        self._corrupt = ""  # why what the server sends is no longer read (a bad frame)
         try:
             self.sock = socket.create_connection((host, port), timeout=timeout_s)
         except OSError as exc:
@@ -79,10 +133,12 @@ class Connection:
     def send(self, requests: Sequence[tuple[int, bytes]]) -> None:
         """Send ``(unit, pdu)`` requests in one segment; :meth:`receive` returns their
         replies in the same order."""
+        if self._corrupt:
+            raise BadReply(self._corrupt)
         frames = []
         for unit, pdu in requests:
             self._tid = (self._tid + 1) & 0xFFFF
-            self._expect.append((self._tid, unit, pdu[0]))
+            self._expect.append((self._tid, unit, pdu))
             frames.append(_HEADER.pack(self._tid, 0, len(pdu) + 1, unit) + pdu)
         try:
             self.sock.sendall(b"".join(frames))
@@ -90,12 +146,17 @@ class Connection:
             raise ConnectionLost(f"send failed ({exc})") from None
 
     def receive(self) -> bytes:
-        """The reply PDU (function code first) of the oldest outstanding request."""
-        tid, unit, function = self._expect.popleft()
+        """The reply PDU (function code first) of the oldest outstanding request;
+        :class:`BadReply` if what came does not answer it."""
+        tid, unit, pdu = self._expect.popleft()
+        function = pdu[0]
         while True:
-            got_tid, body = self._frame()
+            got_tid, got_unit, body = self._frame()
             if got_tid == tid:
                 break  # a late reply to an earlier, timed-out request is skipped
+        problem = reply_problem(unit, pdu, got_unit, body)
+        if problem is not None:
+            raise BadReply(f"unit {unit}: function {function}: reply not used: {problem}")
         if body[0] == function | 0x80:
             raise ModbusExceptionResponse(unit, function, body[1])
         return body
@@ -120,41 +181,76 @@ class Connection:
         carried out once, on it, and their outcome known. ``still_coming(unit, function)``,
         asked at each silence of the timeout, says whether the request at the head of the
         line is only slow (True) or the connection has died on the way (False: give up now,
-        as without patience)."""
+        as without patience).
+
+        A reply that does not answer its request (:func:`reply_problem`) is a ``timeout``
+        :class:`NoReply` (one whose transaction ID names a later request is not taken as a
+        sign that those before it were dropped: it is passed over); after a frame no Modbus
+        server sends, nothing more is read: every request left is one. :class:`BadReply`
+        instead where that befalls one of ``own``: the caller's own requests are not given
+        up on."""
         out: list[Reply] = []
         times: list[float] = []
         deadline = time.monotonic() + patience_s
         overdue: set[int] = set()  # transaction IDs whose reply came too late to count
+        last_look: int | None = None  # the head's tid, answered on a second connection
         while len(out) < count:
             try:
-                got_tid, body = self._frame()
+                got_tid, got_unit, body = self._frame()
             except ReplyTimeout:
                 now = time.monotonic()
-                tid, unit, function = self._expect[0]
+                tid, unit, pdu = self._expect[0]
+                function = pdu[0]
                 waiting_own = bool(own) and len(out) <= own[-1]
-                if (
-                    waiting_own
-                    and now < deadline
-                    and (still_coming is None or still_coming(unit, function))
-                ):
+                coming = waiting_own and now < deadline
+                if coming and last_look != tid and still_coming is not None:
+                    if not still_coming(unit, function):
+                        # answered there: the unit is not slow now, but may have been till
+                        # a moment ago (a delay fault that ended meanwhile lets its held
+                        # replies go): one more timeout here for a reply on its way, before
+                        # this connection counts as dead (it was dropped at once: a stray
+                        # reconnection and a gap)
+                        last_look = tid
+                    if len(out) not in own:
+                        overdue.add(tid)
+                    continue
+                if coming and last_look != tid:
                     if len(out) not in own:
                         overdue.add(tid)
                     continue
                 while len(out) < count:
-                    _, unit, function = self._expect.popleft()
-                    out.append(NoReply(unit, function, "timeout"))
+                    _, unit, pdu = self._expect.popleft()
+                    out.append(NoReply(unit, pdu[0], "timeout"))
                     times.append(now)
                 break
-            wanted = [e[0] for e in list(self._expect)[: count - len(out)]]
-            if got_tid not in wanted:
+            except BadReply as exc:  # no frame a server sends: the rest cannot be read
+                if own and own[-1] >= len(out):
+                    raise
+                now = time.monotonic()
+                while len(out) < count:
+                    _, unit, pdu = self._expect.popleft()
+                    out.append(NoReply(unit, pdu[0], "timeout", str(exc)))
+                    times.append(now)
+                break
+            wanted = list(self._expect)[: count - len(out)]
+            match = next((e for e in wanted if e[0] == got_tid), None)
+            if match is None:
                 continue  # a late reply to an earlier request given up on
+            problem = reply_problem(match[1], match[2], got_unit, body)
+            if problem is not None and match is not wanted[0]:
+                continue  # out of turn and no answer to its own request either: not used
             now = time.monotonic()
             while self._expect[0][0] != got_tid:  # answered out of turn: those were dropped
-                _, unit, function = self._expect.popleft()
-                out.append(NoReply(unit, function, "no reply"))
+                _, unit, pdu = self._expect.popleft()
+                out.append(NoReply(unit, pdu[0], "no reply"))
                 times.append(now)
-            _, unit, function = self._expect.popleft()
-            if got_tid in overdue and function not in WRITE_FUNCTIONS:
+            _, unit, pdu = self._expect.popleft()
+            function = pdu[0]
+            if problem is not None:
+                if len(out) in own:
+                    raise BadReply(f"unit {unit}: function {function}: reply not used: {problem}")
+                out.append(NoReply(unit, function, "timeout", f"reply not used: {problem}"))
+            elif got_tid in overdue and function not in WRITE_FUNCTIONS:
                 out.append(NoReply(unit, function, "too late"))
             elif body[0] == function | 0x80:
                 out.append(ModbusExceptionResponse(unit, function, body[1]))
@@ -163,13 +259,24 @@ class Connection:
             times.append(now)
         return out, times
 
-    def _frame(self) -> tuple[int, bytes]:
-        """(transaction ID, PDU) of the next reply; a timeout loses nothing already read."""
+    def _frame(self) -> tuple[int, int, bytes]:
+        """(transaction ID, unit, PDU) of the next reply; a timeout loses nothing already
+        read. :class:`BadReply` for a header no Modbus/TCP server sends (protocol ID not 0,
+        a length no frame has): where the next frame starts is unknown, and the connection
+        reads no more."""
+        if self._corrupt:
+            raise BadReply(self._corrupt)
         header = self._peek(7)
-        got_tid, _, length, _ = _HEADER.unpack(header)
+        got_tid, protocol, length, got_unit = _HEADER.unpack(header)
+        if protocol != 0 or not 1 <= length <= MAX_MBAP_LENGTH:
+            self._corrupt = (
+                f"a frame no Modbus/TCP server sends (protocol ID {protocol}, length {length}): "
+                "the connection is not read further"
+            )
+            raise BadReply(self._corrupt)
         frame = self._peek(6 + length)
         self._buffer = self._buffer[6 + length :]
-        return got_tid, frame[7:]
+        return got_tid, got_unit, frame[7:]
 
     def _peek(self, n: int) -> bytes:
         """The first ``n`` bytes of what arrived, waiting for them; nothing is consumed."""

@@ -30,12 +30,14 @@ from typing import Any
 from urllib.parse import parse_qs, urlparse
 
 from hil_client.modbus_client import (
+    BadReply,
     Connection,
     ConnectionLost,
     ModbusExceptionResponse,
     NoReply,
     Reply,
     ReplyTimeout,
+    reply_problem,
 )
 from rig_emulator.modbus.rtu_wire import PARITIES, frame, reply_length, silence_s, unframe
 
@@ -209,7 +211,11 @@ class RtuConnection:
 
     def receive(self, timeout_s: float | None = None) -> bytes:
         """The reply PDU to the oldest queued request (sent now, on a quiet line), waited
-        for ``timeout_s`` (None: the connection's timeout)."""
+        for ``timeout_s`` (None: the connection's timeout). :class:`BadReply` for a frame
+        whose CRC holds but that does not answer the request (another slave address or
+        function, an exception without its code, another size than asked for): never
+        decoded (a stranger's probe on TCP: such replies were decoded as the request's
+        registers, or ended the run with a traceback; a line had the same holes)."""
         unit, pdu = self._pending.popleft()
         wait = self._line_free - time.monotonic()
         if wait > 0:
@@ -224,9 +230,15 @@ class RtuConnection:
         reply = self._read_reply(time.monotonic() + wait_s, wait_s)
         self._line_free = time.monotonic() + self.silence_s
         decoded = unframe(reply)
-        if decoded is None or decoded[0] != unit:
+        if decoded is None:
             raise ConnectionLost(f"{self.path}: garbled reply from unit {unit} ({reply.hex()})")
         body = decoded[1]
+        problem = reply_problem(unit, pdu, decoded[0], body)
+        if problem is not None:
+            raise BadReply(
+                f"{self.path}: unit {unit}: function {pdu[0]}: reply not used: {problem} "
+                f"({reply.hex()})"
+            )
         if body[0] == pdu[0] | 0x80:
             raise ModbusExceptionResponse(unit, pdu[0], body[1])
         return body
@@ -239,11 +251,12 @@ class RtuConnection:
         still_coming: Callable[[int, int], bool] | None = None,
     ) -> tuple[list[Reply], list[float]]:
         """The outcome of each of the ``count`` oldest queued requests (the reply, the
-        exception, or :class:`NoReply` after the timeout: a silent unit) and when each was
-        known; as :meth:`Connection.receive_all`, one transaction at a time: only the
-        requests at the indices ``own`` are waited for up to ``patience_s`` in all (on a
-        line a slow unit's late reply is dropped once the master speaks again, so it holds
-        up nothing after it; ``still_coming`` is not asked: a line has no second way in)."""
+        exception, or :class:`NoReply` after the timeout, a silent unit, or after a reply
+        that does not answer the request, counted as a timeout) and when each was known;
+        as :meth:`Connection.receive_all`, one transaction at a time: only the requests at
+        the indices ``own`` are waited for up to ``patience_s`` in all (on a line a slow
+        unit's late reply is dropped once the master speaks again, so it holds up nothing
+        after it; ``still_coming`` is not asked: a line has no second way in)."""
         out: list[Reply] = []
         times: list[float] = []
         deadline = time.monotonic() + patience_s
@@ -257,6 +270,8 @@ class RtuConnection:
             except ReplyTimeout:
                 self._line_free = time.monotonic() + self.silence_s
                 out.append(NoReply(unit, pdu[0], "timeout"))
+            except BadReply as exc:
+                out.append(NoReply(unit, pdu[0], "timeout", str(exc)))
             times.append(time.monotonic())
         return out, times
 
