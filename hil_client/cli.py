@@ -949,7 +949,12 @@ def _run(args: argparse.Namespace) -> int:
         "seed": None if remote else (args.seed or 0),
         # what the server publishes of its set-up (CONTRACT section 7)
         **(
-            {f"server_{k}": f"{rig.identity[k]:08x}" for k in ("boiler_id", "profile_id")}
+            {
+                f"server_{k}": f"{rig.identity[k]:08x}"
+                # epoch_id: the first server's, as its fault journal writes it (a gap has a
+                # restarted one's): the fault report compares a journal with its plant's rows
+                for k in ("boiler_id", "profile_id", "epoch_id")
+            }
             if remote
             else {}
         ),

@@ -4,17 +4,28 @@
 rig saw (:attr:`hil_client.rigs.modbus.ModbusRig.comm_events`); ``hil-client run
 --fault-report`` or ``hil-client fault-report`` compare them (and the log) with the
 server's fault journal (:mod:`hil_client.analysis.fault_report`).
+
+A journal is one server start's: its lines carry the server's ``epoch_id``, the run's meta
+the first server's (``server_epoch_id``) and each gap the server's after it. A journal is
+compared with the rows (``rig_epoch``) of the plant(s) its server served and the events of
+those rows only, each plant's rows in its own server time (a stranger's probe: after a
+server killed and restarted under ``run --on-restart continue``, both servers' journals
+were matched with the rows and events of either plant by server time alone). A journal or
+a log without epoch ids is compared whole, as before.
 """
 
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from hil_client.analysis.fault_report import check_journal, compare
-from hil_client.analysis.logio import read_log
+import numpy as np
+
+from hil_client.analysis.fault_report import check_journal, compare, journal_epoch
+from hil_client.analysis.logio import LabLog, read_log
 from hil_client.jsonio import strict_json
 from hil_client.protocol.rig import LOG_COLUMNS
 from rig_emulator.atomic import write_atomically
@@ -118,10 +129,22 @@ def fault_report(
     offset = log.meta.get("server_time_offset_s", 0.0)
     offset = finite_number(offset) or 0.0
     server_time = log.t - offset
+    columns = log.columns
+    plant = _journal_plant(log, journal_epoch(journal), Path(journal_path), offset)
+    if plant is not None:  # (the rows and events of the journal's server only)
+        rows, server_time, note = plant
+        columns = {name: column[rows] for name, column in log.columns.items()}
+        if events is not None:
+            kept = _events_of(events, log, rows)
+            left = len(events) - len(kept)
+            events = kept
+            note += f", {left} of the client's events of other plants" if left else ""
+        if not rows.all():
+            notes.append(note)
     report = compare(
         journal,
         events,
-        log.columns,
+        columns,
         server_time,
         slack_s,
         str(journal_path),
@@ -131,6 +154,77 @@ def fault_report(
     report["journal"] = str(journal_path)
     report["notes"] = notes
     return report
+
+
+def _rig_epochs(log: LabLog) -> np.ndarray:
+    """The ``rig_epoch`` of each row (0: a log without the column, one plant)."""
+    epochs = log.columns.get("rig_epoch")
+    return np.zeros(len(log)) if epochs is None else np.asarray(epochs, dtype=float)
+
+
+def _journal_plant(
+    log: LabLog, epoch: str | None, journal_path: Path, offset: float
+) -> tuple[np.ndarray, np.ndarray, str] | None:
+    """The rows of ``log`` the journal's server (``epoch``) served (a boolean mask), their
+    server times and a note saying which they are; None where the journal or the log's
+    meta carries no epoch id (all the rows compared, as before). ValueError (a journal of
+    another server's start) where that server served none of the rows.
+
+    The plants: ``server_epoch_id`` of the meta served ``rig_epoch`` 0; a gap's
+    ``server_epoch_id`` the ``rig_epoch`` it gives (a replay rebuilds the same plant on a
+    new server: both journals compare with its rows; an aborting gap's server served
+    none). Each plant's rows have their own offset: the gap that ends it says its last
+    row's log and server time; the last plant's is the meta's ``server_time_offset_s``."""
+    first = log.meta.get("server_epoch_id")
+    if epoch is None or not isinstance(first, str):
+        return None
+    gaps = [g for g in log.meta.get("gaps") or () if isinstance(g, dict)]
+    served: dict[int, set[str]] = {0: {first.lower()}}  # rig_epoch -> its servers' epoch ids
+    offsets: dict[int, float] = {}  # rig_epoch -> log time minus server time
+    for gap in gaps:
+        plant, server = gap.get("rig_epoch"), gap.get("server_epoch_id")
+        if gap.get("action") == "abort" or isinstance(plant, bool) or not isinstance(plant, int):
+            continue
+        if isinstance(server, str):
+            served.setdefault(plant, set()).add(server.lower())
+        log_time = finite_number(gap.get("start_time_s"))
+        server_time = finite_number(gap.get("server_time_before_s"))
+        if plant >= 1 and log_time is not None and server_time is not None:
+            offsets.setdefault(plant - 1, log_time - server_time)
+    plants = sorted(k for k, ids in served.items() if epoch in ids)
+    shown = "; ".join(f"rig_epoch {k}: {', '.join(sorted(served[k]))}" for k in sorted(served))
+    rig_epoch = _rig_epochs(log)
+    rows = np.isin(rig_epoch, plants)
+    if not rows.any():
+        raise ValueError(
+            f"{journal_path}: its server (epoch_id {epoch}) served none of the rows of "
+            f"{log.path} ({shown}): the journal of another server's start"
+        )
+    server_time = np.full(len(log), math.nan)
+    for k in plants:
+        here = rig_epoch == k
+        server_time[here] = log.t[here] - offsets.get(k, offset)
+    t = log.t[rows]
+    which = ", ".join(f"{k:g}" for k in plants)
+    span = f"time_s {t[0]:g}..{t[-1]:g}"
+    note = (
+        f"{journal_path}: its server (epoch_id {epoch}) served rig_epoch {which} of "
+        f"{log.path}: only those rows ({span}) and their client events are compared; "
+        f"left out: {int((~rows).sum())} row(s) of other plants ({shown})"
+    )
+    return rows, server_time[rows], note
+
+
+def _events_of(
+    events: Sequence[dict[str, Any]], log: LabLog, rows: np.ndarray
+) -> list[dict[str, Any]]:
+    """The client's events of ``rows``: an event's ``time_s`` is its row's (the row at or
+    before it; the first row before the log's first)."""
+    if not events:
+        return []
+    times = np.array([float(e["time_s"]) for e in events])
+    index = np.clip(np.searchsorted(log.t, times, side="right") - 1, 0, len(log) - 1)
+    return [e for e, keep in zip(events, rows[index], strict=True) if keep]
 
 
 def _check_events(events: Sequence[dict[str, Any]], path: Path) -> None:

@@ -417,7 +417,9 @@ def _cmd_serve(args: argparse.Namespace) -> int:
         raise UsageError(
             f"cannot serve on {args.host}:{args.transport_plan.port}: {exc.strerror}"
         ) from None
-    return 0
+    # lines of the fault journal lost (a full disk; its warning said how many): exit 1, as
+    # for any OS failure (it exited 0, the loss silent in CI: a stranger's probe)
+    return 1 if server.faults.journal_lines_lost else 0
 
 
 async def _serve(server: BenchServer, args: argparse.Namespace) -> None:

@@ -20,10 +20,15 @@ the fault's window [start, end + ``slack_s``] (server time):
   reading leaves its instrument's plausible range (not checked here).
 
 Log detectors (robust scale ``s``: 1.4826 x the median absolute first difference of the
-column, at least its resolution): a spike is a row more than ``8 s`` (and 1 % of the
-level) away from both neighbours, which agree with each other; an offset a step of that
-size between consecutive rows whose new level holds for the next 5 rows; stuck at least
-10 consecutive equal values in a column that otherwise changes on most rows.
+column; its resolution ``q``: the coarsest 10^-d, d = 0..9, that every reading is a whole
+multiple of, as the log writes them or the register's step rounds them, 0 if none): a
+spike is a row more than ``8 s``, ``2 q`` and 1 % of the level away from both neighbours,
+which agree with each other; an offset a step of that size between consecutive rows whose
+new level holds for the next 5 rows; stuck at least 10 consecutive equal values in a
+column that otherwise changes on most rows. ``2 q``: rounding alone moves a steady reading
+by one step of its resolution, never by two. (The floor was the column's smallest nonzero
+step: on a still column, a clean run's O2 at 6.25515 for hours, that is the fault's own
+step, and the spike or offset was missed: a stranger's probe; ``s`` is 0 there.)
 
 Everything the client saw that no journalled fault explains is **false** (client events
 only: the detectors run inside fault windows).
@@ -72,9 +77,11 @@ def check_journal(journal: Sequence[Mapping[str, Any]], source: str = "fault jou
     number, ``kind`` one of the fault kinds, ``unit`` (communication faults) a unit number,
     ``signal`` (instrument faults) a name, ``code`` (exception) an integer; each id started
     once (the server numbers its faults afresh in each journal) and ended at most once,
-    not before its start, with the kind of its start."""
+    not before its start, with the kind of its start; ``epoch_id`` (the server's start, 8
+    hex digits) on every line or on none, the same on all: one journal is one server's."""
     starts: dict[int, tuple[float, str, int]] = {}  # id -> (time, kind, line)
     ended: dict[int, int] = {}  # id -> line
+    epoch: tuple[Any, int] | None = None  # (epoch_id, line) of the first line
     for line, event in enumerate(journal, 1):
 
         def bad(key: str, what: str, line: int = line, event: Mapping = event) -> ValueError:
@@ -83,6 +90,13 @@ def check_journal(journal: Sequence[Mapping[str, Any]], source: str = "fault jou
         for key in ("event", "id", "t_sim_s", "kind"):
             if key not in event:
                 raise ValueError(f"{source}: line {line}: no field '{key}'")
+        if epoch is None:
+            epoch = (event.get("epoch_id"), line)
+            if epoch[0] is not None and not _is_epoch_id(epoch[0]):
+                raise bad("epoch_id", "not a server's epoch id (8 hex digits)")
+        elif event.get("epoch_id") != epoch[0]:
+            first = "none" if epoch[0] is None else f"{epoch[0]}"
+            raise bad("epoch_id", f"line {epoch[1]} has {first}: one journal is one server's")
         if event["event"] not in ("start", "end"):
             raise bad("event", "not 'start' or 'end'")
         fid, t = event["id"], event["t_sim_s"]
@@ -118,6 +132,21 @@ def check_journal(journal: Sequence[Mapping[str, Any]], source: str = "fault jou
                 raise bad("kind", f"fault {fid} started as '{starts[fid][1]}'")
 
 
+def _is_epoch_id(value: Any) -> bool:
+    return (
+        isinstance(value, str)
+        and len(value) == 8
+        and all(c in "0123456789abcdef" for c in value.lower())
+    )
+
+
+def journal_epoch(journal: Sequence[Mapping[str, Any]]) -> str | None:
+    """The ``epoch_id`` of the server that wrote a journal (:func:`check_journal` checked
+    it is one), lower case; None if its lines carry none (an older server's)."""
+    epoch = journal[0].get("epoch_id") if journal else None
+    return epoch.lower() if isinstance(epoch, str) else None
+
+
 def fault_windows(
     journal: Sequence[Mapping[str, Any]], source: str = "fault journal"
 ) -> list[dict[str, Any]]:
@@ -149,32 +178,51 @@ def fault_windows(
 
 
 def _robust_scale(x: np.ndarray) -> float:
+    """1.4826 x the median absolute first difference (0 on a column still on most rows)."""
     d = np.abs(np.diff(x[np.isfinite(x)]))
     if d.size == 0:
         return math.inf
-    nonzero = d[d > 0]
-    resolution = float(nonzero.min()) if nonzero.size else 0.0
-    return max(1.4826 * float(np.median(d)), resolution, 1e-9)
+    return 1.4826 * float(np.median(d))
+
+
+#: The most decimals a column's resolution is looked for in (``run``'s log writes 5 at most).
+RESOLUTION_DECIMALS = 9
+
+
+def _resolution(x: np.ndarray) -> float:
+    """The coarsest 10^-d (d = 0..:data:`RESOLUTION_DECIMALS`) that every finite reading of
+    ``x`` is a whole multiple of: the decimals the log writes (20.95000: 0.01, the step of
+    the register), 0 if none (readings with all their digits). A reading parsed from text
+    is off its decimal by the float's rounding only: 1e-6 of a step, plus 4 ulp of it."""
+    v = np.unique(x[np.isfinite(x)])
+    if v.size == 0:
+        return 0.0
+    for d in range(RESOLUTION_DECIMALS + 1):
+        y = v * 10.0**d
+        if np.all(np.abs(y - np.round(y)) <= 1e-6 + 4 * np.finfo(float).eps * np.abs(y)):
+            return 10.0**-d
+    return 0.0
 
 
 def _log_detects(kind: str, x: np.ndarray, rows: np.ndarray) -> bool:
     """Whether ``kind`` shows in the log column ``x`` at one of the row indices ``rows``."""
     if rows.size == 0:
         return False
-    scale = _robust_scale(x)
+    # the least jump: 8 s, and 2 q (rounding moves a still reading by one q: module docstring)
+    least = max(8 * _robust_scale(x), 2 * _resolution(x), 1e-9) if kind != "stuck" else 0.0
     n = x.size
     for i in rows:
         if kind == "spike" and 0 < i < n - 1:
             a, b, c = x[i - 1], x[i], x[i + 1]
             level = max(abs(a), abs(c), 1.0)
-            jump = max(8 * scale, 0.01 * level)
+            jump = max(least, 0.01 * level)
             if abs(b - a) > jump and abs(b - c) > jump and abs(a - c) < jump:
                 return True
         elif kind == "offset" and i > 0 and i + 5 < n:
             before, after = x[max(0, i - 5) : i], x[i : i + 5]
             step = float(np.median(after) - np.median(before))
             level = max(abs(float(np.median(before))), 1.0)
-            if abs(step) > max(8 * scale, 0.01 * level):
+            if abs(step) > max(least, 0.01 * level):
                 return True
         elif (
             kind == "stuck"

@@ -727,6 +727,12 @@ class ModbusRig:
 
     # ------------------------------------------------------------------ breaks and gaps
     def _gap(self, reason: str, action: str, status: dict[str, float]) -> dict[str, Any]:
+        """A break or an outage of the run, in :attr:`gaps` (see the module docstring);
+        ``server_epoch_id``: the ``epoch_id`` of the server after it (8 hex digits, as its
+        fault journal writes it; None if not read), which tells the fault report whose
+        journal the rows after it compare with (a stranger's probe: a restarted server's
+        journal was matched with the first plant's rows)."""
+        epoch = status.get("epoch_id")
         gap: dict[str, Any] = {
             # as the log writes time_s; None before the first row
             "start_time_s": round(self.log_time_s, 3) if self._stepped else None,
@@ -737,6 +743,9 @@ class ModbusRig:
             "server_time_before_s": self._row_server_time,
             "server_time_after_s": status.get("sim_time_s"),
             "outage_wall_s": round(time.monotonic() - self._row_wall, 3),
+            "server_epoch_id": (
+                f"{int(epoch):08x}" if epoch is not None and math.isfinite(epoch) else None
+            ),
         }
         self.gaps.append(gap)
         return gap

@@ -9,6 +9,10 @@ Each line: ``event`` (``start`` | ``end``), ``id`` (the same for a fault's start
 without the fault and the plant's true value (``reading``, ``instrument``, ``truth``; a
 dropout's reading is null). End lines add ``requests`` (communication: how many requests
 the fault answered) and ``reason`` (``for_s elapsed``, ``cleared``, ``reset``, ``once``).
+A server's journal adds ``epoch_id`` to every line: the ``epoch_id`` it publishes (8 hex
+digits), which tells its plant from a restarted server's (a stranger's probe: a server
+killed and restarted under a run, the report matched the second journal with the rows
+and events of the first plant by time alone).
 """
 
 from __future__ import annotations
@@ -41,15 +45,21 @@ class FaultJournal:
     how many lines were lost, and the server serves on. Before, the error reached the
     lockstep advance that started the fault, which answered exception 04 although it had
     advanced (the client's next step went two), with a traceback in the log and a false
-    "cannot serve" at the stop (a stranger's probe)."""
+    "cannot serve" at the stop (a stranger's probe). :attr:`lines_lost` keeps the count
+    after :meth:`close`: ``serve`` exits 1 on it (it exited 0, silent in CI: a probe).
 
-    def __init__(self, path: str | Path, begin: bool = True) -> None:
+    ``epoch_id``: the server's per-start identifier (:attr:`BenchServer.epoch_id`), written
+    on every line as 8 hex digits; None: no such field (a journal of no server)."""
+
+    def __init__(self, path: str | Path, begin: bool = True, epoch_id: int | None = None) -> None:
         self.path = Path(path)
+        self.epoch_id = epoch_id
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._file: TextIO | None = None
         self._begun = False
         self._failed = False  # the file could not be written: its lines are lost
-        self.lost = 0  # lines that could not be written
+        self.lost = 0  # lines that could not be written (and not warned of yet)
+        self.lines_lost = 0  # all the lines lost, kept after close
         if begin:
             self.begin()
 
@@ -68,17 +78,21 @@ class FaultJournal:
             log.warning("fault journal %s: cannot write (%s)", self.path, exc.strerror or exc)
 
     def write(self, event: dict[str, Any]) -> None:
+        if self.epoch_id is not None:
+            event = {**event, "epoch_id": f"{self.epoch_id:08x}"}
         line = json.dumps(_json_safe(event), allow_nan=False) + "\n"
         self.begin()
         if self._file is None:
             if self._failed:  # dropped after a failed write (after close: nothing to count)
                 self.lost += 1
+                self.lines_lost += 1
             return
         try:
             self._file.write(line)
             self._file.flush()
         except OSError as exc:
             self.lost += 1
+            self.lines_lost += 1
             self._failed = True
             log.warning(
                 "fault journal %s: cannot write (%s): its lines are lost from now on; the "

@@ -85,10 +85,17 @@ class ServerFaults:
         register_map: RegisterMap,
         entries: Iterable[Entry] = (),
         journal_path: str | Path | None = None,
+        epoch_id: int | None = None,
     ) -> None:
+        """``epoch_id``: the server's (:attr:`BenchServer.epoch_id`), on every journal line
+        (a report tells a restarted server's plant from the first one's by it)."""
         self.emulator = emulator
         # begun by the server once it serves (begin_journal): a failed start keeps the old
-        journal = FaultJournal(journal_path, begin=False) if journal_path is not None else None
+        journal = (
+            FaultJournal(journal_path, begin=False, epoch_id=epoch_id)
+            if journal_path is not None
+            else None
+        )
         self.engine = FaultEngine([], journal, plant=emulator.plant)
         #: the map's own units (simulation control, truth): never faulted
         self.own_units = emulator_units(register_map)
@@ -151,6 +158,12 @@ class ServerFaults:
     def close(self) -> None:
         if self.engine.journal is not None:
             self.engine.journal.close()
+
+    @property
+    def journal_lines_lost(self) -> int:
+        """Journal lines that could not be written (a full disk): ``serve`` exits 1."""
+        journal = self.engine.journal
+        return journal.lines_lost if journal is not None else 0
 
     # ------------------------------------------------------------------ values
     def values(self, out: dict[str, float]) -> None:

@@ -237,7 +237,9 @@ class BenchServer:
         self._write_plans: dict[tuple[int, str, int, int], _WritePlan] = {}
         self.on_tick: Callable[[], None] | None = None
         #: fault injection (CONTRACT section 5): engine, gate, command and truth blocks
-        self.faults = ServerFaults(emulator, register_map, faults, fault_log)
+        self.faults = ServerFaults(
+            emulator, register_map, faults, fault_log, epoch_id=self.epoch_id
+        )
         self._loop: asyncio.AbstractEventLoop | None = None
         self._tasks: set[asyncio.Task] = set()
 
