@@ -47,6 +47,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if not 0 <= args.timeout < float("inf"):  # (NaN too) bad usage, as the docstring says
         parser.error(f"--timeout: {args.timeout:g} is not a number of seconds >= 0")
+    if not 1 <= args.port <= 65535:
+        parser.error(f"port: {args.port} is not a TCP port (1-65535)")
+    try:  # (lab..local ended in a traceback from the resolver: a probe)
+        args.host.encode("idna")
+    except UnicodeError:
+        parser.error(f"host: '{args.host}' is no host name (a label is empty or too long)")
     if wait_for_port(args.host, args.port, args.timeout):
         return 0
     print(

@@ -191,6 +191,12 @@ def listen_host(text: str) -> str:
         raise argparse.ArgumentTypeError(
             "empty; give an address (127.0.0.1, or 0.0.0.0 for every interface)"
         )
+    try:  # (lab..local ended in a traceback from the resolver: a probe)
+        text.encode("idna")
+    except UnicodeError:
+        raise argparse.ArgumentTypeError(
+            f"'{text}' is no host name (a label between dots is empty or over 63 characters)"
+        ) from None
     return text
 
 

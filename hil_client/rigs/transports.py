@@ -106,6 +106,13 @@ def parse_endpoint(url: str) -> Endpoint:
         return Endpoint("modbus-rtu", path=parsed.path, baud=int(baud_text), parity=parity)
     if not parsed.hostname:
         raise ValueError(f"'{url}' names no host ({parsed.scheme}://HOST:PORT)")
+    try:  # (lab..local ended in a traceback from the resolver: a probe)
+        parsed.hostname.encode("idna")
+    except UnicodeError:
+        raise ValueError(
+            f"'{url}': '{parsed.hostname}' is no host name (a label between dots is empty or "
+            "over 63 characters)"
+        ) from None
     port = url_port(url, DEFAULT_TLS_PORT if parsed.scheme == "modbus+tls" else 502)
     return Endpoint(parsed.scheme, host=parsed.hostname, port=port)
 

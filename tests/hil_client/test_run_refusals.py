@@ -467,3 +467,13 @@ def test_no_output_goes_into_the_installed_package(capsys):
         assert not stray.exists()
     finally:
         stray.unlink(missing_ok=True)
+
+
+@pytest.mark.parametrize("scheme", ["modbus", "modbus+tls"])
+def test_a_rig_host_that_is_no_host_name_is_one_line(tmp_path, capsys, scheme):
+    """A probe: ``--rig modbus://lab..local:5020`` ended in a 40-line traceback from the
+    resolver (an empty label: Python's idna codec fails), exit 1."""
+    out = _kept(tmp_path)
+    argv = ["run", "stationary", "--boiler", "windhager_12kw", "--out", str(out)]
+    _refused(capsys, [*argv, "--rig", f"{scheme}://lab..local:5020"], "'lab..local' is no host")
+    assert out.read_text() == KEPT

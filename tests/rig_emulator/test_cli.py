@@ -389,3 +389,12 @@ def test_the_fault_journal_may_not_replace_a_profile_or_a_key(tmp_path, capsys, 
     err = capsys.readouterr().err
     assert "which it would overwrite" in err and err.count("\n") == 1, err
     assert target.read_bytes() == before
+
+
+@pytest.mark.parametrize("host", ["lab..local", "." + "a" * 64])
+def test_a_listen_host_that_is_no_host_name_is_one_line(capsys, host):
+    """A probe: ``serve --host lab..local`` ended in a 40-line traceback from the resolver
+    (an empty label: Python's idna codec fails), exit 1."""
+    assert main(["serve", "--boiler", "windhager_12kw", "--host", host]) == 2
+    err = capsys.readouterr().err
+    assert "is no host name" in err and err.count("\n") == 1, err
