@@ -1062,7 +1062,7 @@ def _run(args: argparse.Namespace) -> int:
             progress.done()
         kept = _what_is_kept(written[0], previous, getattr(rig, "gaps", []))
         raise UsageError(f"{args.protocol}: commands {exc}; {kept}") from None
-    except KeyboardInterrupt:  # Ctrl-C, or SIGTERM (see main)
+    except KeyboardInterrupt:  # Ctrl-C, SIGTERM or SIGHUP (see main)
         if progress is not None:
             progress.done()
         kept = _what_is_kept(written[0], previous, getattr(rig, "gaps", []))
@@ -1073,7 +1073,7 @@ def _run(args: argparse.Namespace) -> int:
             meta["notes"] = [
                 *meta["notes"],
                 *([overridden] if overridden else []),
-                f"interrupted (Ctrl-C or SIGTERM) after {written[0]} rows",
+                f"interrupted (Ctrl-C, SIGTERM or SIGHUP) after {written[0]} rows",
             ]
             meta["interrupted"] = True
             write_meta(out, meta)
@@ -1241,6 +1241,10 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 _STOPPING = (signal.SIGINT, signal.SIGTERM)
+#: ... and SIGHUP (the terminal closed, an ssh session dropped) unless the command was
+#: started ignoring it (nohup): it ended the run at once, rc 129, its meta saying nothing
+#: (a probe)
+_HANGUP = getattr(signal, "SIGHUP", None)
 
 
 class _Held:
@@ -1279,7 +1283,10 @@ def _stop_on_signals() -> dict[int, Any]:
     (None: one set from C), none off the main thread, where handlers cannot be set."""
     if threading.current_thread() is not threading.main_thread():
         return {}
-    return {signum: signal.signal(signum, _interrupt) for signum in _STOPPING}
+    stopping = list(_STOPPING)
+    if _HANGUP is not None and signal.getsignal(_HANGUP) is not signal.SIG_IGN:
+        stopping.append(_HANGUP)
+    return {signum: signal.signal(signum, _interrupt) for signum in stopping}
 
 
 def _restore_signals(previous: dict[int, Any]) -> None:

@@ -63,7 +63,8 @@ def _build_parser() -> argparse.ArgumentParser:
         "serve",
         help="run the emulated bench as a Modbus TCP server",
         description="Run the emulated bench as a Modbus TCP server (one unit ID per "
-        "instrument, see the register map reference). Stops cleanly on SIGINT/SIGTERM.",
+        "instrument, see the register map reference). Stops cleanly on SIGINT, SIGTERM "
+        "or SIGHUP.",
     )
     serve.add_argument(
         "--boiler", required=True, type=text_input, help="boiler NAME or parameter file PATH"
@@ -422,10 +423,20 @@ def _cmd_serve(args: argparse.Namespace) -> int:
     return 1 if server.faults.journal_lines_lost else 0
 
 
+def _stop_signals() -> list[int]:
+    """SIGINT, SIGTERM and SIGHUP (the terminal closed: it ended the server at once, with
+    no clean stop: a probe), SIGHUP not where the server was started ignoring it (nohup)."""
+    stopping = [signal.SIGINT, signal.SIGTERM]
+    hangup = getattr(signal, "SIGHUP", None)
+    if hangup is not None and signal.getsignal(hangup) is not signal.SIG_IGN:
+        stopping.append(hangup)
+    return stopping
+
+
 async def _serve(server: BenchServer, args: argparse.Namespace) -> None:
     stop = asyncio.Event()
     loop = asyncio.get_running_loop()
-    for sig in (signal.SIGINT, signal.SIGTERM):
+    for sig in _stop_signals():
         loop.add_signal_handler(sig, stop.set)
     await server.start(begin_journal=False)  # (begun once every port is open: a re-probe)
     try:
@@ -464,7 +475,7 @@ async def _serve(server: BenchServer, args: argparse.Namespace) -> None:
     # the stop is under way: a second Ctrl-C or SIGTERM (GNU timeout signals the group
     # again) interrupted the shutdown's own clean-up, with a traceback ("Exception ignored
     # in atexit callback"; a re-probe); from here on they are ignored
-    for sig in (signal.SIGINT, signal.SIGTERM):
+    for sig in _stop_signals():
         loop.remove_signal_handler(sig)
         signal.signal(sig, signal.SIG_IGN)
     logging.getLogger("rig_emulator.serve").info(

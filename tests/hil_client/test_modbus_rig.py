@@ -275,11 +275,13 @@ def test_killed_client_leaves_a_valid_log_and_the_events_of_its_rows(serve, tmp_
     assert min(times) == 50.0 and max(times) >= 300.0
 
 
-@pytest.mark.parametrize("how", [signal.SIGINT, signal.SIGTERM])
+@pytest.mark.parametrize("how", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP])
 def test_a_stopped_client_keeps_its_log_and_its_events(serve, tmp_path, how):
-    """Ctrl-C, or SIGTERM (timeout, a CI job cancelled, docker stop): one line, exit 1, the
-    log valid and the Modbus events file written. SIGTERM ended the client silently without
-    its events file, and fault-report then refused the log (a new user's probe)."""
+    """Ctrl-C, or SIGTERM (timeout, a CI job cancelled, docker stop), or SIGHUP (the
+    terminal closed): one line, exit 1, the log valid and the Modbus events file written.
+    SIGTERM ended the client silently without its events file, and fault-report then
+    refused the log (a new user's probe); SIGHUP ended it at once, rc 129, the meta saying
+    nothing (a probe)."""
     srv = serve(lockstep=True)
     out = tmp_path / "stopped.csv"
     proc = _start_client(srv.port, out)
@@ -294,7 +296,7 @@ def test_a_stopped_client_keeps_its_log_and_its_events(serve, tmp_path, how):
     # the meta says why the run is not complete (it said nothing: a stranger's probe)
     meta = read_log(out).meta
     assert meta["complete"] is False and meta["interrupted"] is True
-    assert f"interrupted (Ctrl-C or SIGTERM) after {rows} rows" in meta["notes"]
+    assert f"interrupted (Ctrl-C, SIGTERM or SIGHUP) after {rows} rows" in meta["notes"]
 
 
 def test_killed_server_ends_the_client_cleanly(tmp_path):

@@ -398,3 +398,42 @@ def test_a_listen_host_that_is_no_host_name_is_one_line(capsys, host):
     assert main(["serve", "--boiler", "windhager_12kw", "--host", host]) == 2
     err = capsys.readouterr().err
     assert "is no host name" in err and err.count("\n") == 1, err
+
+
+@pytest.mark.parametrize("nohup", [False, True])
+def test_serve_stops_cleanly_on_a_hangup_unless_started_under_nohup(nohup):
+    """A probe: SIGHUP (the terminal closed) ended ``serve`` at once, rc 129, with no clean
+    stop; now it stops as on SIGTERM. Started ignoring SIGHUP (nohup), it serves on."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from hil_client.wait_for_port import free_port, wait_for_port
+
+    port = free_port()
+
+    def ignore_hangup() -> None:
+        if nohup:
+            signal.signal(signal.SIGHUP, signal.SIG_IGN)
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "rig_emulator.cli", "serve", "--boiler", "windhager_12kw",
+         "--port", str(port)],
+        stderr=subprocess.PIPE, text=True, preexec_fn=ignore_hangup,
+    )  # fmt: skip
+    try:
+        assert wait_for_port("127.0.0.1", port, 60.0, alive=lambda: proc.poll() is None)
+        proc.send_signal(signal.SIGHUP)
+        if nohup:
+            time.sleep(1.0)
+            assert proc.poll() is None  # serving on
+            proc.send_signal(signal.SIGTERM)
+        code = proc.wait(timeout=60)
+        err = proc.stderr.read()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=30)
+    assert code == 0, err
+    assert "stopping at simulated time" in err and "Traceback" not in err, err
