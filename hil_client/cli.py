@@ -854,8 +854,8 @@ def _settle_previous(out: Path, moved: list[tuple[Path, Path]], rows: int, gaps:
 
 def _what_is_kept(rows: int, previous: list, gaps: list) -> str:
     """What a run that stopped leaves at ``--out`` (see :func:`_settle_previous`)."""
-    if rows:
-        return "the log keeps every row acquired"
+    if rows:  # (a full disk loses the row it could not write: "every row" was wrong)
+        return f"the log keeps the {rows} row{'s' if rows != 1 else ''} written"
     if previous:
         return "no row was acquired; the previous run's log is back"
     if gaps:

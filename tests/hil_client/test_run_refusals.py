@@ -118,7 +118,7 @@ def test_a_command_refused_mid_run_is_one_line(tmp_path, capsys, monkeypatch):
     out = tmp_path / "log.csv"
     argv = ["run", protocol, "--boiler", "windhager_12kw", "--quiet", "--out", str(out)]
     err = _refused(capsys, argv, "return_setpoint_C: 500.0 outside 10..90")
-    assert "the log keeps every row acquired" in err
+    assert "the log keeps the " in err and " rows written" in err
 
 
 def test_out_below_a_file_is_refused(tmp_path, capsys):
@@ -413,6 +413,8 @@ def test_a_disk_that_fills_up_ends_the_run_in_one_line_and_keeps_the_rows(tmp_pa
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and f"cannot write {out}" in lines[0], lines
     assert 0 < out.stat().st_size <= 64 * 1024
+    rows = len(out.read_text().splitlines()) - 1  # as many as the message says
+    assert f"the log keeps the {rows} rows written" in lines[0], lines
     # the log ends on its last whole row (a probe: half of the last one was left there)
     text = out.read_text()
     assert text.endswith("\n")
