@@ -176,68 +176,13 @@ def test_run_over_rtu_equals_the_local_run(rtu_server, tiny, tmp_path):
     assert rtu_server.line.crc_errors == 0
 
 
-@pytest.mark.skipif(shutil.which("socat") is None, reason="socat not installed (make test-deps)")
-def test_a_server_restarted_between_steps_on_a_serial_line_is_replayed(serve, tmp_path):
-    """A serial line loses no connection: a lockstep server restarted on it between two
-    steps took the next step's advance as a fresh plant before the status showed the new
-    epoch, and the run broke where TCP and TLS replay. The new server is now reset to its
-    initial state and the journal replayed: every reading equals an uninterrupted run's."""
-    ours, theirs = tmp_path / "emulator", tmp_path / "client"
-    socat = subprocess.Popen(
-        [shutil.which("socat"), f"pty,raw,echo=0,link={ours}", f"pty,raw,echo=0,link={theirs}"],
-        stderr=subprocess.DEVNULL,
-    )
-    try:
-        deadline = time.monotonic() + 10
-        while not (ours.exists() and theirs.exists()) and time.monotonic() < deadline:
-            time.sleep(0.05)
-
-        def start():
-            srv = serve()
-
-            async def setup():
-                transports = Transports(srv.server.modbus_server)
-                await transports.add_rtu(str(ours), 115200, "E")
-                return transports
-
-            return srv, srv.call(setup())
-
-        first, transports = start()
-        url = f"modbus-rtu://{theirs}?baud=115200&parity=E"
-        rig = ModbusRig(url, load_map(), connect=connector(url, 2.0), reconnect_timeout_s=20)
-        reference = serve()
-        ref = ModbusRig(f"modbus://127.0.0.1:{reference.port}", load_map())
-        command = RigCommand(600.0, 50.0, pump_on=True, boiler_on=True)
-        for step in range(12):
-            if step == 6:  # the restart, between two steps
-                first.call(transports.stop())  # (the fixture stops its server)
-                second, transports = start()
-            for r in (rig, ref):
-                r.apply(command)
-                r.advance(10.0)
-            ours_now, theirs_now = rig.read(), ref.read()
-            for key, value in theirs_now.items():  # bit for bit, NaN where NaN
-                assert ours_now[key] == value or (math.isnan(value) and math.isnan(ours_now[key]))
-        assert [g["action"] for g in rig.gaps] == ["replayed"]
-        assert rig.log_time_s == ref.log_time_s == 120.0
-        second.call(transports.stop())
-        rig.close()
-        ref.close()
-    finally:
-        socat.terminate()
-        socat.wait(timeout=10)
-
-
-@pytest.mark.skipif(shutil.which("socat") is None, reason="socat not installed (make test-deps)")
-@pytest.mark.parametrize("after_s", [0.0, 0.01, 0.03, 0.06])
-def test_a_server_restarted_under_a_step_on_a_serial_line_is_replayed(serve, tmp_path, after_s):
-    """A serial line loses no connection: a lockstep server stopped while a step's reads
-    were on the line (and a new one started on it) left that row's instruments empty, with
-    no break marked, before the next step found the new plant. The rig now asks the
-    simulation control after instruments that timed out, rebuilds the new server and reads
-    the step again: every reading equals an uninterrupted run's, wherever the stop lands
-    (``after_s`` into the step; at 115200 baud a step's two dozen transactions take some
-    50 ms)."""
+def _replayed_over_a_serial_line(
+    serve, tmp_path, steps: int, restart_at: int, after_s: float | None, reply_timeout_s: float
+) -> None:
+    """A lockstep run over a socat pty pair, its server stopped and a new one started on
+    the line at step ``restart_at``: before the step (``after_s`` None) or ``after_s`` into
+    it, from another thread; every reading must equal an uninterrupted run's over TCP, bit
+    for bit, with one break marked ``replayed``."""
     ours, theirs = tmp_path / "emulator", tmp_path / "client"
     socat = subprocess.Popen(
         [shutil.which("socat"), f"pty,raw,echo=0,link={ours}", f"pty,raw,echo=0,link={theirs}"],
@@ -259,22 +204,27 @@ def test_a_server_restarted_under_a_step_on_a_serial_line_is_replayed(serve, tmp
             return srv, srv.call(setup())
 
         servers = [start()]
+
+        def restart() -> None:
+            time.sleep(after_s or 0.0)
+            first, transports = servers[-1]
+            first.call(transports.stop())  # (the fixture stops its server)
+            servers.append(start())
+
         url = f"modbus-rtu://{theirs}?baud=115200&parity=E"
         # (an advance lost with its server is waited for up to the reconnect timeout)
-        rig = ModbusRig(url, load_map(), connect=connector(url, 0.5), reconnect_timeout_s=3)
+        rig = ModbusRig(
+            url, load_map(), connect=connector(url, reply_timeout_s), reconnect_timeout_s=3
+        )
         reference = serve()
         ref = ModbusRig(f"modbus://127.0.0.1:{reference.port}", load_map())
         command = RigCommand(600.0, 50.0, pump_on=True, boiler_on=True)
-
-        def restart() -> None:
-            time.sleep(after_s)
-            first, transports = servers[0]
-            first.call(transports.stop())
-            servers.append(start())
-
-        for step in range(10):
-            killer = threading.Thread(target=restart) if step == 5 else None
-            if killer is not None:
+        for step in range(steps):
+            killer = None
+            if step == restart_at and after_s is None:
+                restart()
+            elif step == restart_at:
+                killer = threading.Thread(target=restart)
                 killer.start()
             for r in (rig, ref):
                 r.apply(command)
@@ -285,7 +235,7 @@ def test_a_server_restarted_under_a_step_on_a_serial_line_is_replayed(serve, tmp
             for key, value in theirs_now.items():  # bit for bit, NaN where NaN
                 assert ours_now[key] == value or (math.isnan(value) and math.isnan(ours_now[key]))
         assert [g["action"] for g in rig.gaps] == ["replayed"]
-        assert rig.log_time_s == ref.log_time_s == 100.0
+        assert rig.log_time_s == ref.log_time_s == 10.0 * steps
         last, transports = servers[-1]
         last.call(transports.stop())
         rig.close()
@@ -293,3 +243,25 @@ def test_a_server_restarted_under_a_step_on_a_serial_line_is_replayed(serve, tmp
     finally:
         socat.terminate()
         socat.wait(timeout=10)
+
+
+@pytest.mark.skipif(shutil.which("socat") is None, reason="socat not installed (make test-deps)")
+def test_a_server_restarted_between_steps_on_a_serial_line_is_replayed(serve, tmp_path):
+    """A serial line loses no connection: a lockstep server restarted on it between two
+    steps took the next step's advance as a fresh plant before the status showed the new
+    epoch, and the run broke where TCP and TLS replay. The new server is now reset to its
+    initial state and the journal replayed: every reading equals an uninterrupted run's."""
+    _replayed_over_a_serial_line(serve, tmp_path, 12, 6, None, 2.0)
+
+
+@pytest.mark.skipif(shutil.which("socat") is None, reason="socat not installed (make test-deps)")
+@pytest.mark.parametrize("after_s", [0.0, 0.01, 0.03, 0.06])
+def test_a_server_restarted_under_a_step_on_a_serial_line_is_replayed(serve, tmp_path, after_s):
+    """A serial line loses no connection: a lockstep server stopped while a step's reads
+    were on the line (and a new one started on it) left that row's instruments empty, with
+    no break marked, before the next step found the new plant. The rig now asks the
+    simulation control after instruments that timed out, rebuilds the new server and reads
+    the step again: every reading equals an uninterrupted run's, wherever the stop lands
+    (``after_s`` into the step; at 115200 baud a step's two dozen transactions take some
+    50 ms)."""
+    _replayed_over_a_serial_line(serve, tmp_path, 10, 5, after_s, 0.5)
