@@ -178,7 +178,8 @@ def _journal_plant(
     first = log.meta.get("server_epoch_id")
     if epoch is None or not isinstance(first, str):
         return None
-    gaps = [g for g in log.meta.get("gaps") or () if isinstance(g, dict)]
+    listed = log.meta.get("gaps")  # (a meta whose gaps were 5 was a traceback: a re-probe)
+    gaps = [g for g in listed if isinstance(g, dict)] if isinstance(listed, list) else []
     served: dict[int, set[str]] = {0: {first.lower()}}  # rig_epoch -> its servers' epoch ids
     offsets: dict[int, float] = {}  # rig_epoch -> log time minus server time
     for gap in gaps:

@@ -49,6 +49,7 @@ from typing import Any
 
 import numpy as np
 
+from hil_client.analysis.logio import plausible_range
 from rig_emulator.faults import COMM_KINDS, KINDS
 from rig_emulator.yamlio import finite_number
 
@@ -185,6 +186,29 @@ def _robust_scale(x: np.ndarray) -> float:
     return 1.4826 * float(np.median(d))
 
 
+def _quiet_max(kind: str, x: np.ndarray, quiet: np.ndarray | None) -> float:
+    """The largest the detector's own measure of ``kind`` gets on the column ``x`` by
+    itself, over its rows outside every fault window (``quiet``; None: every row): a
+    spike's jump away from both neighbours, an offset's step between the medians of 5
+    rows before and after. A fault must stand beyond it. A column that moves in steps
+    (a humidity meter's 0.1 % steps every ten rows, its median first difference 0) had
+    its ordinary 0.3-0.6 % steps counted as offsets where the journal named one (31 of
+    31 windows where nothing was served: a re-probe)."""
+    ok = np.isfinite(x) if quiet is None else np.isfinite(x) & quiet
+    if kind == "spike" and x.size >= 3:
+        a, b, c = x[:-2], x[1:-1], x[2:]
+        keep = ok[:-2] & ok[1:-1] & ok[2:]
+        measure = np.minimum(np.abs(b - a), np.abs(b - c))[keep]
+    elif kind == "offset" and x.size >= 10:
+        med = np.median(np.lib.stride_tricks.sliding_window_view(x, 5), axis=1)
+        whole = np.lib.stride_tricks.sliding_window_view(ok, 5).all(axis=1)
+        keep = whole[:-5] & whole[5:]  # the 5 rows before and the 5 from the row on
+        measure = np.abs(med[5:] - med[:-5])[keep]
+    else:
+        return 0.0
+    return float(measure.max()) if measure.size else 0.0
+
+
 #: The most decimals a column's resolution is looked for in (``run``'s log writes 5 at most).
 RESOLUTION_DECIMALS = 9
 
@@ -204,12 +228,20 @@ def _resolution(x: np.ndarray) -> float:
     return 0.0
 
 
-def _log_detects(kind: str, x: np.ndarray, rows: np.ndarray) -> bool:
-    """Whether ``kind`` shows in the log column ``x`` at one of the row indices ``rows``."""
+def _log_detects(
+    kind: str, x: np.ndarray, rows: np.ndarray, quiet: np.ndarray | None = None
+) -> bool:
+    """Whether ``kind`` shows in the log column ``x`` at one of the row indices ``rows``
+    (``quiet``: its rows outside every fault window, for the noise scale)."""
     if rows.size == 0:
         return False
-    # the least jump: 8 s, and 2 q (rounding moves a still reading by one q: module docstring)
-    least = max(8 * _robust_scale(x), 2 * _resolution(x), 1e-9) if kind != "stuck" else 0.0
+    # the least jump: 8 s, 2 q (rounding moves a still reading by one q: module docstring),
+    # and beyond what the column does by itself outside the faults
+    least = (
+        max(8 * _robust_scale(x), 2 * _resolution(x), _quiet_max(kind, x, quiet), 1e-9)
+        if kind != "stuck"
+        else 0.0
+    )
     n = x.size
     for i in rows:
         if kind == "spike" and 0 < i < n - 1:
@@ -251,15 +283,36 @@ def _already_still(x: np.ndarray, rows: np.ndarray) -> bool:
     return bool(np.all(span == x[rows[0]]))
 
 
+def _missing(name: str, values: np.ndarray) -> np.ndarray:
+    """Which ``values`` of column ``name`` are no reading: empty, or beyond what its
+    instrument can read (an error code such as -999: a program that logs its silences so
+    had them counted as readings, a re-probe)."""
+    low, high = plausible_range(name)
+    with np.errstate(invalid="ignore"):
+        return ~np.isfinite(values) | (values < low) | (values > high)
+
+
 def _first_empty(
     columns: Mapping[str, np.ndarray], signals: Sequence[str], rows: np.ndarray
-) -> int | None:
-    """The first of ``rows`` where a reading of ``signals`` is empty in the log, or None."""
+) -> tuple[int | None, bool]:
+    """The first of ``rows`` where a reading of ``signals`` is missing in the log (None if
+    none is), and whether any of them was read outside ``rows`` at all: a column that is
+    empty throughout shows no fault (it was taken for one: a re-probe)."""
     empty = np.zeros(rows.size, dtype=bool)
+    judged = False
     for signal in signals:
-        if signal in columns:
-            empty |= np.isnan(np.asarray(columns[signal], dtype=float)[rows])
-    return int(rows[int(np.argmax(empty))]) if empty.any() else None
+        if signal not in columns:
+            continue
+        x = np.asarray(columns[signal], dtype=float)
+        missing = _missing(signal, x)
+        outside = np.ones(x.size, dtype=bool)
+        outside[rows] = False
+        if not (~missing & outside).any():
+            continue  # never read outside the window: it tells nothing
+        judged = True
+        empty |= missing[rows]
+    first = int(rows[int(np.argmax(empty))]) if empty.any() else None
+    return first, judged
 
 
 def compare(
@@ -313,6 +366,15 @@ def compare(
     rows_out = []
     no_trace: list[dict[str, Any]] = []
     unjudged: list[dict[str, Any]] = []
+    #: per signal, its rows outside every fault window on it (the noise scale's rows)
+    quiet: dict[str, np.ndarray] = {}
+    if server_time is not None:
+        for fault in served:
+            if fault.get("signal") is None:
+                continue
+            end = (fault["end_s"] if fault["end_s"] is not None else end_of_run) + slack_s
+            mask = quiet.setdefault(fault["signal"], np.ones(server_time.size, dtype=bool))
+            mask &= ~((server_time >= fault["start_s"] - 1e-9) & (server_time <= end))
     for fault in faults:
         start = fault["start_s"]
         end = (fault["end_s"] if fault["end_s"] is not None else end_of_run) + slack_s
@@ -320,6 +382,13 @@ def compare(
         detected, how, first = False, None, None
         code_match = None
         if log_only and kind in ("delay", "disconnect"):  # no mark in the readings
+            unjudged.append(fault)
+            continue
+        if (
+            log_only
+            and kind in ("spike", "offset", "stuck", "drift")
+            and (log_columns is None or fault["signal"] not in log_columns)
+        ):  # a reading the log does not hold (it was counted missed: a re-probe)
             unjudged.append(fault)
             continue
         if log_only and kind in ("no_reply", "exception", "dropout"):
@@ -332,11 +401,11 @@ def compare(
                 signals = [s for unit in (unit_signals or {}).values() for s in unit]
             else:
                 signals = (unit_signals or {}).get(fault["unit"], [])
-            if not any(s in log_columns for s in signals):  # none of its readings logged
+            rows = np.flatnonzero((server_time >= start - 1e-9) & (server_time <= end))
+            empty, judged = _first_empty(log_columns, signals, rows)
+            if not judged:  # none of its readings logged, or never read
                 unjudged.append(fault)
                 continue
-            rows = np.flatnonzero((server_time >= start - 1e-9) & (server_time <= end))
-            empty = _first_empty(log_columns, signals, rows)
             if empty is not None:
                 detected, how, first = True, "log: empty readings", float(server_time[empty])
             row = {**fault, "detected": detected, "how": how, "first_seen_s": first}
@@ -375,7 +444,7 @@ def compare(
             if kind == "stuck" and _already_still(x, rows):
                 no_trace.append(fault)
                 continue
-            if _log_detects(kind, x, rows):
+            if _log_detects(kind, x, rows, quiet.get(fault["signal"])):
                 detected, how, first = True, f"log: {kind}", float(server_time[rows[0]])
         row = {**fault, "detected": detected, "how": how, "first_seen_s": first}
         if kind == "exception":

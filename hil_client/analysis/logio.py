@@ -72,7 +72,7 @@ PLAUSIBLE_RANGES = {
 }
 
 
-def _plausible_range(name: str) -> tuple[float, float]:
+def plausible_range(name: str) -> tuple[float, float]:
     """What column ``name`` can read (any finite number for a unit not listed)."""
     return next(
         (r for unit, r in PLAUSIBLE_RANGES.items() if name.endswith(unit)), (-math.inf, math.inf)
@@ -342,7 +342,7 @@ class _Parsed:
                     "not a number"
                 )
             if not self.as_read and j not in self.first_wild:
-                low, high = _plausible_range(self.header[j])
+                low, high = plausible_range(self.header[j])
                 wild = np.isinf(out) | (out < low) | (out > high)
                 if wild.any():
                     i = int(np.flatnonzero(wild)[0])
@@ -373,7 +373,7 @@ class _Parsed:
                 if self.as_read:
                     columns[name] = out
                     continue
-                low, high = _plausible_range(name)
+                low, high = plausible_range(name)
                 wild = np.isinf(out) | (out < low) | (out > high)
                 if wild.any():
                     i = int(np.flatnonzero(wild)[0])
@@ -397,7 +397,7 @@ class _Parsed:
             raise LogError(
                 f"{path}: column 'time_s' row {i + 2}: '{_shown(written)}' is not finite"
             )
-        low, high = _plausible_range(name)
+        low, high = plausible_range(name)
         wild = np.isinf(out) | (out < low) | (out > high)
         beyond = f"outside {low:g}..{high:g}" if math.isfinite(high) else "not finite"
         why = "an instrument's error code"

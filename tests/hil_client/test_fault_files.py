@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
 import pytest
 from pyModbusTCP.client import ModbusClient
 
@@ -93,3 +94,31 @@ def test_a_log_of_another_acquisition_program_is_compared_alone(serve, tmp_path,
     if failed == "empty":
         assert rows["no_reply"]["how"] == "log: empty readings"
         assert 20.0 <= rows["no_reply"]["first_seen_s"] <= 21.0  # the first step inside
+
+
+def test_a_log_alone_reads_error_codes_as_missing_and_judges_only_what_it_holds():
+    """Re-probes of the log-only comparison: a program that logs -999 for a silent unit
+    had that silence missed; a column empty throughout counted as the silence found; a
+    spike on a reading the log does not hold was counted missed (it is unjudged)."""
+    from hil_client.analysis.fault_report import compare
+
+    n = 200
+    t = np.arange(float(n))
+    o2 = np.full(n, 6.2)
+    o2[100:110] = -999.0  # the analyser's silence, as this program logs it
+    columns = {"flue_gas_O2_pct": o2, "flue_gas_CO2_pct": np.full(n, np.nan)}
+    journal = [
+        {"event": "start", "id": 1, "t_sim_s": 100.0, "t_wall": 0.0, "kind": "no_reply", "unit": 2},
+        {"event": "end", "id": 1, "t_sim_s": 110.0, "t_wall": 0.0, "kind": "no_reply", "unit": 2},
+        {"event": "start", "id": 2, "t_sim_s": 150.0, "t_wall": 0.0, "kind": "dropout",
+         "signal": "flue_gas_CO2_pct"},
+        {"event": "end", "id": 2, "t_sim_s": 155.0, "t_wall": 0.0, "kind": "dropout",
+         "signal": "flue_gas_CO2_pct"},
+        {"event": "start", "id": 3, "t_sim_s": 170.0, "t_wall": 0.0, "kind": "spike",
+         "signal": "chimney_draught_Pa", "value": 99.0},
+    ]  # fmt: skip
+    units = {2: ["flue_gas_O2_pct", "flue_gas_CO2_pct"]}
+    report = compare(journal, None, columns, t, unit_signals=units)
+    rows = {f["kind"]: f for f in report["faults"]}
+    assert rows["no_reply"]["detected"] and rows["no_reply"]["first_seen_s"] == 100.0
+    assert {f["kind"] for f in report["unjudged"]} == {"dropout", "spike"}, report["unjudged"]

@@ -136,3 +136,17 @@ def test_a_journal_of_two_servers_is_refused(tmp_path):
     journal.write_text("\n".join(lines) + "\n")
     with pytest.raises(ValueError, match=r"mixed.jsonl: line 3: field 'epoch_id' = '0000000b'"):
         fault_report(log, journal)
+
+
+@pytest.mark.parametrize("gaps", [5, "none", {"rig_epoch": 1}])
+def test_a_meta_whose_gaps_are_no_list_is_read_as_without_gaps(tmp_path, capsys, gaps):
+    """A re-probe: a meta file with ``"gaps": 5`` (edited, or another program's) made
+    fault-report a TypeError traceback. Without a list of gaps the rows are one plant's."""
+    log = _write_run(tmp_path)
+    meta = tmp_path / "run.meta.json"
+    meta.write_text(json.dumps({**json.loads(meta.read_text()), "gaps": gaps}))
+    out = tmp_path / "report.json"
+    journal = _journal(tmp_path / "a.jsonl", A, *_FIRST)
+    code = hil_client_main(["fault-report", str(log), "--journal", str(journal), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code in (0, 2) and "Traceback" not in err, err

@@ -89,3 +89,22 @@ def test_the_resolution_is_read_from_the_logged_decimals():
     assert _resolution(np.array([float(f"{v:.5f}") for v in (6.25515, 6.25516)])) == 1e-5
     assert _resolution(np.array([70.0, 73.0, np.nan])) == 1.0
     assert _resolution(np.array([1 / 3, 2 / 7])) == 0.0
+
+
+def test_a_column_that_moves_in_steps_is_judged_by_its_steps():
+    """A re-probe: relative humidity logged in 0.1 % steps and updated on one row in ten
+    (its median first difference 0) had its ordinary 0.3-0.6 % steps taken for offsets
+    where the journal named one (31 of 31 windows where nothing was served). Its noise is
+    now the size of its own steps; a real 15 % offset is still found, and a spike on a
+    still column is not measured by its own jump."""
+    rng = np.random.default_rng(7)
+    n = 3000
+    steps = np.where(rng.random(n) < 0.1, rng.choice([-0.6, -0.3, 0.3, 0.6], n), 0.0)
+    rh = np.round(45.0 + np.cumsum(steps), 1)
+    shifted = rh.copy()
+    shifted[2000:] += 15.0
+    t = np.arange(float(n))
+    faults = [_fault("offset", "rh", float(s), float(s) + 20.0) for s in range(100, 1900, 100)]
+    report = compare(_journal(*faults), [], {"rh": rh}, t)
+    assert not any(r["detected"] for r in report["faults"]), report["faults"]
+    assert _found({"rh": shifted}, _fault("offset", "rh", 2000.0, 2020.0))[("offset", "rh")]
