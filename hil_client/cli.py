@@ -11,6 +11,7 @@ import contextlib
 import filecmp
 import json
 import math
+import os
 import signal
 import sys
 import threading
@@ -864,6 +865,9 @@ def _what_is_kept(rows: int, previous: list, gaps: list) -> str:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    if args.out.is_symlink():  # the log is the file it names: written there, locked there
+        args.out = Path(os.path.realpath(args.out))  # (the link was set aside and replaced
+        # by a plain file, and a second run through it went unlocked: a re-probe)
     try:
         with run_lock(args.out):
             return _run(args)

@@ -10,6 +10,8 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 from hil_client.cli import main
 from hil_client.demo import rig_emulator_serve
 from hil_client.run_lock import lock_path
@@ -29,21 +31,30 @@ def _wait_rows(path: Path, rows: int, proc: subprocess.Popen, timeout_s: float =
         time.sleep(0.2)
 
 
-def test_a_second_run_on_a_log_being_written_is_refused_and_moves_nothing(tmp_path, capsys):
+@pytest.mark.parametrize("through_a_link", [False, True])
+def test_a_second_run_on_a_log_being_written_is_refused_and_moves_nothing(
+    tmp_path, capsys, through_a_link
+):
     """A probe: two runs given one ``--out``. The second set the first one's live log
     aside as ``.previous`` and deleted it at its own first row, while the first went on
     writing into the deleted file: both exit 0, one log lost. The second is now refused
-    in one line naming the first's pid; a run killed with -9 leaves no lock behind it."""
+    in one line naming the first's pid; a run killed with -9 leaves no lock behind it.
+    A re-probe: through a symlinked ``--out`` the first run replaced the link with a
+    plain file and the second went unlocked; the log is now the file the link names."""
     out = tmp_path / "log.csv"
+    given = out
+    if through_a_link:
+        given = tmp_path / "link.csv"
+        given.symlink_to(out)
     with rig_emulator_serve("windhager_12kw") as (port, _server):  # real time: a row a second
         first = subprocess.Popen(
             [sys.executable, "-m", "hil_client.cli", "run", "--boiler", "windhager_12kw",
-             str(SHORT), "--rig", f"modbus://127.0.0.1:{port}", "--out", str(out), "--quiet"],
+             str(SHORT), "--rig", f"modbus://127.0.0.1:{port}", "--out", str(given), "--quiet"],
             stderr=subprocess.PIPE,
         )  # fmt: skip
         try:
             _wait_rows(out, 2, first)
-            code = main(["run", "--boiler", "windhager_12kw", str(SHORT), "--out", str(out)])
+            code = main(["run", "--boiler", "windhager_12kw", str(SHORT), "--out", str(given)])
             err = capsys.readouterr().err
             assert code == 2, err
             assert f"is being written by another run (pid {first.pid})" in err, err
@@ -58,8 +69,9 @@ def test_a_second_run_on_a_log_being_written_is_refused_and_moves_nothing(tmp_pa
                 first.kill()
             first.wait(timeout=30)
     assert lock_path(out).exists()  # what kill -9 leaves: a file nobody holds
-    code = main(["run", "--boiler", "windhager_12kw", str(SHORT), "--out", str(out), "--quiet"])
+    code = main(["run", "--boiler", "windhager_12kw", str(SHORT), "--out", str(given), "--quiet"])
     err = capsys.readouterr().err
     assert code == 0, err
     assert "holds an earlier run's log" in err, err
     assert not lock_path(out).exists()  # a run that ends removes its lock
+    assert given.is_symlink() == through_a_link and out.is_file()
