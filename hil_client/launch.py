@@ -8,7 +8,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Callable, Sequence
 
-from rig_emulator.launch import loaded_unless_stopped, standard_streams
+from rig_emulator.launch import loaded_unless_stopped, standard_streams, stopping_from_here
 
 
 def _cli() -> Callable[[Sequence[str] | None], int]:
@@ -23,7 +23,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     if cli_main is None:
         print("hil-client: interrupted", file=sys.stderr)
         return 1
-    return cli_main(argv)
+    code = cli_main(argv)
+    stopping_from_here()
+    return code
 
 
 if __name__ == "__main__":

@@ -31,6 +31,19 @@ def standard_streams() -> None:
                 setattr(sys, name, open(fd, mode, closefd=False))  # noqa: SIM115
 
 
+def stopping_from_here() -> None:
+    """The command has its exit code: a stop signal that comes while the interpreter
+    shuts down (a second SIGTERM from ``timeout``, a repeated Ctrl-C) is ignored, not
+    taken as the process's end with 128 + N (after "interrupted; the log keeps ..." the
+    exit code was 129 or 143, not 1: a re-probe)."""
+    if threading.current_thread() is not threading.main_thread():
+        return
+    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+        signum = getattr(signal, name, None)
+        if signum is not None:
+            signal.signal(signum, signal.SIG_IGN)
+
+
 def loaded_unless_stopped(load: Callable[[], T]) -> T | None:
     """``load()`` (a command's imports) with Ctrl-C and SIGTERM held until it is done;
     None if one came meanwhile. Raised inside an import, Ctrl-C can land in importlib's own
@@ -64,7 +77,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     if cli_main is None:
         print("rig-emulator: interrupted", file=sys.stderr)
         return 1
-    return cli_main(argv)
+    code = cli_main(argv)
+    stopping_from_here()
+    return code
 
 
 if __name__ == "__main__":

@@ -68,3 +68,31 @@ def test_a_run_whose_message_readers_go_away_goes_on_to_the_end(tmp_path):
     assert meta["complete"] is True and meta["t4_s"] is not None
     rows = len(out.read_text().splitlines()) - 1
     assert rows >= meta["t4_s"]  # a row a second to t4
+
+
+def test_a_second_stop_signal_leaves_the_exit_code_of_the_first(serve, tmp_path):
+    """A re-probe: a run sent SIGTERM twice 0.1 s apart (a closing terminal, ``timeout``)
+    said "interrupted; the log keeps ..." and then exited 143, not 1: the second signal
+    came after the handlers were restored, during the interpreter's shutdown."""
+    import signal
+    import time
+
+    srv = serve(lockstep=False, speed=20.0)
+    out = tmp_path / "log.csv"
+    code = "from hil_client.launch import main; import sys; sys.exit(main())"
+    argv = ["run", "--boiler", "windhager_12kw", str(SHORT), "--out", str(out), "--quiet"]
+    argv += ["--rig", f"modbus://127.0.0.1:{srv.port}"]
+    proc = subprocess.Popen([sys.executable, "-c", code, *argv], stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 60
+        while not out.exists() or len(out.read_text().splitlines()) < 5:
+            assert proc.poll() is None and time.monotonic() < deadline
+            time.sleep(0.1)
+        for _ in range(2):
+            proc.send_signal(signal.SIGTERM)
+            time.sleep(0.1)
+        assert proc.wait(timeout=60) == 1, proc.stderr.read()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=30)
