@@ -205,7 +205,8 @@ def run_protocol(
         sink: receives one row per acquisition step, in :data:`LOG_COLUMNS` order.
         progress: optional callback receiving each row too.
         on_phase: optional callback after each phase boundary (t0..t4) is found, each
-            change of the rig's gaps or epoch, and before a rig failure is raised.
+            change of the rig's gaps or epoch, each hole in the rows, and before a rig
+            failure is raised.
     """
     dt = protocol.acquisition_period_s
     spread = protocol.flow_spread_K
@@ -292,6 +293,9 @@ def run_protocol(
                 result.notes.append(_hole(t - passed, t, dt))
             if holes == HOLES_TOLD + 1:
                 result.notes.append(f"more than {HOLES_TOLD} such holes in the rows")
+            if on_phase is not None and holes <= HOLES_TOLD + 1:
+                on_phase(result)  # into the meta file now (a run stopped before its first
+                # phase mark lost it: a re-probe)
         recent.append(passed)
         values = read_values()
         rows += 1
