@@ -50,7 +50,7 @@ from rig_emulator.modbus import BenchServer
 from rig_emulator.modbus.fault_control import reading_ranges
 from rig_emulator.model import pack_constants, steady_state
 from rig_emulator.registers import MapError, RegisterMap, emulator_units, load_map
-from rig_emulator.registers.codec import accepted_range
+from rig_emulator.registers.codec import carries_between
 from rig_emulator.registers.reference import markdown
 from rig_emulator.signals import MEASURED, SIGNALS
 from rig_emulator.yamlio import resolve_named
@@ -367,11 +367,12 @@ def _cmd_serve(args: argparse.Namespace) -> int:
     advances = [
         p for d in register_map.devices for p in d.points if p.signal == "lockstep_advance_s"
     ]
-    if args.lockstep and not any(  # (a plant that could never move: a stranger's probe;
-        p.writable and accepted_range(p)[1] > 0.0
-        for p in advances  # read-only, or a
-    ):  # range with no positive step: served all the same, a re-probe)
-        why = "is read-only or accepts no positive step" if advances else "has no point for it"
+    # (a plant that could never move: a stranger's probe; read-only, or no positive step
+    # its encoding carries: served all the same, re-probes)
+    if args.lockstep and not any(
+        p.writable and carries_between(p, 1e-9, math.inf) for p in advances
+    ):
+        why = "is read-only or carries no positive step" if advances else "has no point for it"
         raise UsageError(
             f"--lockstep: the map {register_map.source}'s lockstep_advance_s {why}, so "
             "nothing could advance this server"

@@ -89,6 +89,23 @@ def encodable_range(point: Point) -> tuple[float, float]:
     return ends[0], ends[1]
 
 
+def carries_between(point: Point, low: float, high: float) -> bool:
+    """Whether a write of ``point`` can carry some value in ``low..high`` (its encoding's
+    steps: a uint32 at scale 10 carries no value in 1..5, a re-probe found a lockstep
+    advance so mapped served, and every write refused)."""
+    lo, hi = accepted_range(point)
+    lo, hi = max(lo, low), min(hi, high)
+    if lo > hi:
+        return False
+    datatype = DATATYPES[point.datatype]
+    if datatype.is_float:
+        return True
+    if datatype.is_bit:
+        return any(lo <= v <= hi for v in (0.0, 1.0))
+    a, b = sorted(((lo - point.offset) / point.scale, (hi - point.offset) / point.scale))
+    return math.ceil(a - 1e-9) <= math.floor(b + 1e-9)
+
+
 def accepted_range(point: Point) -> tuple[float, float]:
     """The values a write of ``point`` can set: its declared ``min..max`` where its encoding
     carries them, narrowed to what the encoding does (a stranger's probe: a flow setpoint

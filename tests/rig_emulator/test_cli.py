@@ -262,8 +262,9 @@ def test_a_server_that_cannot_listen_leaves_an_earlier_journal(tmp_path, capsys,
     ("change", "message"),
     [
         ("drop", "lockstep_advance_s has no point for it"),
-        ("read_only", "lockstep_advance_s is read-only or accepts no positive step"),
-        ("no_positive", "lockstep_advance_s is read-only or accepts no positive step"),
+        ("read_only", "lockstep_advance_s is read-only or carries no positive step"),
+        ("no_positive", "lockstep_advance_s is read-only or carries no positive step"),
+        ("no_step_in_range", "lockstep_advance_s is read-only or carries no positive step"),
     ],
 )
 def test_lockstep_needs_a_map_that_can_advance(tmp_path, capsys, change, message):
@@ -279,6 +280,8 @@ def test_lockstep_needs_a_map_that_can_advance(tmp_path, capsys, change, message
         for p in device["points"]:
             if p["signal"] == "lockstep_advance_s" and change == "read_only":
                 p["access"] = "r"
+            if p["signal"] == "lockstep_advance_s" and change == "no_step_in_range":
+                p.update(scale=10, max=5)  # 1..5 s, in steps of 10 s: none (a re-probe)
             if p["signal"] == "lockstep_advance_s" and change == "no_positive":
                 p["scale"] = -1  # a uint32 carries no positive step then
         if change == "drop":
