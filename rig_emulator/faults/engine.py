@@ -44,6 +44,7 @@ from rig_emulator.faults.spec import (
     RandomSpec,
     ReadingRange,
 )
+from rig_emulator.signals import MEASURED
 
 _EPS_S = 1e-9
 log = logging.getLogger("rig_emulator.serve")
@@ -152,9 +153,12 @@ class _RandomState:
     def _gap(self) -> float:
         return self.rng.expovariate(self.spec.rate_per_h / 3600.0)
 
-    def draw(self, until_s: float, instrument_units: tuple[int, ...]) -> list[FaultSpec]:
+    def draw(
+        self, until_s: float, instrument_units: tuple[int, ...], signals: tuple[str, ...]
+    ) -> list[FaultSpec]:
         """The faults due up to ``until_s`` (their ``at_s`` the drawn instant), a
-        communication fault on one of the spec's units or else of ``instrument_units``."""
+        communication fault on one of the spec's units or else of ``instrument_units``, an
+        instrument fault on one of its signals or else of ``signals``."""
         spec = self.spec
         stop_s = math.inf if spec.for_s is None else spec.at_s + spec.for_s
         drawn: list[FaultSpec] = []
@@ -175,7 +179,7 @@ class _RandomState:
             elif kind == "offset" and "offset" not in spec.params:
                 target = {"signal": "balance_mass_kg"}  # the default offset: a refill
             else:
-                target = {"signal": self.rng.choice(spec.signals)}
+                target = {"signal": self.rng.choice(spec.signals or signals)}
             drawn.append(FaultSpec(kind, at_s, for_s, parameter=spec.parameter(kind), **target))
         return drawn
 
@@ -204,6 +208,9 @@ class FaultEngine:
         #: sets its map's: :func:`~rig_emulator.registers.instrument_units`; the shipped
         #: map's instruments are units 1-7)
         self.instrument_units: tuple[int, ...] = SHIPPED_INSTRUMENT_UNITS
+        #: the signals a random instrument fault without ``signals`` draws from (a server
+        #: sets the measured signals its map publishes)
+        self.signals: tuple[str, ...] = MEASURED
         self.plant = plant
         #: closes every client connection; returns how many (set by the server)
         self.on_disconnect: Callable[[str], int] | None = None
@@ -314,7 +321,10 @@ class FaultEngine:
         if due:
             self._pending = [p for p in self._pending if p not in due]
         for state in self._random:
-            due += [(s, "random", -math.inf) for s in state.draw(t_sim_s, self.instrument_units)]
+            due += [
+                (s, "random", -math.inf)
+                for s in state.draw(t_sim_s, self.instrument_units, self.signals)
+            ]
         for fault in ended:
             del self.active[fault.id]
             _let_go(fault)

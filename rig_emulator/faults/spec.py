@@ -20,7 +20,8 @@ name a lab-log ``signal`` (a measured signal of :mod:`rig_emulator.signals`).
 
 ``kind: random`` draws faults at ``rate_per_h`` (a Poisson process in simulated time,
 seeded by ``seed``) from ``kinds``, each lasting ``fault_for_s`` [60 s], on ``units``
-[every instrument unit of the server's map] or ``signals`` [every measured signal], from
+[every instrument unit of the server's map] or ``signals`` [every measured signal it
+publishes], from
 ``at_s`` [0] for ``for_s`` [forever]; ``params`` may set each drawn kind's parameters,
 e.g. ``{delay: {delay_ms: 500}}`` (defaults: :data:`RANDOM_DEFAULTS`).
 
@@ -142,7 +143,8 @@ class RandomSpec:
     fault_for_s: float = 60.0
     #: () : every instrument unit of the map served (:attr:`FaultEngine.instrument_units`)
     units: tuple[int, ...] = ()
-    signals: tuple[str, ...] = MEASURED
+    #: () : every measured signal the map served publishes (:attr:`FaultEngine.signals`)
+    signals: tuple[str, ...] = ()
     params: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
 
     kind = "random"
@@ -295,8 +297,10 @@ def _random_from_mapping(data: Mapping, where: str) -> RandomSpec:
     if not isinstance(units, list) or ("units" in data and not units):
         raise FaultError(f"{where}.units: must be a non-empty list of unit IDs")
     units = [_unit(f"{where}.units[{i}]", u) for i, u in enumerate(units)]
-    signals = data.get("signals", list(MEASURED))
-    if not isinstance(signals, list) or not signals:
+    # absent: every measured signal the map served publishes (a fixed list drew faults on
+    # signals a map without the FID never served, journalled and never seen: a re-probe)
+    signals = data.get("signals", [])
+    if not isinstance(signals, list) or ("signals" in data and not signals):
         raise FaultError(f"{where}.signals: must be a non-empty list of signals")
     signals = [_signal(f"{where}.signals[{i}]", s) for i, s in enumerate(signals)]
     raw_params = data.get("params") or {}

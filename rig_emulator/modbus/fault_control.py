@@ -100,7 +100,12 @@ class ServerFaults:
         #: the map's own units (simulation control, truth): never faulted
         self.own_units = emulator_units(register_map)
         self.engine.never_faulted = self.own_units
-        self.engine.instrument_units = tuple(sorted(instrument_units(register_map)))
+        instruments = instrument_units(register_map)
+        self.engine.instrument_units = tuple(sorted(instruments))
+        # (the truth unit publishes every signal: the instruments' readings only)
+        published = {p.signal for d in register_map.devices if d.unit_id in instruments
+                     for p in d.points}  # fmt: skip
+        self.engine.signals = tuple(s for s in MEASURED if s in published)
         profile_faults = getattr(emulator.profile, "faults", ()) or ()
         self.engine.add_initial(profile_faults, "profile")
         self.engine.add_initial(entries, "file")

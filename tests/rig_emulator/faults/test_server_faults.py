@@ -365,3 +365,28 @@ def test_random_faults_without_units_draw_from_the_maps_instruments(tmp_path):
     drawn = {e["unit"] for e in read_journal(journal) if e["event"] == "start"}
     # 120 draws at one a second from eight units: each one drawn, no other
     assert drawn == set(bench), (drawn, bench)
+
+
+def test_random_faults_without_signals_draw_from_what_the_map_publishes(serve, tmp_path):
+    """A re-probe: a map without the FID (unit 3) and random instrument faults without
+    ``signals`` drew 56 faults on flue_gas_OGC_ppm, which no instrument of that map
+    serves: journalled, never seen, counted missed by any report."""
+    from rig_emulator.registers import MAP_DIR, map_from_mapping
+    from rig_emulator.yamlio import read_yaml
+
+    data = read_yaml(MAP_DIR / "wieselburg_bench.yaml", ValueError)
+    data["devices"] = [d for d in data["devices"] if d["name"] != "fid"]
+    no_fid = map_from_mapping(data, "no_fid.yaml")
+    faults = faults_from_list(
+        [{"kind": "random", "rate_per_h": 3600, "kinds": ["spike"], "fault_for_s": 1, "seed": 5}]
+    )
+    journal = tmp_path / "j.jsonl"
+    srv = serve(register_map=no_fid, faults=faults, fault_log=journal)
+    c = client(srv.port)
+    for _ in range(300):  # a step a second: each drawn spike is served
+        assert not write(c, srv, *ADVANCE, 1).isError()
+    c.close()
+    drawn = {e["signal"] for e in read_journal(journal) if e["event"] == "start"}
+    served = {p.signal for d in no_fid.devices if d.unit_id not in (100, 101) for p in d.points}
+    assert "flue_gas_OGC_ppm" not in served and len(drawn) >= 5
+    assert drawn <= served, drawn - served
