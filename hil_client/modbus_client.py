@@ -202,19 +202,14 @@ class Connection:
                 tid, unit, pdu = self._expect[0]
                 function = pdu[0]
                 waiting_own = bool(own) and len(out) <= own[-1]
-                coming = waiting_own and now < deadline
-                if coming and last_look != tid and still_coming is not None:
-                    if not still_coming(unit, function):
+                if waiting_own and now < deadline and last_look != tid:
+                    if still_coming is not None and not still_coming(unit, function):
                         # answered there: the unit is not slow now, but may have been till
                         # a moment ago (a delay fault that ended meanwhile lets its held
                         # replies go): one more timeout here for a reply on its way, before
                         # this connection counts as dead (it was dropped at once: a stray
                         # reconnection and a gap)
                         last_look = tid
-                    if len(out) not in own:
-                        overdue.add(tid)
-                    continue
-                if coming and last_look != tid:
                     if len(out) not in own:
                         overdue.add(tid)
                     continue
