@@ -70,6 +70,7 @@ from rig_emulator.cli_support import (
     boiler_arg,
     data_file,
     finite_float,
+    guarded_streams,
     input_errors,
     int_in,
     output_file,
@@ -77,7 +78,6 @@ from rig_emulator.cli_support import (
     refuse_overwriting,
     report,
     report_os_error,
-    standard_output_named,
     text_file,
     text_input,
 )
@@ -1228,7 +1228,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         except OSError as exc:  # --help's text
             return report_os_error(exc, "hil-client", "standard output")
         out = getattr(args, "out", None)
-        with standard_output_named(), input_errors(), warnings.catch_warnings():
+        with guarded_streams(), input_errors(), warnings.catch_warnings():
             # numpy's "mean of empty slice" on a column with no readings where a figure is
             # read: the figure is NaN and reported as missing, the warning says nothing more
             warnings.simplefilter("ignore", RuntimeWarning)

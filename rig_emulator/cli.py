@@ -29,6 +29,7 @@ from rig_emulator.cli_support import (
     bad_input,
     boiler_arg,
     finite_float,
+    guarded_streams,
     input_errors,
     int_in,
     listen_host,
@@ -37,7 +38,6 @@ from rig_emulator.cli_support import (
     refuse_overwriting,
     report,
     report_os_error,
-    standard_output_named,
     text_file,
     text_input,
 )
@@ -504,7 +504,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             "map-doc": _cmd_map_doc,
             "certs": _cmd_certs,
         }
-        with standard_output_named(), input_errors():
+        with guarded_streams(), input_errors():
             return commands[args.command](args)
     except UsageError as exc:
         return report(exc, "rig-emulator")

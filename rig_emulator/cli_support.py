@@ -108,7 +108,7 @@ class _GuardedStream:
 
 
 @contextmanager
-def standard_output_named() -> Iterator[None]:
+def guarded_streams() -> Iterator[None]:
     """In the block, standard output and error are guarded (:class:`_GuardedStream`): a
     reader gone ends the messages, not the work; another error writing standard output
     names it. What is left in their buffers is written before the block ends, so an error

@@ -978,8 +978,11 @@ class ModbusRig:
                 if values["epoch_id"] != self._epoch_id and self._rebuild_under_step():
                     return self._step_lockstep(dt_s)  # the journal replayed, this step too
                 raise _Break(reason, dict(values))
-            # (a serial line loses no connection: a server restarted under the step)
-            timed_out = self._timed_out(replies[len(replies) - self._n_reads :])
+            # (a serial line loses no connection: a server restarted under the step; over
+            # TCP a restart loses it, and a unit that timed out is a fault, not asked about)
+            timed_out = isinstance(self._conn, RtuConnection) and self._timed_out(
+                replies[len(replies) - self._n_reads :]
+            )
             if timed_out and self._rebuilt_under_timeouts():
                 return self._step_lockstep(dt_s)  # the journal replayed, this step too
         self._check_boiler_switch(values)

@@ -20,9 +20,9 @@ import pytest
 
 from hil_client.analysis.logio import read_log
 from hil_client.cli import main
-from hil_client.modbus_client import Connection, write_registers_pdu
+from hil_client.modbus_client import Connection, read_pdu, registers_of, write_registers_pdu
 from hil_client.wait_for_port import free_port, wait_for_port
-from rig_emulator.registers import encode, load_map
+from rig_emulator.registers import decode, encode, load_map
 from tests.hil_client.test_modbus_rig import SHORT, _start_client, assert_logs_equal
 
 BOILER = "windhager_12kw"
@@ -365,9 +365,32 @@ def test_realtime_restart_aborts_cleanly_by_default(servers, tmp_path):
     assert gap["end_time_s"] is None
 
 
+def _epoch_id(port: int) -> str:
+    """The server's ``epoch_id`` as its fault journal writes it (8 hex digits)."""
+    dev, point = load_map().point("epoch_id")
+    c = Connection("127.0.0.1", port, 5.0)
+    try:
+        c.send(
+            [
+                (
+                    dev.unit_id,
+                    read_pdu(4 if point.table == "input" else 3, point.address, point.width),
+                )
+            ]
+        )
+        return f"{int(decode(point, registers_of(c.receive()))):08x}"
+    finally:
+        c.close()
+
+
 def test_realtime_restart_with_continue_is_a_marked_break(servers, tmp_path):
+    """... and the meta names the server start of its rows, as their fault journals do:
+    ``server_epoch_id`` (the first server's) and the gap's (the server's after it). A
+    stranger's probe: the fault report matched each journal with the rows of either plant,
+    the meta saying no more than ``rig_epoch`` (a count, not which server)."""
     port = free_port()
     first = servers(port, "--speed", "200")
+    first_epoch = _epoch_id(port)
     out = tmp_path / "rt.csv"
     client = _realtime_client(port, out, "--on-restart", "continue")
     kill_row = random.Random(22).randint(10, 60)  # a seeded random point
@@ -375,6 +398,7 @@ def test_realtime_restart_with_continue_is_a_marked_break(servers, tmp_path):
         _wait(lambda: _rows(out) >= kill_row, f"{kill_row} rows")
         first.kill()
         servers(port, "--speed", "200")
+        second_epoch = _epoch_id(port)
         _wait(lambda: out.read_text().count(",1\n") >= 10, "10 rows of rig_epoch 1")
         # the meta file is written as the run goes: the gap is there before the run ends
         client.send_signal(signal.SIGKILL)
@@ -395,6 +419,9 @@ def test_realtime_restart_with_continue_is_a_marked_break(servers, tmp_path):
     # the jump is at least the wall-clock outage at x200 (rounded in the meta to 1 ms)
     assert log.t[n0] - log.t[n0 - 1] >= (gap["outage_wall_s"] - 0.001) * 200
     assert log.meta["complete"] is False
+    assert first_epoch != second_epoch  # (random 32 bits per start)
+    assert log.meta["server_epoch_id"] == first_epoch
+    assert gap["server_epoch_id"] == second_epoch
 
 
 def test_meta_file_is_replaced_atomically(tmp_path):
