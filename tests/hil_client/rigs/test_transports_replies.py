@@ -30,6 +30,10 @@ SPOILS: dict[str, Spoil] = {
     "long": lambda unit, pdu, right: (unit, bytes([4, right[1] + 4]) + right[2:] + b"1234"),
     "write quantity": lambda unit, pdu, right: (unit, right[:3] + b"\x00\x09"),
 }
+#: spoils that write their own wire bytes: a slow slave's late frame right ahead of the reply
+WIRE: dict[str, Callable[[int, bytes, bytes], bytes]] = {
+    "late ahead": lambda unit, pdu, right: frame(9, right) + frame(unit, right),
+}
 REQUESTS = {
     "write quantity": [(1, write_registers_pdu(10, [1, 2])), (2, write_registers_pdu(10, [3]))],
 }
@@ -65,11 +69,12 @@ class PtySlave:
                     break
                 pdu, buffer = buffer[1 : size - 2], buffer[size:]
                 right = answer(unit, pdu)
-                out_unit, out = unit, right
+                wire = frame(unit, right)
                 if unit == 1 and not self.spoiled:
                     self.spoiled += 1
-                    out_unit, out = self.spoil(unit, pdu, right)
-                os.write(self.master, frame(out_unit, out))
+                    spoilt = self.spoil(unit, pdu, right)
+                    wire = spoilt if isinstance(spoilt, bytes) else frame(*spoilt)
+                os.write(self.master, wire)
 
     def close(self) -> None:
         self.running = False
@@ -84,7 +89,7 @@ def slave():
     slaves: list[PtySlave] = []
 
     def start(mode: str) -> PtySlave:
-        slaves.append(PtySlave(SPOILS[mode]))
+        slaves.append(PtySlave(SPOILS.get(mode) or WIRE[mode]))
         return slaves[-1]
 
     yield start
@@ -105,7 +110,10 @@ def test_a_reply_that_does_not_answer_is_no_reply_and_the_line_goes_on(slave, mo
     # a timeout: the rig leaves the unit's fields empty (a write: written again) and opens
     # the line again
     assert isinstance(first, NoReply) and first.reason == "timeout", first
-    assert "reply not used" in str(first)
+    # another slave's frame is a late reply to an earlier request (a slow unit answering
+    # after the master moved on: it was taken as this one and refused, a flaky CI run):
+    # passed over, and this request times out
+    assert ("reply not used" in str(first)) == (mode != "slave address"), first
     assert second == answer(2, requests[1][1])  # the next transaction, answered right, used
 
 
@@ -116,3 +124,17 @@ def test_receive_refuses_a_short_reply(slave):
     with pytest.raises(ConnectionLost, match="reply not used"):
         conn.receive()
     conn.close()
+
+
+def test_a_late_reply_of_another_slave_is_passed_over_for_this_ones(slave):
+    """On a line a slow unit's reply can come after the master gave up on it, ahead of the
+    next request's: that frame (another slave address, CRC right) is passed over and the
+    reply behind it, even in the same read, is this request's."""
+    line = slave("late ahead")
+    conn = RtuConnection(line.path, 115200, "E", TIMEOUT_S)
+    conn.send(READS)
+    replies, _ = conn.receive_all(len(READS))
+    conn.close()
+    assert line.spoiled == 1
+    assert replies[0] == answer(1, READS[0][1])  # the late frame of slave 9 passed over
+    assert replies[1] == answer(2, READS[1][1])
