@@ -43,7 +43,7 @@ from hil_client.analysis.logio import (
 )
 from hil_client.analysis.phases import Phases, find_phases
 from hil_client.analysis.report import validation_report
-from hil_client.analysis.sanity import check_time_step, suspicious
+from hil_client.analysis.sanity import check_time_step, refuse_reversed_flow, suspicious
 from hil_client.analysis.validate import compare, validation_metrics
 from hil_client.fault_files import EventsWriter, events_path, fault_report, write_report
 from hil_client.fault_files import summary as fault_summary
@@ -304,6 +304,7 @@ def _logs_with_phases(
         logs = [one_plant(read_log(path)) for path in paths]
         for log in logs:
             check_time_step(log)
+            refuse_reversed_flow(log)
         found = [(log, _phases_or_why(log, boiler)) for log in logs]
     _warn_tolerated(logs)
     if boiler is not None:
@@ -637,6 +638,7 @@ def _cmd_balance(args: argparse.Namespace) -> int:
     with bad_input(LogError):
         log = one_plant(read_log(args.log))
         check_time_step(log)
+        refuse_reversed_flow(log)
         params = _boiler_for(log, args.boiler)
         phases = _phases_or_why(log, params, partial=True)
     _warn_tolerated([log])

@@ -69,6 +69,10 @@ CP_AIR = 1.006  # [kJ/(kg K)]
 SKIP_S = 600.0  # transient at the start of a stationary interval
 MIN_INTERVAL_S = 1200.0  # shortest stationary interval kept (after the skip)
 TRIM_S = 300.0  # a slow approach is cut off in steps of this long
+#: Shortest start-up Pstart is read over [s]: at Pstart the auger feeds some 0.1 kg in two
+#: minutes, five steps of the balance (0.02 kg, Section 2.2); a time, not a count of rows,
+#: so a log sampled every 10 s reads it as one sampled every second does.
+PSTART_MIN_S = 120.0
 
 
 def _u(name: str, value: float) -> float:
@@ -487,6 +491,7 @@ def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibrati
         )
     p_el_max = fitted["p_el_max_W"].value if "p_el_max_W" in fitted else doc.p_el_max_W
     w_el, p_start = [], []
+    short_start_up = False  # why no start-up gave Pstart: too short, or no fuel fed
     for log, i0, i_end in starts:
         t = log.t
         if log.has("electric_power_W"):
@@ -499,8 +504,9 @@ def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibrati
         mass = fill_gaps(log.balance_without_refills(), t)
         per_kg_dry = doc.fuel.balance_loss_per_kg_dry
         dm = (mass[i0 - 1] - mass[i_stop - 1]) / per_kg_dry
-        if i_stop - i0 >= 120 and dm > 0:  # NaN (no balance) compares False
-            duration = t[i_stop - 1] - t[i0 - 1]
+        duration = t[i_stop - 1] - t[i0 - 1]
+        short_start_up |= duration < PSTART_MIN_S
+        if duration >= PSTART_MIN_S and dm > 0:  # NaN (no balance) compares False
             p_start.append(
                 (
                     dm / duration * doc.fuel.lhv_dry_kJ_kg,
@@ -556,7 +562,9 @@ def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibrati
             )
     elif not p_start and "p_start_kW" not in flags:
         flags["p_start_kW"] = (
-            "no fuel fed over the start-up by the balance (120 rows or more before the "
-            "water reaches the set temperature; a stuck or empty balance?)"
+            f"the water reached the set temperature within {PSTART_MIN_S:.0f} s of the start"
+            " (too short to read the fuel fed over it)"
+            if short_start_up
+            else "no fuel fed over the start-up by the balance (a stuck or empty balance?)"
         )
     return Calibration(params, fitted, fig4, fig5, flags)

@@ -424,8 +424,12 @@ def _numbers(values: tuple[str, ...] | list[str]) -> np.ndarray | None:
         return None
 
 
-#: What spreadsheets write for no reading, read as an empty field (NaN is already one).
-_NO_READING = frozenset({"#N/A", "N/A", "#NV", "#NA", "#DIV/0!", "#VALUE!", "#NUM!"})
+#: What spreadsheets and data tools write for no reading, read as an empty field (NaN is
+#: already one): Excel's error codes, R's and pandas' NA, SQL's NULL, Python's None, and a
+#: dash ('n/a' read but 'NA' refused: a stranger's probe).
+_NO_READING = frozenset(
+    {"#N/A", "N/A", "#NV", "#NA", "#DIV/0!", "#VALUE!", "#NUM!", "NA", "NULL", "NONE", "-", "--"}
+)
 
 
 #: A log file longer than this is refused before it is read [bytes]: a day at 1 Hz of

@@ -184,6 +184,17 @@ def _flow(log: LabLog) -> list[str]:
     return []
 
 
+def refuse_reversed_flow(log: LabLog) -> None:
+    """Refuse a log whose water flow reads negative most of the time (:func:`_flow`): the
+    model fed a flow that runs backwards through the boiler diverged, and ``validate``
+    wrote a Table 4 of 1e42 K with exit 0 (a stranger's probe); the energy balance read a
+    negative heat to water. A few negative readings (a meter's zero in a standstill) are
+    data."""
+    found = _flow(log)
+    if found:
+        raise LogError(f"{log.path}: {found[0]}; correct the column's sign and analyse again")
+
+
 #: The most the balance may lose over the record, over what the boiler burns at full power
 #: for as long (its start-up's Pstart is at most 1.5 Pmax; the balance's steps add little)
 FUEL_RATE_MAX_FACTOR = 2.0

@@ -536,3 +536,24 @@ def test_calibrate_at_unix_times_fits_as_from_zero(run_log, tmp_path):
     assert set(fits[0]) == set(fits[1])
     for key, fit in fits[0].items():  # the same fits, to the time column's 1-ms rounding
         assert fits[1][key]["value"] == pytest.approx(fit["value"], rel=1e-3, abs=1e-6), key
+
+
+def test_a_log_sampled_every_10_s_fits_pstart(round_trip, tmp_path):
+    """A stranger's probe: Pstart was read only from start-ups of 120 rows or more, so a
+    log sampled every 8-10 s (about 60 rows over a 9-min start-up) kept the documentation
+    value, with a warning blaming a stuck balance that had fed 0.39 kg. The start-up's
+    length is now a time: the thinned log fits Pstart within its stated uncertainty."""
+    _, boiler, logs, _ = round_trip
+    lines = logs[0].read_text().splitlines()
+    col = lines[0].split(",").index("time_s")
+    kept = [lines[0]] + [row for row in lines[1:] if float(row.split(",")[col]) % 10.0 < 0.5]
+    thinned = tmp_path / "every10s.csv"
+    thinned.write_text("\n".join(kept) + "\n")
+    meta = logs[0].with_name(logs[0].stem + ".meta.json")
+    (tmp_path / "every10s.meta.json").write_text(meta.read_text())
+    out = tmp_path / "p.yaml"
+    assert main(["calibrate", str(thinned), "--boiler", str(boiler), "--out", str(out)]) == 0
+    fitted = json.loads(out.with_suffix(".uncertainty.json").read_text())
+    f = fitted["p_start_kW"]
+    assert "why" not in f and not f["implausible"], f
+    assert abs(f["value"] - TRUE["p_start_kW"]) <= f["expanded_uncertainty_k2"], f

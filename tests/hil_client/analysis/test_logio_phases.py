@@ -362,6 +362,9 @@ _BASE = (
         (lambda t: t.replace("preheat", "vorwärmen"), "read as Windows-1252"),
         (lambda t: t.replace(",,20\n", ",#N/A,20\n"), None),  # Excel's no reading
         (lambda t: t.replace(",,20\n", ",#div/0!,20\n"), None),
+        (lambda t: t.replace(",,20\n", ",NA,20\n"), None),  # R's and pandas' no reading
+        (lambda t: t.replace(",,20\n", ",-,20\n"), None),  # a dash
+        (lambda t: t.replace(",,20\n", ",null,20\n"), None),
         (lambda t: t.replace("\n2,", "\n# operator: flow check\n2,") + "# end\n", "2 comment"),
         (lambda t: ",,,,\n" + t, None),  # a row of empty fields above the header
     ],
@@ -373,6 +376,9 @@ _BASE = (
         "windows-1252",
         "n-a",
         "div0",
+        "NA",
+        "dash",
+        "null",
         "comments-among-rows",
         "empty-row-on-top",
     ],

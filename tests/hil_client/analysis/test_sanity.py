@@ -115,10 +115,10 @@ def test_where_the_phases_cannot_be_found_the_error_says_what_looks_wrong(logs, 
     no_setpoint = _rewritten(
         logs["stationary"].path, tmp_path, "sp.csv", "water_flow_setpoint_kg_h", lambda v: 0.0
     )
-    negative = _rewritten(no_setpoint, tmp_path, "neg.csv", "water_flow_kg_h", lambda v: -v)
-    assert main(["balance", str(negative), "--boiler", BOILER]) == 2
+    lmin = _rewritten(no_setpoint, tmp_path, "lmin.csv", "water_flow_kg_h", lambda v: v / 60)
+    assert main(["balance", str(lmin), "--boiler", BOILER]) == 2
     err = capsys.readouterr().err.strip()
-    assert "cannot find" in err and "negative" in err and len(err.splitlines()) == 1, err
+    assert "cannot find" in err and "kg/h" in err and len(err.splitlines()) == 1, err
     # a time in milliseconds is refused before any fit, by its step or, logged faster
     # than every 0.6 s, by its span (a re-probe: 0.5-s rows in ms still calibrated)
     for scale, said in ((1e3, "a median of 1000 s per row"), (500, "spans 302 days")):
@@ -149,3 +149,29 @@ def test_a_short_part_load_test_is_no_wrong_unit(tmp_path):
     argv = ["run", str(protocol), "--boiler", "windhager_6kw", "--rig", "local", "--quiet"]
     assert main([*argv, "--out", str(out)]) == 0
     assert suspicious(read_log(out), load_boiler("windhager_6kw")) == []
+
+
+def test_a_flow_read_backwards_is_refused_by_every_analysis(logs, tmp_path, capsys):
+    """A stranger's probe: a flow meter mounted the wrong way round (every reading negated)
+    gave a warning, and then validate fed the model a flow running backwards through the
+    boiler: a Table 4 of 1e42 K, written with exit 0; balance wrote a negative heat to the
+    water. Every analysis now refuses the log in one line, exit 2, and writes nothing."""
+    negative = _rewritten(
+        logs["stationary"].path, tmp_path, "neg.csv", "water_flow_kg_h", lambda v: -v
+    )
+    val = _rewritten(logs["load_cycle"].path, tmp_path, "val.csv", "water_flow_kg_h", abs)
+    runs = {
+        "balance": [str(negative), "--out", str(tmp_path / "b.json")],
+        "validate": [str(negative), "--out", str(tmp_path / "v")],
+        "calibrate": [str(negative), "--out", str(tmp_path / "c.yaml")],
+        "diagnose": [
+            *("--calibration", str(negative), "--validation", str(val)),
+            *("--out", str(tmp_path / "d")),
+        ],
+    }
+    for command, rest in runs.items():
+        assert main([command, *rest, "--boiler", BOILER]) == 2, command
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1, err
+        assert "'water_flow_kg_h' reads a median of" in err and "sign" in err, err
+    assert not any((tmp_path / n).exists() for n in ("b.json", "v", "c.yaml", "d"))
