@@ -30,6 +30,17 @@ class Signal:
     minimum: float = float("-inf")
     maximum: float = float("inf")
 
+    @property
+    def switch(self) -> bool:
+        """An on/off signal (unit ``0/1``): a coil or a discrete input may carry it."""
+        return self.unit == "0/1"
+
+    @property
+    def whole(self) -> bool:
+        """A command that takes whole numbers only: a switch, a mode or a code (a scaled
+        register let 0.5 through to the burner's switch: a stranger's probe)."""
+        return self.kind == "command" and (self.switch or self.name in WHOLE_COMMANDS)
+
 
 _MEASURED = (
     ("water_flow_kg_h", "kg/h", "water mass flow through the boiler (inductive meter)"),
@@ -99,6 +110,9 @@ _COMMANDS = (
     ("fault_at_s", "s", "at_s of the fault in simulated seconds; 0 now", 0.0, 1e9),
     ("fault_command", "-", "write 1: set the fault of the block; 2: clear all faults", 0.0, 2.0),
 )
+
+#: Commands besides the switches that are codes or counts, never fractions.
+WHOLE_COMMANDS = frozenset({"clock_mode", "reset", "fault_kind", "fault_target", "fault_command"})
 
 SIGNALS: dict[str, Signal] = {}
 for _name, _unit, _text in _MEASURED:
