@@ -41,6 +41,7 @@ command limits by :func:`hil_client.protocol.runner.check_setpoints`.
 from __future__ import annotations
 
 import math
+import re
 import unicodedata
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -125,12 +126,18 @@ class ProtocolDefinition:
         object.__setattr__(self, "test_duration_s", sum(s.duration_s for s in self.sequences))
 
 
+#: One part of an "HH:MM:SS" duration: ASCII digits, a decimal fraction allowed, no sign.
+_CLOCK_PART = re.compile(r"[0-9]+(?:\.[0-9]*)?")
+
+
 def parse_duration(value: Any, key: str, source: str) -> float:
     """Seconds from a number or an "HH:MM:SS" string."""
     if isinstance(value, str):
-        parts = value.split(":")
+        parts = [part.strip() for part in value.split(":")]
         try:
-            if len(parts) != 3:
+            # ASCII digits only: float() read "-00" as -0.0, so "-00:10:00" played +600 s,
+            # and Arabic-Indic digits as 10 h (a stranger's probe)
+            if len(parts) != 3 or not all(_CLOCK_PART.fullmatch(x) for x in parts):
                 raise ValueError
             h, m, s = (float(x) for x in parts)
             if not all(math.isfinite(x) and x >= 0 for x in (h, m, s)) or m >= 60 or s >= 60:
@@ -186,6 +193,22 @@ def _get(section: Mapping[str, Any], prefix: str, key: str, source: str, kind: s
     return value
 
 
+def _text_key(section: Mapping[str, Any], key: str, full: str, source: str) -> str:
+    """A non-empty text key that can stand in a lab-log field (:func:`_log_text`); a key
+    given as a number was said to be missing (a stranger's probe)."""
+    if key not in section or section[key] is None:
+        raise ProtocolError(f"{source}: missing required key '{full}' (a non-empty text)")
+    value = section[key]
+    if not isinstance(value, str) or not value.strip():
+        raise ProtocolError(f"{source}: key '{full}' must be a non-empty text, got {value!r:.40}")
+    if not _log_text(value):
+        raise ProtocolError(
+            f"{source}: key '{full}' {value!r:.40} may not hold a comma, a quote or control "
+            "characters (it is a field of the lab log)"
+        )
+    return value
+
+
 def _log_text(name: str) -> bool:
     """Whether ``name`` can stand in a lab-log field as it is: no comma, quote, line break
     or other control character."""
@@ -230,8 +253,7 @@ def protocol_from_mapping(data: Any, source: str = "<protocol>") -> ProtocolDefi
         source,
     )
     for key in ("name", "test"):
-        if not isinstance(data.get(key), str) or not data.get(key):
-            raise ProtocolError(f"{source}: missing required key '{key}' (a non-empty string)")
+        _text_key(data, key, key, source)
     period = _get(data, "", "acquisition_period_s", source, "positive")
     low, high = ACQUISITION_PERIOD_S
     if not low <= period <= high:
@@ -295,18 +317,11 @@ def protocol_from_mapping(data: Any, source: str = "<protocol>") -> ProtocolDefi
         if not isinstance(raw, Mapping):
             raise ProtocolError(f"{source}: key '{prefix}' must be a mapping")
         _check_keys(raw, {"name", "load_pct", "duration"}, prefix, source)
-        name = raw.get("name")
-        if not isinstance(name, str) or not name.strip():
-            raise ProtocolError(f"{source}: missing required key '{prefix}.name'")
+        name = _text_key(raw, "name", f"{prefix}.name", source)
         if name in (s.name for s in sequences):
             raise ProtocolError(
                 f"{source}: key '{prefix}.name' {name!r} names an earlier sequence too (the"
                 " log's sequence column tells the steps apart by their names)"
-            )
-        if not _log_text(name):
-            raise ProtocolError(
-                f"{source}: key '{prefix}.name' {name!r} may not hold a comma, a quote or "
-                "control characters (it is a field of the lab log)"
             )
         if "load_pct" not in raw:
             raise ProtocolError(f"{source}: missing required key '{prefix}.load_pct'")
@@ -314,8 +329,11 @@ def protocol_from_mapping(data: Any, source: str = "<protocol>") -> ProtocolDefi
         if isinstance(load, list):
             if len(load) != 2:
                 raise ProtocolError(f"{source}: key '{prefix}.load_pct' ramp needs [from, to]")
-            a = _get({"a": load[0]}, prefix + ".load_pct", "a", source, "load")
-            b = _get({"b": load[1]}, prefix + ".load_pct", "b", source, "load")
+            # named as the file writes them (load_pct.a and .b named keys it has not)
+            a, b = (
+                _get({f"load_pct[{i}]": v}, prefix, f"load_pct[{i}]", source, "load")
+                for i, v in enumerate(load)
+            )
         else:
             a = b = _get(raw, prefix, "load_pct", source, "load")
         duration = _get(raw, prefix, "duration", source, "duration")

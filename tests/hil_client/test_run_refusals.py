@@ -99,6 +99,16 @@ def test_setpoints_out_of_the_emulators_range_are_refused(tmp_path, capsys, muta
         (lambda d: _seq(d, name="a,b\nc"), "'test_sequence.sequences[0].name'"),
         (lambda d: _seq(d, name='say "peak"'), "may not hold a comma, a quote"),
         (lambda d: _seq(d, name="tab\there"), "control characters"),
+        # a stranger's probe: float("-00") is -0.0, so "-00:10:00" played +600 s; Arabic-Indic
+        # digits read as 10 h; a name given as a number was "missing"; a ramp's bad end was
+        # named load_pct.b, a key the file does not have; a line break in the protocol's name
+        (lambda d: _seq(d, duration="-00:10:00"), "HH:MM:SS"),
+        (lambda d: _seq(d, duration="+00:10:00"), "HH:MM:SS"),
+        (lambda d: _seq(d, duration="\u0661\u0660:00:00"), "HH:MM:SS"),
+        (lambda d: _seq(d, name=12), "'test_sequence.sequences[0].name' must be a non-empty text"),
+        (lambda d: d.update(name=5), "key 'name' must be a non-empty text"),
+        (lambda d: d.update(name="two\nlines"), "key 'name'"),
+        (lambda d: _seq(d, load_pct=[100, 300]), "'test_sequence.sequences[0].load_pct[1]'"),
     ],
 )
 def test_protocols_that_would_hang_or_corrupt_the_log_are_refused(
