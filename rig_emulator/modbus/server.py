@@ -3,11 +3,16 @@
 Built on pymodbus 3.16's datastore, one ``SimDevice`` per map device (its own
 unit ID, separate coil, discrete, holding and input address spaces) and a catch-all device
 for unknown unit IDs. Values are published with ``server.async_setValues`` (the runs that
-changed); client writes are checked in the devices' action callback before pymodbus stores them:
+changed) on every tick or advance, and by an accepted write that changed a command, before
+it is answered: every point of that command (an alias in another type, scale, word order or
+table) reads the new value in the next request. Client writes are checked in the devices'
+action callback before pymodbus stores them:
 
 - only points declared ``rw`` accept writes (else exception 02, illegal data address);
-- a write that covers part of a multi-register value, or whose value is NaN, infinite or
-  outside the point's range, gets exception 03 (illegal data value) and changes nothing;
+- a write that covers part of a multi-register value, or whose value is NaN, infinite,
+  outside the point's range or, for a command that takes whole numbers (a switch, a mode,
+  a code), not a whole number, or that gives one command two values through two of its
+  points, gets exception 03 (illegal data value) and changes nothing;
 - unmapped addresses get exception 02 (pymodbus marks gaps invalid);
 - an unknown unit ID gets exception 0B (gateway target device failed to respond) at once.
 
@@ -584,19 +589,27 @@ class BenchServer:
                 value = 1.0 if values[first] else 0.0
             else:
                 value = written_value(point, values[first : first + point.width])
-            try:
-                new[point.signal] = check_command(
-                    point.signal, value, within=(point.minimum, point.maximum)
-                )
+            try:  # finite, in range, a whole number for a switch, a mode or a code
+                checked = check_command(point.signal, value, within=(point.minimum, point.maximum))
             except CommandError:
                 return ExcCodes.ILLEGAL_VALUE
-        # the client's registers are stored after this returns: publish them again next time
+            # two points of one command given two values: whichever the server took, the
+            # other point would hold what the client wrote, disagreeing with it
+            if new.setdefault(point.signal, checked) != checked:
+                return ExcCodes.ILLEGAL_VALUE
+        refused = await self._apply(new, operator)
+        # the client's registers are stored after this returns (a trigger such as the fault
+        # command's over the 0 published): publish them again next time
         self._published.pop((device.unit_id, table), None)
-        return await self._apply(new, operator)
+        return refused
 
     async def write_signal(self, signal: str, value: float) -> str | None:
         """Write one command signal as a Modbus client would: encoded into its registers
         and through the same checks (:meth:`_write`); None when applied, else why not."""
+        try:  # before encoding: a uint16 switch took 0.5 as 0, rounded, and applied "off"
+            value = check_command(signal, value)
+        except CommandError as exc:
+            return f"{exc}: Modbus exception 03"
         for device in self.map.devices:
             for point in device.points:
                 if point.signal == signal and point.writable:
@@ -618,8 +631,7 @@ class BenchServer:
                     refused = await self._write(
                         device, point.table, point.address, registers, operator=True
                     )
-                    if refused is None:
-                        await self.publish()
+                    if refused is None:  # published, its own point too (no client stores it)
                         return None
                     return f"refused with Modbus exception {int(refused):02X} ({refused.name})"
         return f"no writable point carries '{signal}'"
@@ -672,6 +684,10 @@ class BenchServer:
             return ExcCodes.ILLEGAL_VALUE  # time moves by itself in real-time mode
         if "reset" in new and new["reset"] not in (0.0, 1.0):
             return ExcCodes.ILLEGAL_VALUE
+        # a write that changes no plant command (the setpoints a client writes every lockstep
+        # step) needs no publish: every point of the command reads that value already
+        commands = self.emulator.commands
+        changed = len(plant) < len(new) or any(commands[k] != v for k, v in plant.items())
         if plant:
             self.emulator.set_checked_commands(plant)
         if "speed_factor" in new:
@@ -686,5 +702,7 @@ class BenchServer:
             self._reanchor()
             await self.publish()
         if "lockstep_advance_s" in new:
-            await self.advance(new["lockstep_advance_s"])
-        return None
+            await self.advance(new["lockstep_advance_s"])  # publishes once done
+        elif changed:  # part of the accepted write: every point of a written command (its
+            await self.publish()  # aliases in other types, scales, word orders, tables)
+        return None  # reads the new value in the next request, not after the next tick
