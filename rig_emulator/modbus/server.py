@@ -42,7 +42,7 @@ from pymodbus.constants import ExcCodes
 from pymodbus.simulator import DataType, SimData, SimDevice
 
 from rig_emulator import __version__
-from rig_emulator.clock import LOCKSTEP, REALTIME, LatenessStats, Pacer, SimClock
+from rig_emulator.clock import LOCKSTEP, REALTIME, LatenessStats, RealTimeTicks, SimClock
 from rig_emulator.emulator import CommandError, Emulator, check_command
 from rig_emulator.faults import Entry
 from rig_emulator.modbus.conformance import DeviceIdentity
@@ -347,31 +347,24 @@ class BenchServer:
     async def _tick_loop(self, start: float) -> None:
         """The real-time tick. Every tick awaits (so replies and signals are served however
         far behind it is) and spends at most ``TICK_BUDGET_FRACTION`` of a period on physics;
-        what it could not simulate in that budget is dropped by re-anchoring the clock, never
-        chased. :attr:`achieved_speed` and :attr:`tick_overrun_ms` say how far it fell short."""
+        what it could not simulate in that budget, and the time a tick a whole period late
+        (a stopped process, an overloaded machine) lost, are dropped by re-anchoring the
+        clock, never chased (:class:`RealTimeTicks`). :attr:`achieved_speed` and
+        :attr:`tick_overrun_ms` say how far it fell short."""
         loop = asyncio.get_running_loop()
-        pacer = Pacer(self.tick_period_s, start)
+        ticks = RealTimeTicks(self.clock, self.tick_period_s, start)
         budget_s = TICK_BUDGET_FRACTION * self.tick_period_s
-        last_wall_s, last_sim_s = start, self.emulator.sim_time_s
         while True:
-            deadline = pacer.next_deadline(loop.time())
+            deadline = ticks.next_deadline()
             await asyncio.sleep(max(deadline - loop.time(), 0.0))  # yields even when late
+            tick = ticks.begin(loop.time(), self.emulator.sim_time_s)
             if self.clock.mode != REALTIME or self._clock_lock.locked():
-                last_wall_s, last_sim_s = loop.time(), self.emulator.sim_time_s
                 continue  # lockstep: time and registers move only on client writes
-            began_s = loop.time()
-            self.lateness.add(max(began_s - deadline, 0.0))
-            due_s = self.clock.target(deadline) - self.emulator.sim_time_s
-            missing_s = await self._advance_for(due_s, began_s + budget_s)
-            now_s = loop.time()
-            if missing_s > 0.0:
-                self.clock.anchor(now_s, self.emulator.sim_time_s)  # drop, do not chase
-            self.tick_overrun_ms = missing_s / self.clock.speed * 1000.0
-            if now_s > last_wall_s:
-                self.achieved_speed = (self.emulator.sim_time_s - last_sim_s) / (
-                    now_s - last_wall_s
-                )
-            last_wall_s, last_sim_s = now_s, self.emulator.sim_time_s
+            self.lateness.add(tick.lateness_s)
+            missing_s = await self._advance_for(tick.due_s, tick.began_s + budget_s)
+            ticks.finish(tick, missing_s)
+            self.tick_overrun_ms = tick.overrun_ms
+            self.achieved_speed = tick.achieved_speed
             await self.publish()
             if self.on_tick is not None:
                 self.on_tick()

@@ -6,20 +6,8 @@ import time
 
 import pytest
 
-from rig_emulator.clock import Pacer, SimClock
+from rig_emulator.clock import REALTIME, RealTimeTicks, SimClock
 from tests.modbus_helpers import ADVANCE, client, write
-
-
-def test_pacer_deadlines_do_not_accumulate_delays():
-    pacer = Pacer(period_s=0.1, start_s=100.0)
-    # a tick that runs late does not shift the following deadlines
-    assert pacer.next_deadline(100.0) == pytest.approx(100.1)
-    assert pacer.next_deadline(100.17) == pytest.approx(100.2)
-    assert pacer.next_deadline(100.2) == pytest.approx(100.3)
-    # more than a whole period behind: the missed deadlines are skipped, not burst; the
-    # latest one (100.9, 0.05 s ago) is served now
-    assert pacer.next_deadline(100.95) == pytest.approx(100.9)
-    assert pacer.next_deadline(100.96) == pytest.approx(101.0)
 
 
 def test_sim_clock_maps_wall_to_sim_time():
@@ -28,8 +16,67 @@ def test_sim_clock_maps_wall_to_sim_time():
     assert clock.target(12.5) == pytest.approx(650.0)
 
 
+def _ticks(speed: float = 100.0) -> RealTimeTicks:
+    """Ticks of 0.1 s from loop time 0, the simulation anchored at 0 there."""
+    clock = SimClock(speed=speed, mode=REALTIME)
+    clock.anchor(wall_s=0.0, sim_s=0.0)
+    return RealTimeTicks(clock, period_s=0.1, start_s=0.0)
+
+
+def test_ticks_make_up_a_lateness_under_a_period():
+    """The absolute schedule: a tick a little late does its deadline's work and the next
+    one keeps its place, so small delays never accumulate and nothing is dropped."""
+    ticks = _ticks()
+    assert ticks.next_deadline() == pytest.approx(0.1)
+    tick = ticks.begin(0.17, sim_s=0.0)  # 70 ms late: simulates what 0.1 s asked for
+    assert (tick.lateness_s, tick.dropped_s, tick.due_s) == pytest.approx((0.07, 0.0, 10.0))
+    ticks.finish(tick, missing_sim_s=0.0)
+    assert (tick.overrun_ms, tick.achieved_speed) == (0.0, 100.0)
+    # the next deadline keeps its place on the absolute schedule
+    assert ticks.next_deadline() == pytest.approx(0.2)
+    assert ticks.begin(0.2, sim_s=10.0).due_s == pytest.approx(10.0)
+
+
+def test_a_tick_a_whole_period_late_does_one_ticks_work_and_restarts_the_schedule():
+    """A stranger's probe: a server stopped for 2 s simulated the stall's 190 s in one tick
+    after the resume and published x335690 for x100, with no overrun."""
+    ticks = _ticks()
+    ticks.next_deadline()
+    ticks.finish(ticks.begin(0.1, sim_s=0.0), missing_sim_s=0.0)
+    assert ticks.next_deadline() == pytest.approx(0.2)
+    stall = ticks.begin(2.2, sim_s=10.0)  # the process was stopped for 2 s
+    assert (stall.lateness_s, stall.dropped_s) == pytest.approx((2.0, 2.0))
+    assert stall.due_s == pytest.approx(10.0)  # one period at x100, not 210 s
+    ticks.finish(stall, missing_sim_s=0.0)
+    assert stall.overrun_ms == pytest.approx(2000.0)
+    assert stall.achieved_speed == pytest.approx(10.0 / 2.1)  # 10 s over 0.1 + 2 s of wall
+    # re-anchored: the next tick is a period after this one, with a period's work
+    assert ticks.next_deadline() == pytest.approx(2.3)
+    assert ticks.begin(2.3, sim_s=20.0).due_s == pytest.approx(10.0)
+    # an overloaded machine: the previous tick's work ran 1.5 periods past this deadline
+    assert ticks.next_deadline() == pytest.approx(2.4)
+    overloaded = ticks.begin(2.55, sim_s=30.0)
+    assert (overloaded.dropped_s, overloaded.due_s) == pytest.approx((0.15, 10.0))
+    assert ticks.next_deadline() == pytest.approx(2.65)
+
+
+def test_physics_over_its_budget_is_dropped_not_chased():
+    """What the physics could not do in its budget is dropped from the clock and reported
+    as overrun; the next tick does one period's work, not that plus the rest."""
+    ticks = _ticks()
+    ticks.next_deadline()
+    tick = ticks.begin(0.1, sim_s=0.0)
+    ticks.finish(tick, missing_sim_s=4.0)  # the budget ran out 4 simulated seconds short
+    assert (tick.overrun_ms, tick.achieved_speed) == pytest.approx((40.0, 60.0))
+    ticks.next_deadline()
+    assert ticks.begin(0.2, sim_s=6.0).due_s == pytest.approx(10.0)  # not 14
+
+
 def test_real_time_mode_advances_with_the_wall_clock(serve):
     srv = serve(lockstep=False, speed=200.0, allow_control=True)
+    deadline = time.monotonic() + 60  # generous: the first ticks wait for numba's compiler
+    while srv.values()["sim_time_s"] == 0.0 and time.monotonic() < deadline:
+        time.sleep(0.05)  # the kernels still load (a cold cache): the clock stands
     t0, s0 = time.monotonic(), srv.values()["sim_time_s"]
     time.sleep(1.0)
     t1, s1 = time.monotonic(), srv.values()["sim_time_s"]
