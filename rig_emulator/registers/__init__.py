@@ -4,6 +4,7 @@ from rig_emulator.registers.codec import (
     decode,
     encode,
     invalid_value,
+    map_identity,
     precision,
     reading_range,
     run_decoder,
@@ -21,7 +22,6 @@ from rig_emulator.registers.schema import (
     instrument_units,
     load_map,
     map_from_mapping,
-    map_identity,
 )
 
 __all__ = [

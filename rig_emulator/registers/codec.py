@@ -14,6 +14,7 @@ Word-swapping falls out of the byte order: a little-endian value read as little-
 
 from __future__ import annotations
 
+import hashlib
 import math
 import struct
 import sys
@@ -21,7 +22,7 @@ from collections.abc import Callable, Mapping, Sequence
 from functools import cache
 
 from rig_emulator.registers.datatypes import DATATYPES
-from rig_emulator.registers.schema import Point
+from rig_emulator.registers.schema import Point, RegisterMap
 from rig_emulator.signals import MEASURED
 
 _READINGS = frozenset(MEASURED)
@@ -271,3 +272,34 @@ def precision(point: Point, value: float) -> float:
     if datatype.is_float:
         return abs(value) * datatype.relative_precision + 1e-45
     return abs(point.scale) / 2.0
+
+
+def map_identity(register_map: RegisterMap) -> int:
+    """A 32-bit hash of what a map puts on the wire and what its writes may set: per unit,
+    each point's signal, table, address, type, word order, scale and offset, its access
+    and, if writable, the values a write can set (:func:`accepted_range`); names, units and
+    texts left out. The server publishes it (``map_id``), so a client whose map differs
+    stops before it reads a swapped, rescaled or word-swapped value as a reading, or before
+    a run whose writes the server refuses (a server whose map narrowed the flow setpoint
+    to 0..500 kg/h shared the shipped map's id: every setpoint write of a 6-h run got 03,
+    exit 0; a stranger's probe). What changes no byte and no answer changes no id: the
+    word order of a one-register point, the range a map declares beyond what its encoding
+    carries, an offset of -0."""
+    wire = sorted(
+        (
+            d.unit_id,
+            p.table,
+            p.address,
+            p.signal,
+            p.datatype,
+            p.word_order if p.width > 1 else "",
+            p.scale,
+            p.offset + 0.0,
+            p.access,
+            accepted_range(p) if p.writable else (),
+        )
+        for d in register_map.devices
+        for p in d.points
+    )
+    digest = hashlib.blake2b(repr(wire).encode(), digest_size=4).digest()
+    return int.from_bytes(digest, "big")

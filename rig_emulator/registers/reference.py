@@ -52,8 +52,8 @@ def plc_number(table: str, address: int) -> str:
 
 def _range(point: Point) -> str:
     """What a write of ``point`` can set: its declared range as far as its encoding carries
-    it (:func:`~rig_emulator.registers.codec.accepted_range`; a bool coil carrying a
-    1..86400 s advance takes 1 only)."""
+    it (:func:`~rig_emulator.registers.codec.accepted_range`; a lockstep advance of
+    1..86400 s as a uint16 takes 1..65535 only)."""
     lo, hi = accepted_range(point)
     if lo > hi:
         return "none"

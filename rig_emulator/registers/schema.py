@@ -19,18 +19,20 @@ A map lists devices (Modbus unit IDs), each with points that publish one signal 
             word_order: CDAB          # ABCD (big-endian words) or CDAB (low word first)
             scale: 0.01               # value = raw * scale + offset (integer types)
             offset: 0
-            unit: kg/h                # default: the signal's unit
+            unit: kg/h                # the signal's unit (the default), no other
             access: r                 # r | rw (rw only for command signals in holding/coil)
-            min: 0                    # accepted range of writes (default: the signal's range)
-            max: 2000
+            min: 0                    # accepted range of writes, rw points only (default:
+            max: 2000                 #   the signal's range, which a map may only narrow)
             description: ...          # default: the signal's description
 
-A broken map is refused with the file, device and point named.
+A bit (a coil or a discrete input) carries an on/off signal only (unit ``0/1``); a command
+that takes whole numbers (:attr:`~rig_emulator.signals.Signal.whole`) is published with a
+whole scale and offset, so no register value decodes to a fraction; the map converts no
+units. A broken map is refused with the file, device and point named.
 """
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -163,6 +165,11 @@ def _point(raw: Any, where: str, default_order: str) -> Point:
         raise MapError(f"{where}: bad type '{datatype}' (one of {', '.join(DATATYPES)})")
     if (table in BIT_TABLES) != (datatype == "bool"):
         raise MapError(f"{where}: bad type '{datatype}' for table '{table}' (bool iff bits)")
+    if table in BIT_TABLES and not signal.switch:  # (22 C was served as 1: a stranger's probe)
+        raise MapError(
+            f"{where}: a bit carries 0/1, and '{signal_name}' [{signal.unit}] is no on/off "
+            "signal; publish it in registers"
+        )
     address = raw["address"]
     if isinstance(address, bool) or not isinstance(address, int) or address < 0:
         raise MapError(f"{where}: 'address' must be an integer >= 0")
@@ -175,8 +182,15 @@ def _point(raw: Any, where: str, default_order: str) -> Point:
     if scale == 0:
         raise MapError(f"{where}: 'scale' must not be 0")
     offset = _num(raw.get("offset", 0.0), where, "offset")
-    if datatype.startswith("float") and (scale != 1.0 or offset != 0.0):
-        raise MapError(f"{where}: 'scale'/'offset' apply to integer types only")
+    encoding = DATATYPES[datatype]
+    if (encoding.is_float or encoding.is_bit) and (scale != 1.0 or offset != 0.0):
+        carried = "a bit carries 0/1" if encoding.is_bit else "a float carries the value"
+        raise MapError(f"{where}: 'scale'/'offset' apply to integer types only ({carried})")
+    if signal.whole and not (scale.is_integer() and offset.is_integer()):
+        raise MapError(
+            f"{where}: '{signal_name}' takes whole numbers only, so 'scale' and 'offset' must "
+            f"be whole (scale {scale:g}, offset {offset:g} decode some registers to fractions)"
+        )
     access = raw.get("access", "r")
     if access not in ("r", "rw"):
         raise MapError(f"{where}: bad access '{access}' (r or rw)")
@@ -185,6 +199,8 @@ def _point(raw: Any, where: str, default_order: str) -> Point:
             raise MapError(f"{where}: writable points live in 'holding' or 'coil', not '{table}'")
         if signal.kind != "command":
             raise MapError(f"{where}: signal '{signal_name}' is not a command, cannot be rw")
+    if access != "rw" and ("min" in raw or "max" in raw):
+        raise MapError(f"{where}: 'min'/'max' apply to writable points (access: rw)")
     minimum = _num(raw.get("min", signal.minimum), where, "min") if "min" in raw else signal.minimum
     maximum = _num(raw.get("max", signal.maximum), where, "max") if "max" in raw else signal.maximum
     if minimum > maximum:
@@ -197,6 +213,12 @@ def _point(raw: Any, where: str, default_order: str) -> Point:
     name = raw.get("name", signal_name)
     if not isinstance(name, str) or not name:
         raise MapError(f"{where}: 'name' must be a non-empty text, got {_kind(name)}")
+    unit = _text(raw, "unit", signal.unit, where)
+    if unit != signal.unit:  # (unit: K served 22 C as "22 K": a stranger's probe)
+        raise MapError(
+            f"{where}: the map does not convert units: 'unit' {_kind(unit)} is not the "
+            f"unit of '{signal_name}', {signal.unit!r} (leave 'unit' out)"
+        )
     return Point(
         name=name,
         signal=signal_name,
@@ -206,7 +228,7 @@ def _point(raw: Any, where: str, default_order: str) -> Point:
         word_order=order,
         scale=scale,
         offset=offset,
-        unit=_text(raw, "unit", signal.unit, where),
+        unit=unit,
         access=access,
         minimum=minimum,
         maximum=maximum,
@@ -223,8 +245,9 @@ def _kind(value: Any) -> str:
 
 
 def _text(raw: Mapping[str, Any], key: str, default: str, where: str) -> str:
-    """A free-text key (name, description, unit, instrument): text (a number as written),
-    or refused (a list was printed as such in the reference)."""
+    """A free-text key (the map's name, a description, an instrument, a unit): text, a
+    number as its text (``instrument: 42`` is "42"), or refused (a list was printed as such
+    in the reference)."""
     value = raw.get(key, default)
     if isinstance(value, int | float) and not isinstance(value, bool):
         return str(value)
@@ -258,7 +281,9 @@ def map_from_mapping(data: Any, source: str = "<map>") -> RegisterMap:
         for key in raw:
             if key not in ("name", "unit_id", "instrument", "word_order", "points"):
                 raise MapError(f"{where}: unknown key '{key}'")
-        unit_id = raw.get("unit_id")
+        if "unit_id" not in raw:  # (was "'unit_id' must be an integer": a stranger's probe)
+            raise MapError(f"{where}: missing required key 'unit_id'")
+        unit_id = raw["unit_id"]
         if isinstance(unit_id, bool) or not isinstance(unit_id, int) or not 1 <= unit_id <= 247:
             raise MapError(f"{where}: 'unit_id' must be an integer 1..247")
         if unit_id in seen_ids:
@@ -339,17 +364,3 @@ def emulator_units(register_map: RegisterMap) -> frozenset[int]:
     numbers: a map with the simulation control at unit 7 let a fault silence it, and an
     RTU broadcast reset the plant: a re-probe)."""
     return frozenset(d.unit_id for d in register_map.devices) - instrument_units(register_map)
-
-
-def map_identity(register_map: RegisterMap) -> int:
-    """A 32-bit hash of what a map puts on the wire: per unit, each point's signal, table,
-    address, type, word order, scale and offset (names, units and texts left out). The
-    server publishes it (``map_id``), so a client whose map differs stops before it reads
-    a swapped, rescaled or word-swapped value as a reading."""
-    wire = sorted(
-        (d.unit_id, p.table, p.address, p.signal, p.datatype, p.word_order, p.scale, p.offset)
-        for d in register_map.devices
-        for p in d.points
-    )
-    digest = hashlib.blake2b(repr(wire).encode(), digest_size=4).digest()
-    return int.from_bytes(digest, "big")

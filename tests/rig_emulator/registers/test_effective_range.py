@@ -50,8 +50,10 @@ def test_accepted_range_is_the_declared_one_narrowed_to_the_encoding() -> None:
     )
     lo, hi = encodable_range(offset)  # a negative scale: the ends swap
     assert (lo, hi) == (32767 * -0.001 + 40.0, -32768 * -0.001 + 40.0)
-    bit = _point(signal="lockstep_advance_s", table="coil", address=0, datatype="bool", access="rw")
-    assert accepted_range(bit) == (1.0, 1.0)  # 1..86400 s declared, a bit carries 0 or 1
+    short = _point(
+        signal="lockstep_advance_s", table="holding", address=0, datatype="uint16", access="rw"
+    )
+    assert accepted_range(short) == (1.0, 65535.0)  # 1..86400 s declared, a uint16 to 65535
 
 
 def _rows(doc: str) -> list[list[str]]:
@@ -69,9 +71,9 @@ def test_map_doc_shows_the_effective_range() -> None:
             {
                 "name": "advance",
                 "signal": "lockstep_advance_s",
-                "table": "coil",
-                "address": 0,
-                "datatype": "bool",
+                "table": "holding",
+                "address": 1,
+                "datatype": "uint16",
                 "access": "rw",
             },
             {
@@ -87,7 +89,7 @@ def test_map_doc_shows_the_effective_range() -> None:
     )
     ranges = {row[2]: row[9] for row in _rows(doc)}
     assert ranges["flow_setpoint"] == "0..655.35"
-    assert ranges["advance"] == "1"
+    assert ranges["advance"] == "1..65535"
     assert ranges["energy_limit"] == "0..42949672.95"  # every digit, not 4.29497e+07
 
 
@@ -121,14 +123,13 @@ def test_map_doc_cells_hold_line_breaks_and_pipes() -> None:
                 "table": "input",
                 "address": 0,
                 "datatype": "float32",
-                "unit": "°C | K",
                 "description": "line one\nline two | with pipe\n",
             }
         )
     )
     (line,) = [x for x in doc.splitlines() if x.startswith("| 0-1 ")]
     assert line == (
-        "| 0-1 | 30001 | a\\|b | float32 | ABCD |  |  | °C \\| K | r |  | `room_temp_C` "
+        "| 0-1 | 30001 | a\\|b | float32 | ABCD |  |  | C | r |  | `room_temp_C` "
         "| line one line two \\| with pipe |"
     )
 
