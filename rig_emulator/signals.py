@@ -81,9 +81,17 @@ _STATUS = (
     ("profile_id", "-", "32-bit hash of the profile (instruments and effects)"),
     ("seed", "-", "seed of the instrument errors and noise (modulo 2^32)"),
     ("achieved_speed", "-", "simulated s per wall s of the last real-time tick (0 in lockstep)"),
-    ("tick_overrun_ms", "ms", "simulation the last tick could not do in its budget, dropped"),
+    (
+        "tick_overrun_ms",
+        "ms",
+        "simulation the last tick could not do in its budget or lost to a stall, dropped",
+    ),
     ("active_fault_count", "-", "number of active faults (fault injection)"),
-    ("map_id", "-", "32-bit hash of the register map served (units, points, types, scales)"),
+    (
+        "map_id",
+        "-",
+        "32-bit hash of the register map served (units, points, types, scales, write ranges)",
+    ),
 )
 _COMMANDS = (
     ("water_flow_setpoint_kg_h", "kg/h", "flow setpoint of the bench pump/valve", 0.0, 2000.0),

@@ -63,7 +63,15 @@ class Rig(Protocol):
         """Read every instrument: a value for each of :data:`READING_KEYS` (NaN if missing)."""
 
     # Optional: ``read_values() -> Sequence[float]``, the same readings in READING_KEYS
-    # order without the mapping (the runner uses it when a rig has it).
+    # order without the mapping (the runner uses it when a rig has it). A rig over a wire
+    # may also have (the runner logs and checks them when it does):
+    # - ``written_flow_setpoint_kg_h: float``: the flow setpoint the bench holds from the
+    #   rig's writes, as the point's encoding carries it (NaN before one was taken); the
+    #   log's ``water_flow_setpoint_kg_h``;
+    # - ``refusal: str | None``: a plant command the bench refused as an illegal value
+    #   (not a transient fault): the method cannot be carried out, the run stops;
+    # - ``step_timing: tuple[float, float]``: the last step's wall time [s] and the part of
+    #   it spent waiting on the bench's replies (who was held up in a hole of the rows).
 
     def close(self) -> None:
         """Release the rig."""

@@ -20,9 +20,23 @@ the meta file then says which rule timed out.
 Breaks (CONTRACT section 7): a rig may report ``epoch`` (the ``rig_epoch`` column; one
 higher after each break it went on from, e.g. a restarted real-time server) and ``gaps``.
 When the epoch changes and the rig says ``restart_phase``, the current phase starts again
-from that row (its rules, sequences and its start mark t0..t3); otherwise the run goes on,
-the rows marked by their epoch. Whenever the rig's gaps change, and when the rig fails,
-``on_phase`` is called too, so the meta file keeps every gap as the run goes.
+from that row, the first of the new plant (its rules and durations, its first sequence),
+and the rig's last gap names it (``phase_restarted``); otherwise the run goes on, the rows
+marked by their epoch. A restart moves no mark: the phase's start mark is where the phase
+before it ended (t2 is where the test ended), and the ``phase`` column, which the analyses
+read, keeps the phase's name across both attempts, as the marks do (a restart in the
+first cooling moved t2 from 3518 to 5107 s, and the balance took 1487 cooling rows for a
+0.913-h test at 91.1 % instead of 0.5 h at 80.6 %: a stranger's probe). Whenever the rig's
+gaps change, and when the rig fails, ``on_phase`` is called too, so the meta file keeps
+every gap as the run goes.
+
+A run that cannot carry out the test method stops (:class:`MethodNotCarriedOut`, a
+:class:`~hil_client.protocol.rig.RigError`: the log keeps its rows, a note says why, exit
+1) rather than end "complete": a sequence of the measuring cycle that got no row and whose
+setpoint was never written (a real-time server at x100000 read every 10000 s skipped the
+ramp, and the 240-s test lasted 2 h 47 min: a stranger's probe), or a plant command the rig
+reports refused as an illegal value (``refusal``: every setpoint of a 6-h run refused with
+exception 03 ended complete with a test of 0 kWh: a stranger's probe).
 """
 
 from __future__ import annotations
@@ -38,9 +52,6 @@ from hil_client.protocol.rig import LOG_COLUMNS as LOG_COLUMNS  # the log's, dec
 from hil_client.protocol.rig import READING_KEYS, Rig, RigCommand, RigError
 from rig_emulator.emulator import CommandError, check_command
 from rig_emulator.model.water_heat import flow_for_heat_kg_h
-
-#: The mark set when each phase starts (preheat starts with the record).
-_START_MARK = {"start_up": "t0_s", "test": "t1_s", "cooling_1": "t2_s", "cooling_2": "t3_s"}
 
 PHASES = ("preheat", "start_up", "test", "cooling_1", "cooling_2")
 
@@ -68,6 +79,10 @@ class RunResult:
     times: dict[str, float] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     duration_s: float = 0.0
+
+
+class MethodNotCarriedOut(RigError):
+    """The test method could not be carried out on this rig (see the module docstring)."""
 
 
 class _SlopeWindow:
@@ -179,13 +194,39 @@ HOLE_TYPICAL_STEPS = 60
 HOLES_TOLD = 10
 
 
-def _hole(from_s: float, to_s: float, period_s: float) -> str:
+#: Share of a step's wall time spent waiting on the server's replies from which a hole is
+#: the server's (it stalled, then its clock caught up), not the client's.
+SERVER_SHARE = 0.5
+
+
+def _hole(from_s: float, to_s: float, period_s: float, timing: tuple[float, float] | None) -> str:
+    """The note on a hole in the rows, blaming whoever was held up: the rig's
+    ``step_timing`` (the step's wall time, and the part of it spent waiting on the server's
+    replies) tells a client that kept its pace while the server stalled and caught up (a
+    server SIGSTOPped was blamed on the client: a stranger's probe)."""
     missed = round((to_s - from_s) / period_s) - 1
+    head = f"no row from time_s = {from_s:g} to {to_s:g} s ({missed} acquisitions missed): "
+    tail = ", and the rows between were not acquired"
+    if timing is not None and timing[1] >= SERVER_SHARE * timing[0]:
+        return (
+            f"{head}the server answered {timing[1]:.1f} s late (it stalled: paused, swapped "
+            "out or overloaded, and its clock caught up), while the client kept its pace"
+            f"{tail}"
+        )
+    held = f" {timing[0] - timing[1]:.1f} s" if timing is not None else ""
     return (
-        f"no row from time_s = {from_s:g} to {to_s:g} s ({missed} acquisitions missed): the "
-        "client fell behind the server's real-time clock (held up: paused, swapped out or "
-        "overloaded), and the rows between were not acquired"
+        f"{head}the client fell behind the server's real-time clock (held up{held}: paused, "
+        f"swapped out or overloaded){tail}"
     )
+
+
+def _stop(result: RunResult, on_phase: Callable[[RunResult], None] | None, why: str) -> None:
+    """Stop the run: ``why`` (one line) into its notes and the meta file, then
+    :class:`MethodNotCarriedOut` (the log keeps its rows; ``hil-client run`` exits 1)."""
+    result.notes.append(why)
+    if on_phase is not None:
+        on_phase(result)
+    raise MethodNotCarriedOut(why)
 
 
 def run_protocol(
@@ -246,6 +287,14 @@ def run_protocol(
     restart_phase = bool(getattr(rig, "restart_phase", False))
     recent: deque[float] = deque(maxlen=HOLE_TYPICAL_STEPS)  # simulated time per step
     holes = 0
+    # a rig that tells the flow setpoint as its wire carries it: that is logged (a uint16
+    # x0.5 holds 137.5 where 137.4702 was asked, and the log said 137.4702: a stranger's
+    # probe); else the commanded one (the in-process rig takes it as it is)
+    carries_setpoint = hasattr(rig, "written_flow_setpoint_kg_h")
+    timed = hasattr(rig, "step_timing")
+    refuses = hasattr(rig, "refusal")  # (looked up once: the in-process rig's rows are many)
+    played = [False] * len(sequences)  # the sequences of the test that had a row
+    cooling_2_ends = math.inf  # t2 + until_after_t2_s, or after a restart of cooling_2
 
     while True:
         # --- commands for this step
@@ -280,17 +329,22 @@ def run_protocol(
         n_gaps = len(gaps)
         try:
             passed = rig.advance(dt)
-        except RigError:
-            if on_phase is not None and len(gaps) != n_gaps:
-                on_phase(result)  # the break's gap reaches the meta file
+        except RigError as exc:
+            # the meta file says why the run stopped (and the break's gap, if any)
+            result.notes.append(f"stopped after time_s = {t:g} s: {exc}")
+            if on_phase is not None:
+                on_phase(result)
             raise
         t += passed
+        if len(gaps) != n_gaps:  # a break, an outage, the server's speed changed: the
+            recent.clear()  # steps before tell nothing of the steps after
         # (the first steps tell no typical step: a x100 server's first took 9.5 s)
         late = passed > HOLE_FACTOR * dt and len(gaps) == n_gaps and len(recent) >= 10
         if late and passed > HOLE_FACTOR * sorted(recent)[len(recent) // 2]:
             holes += 1
             if holes <= HOLES_TOLD:
-                result.notes.append(_hole(t - passed, t, dt))
+                timing = rig.step_timing if timed else None  # type: ignore[attr-defined]
+                result.notes.append(_hole(t - passed, t, dt, timing))
             if holes == HOLES_TOLD + 1:
                 result.notes.append(f"more than {HOLES_TOLD} such holes in the rows")
             if on_phase is not None and holes <= HOLES_TOLD + 1:
@@ -299,22 +353,25 @@ def run_protocol(
         recent.append(passed)
         values = read_values()
         rows += 1
-        setpoint = command.flow_setpoint_kg_h if command.pump_on else 0.0
         rig_epoch = getattr(rig, "epoch", 0)
-        row = (t, phase, sequence, *values[:_SPLICE], setpoint, *values[_SPLICE:], rig_epoch)
-        sink(row)
-        if progress is not None:
-            progress(row)
         if rig_epoch != epoch:  # a break the rig went on from: a new plant from this row
             epoch = rig_epoch
-            if restart_phase:
+            if restart_phase:  # (before the row: it is the restarted phase's first, and
+                # carries its first sequence, not the abandoned attempt's: a stranger's probe)
                 phase_start, hold_since = t, None
                 slope.clear()
                 seq_index, seq_start = 0, t
-                if phase in _START_MARK:
-                    times[_START_MARK[phase]] = t
+                if phase == "test":
+                    sequence = sequences[0].name
+                    played = [False] * len(sequences)  # the restarted test plays them all
+                elif phase == "cooling_2":  # it lasts what it was to last after t3
+                    cooling_2_ends = t + max(t4_after - (times["t3_s"] - times["t2_s"]), 0.0)
+                if gaps:
+                    gaps[-1]["phase_restarted"] = phase
+                kept = "" if phase == "preheat" else "; no mark moves (its start is the last's end)"
                 result.notes.append(
                     f"{phase} restarted at time_s = {t:g} s on a new plant (rig_epoch {epoch})"
+                    f"{kept}"
                 )
             else:
                 why = gaps[-1].get("reason") if gaps else None  # not always a new plant
@@ -322,8 +379,22 @@ def run_protocol(
                     f"rig_epoch {epoch} from time_s = {t:g} s: "
                     f"{why or 'a new plant'}; the run went on"
                 )
+        setpoint = command.flow_setpoint_kg_h
+        if not command.pump_on:
+            setpoint = 0.0
+        elif carries_setpoint:
+            setpoint = rig.written_flow_setpoint_kg_h  # type: ignore[attr-defined]
+        row = (t, phase, sequence, *values[:_SPLICE], setpoint, *values[_SPLICE:], rig_epoch)
+        sink(row)
+        if progress is not None:
+            progress(row)
         if on_phase is not None and len(gaps) != n_gaps:
             on_phase(result)  # a gap (closed by this row) or a break: into the meta file now
+        refusal = rig.refusal if refuses else None  # type: ignore[attr-defined]
+        if refusal is not None:  # the other end will refuse it all run: stop at once
+            _stop(result, on_phase, f"{refusal}; stopped after time_s = {t:g} s")
+        if phase == "test":
+            played[seq_index] = True
 
         # --- rules that end the phase (evaluated on what was read)
         elapsed_phase = t - phase_start
@@ -359,9 +430,26 @@ def run_protocol(
                 if on_phase is not None:
                     on_phase(result)
         elif phase == "test":
-            if elapsed_phase >= protocol.test_duration_s - 1e-9:
+            ended = elapsed_phase >= protocol.test_duration_s - 1e-9
+            skipped = [
+                f"'{s.name}' (test_sequence.sequences[{i}])"
+                for i, s in enumerate(sequences[: len(sequences) if ended else seq_index])
+                if not played[i]
+            ]
+            if skipped:
+                _stop(
+                    result,
+                    on_phase,
+                    f"the test method could not be carried out: sequence "
+                    f"{', '.join(skipped)} got no row and its setpoint was never written "
+                    f"(a step of {passed:g} s of simulated time, the acquisition period being "
+                    f"{dt:g} s: a real-time server faster than this client reads; --lockstep "
+                    f"or a slower --speed plays every sequence); stopped after time_s = {t:g} s",
+                )
+            if ended:
                 phase, phase_start = "cooling_1", t
                 times["t2_s"] = t
+                cooling_2_ends = t + t4_after
                 if on_phase is not None:
                     on_phase(result)
         elif phase == "cooling_1":
@@ -373,7 +461,7 @@ def run_protocol(
                 times["t3_s"] = t
                 if on_phase is not None:
                     on_phase(result)
-        elif t - times["t2_s"] >= t4_after - 1e-9:
+        elif t >= cooling_2_ends - 1e-9:
             times["t4_s"] = t
             if times["t3_s"] - times["t2_s"] >= t4_after - 1e-9:
                 result.notes.append(

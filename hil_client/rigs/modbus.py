@@ -40,6 +40,16 @@ timeout the rig reconnects, so later steps do not queue behind a slow unit (on a
 line a silent unit costs one timeout per request, one transaction at a time). The
 simulation control (unit 100) must answer.
 
+Plant commands refused as an illegal value (exception 03: the server's map does not take
+that value, for the whole run) are no fault: a unit that answers its reads in the same step
+but refuses a write with 03 sets :attr:`refusal`, and the runner stops (a unit under an
+``exception`` fault answers its reads with it too: transient). :attr:`written_flow_setpoint_kg_h`
+is the flow setpoint the server took from this rig's writes, as its point's encoding
+carries it (the log's column). In real time every step also reads the server's speed: a
+change (another client, through the simulation control) is a gap, the run going on, and
+:attr:`step_timing` tells who a hole in the rows is due to: a server that answered late (it
+stalled and caught up) or a client held up between its steps.
+
 Each break or outage is an entry of :attr:`gaps` in the log's own time base
 (``start_time_s``: the last row before, ``end_time_s``: the first row after, None if none).
 The log time is the server's time plus an offset; across a break it jumps by the time the
@@ -81,6 +91,7 @@ from rig_emulator.registers import (
     map_identity,
     reading_range,
     run_decoder,
+    written_value,
 )
 from rig_emulator.registers.codec import accepted_range
 
@@ -293,6 +304,17 @@ class ModbusRig:
         #: the switches went out with this step's reads: the boiler's mode may not show them
         #: yet (a real-time server's controller takes them at its next tick)
         self._switches_in_flight = False
+        #: the flow setpoint the server holds from this rig's writes, as carried (the log's)
+        self.written_flow_setpoint_kg_h = math.nan
+        self._flow_carried = math.nan  # ... that the step being sent carries
+        self._command_labels: list[str] = []  # what each command request of the step sets
+        self._refused: list[tuple[int, str]] = []  # writes refused with 03 this step
+        self._faulty: set[int] = set()  # units whose reads got an exception, last step
+        #: a plant command refused as an illegal value (see the module docstring), or None
+        self.refusal: str | None = None
+        #: the last step's wall time and the part of it spent waiting on replies [s]
+        self.step_timing = (0.0, 0.0)
+        self._waited_s = 0.0
         self.values: dict[str, float] = {}
         self._map_check = (plan, register_map)  # checked again when a server comes back
         try:
@@ -337,6 +359,8 @@ class ModbusRig:
         self._row_wall = time.monotonic()
         # the simulation control first: a slow instrument never holds up the step's checks
         self._reads = self._check_plan + plan if checks else plan
+        if checks and not self.lockstep:  # the speed too: another client may change it
+            self._reads = self._check_plan + self._clock_plan + plan
         if not checks and not self.lockstep:
             self._reads = plan + _read_plan(register_map, ("sim_time_s",))
         self._read_requests = [
@@ -375,7 +399,8 @@ class ModbusRig:
                 return (
                     f"the server serves another register map than {register_map.source} "
                     f"(map id {int(served):08x}, this one's {ours:08x}: a point moved, "
-                    "swapped, retyped or rescaled); give the client the server's map (--map)"
+                    "swapped, retyped or rescaled, or the access or range of its writes "
+                    "differ); give the client the server's map (--map)"
                 )
             return None
         if (self._read_optional(register_map, "active_fault_count") or 0.0) > 0:
@@ -449,13 +474,17 @@ class ModbusRig:
         assert self._conn is not None
         if not requests:
             return []
-        self._conn.send(requests)
-        if not patient:
-            return [self._conn.receive() for _ in requests]
-        everything = range(len(requests))
-        replies, _ = self._conn.receive_all(
-            len(requests), everything, self.reconnect_timeout_s, self._still_coming
-        )
+        sent = time.monotonic()
+        try:
+            self._conn.send(requests)
+            if not patient:
+                return [self._conn.receive() for _ in requests]
+            everything = range(len(requests))
+            replies, _ = self._conn.receive_all(
+                len(requests), everything, self.reconnect_timeout_s, self._still_coming
+            )
+        finally:
+            self._waited_s += time.monotonic() - sent
         for reply in replies:
             if isinstance(reply, NoReply):
                 self._connect(abort=True)
@@ -485,9 +514,12 @@ class ModbusRig:
         self._conn.send(requests)
         patience = self.reconnect_timeout_s if patient else 0.0
         self._dead = self._head_own = False
-        replies, times = self._conn.receive_all(
-            len(requests), own, patience, self._still_coming if patient else None
-        )
+        try:
+            replies, times = self._conn.receive_all(
+                len(requests), own, patience, self._still_coming if patient else None
+            )
+        finally:
+            self._waited_s += time.monotonic() - sent
         previous = sent
         for (unit, pdu), reply, at in zip(requests, replies, times, strict=True):
             late = at - previous > LATE_S
@@ -613,11 +645,46 @@ class ModbusRig:
             self._written_switches = None
 
     def _commands_tolerant(self, requests: list[tuple[int, bytes]], replies: list[Reply]) -> None:
-        """Failed setpoint or switch writes: recorded, and written again next step."""
-        for (unit, pdu), reply in zip(requests, replies, strict=True):
-            if not isinstance(reply, bytes):
-                self._failed(unit, pdu[0], reply, [])
-                self._written_switches = None
+        """Failed setpoint or switch writes: recorded, and written again next step; one
+        refused as an illegal value (03) is a candidate refusal (:meth:`_settle_refusals`).
+        The flow setpoint (the step's first request) taken: what the server now holds."""
+        self._refused.clear()
+        for i, ((unit, pdu), reply) in enumerate(zip(requests, replies, strict=True)):
+            if isinstance(reply, bytes):
+                if i == 0 and self._command_labels:
+                    self.written_flow_setpoint_kg_h = self._flow_carried
+                continue
+            self._failed(unit, pdu[0], reply, [])
+            self._written_switches = None
+            if isinstance(reply, ModbusExceptionResponse) and reply.code == 3:
+                label = self._command_labels[i] if i < len(self._command_labels) else "a write"
+                self._refused.append((unit, label))
+
+    def _settle_refusals(self, read_replies: list[Reply]) -> None:
+        """The step's writes refused with 03 by a unit that answered its reads before the
+        write (the last step's) and after it (this step's): the server does not accept the
+        value (its map's range), for the whole run: :attr:`refusal`. A unit whose reads got
+        an exception too is under a fault (transient): written again (a fault that ended
+        between the write and the reads was taken for a refusal)."""
+        refused, self._refused = self._refused, []
+        faulty = {
+            read.unit
+            for read, reply in zip(self._reads, read_replies, strict=True)
+            if isinstance(reply, ModbusExceptionResponse)
+        }
+        faulty, before = faulty, self._faulty
+        self._faulty = faulty
+        if self.refusal is not None:
+            return
+        for unit, label in refused:
+            if unit not in faulty and unit not in before:
+                self.refusal = (
+                    f"{self.url}: unit {unit} refused {label} with exception 03 (illegal data "
+                    "value) while it answered its reads: the server does not accept that value "
+                    "(its register map's range is narrower than this client's?), so the test "
+                    "method cannot be carried out"
+                )
+                return
 
     def _decode(self, reads: list[_Read], replies: list[bytes], into: dict[str, float]) -> None:
         for read, reply in zip(reads, replies, strict=True):
@@ -646,23 +713,32 @@ class ModbusRig:
             return []
         flow_dev, flow = self._points["water_flow_setpoint_kg_h"]
         ret_dev, ret = self._points["return_setpoint_C"]
+        flow_words = encode(flow, cmd.flow_setpoint_kg_h)
+        self._flow_carried = written_value(flow, flow_words)
+        flow_label = f"the write of water_flow_setpoint_kg_h = {self._flow_carried:g} kg/h"
+        ret_label = f"return_setpoint_C = {cmd.return_setpoint_C:g} C"
         if flow_dev is ret_dev and ret.address == flow.address + flow.width:
-            words = encode(flow, cmd.flow_setpoint_kg_h) + encode(ret, cmd.return_setpoint_C)
+            words = flow_words + encode(ret, cmd.return_setpoint_C)
             requests = [(flow_dev.unit_id, write_registers_pdu(flow.address, words))]
+            labels = [f"{flow_label} and {ret_label}"]
         else:
             requests = [
-                self._write_request("water_flow_setpoint_kg_h", cmd.flow_setpoint_kg_h),
+                (flow_dev.unit_id, write_registers_pdu(flow.address, flow_words)),
                 self._write_request("return_setpoint_C", cmd.return_setpoint_C),
             ]
+            labels = [flow_label, f"the write of {ret_label}"]
         switches = (cmd.pump_on, cmd.return_heating, cmd.boiler_on)
         if switches != self._written_switches:  # a new plant resets this to None
-            requests += [
-                self._write_request("pump_on", float(cmd.pump_on)),
-                self._write_request("return_heating", float(cmd.return_heating)),
-                self._write_request("boiler_command", float(cmd.boiler_on)),
-            ]
+            for signal, on in zip(
+                ("pump_on", "return_heating", "boiler_command"),
+                (cmd.pump_on, cmd.return_heating, cmd.boiler_on),
+                strict=True,
+            ):
+                requests.append(self._write_request(signal, float(on)))
+                labels.append(f"the write of {signal} = {int(on)}")
             self._written_switches = switches
             self._switches_in_flight = True
+        self._command_labels = labels
         return requests
 
     # ------------------------------------------------------------------ expectations
@@ -883,6 +959,7 @@ class ModbusRig:
         Returns the log time that passed [s]: ``dt_s`` in lockstep, more in real time when
         the client fell behind, and more across a break (see the module docstring).
         """
+        self._waited_s = 0.0
         for _ in range(1000):
             try:
                 step = self._step_lockstep if self.lockstep else self._step_realtime
@@ -900,7 +977,9 @@ class ModbusRig:
                 continue
             except ModbusExceptionResponse as exc:
                 raise RigError(f"{self.url}: {exc}{_role_hint(self.url, exc)}") from None
-            self._row_wall = time.monotonic()
+            now = time.monotonic()
+            self.step_timing = (now - self._row_wall, self._waited_s)
+            self._row_wall = now
             self._stepped = True
             for event in self._step_events:
                 self.comm_events.append(
@@ -971,7 +1050,9 @@ class ModbusRig:
         self._commands_tolerant(requests, replies[: len(requests)])
         self._applied = len(journal)
         values = self.values
-        self._decode_tolerant(self._reads, replies[len(replies) - self._n_reads :], values)
+        reads = replies[len(replies) - self._n_reads :]
+        self._decode_tolerant(self._reads, reads, values)
+        self._settle_refusals(reads)
         if self.checks:
             reason = self._same_plant(values)
             if reason is not None:
@@ -1009,10 +1090,20 @@ class ModbusRig:
         replies = self._exchange_tolerant(self._read_requests)
         values = self.values
         self._decode_tolerant(self._reads, replies, values)
+        self._settle_refusals(replies)
         if self.checks:
             reason = self._same_plant(values)
             if reason is not None:
                 raise _Break(reason, dict(values))
+            speed = values.get("speed_factor", self.speed)
+            if speed != self.speed:  # (x100 -> x10000 by another client was blamed on
+                self._gap(  # this client falling behind, four times: a stranger's probe)
+                    f"the server's speed changed from x{self.speed:g} to x{speed:g} (another "
+                    "client, through the simulation control)",
+                    "continue",
+                    values,
+                )
+                self.speed = speed
         self._check_boiler_switch(values)
         server_time = values["sim_time_s"]
         self.sim_time_s = server_time

@@ -1,0 +1,138 @@
+"""Who a hole in a real-time run's rows is due to, against real ``rig-emulator serve``
+processes: another client that changed the server's speed, or a server that stalled, is
+not the client falling behind."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from hil_client.cli import main
+from hil_client.modbus_client import Connection, write_registers_pdu
+from hil_client.wait_for_port import free_port
+from rig_emulator.registers import encode, load_map
+from tests.hil_client.test_restarts import ServerProcess
+
+BOILER = "windhager_12kw"
+SPEED = 100.0  # rows 10 s apart (the server's 10-Hz tick), the first cooling 6 s of wall
+# phases ended by time-outs; the first cooling (600 s, 60 rows) is where things happen
+RT = """\
+name: rt
+test: rt
+acquisition_period_s: 1
+flow_spread_K: 15
+preheat: {temperature_C: 80, tolerance_K: 0.1, hold_s: 10, load_pct: 100, max_duration_s: 60}
+start_up: {return_setpoint_C: 55, t1_window_s: 30, t1_max_rise_K_min: 0.001, min_duration_s: 30,
+           max_duration_s: 60}
+test_sequence:
+  return_setpoint_C: 55
+  sequences:
+    - {name: stationary_100, load_pct: 100, duration: 60}
+cooling_1: {load_pct: 20, return_setpoint_C: 55, until_forward_C: 5, max_duration_s: 600}
+cooling_2: {until_after_t2_s: 700}
+"""
+CLIENT_BLAMED = "the client fell behind"
+
+
+@pytest.fixture
+def server():
+    started: list[ServerProcess] = []
+
+    def start(*args: str) -> ServerProcess:
+        srv = ServerProcess(free_port(), *args)
+        started.append(srv)
+        return srv
+
+    yield start
+    for srv in started:
+        srv.kill()
+
+
+def _when_cooling(out: Path, rows: int, then) -> threading.Thread:
+    """``then()`` once the log holds ``rows`` rows of the first cooling (enough steps for
+    the run to know its typical one)."""
+
+    def watch() -> None:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            lines = out.read_text().splitlines()[1:] if out.exists() else []
+            if sum(1 for line in lines if ",cooling_1," in line) >= rows:
+                then()
+                return
+            time.sleep(0.01)
+
+    thread = threading.Thread(target=watch, daemon=True)
+    thread.start()
+    return thread
+
+
+def _run(port: int, out: Path, protocol: Path) -> int:
+    rig = f"modbus://127.0.0.1:{port}"
+    return main(["run", str(protocol), "--boiler", BOILER, "--quiet", "--rig", rig,
+                 "--out", str(out)])  # fmt: skip
+
+
+def _meta(out: Path) -> dict:
+    return json.loads(out.with_name(out.stem + ".meta.json").read_text())
+
+
+def test_another_client_changing_the_speed_is_recorded_not_blamed_on_the_client(server, tmp_path):
+    """A stranger's probe: another client changed a real-time server's speed mid-run (x100
+    -> x10000, through the simulation control); the notes said "the client fell behind the
+    server's real-time clock (held up: paused, swapped out or overloaded)" four times and
+    the meta file still said x100. The speed is read each step: the change is a gap in the
+    meta file, naming both speeds, and no hole is blamed on the client."""
+    srv = server("--speed", f"{SPEED:g}", "--allow-control")
+    protocol = tmp_path / "rt.yaml"
+    protocol.write_text(RT)
+    out = tmp_path / "speed.csv"
+
+    def faster() -> None:
+        dev, point = load_map().point("speed_factor")
+        conn = Connection("127.0.0.1", srv.port, 5.0)
+        conn.send([(dev.unit_id, write_registers_pdu(point.address, encode(point, 10000.0)))])
+        conn.receive()
+        conn.close()
+
+    other = _when_cooling(out, 15, faster)
+    assert _run(srv.port, out, protocol) == 0
+    other.join(timeout=10)
+    meta = _meta(out)
+    (gap,) = meta["gaps"]
+    assert "speed changed from x100 to x10000" in gap["reason"], gap
+    assert gap["rig_epoch"] == 0 and gap["action"] == "continue"  # the same plant
+    assert not [n for n in meta["notes"] if CLIENT_BLAMED in n], meta["notes"]
+
+
+def test_a_server_that_stalled_is_not_blamed_on_the_client(server, tmp_path):
+    """A stranger's probe: the server process SIGSTOPped for a few seconds, its clock
+    catching up once it went on, left a hole the notes blamed on the client ("held up:
+    paused, swapped out or overloaded"). The client kept its pace, waiting on the
+    server's replies: the note says the server answered late."""
+    srv = server("--speed", f"{SPEED:g}")
+    protocol = tmp_path / "rt.yaml"
+    protocol.write_text(RT)
+    out = tmp_path / "stall.csv"
+
+    def stall() -> None:
+        os.kill(srv.proc.pid, signal.SIGSTOP)
+        time.sleep(2.0)  # 200 simulated seconds, under the client's reply timeout
+        os.kill(srv.proc.pid, signal.SIGCONT)
+
+    other = _when_cooling(out, 15, stall)
+    assert _run(srv.port, out, protocol) == 0
+    other.join(timeout=10)
+    meta = _meta(out)
+    holes = [n for n in meta["notes"] if n.startswith("no row from time_s")]
+    # the server now drops a stall rather than chase it (rig_emulator.clock.RealTimeTicks),
+    # so it leaves no hole; a server that chases one (an older emulator, another rig) leaves
+    # a hole said to be the server's, never the client's
+    assert not [n for n in holes if CLIENT_BLAMED in n], meta["notes"]
+    assert all("the server answered" in n for n in holes), holes
+    assert meta["gaps"] == []
