@@ -661,14 +661,8 @@ class BenchServer:
             k: v for k, v in new.items() if k not in CLOCK_COMMANDS and k not in FAULT_COMMANDS
         }
         fault_block = {k: v for k, v in new.items() if k in FAULT_COMMANDS}
-        if fault_block:
-            refused = self.faults.write(fault_block)
-            if refused is not None:
-                return refused
-            await self.publish()  # the readings the new fault changes now; the block (a
-            for key in [k for k in self._published if k[1] == "holding"]:  # trigger: 0)
-                del self._published[key]  # again once the client's registers are stored
-            self._republish()
+        # every refusal before anything is applied: a write covering the fault block and an
+        # advance refused in real time had set its fault, then answered 03 (a review)
         if (
             "lockstep_advance_s" in new
             and self.clock.mode != LOCKSTEP
@@ -677,6 +671,14 @@ class BenchServer:
             return ExcCodes.ILLEGAL_VALUE  # time moves by itself in real-time mode
         if "reset" in new and new["reset"] not in (0.0, 1.0):
             return ExcCodes.ILLEGAL_VALUE
+        if fault_block:
+            refused = self.faults.write(fault_block)
+            if refused is not None:
+                return refused
+            await self.publish()  # the readings the new fault changes now; the block (a
+            for key in [k for k in self._published if k[1] == "holding"]:  # trigger: 0)
+                del self._published[key]  # again once the client's registers are stored
+            self._republish()
         # a write that changes no plant command (the setpoints a client writes every lockstep
         # step) needs no publish: every point of the command reads that value already
         commands = self.emulator.commands

@@ -196,3 +196,65 @@ def test_the_dashboard_write_of_a_fraction_to_a_switch_is_refused(serve, value: 
         assert _reads(c, srv, *SWITCHES) == dict.fromkeys(SWITCHES, 1.0)
     finally:
         c.close()
+
+
+#: The fault block right after the advance, so one FC16 covers both.
+FAULT_AFTER_ADVANCE: dict[str, Any] = {
+    "name": "fault_after_advance",
+    "devices": [
+        {"name": "plc", "unit_id": 1, "instrument": "PLC", "points": [
+            {"name": "flow", "signal": "water_flow_kg_h", "table": "input", "address": 0,
+             "datatype": "float32"},
+        ]},
+        {"name": "sim_control", "unit_id": 100, "instrument": "emulator", "points": [
+            {"name": "lockstep_advance", "signal": "lockstep_advance_s", "table": "holding",
+             "address": 0, "datatype": "uint32", "access": "rw"},
+            {"name": "fault_kind", "signal": "fault_kind", "table": "holding", "address": 2,
+             "datatype": "uint16", "access": "rw"},
+            {"name": "fault_target", "signal": "fault_target", "table": "holding",
+             "address": 3, "datatype": "uint16", "access": "rw"},
+            {"name": "fault_parameter", "signal": "fault_parameter", "table": "holding",
+             "address": 4, "datatype": "float32", "access": "rw"},
+            {"name": "fault_duration", "signal": "fault_duration_s", "table": "holding",
+             "address": 6, "datatype": "float32", "access": "rw"},
+            {"name": "fault_at", "signal": "fault_at_s", "table": "holding", "address": 8,
+             "datatype": "float32", "access": "rw"},
+            {"name": "fault_command", "signal": "fault_command", "table": "holding",
+             "address": 10, "datatype": "uint16", "access": "rw"},
+        ]},
+    ],
+}  # fmt: skip
+
+
+def test_a_write_refused_in_real_time_sets_no_fault(serve) -> None:
+    """A review: on a real-time server with --allow-control, one write covering an advance
+    (refused in real time, 03) and the fault block set its fault first, then answered 03:
+    an illegal request changed something. Every refusal now comes before anything is
+    applied."""
+    srv = serve(
+        register_map=map_from_mapping(FAULT_AFTER_ADVANCE, source="fault_after_advance.yaml"),
+        lockstep=False,
+        speed=1.0,
+        allow_control=True,
+    )
+    c = client(srv.port)
+    try:
+        words = []
+        for name, value in (
+            ("lockstep_advance", 60),
+            ("fault_kind", 2),  # no_reply
+            ("fault_target", 1),
+            ("fault_parameter", 0.0),
+            ("fault_duration", 5.0),
+            ("fault_at", 0.0),
+            ("fault_command", 1),
+        ):
+            words += encode(point(srv, "sim_control", name)[1], value)
+        r = c.write_registers(0, words, device_id=100)
+        assert r.isError() and r.exception_code == ILLEGAL_DATA_VALUE
+        assert srv.server.active_faults() == []
+        # the block alone is a fault like any other
+        assert not c.write_registers(2, words[2:], device_id=100).isError()
+        assert len(srv.server.active_faults()) == 1
+    finally:
+        c.close()
