@@ -64,14 +64,22 @@ class FaultJournal:
             self.begin()
 
     def begin(self) -> None:
-        """Start the file (an earlier journal there is replaced), unless begun: a server
-        begins it once it serves on every port asked for, so a start that fails (a busy
-        Modbus, HTTP or serial port) leaves an earlier journal as it was (it was emptied:
-        strangers' probes); a first line begins it too."""
+        """Start the file, unless begun: a server begins it once it serves on every port
+        asked for, so a start that fails (a busy Modbus, HTTP or serial port) leaves an
+        earlier journal as it was (it was emptied: strangers' probes); a first line begins
+        it too. An earlier journal there is set aside, not replaced (:func:`set_aside`): a
+        server restarted with the same ``--fault-log`` under a run emptied the first
+        server's, the faults of the plant the run's first rows came from (one journal is
+        one server's: the fault report compares each with its own plant's rows)."""
         if self._begun:
             return
         self._begun = True
         try:
+            kept = set_aside(self.path)
+            if kept is not None:
+                log.warning(
+                    "fault journal %s: the earlier journal there kept as %s", self.path, kept
+                )
             self._file = self.path.open("w", encoding="utf-8")
         except OSError as exc:
             self._failed = True
@@ -119,6 +127,28 @@ class FaultJournal:
         if self.lost:
             log.warning("fault journal %s: %d line(s) lost", self.path, self.lost)
             self.lost = 0
+
+
+def set_aside(path: Path) -> Path | None:
+    """Rename a non-empty regular file at ``path`` to ``STEM.EPOCH.jsonl`` (the epoch id of
+    its first line, else ``previous``; ``.2``, ``.3`` ... where taken) and return the new
+    path; None where there is nothing to keep (no file, an empty one, a device)."""
+    if not path.is_file() or path.stat().st_size == 0:
+        return None
+    with path.open("rb") as file:
+        first = file.readline(4096)
+    try:
+        epoch = json.loads(first).get("epoch_id")
+    except (ValueError, AttributeError):
+        epoch = None
+    tag = epoch if isinstance(epoch, str) and epoch.isalnum() else "previous"
+    kept = path.with_name(f"{path.stem}.{tag}{path.suffix}")
+    number = 1
+    while kept.exists():
+        number += 1
+        kept = path.with_name(f"{path.stem}.{tag}.{number}{path.suffix}")
+    path.rename(kept)
+    return kept
 
 
 def read_journal(path: str | Path) -> list[dict[str, Any]]:

@@ -16,7 +16,7 @@ from rig_emulator.emulator import Emulator
 from rig_emulator.faults import FaultJournal, faults_from_list, read_journal
 from rig_emulator.instruments import load_profile
 from rig_emulator.modbus.fault_control import ServerFaults
-from rig_emulator.registers import load_map
+from rig_emulator.registers import encode, load_map
 
 
 def test_every_line_carries_the_servers_epoch_id_in_hex(tmp_path):
@@ -68,3 +68,46 @@ def test_a_servers_journal_carries_the_epoch_id_it_publishes(serve, tmp_path):
     c.close()
     lines = read_journal(path)
     assert lines and {e["epoch_id"] for e in lines} == {f"{published:08x}"}
+
+
+def test_a_server_restarted_on_the_same_journal_keeps_the_first_ones(tmp_path):
+    """A stranger's probe, left alone until now: a server restarted under a run with the
+    same ``--fault-log`` (the same command line, as a CI job restarts it) emptied the first
+    server's journal, the faults of the plant the run's first rows came from. The earlier
+    journal is now set aside under its epoch id, and a warning says where; each file is
+    one server's, as the fault report wants."""
+    import signal
+    import subprocess
+
+    from hil_client.demo import rig_emulator_serve
+    from tests.modbus_helpers import client, read_point
+
+    faults = tmp_path / "faults.yaml"
+    faults.write_text("faults:\n  - {kind: no_reply, unit: 2, at_s: 1, for_s: 2}\n")
+    journal = tmp_path / "j.jsonl"
+    options = ("--lockstep", "--faults", str(faults), "--fault-log", str(journal))
+    sim = load_map().device("sim_control")
+    advance = next(p for p in sim.points if p.name == "lockstep_advance")
+    epoch = next(p for p in sim.points if p.name == "epoch")
+    epochs, errors = [], []
+    for _ in range(2):
+        with rig_emulator_serve("windhager_12kw", *options, stderr=subprocess.PIPE) as (
+            port,
+            proc,
+        ):
+            c = client(port, timeout_s=60)
+            ten_s = encode(advance, 10)
+            assert not c.write_registers(advance.address, ten_s, device_id=100).isError()
+            epochs.append(f"{int(read_point(c, sim, epoch)):08x}")
+            c.close()
+            proc.send_signal(signal.SIGINT)
+            assert proc.wait(timeout=60) == 0
+            errors.append(proc.stderr.read().decode())
+    kept = tmp_path / f"j.{epochs[0]}.jsonl"
+    assert {e["epoch_id"] for e in read_journal(kept)} == {epochs[0]}
+    assert {e["epoch_id"] for e in read_journal(journal)} == {epochs[1]}
+    assert len(read_journal(kept)) == len(read_journal(journal)) == 2  # start and end
+    assert "kept as" not in errors[0] and f"kept as {kept}" in errors[1], errors
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        ["faults.yaml", "j.jsonl", kept.name]
+    )
