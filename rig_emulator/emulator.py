@@ -63,10 +63,6 @@ from rig_emulator.signals import MEASURED, SIGNALS
 NOX_CONVERSION = 0.35  # fraction of fuel N emitted as NO
 OGC_PER_CO = 0.05  # organic gaseous carbon [ppm C1] per ppm CO
 CO_RANGE_PPM = 10_000.0  # analyser range; above it the status word flags over-range
-#: how near a whole number a whole command's value must be to be it: a scaled register's
-#: raw * scale + offset is a few float ulps off (70 * 0.1 = 7.000000000000001, 2e-16
-#: relative), far below this; any step a point of such a command may have is far above it
-WHOLE_TOLERANCE = 1e-9
 STABLE_WINDOW_S = 5.0  # the balance reports "stable" when unchanged this long
 #: Readings of the gas analyser (unit 2): an invalid one clears its "measuring" bit.
 ANALYSER_SIGNALS = (
@@ -157,19 +153,18 @@ def check_command(name: str, value: float, within: tuple[float, float] | None = 
     (:attr:`~rig_emulator.signals.Signal.whole`: a switch fired on 0.5 written through a
     scaled register, a stranger's probe), within its declared range
     (:mod:`rig_emulator.signals`) or ``within``, a register-map point's range, which the map
-    may only narrow. Returns the value as float (a whole command's as that whole number);
-    :class:`CommandError` if not valid."""
+    may only narrow. Returns the value as float; :class:`CommandError` if not valid."""
     signal = SIGNALS.get(name)
     if signal is None or signal.kind != "command":
         raise CommandError(f"'{name}' is not a command")
     value = float(value)
     if not math.isfinite(value):
         raise CommandError(f"{name}: {value} is not a finite number")
-    if signal.whole:
-        whole = float(round(value))
-        if not math.isclose(value, whole, rel_tol=WHOLE_TOLERANCE, abs_tol=WHOLE_TOLERANCE):
-            raise CommandError(f"{name}: {value!r} is not a whole number (a switch, mode or code)")
-        value = whole
+    # exactly: a writable point of such a command has scale 1 or -1 and a whole offset
+    # (the map's rule), so it decodes whole numbers exactly; 1 + 5e-10 through a float64 was
+    # taken as 1 while the point held 1.0000000005 (a re-probe)
+    if signal.whole and not value.is_integer():
+        raise CommandError(f"{name}: {value!r} is not a whole number (a switch, mode or code)")
     lo, hi = within if within is not None else (signal.minimum, signal.maximum)
     if not lo <= value <= hi:
         raise CommandError(f"{name}: {value} outside {lo:g}..{hi:g}")

@@ -88,6 +88,7 @@ from rig_emulator.registers import (
     RegisterMap,
     encode,
     invalid_value,
+    legacy_map_identity,
     map_identity,
     reading_range,
     run_decoder,
@@ -395,7 +396,8 @@ class ModbusRig:
         served = self._read_optional(register_map, "map_id")
         if served is not None:
             ours = map_identity(register_map)
-            if int(served) != ours:
+            # (a server of an earlier release publishes the older form, without the ranges)
+            if int(served) not in (ours, legacy_map_identity(register_map)):
                 return (
                     f"the server serves another register map than {register_map.source} "
                     f"(map id {int(served):08x}, this one's {ours:08x}: a point moved, "

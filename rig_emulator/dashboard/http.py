@@ -308,9 +308,12 @@ class Dashboard:
             log.info("dashboard control refused: %s = %r (%s)", signal, value, refused)
             await _respond(writer, 400, {"error": refused})
             return
-        log.info("dashboard control: %s = %r", signal, value)
+        # what the server holds: the value as its register carries it (501 through a point
+        # of 2-kg/h steps is 500: the answer said 501, a re-probe)
+        applied = self.server.emulator.commands.get(signal, number)
+        log.info("dashboard control: %s = %r (applied %r)", signal, value, applied)
         self._sample()
-        await _respond(writer, 200, {"ok": True, "signal": signal, "value": value})
+        await _respond(writer, 200, {"ok": True, "signal": signal, "value": applied})
 
     async def _faults(self, body: bytes, writer: asyncio.StreamWriter) -> None:
         if not self.control:

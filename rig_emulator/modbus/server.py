@@ -59,6 +59,7 @@ from rig_emulator.registers import (
     emulator_units,
     encode,
     map_identity,
+    precision,
     reading_range,
     run_encoder,
     written_value,
@@ -577,6 +578,7 @@ class BenchServer:
         if isinstance(plan, ExcCodes):
             return plan
         new: dict[str, float] = {}
+        step: dict[str, float] = {}  # the encoding precision the value of ``new`` came with
         for point, first in plan:
             if table == "coil":
                 value = 1.0 if values[first] else 0.0
@@ -587,9 +589,16 @@ class BenchServer:
             except CommandError:
                 return ExcCodes.ILLEGAL_VALUE
             # two points of one command given two values: whichever the server took, the
-            # other point would hold what the client wrote, disagreeing with it
-            if new.setdefault(point.signal, checked) != checked:
-                return ExcCodes.ILLEGAL_VALUE
+            # other point would hold what the client wrote, disagreeing with it; the same
+            # value in two encodings (500.3 as uint16 x0.1 and float32) is one (a re-probe),
+            # taken from the finer of the two
+            here = precision(point, checked)
+            if point.signal in new:
+                if abs(new[point.signal] - checked) > step[point.signal] + here:
+                    return ExcCodes.ILLEGAL_VALUE
+                if here >= step[point.signal]:
+                    continue
+            new[point.signal], step[point.signal] = checked, here
         refused = await self._apply(new, operator)
         # the client's registers are stored after this returns (a trigger such as the fault
         # command's over the 0 published): publish them again next time
@@ -603,31 +612,32 @@ class BenchServer:
             value = check_command(signal, value)
         except CommandError as exc:
             return f"{exc}: Modbus exception 03"
-        for device in self.map.devices:
-            for point in device.points:
-                if point.signal == signal and point.writable:
-                    if point.table == "coil":
-                        if value not in (0.0, 1.0):  # FC5 takes FF00 or 0000, nothing else
-                            return f"{value!r} is not 0 or 1 (a switch): Modbus exception 03"
-                        registers: list = [value == 1.0]
-                    else:
-                        lo, hi = accepted_range(point)
-                        if not lo <= value <= hi:  # (encode clips: 687 went out as 655.35)
-                            return (
-                                f"{value!r} outside {lo:g}..{hi:g}, what point '{point.name}' "
-                                f"({point.datatype}) accepts: Modbus exception 03"
-                            )
-                        try:
-                            registers = encode(point, value)
-                        except (ValueError, OverflowError, struct.error):
-                            return f"{value!r} cannot be encoded as {point.datatype}"
-                    refused = await self._write(
-                        device, point.table, point.address, registers, operator=True
-                    )
-                    if refused is None:  # published, its own point too (no client stores it)
-                        return None
-                    return f"refused with Modbus exception {int(refused):02X} ({refused.name})"
-        return f"no writable point carries '{signal}'"
+        # through its finest point (a float before a uint16 x2: 501 went out as 500)
+        writable = [
+            (d, p) for d in self.map.devices for p in d.points if p.signal == signal and p.writable
+        ]
+        if not writable:
+            return f"no writable point carries '{signal}'"
+        device, point = min(writable, key=lambda dp: precision(dp[1], value))
+        if point.table == "coil":
+            if value not in (0.0, 1.0):  # FC5 takes FF00 or 0000, nothing else
+                return f"{value!r} is not 0 or 1 (a switch): Modbus exception 03"
+            registers: list = [value == 1.0]
+        else:
+            lo, hi = accepted_range(point)
+            if not lo <= value <= hi:  # (encode clips: 687 went out as 655.35)
+                return (
+                    f"{value!r} outside {lo:g}..{hi:g}, what point '{point.name}' "
+                    f"({point.datatype}) accepts: Modbus exception 03"
+                )
+            try:
+                registers = encode(point, value)
+            except (ValueError, OverflowError, struct.error):
+                return f"{value!r} cannot be encoded as {point.datatype}"
+        refused = await self._write(device, point.table, point.address, registers, operator=True)
+        if refused is None:  # published, its own point too (no client stores it)
+            return None
+        return f"refused with Modbus exception {int(refused):02X} ({refused.name})"
 
     def _control_refused(self, new: dict[str, float]) -> bool:
         """Whether a write of clock commands must be refused (real time, no --allow-control);

@@ -296,8 +296,24 @@ def map_identity(register_map: RegisterMap) -> int:
             p.scale,
             p.offset + 0.0,
             p.access,
-            accepted_range(p) if p.writable else (),
+            tuple(x + 0.0 for x in accepted_range(p)) if p.writable else (),
         )
+        for d in register_map.devices
+        for p in d.points
+    )
+    digest = hashlib.blake2b(repr(wire).encode(), digest_size=4).digest()
+    return int.from_bytes(digest, "big")
+
+
+def legacy_map_identity(register_map: RegisterMap) -> int:
+    """The ``map_id`` servers of earlier releases published for ``register_map``: the
+    points on the wire only (signal, table, address, type, word order, scale, offset), not
+    the access or ranges of writes. A client accepts a server publishing it for the
+    client's own map (a re-probe: a new client refused an earlier server serving the very
+    same shipped map, and advised a --map that could not help); such a server's ranges
+    are not checked before the run, its refusals stop the run when they come."""
+    wire = sorted(
+        (d.unit_id, p.table, p.address, p.signal, p.datatype, p.word_order, p.scale, p.offset)
         for d in register_map.devices
         for p in d.points
     )

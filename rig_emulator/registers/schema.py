@@ -25,10 +25,11 @@ A map lists devices (Modbus unit IDs), each with points that publish one signal 
             max: 2000                 #   the signal's range, which a map may only narrow)
             description: ...          # default: the signal's description
 
-A bit (a coil or a discrete input) carries an on/off signal only (unit ``0/1``); a command
-that takes whole numbers (:attr:`~rig_emulator.signals.Signal.whole`) is published with a
-whole scale and offset, so no register value decodes to a fraction; the map converts no
-units. A broken map is refused with the file, device and point named.
+A bit (a coil or a discrete input) carries an on/off signal (unit ``0/1``) or a command
+of whole numbers only; a writable point of a command that takes whole numbers
+(:attr:`~rig_emulator.signals.Signal.whole`) has scale 1 or -1 and a whole offset, so it
+carries each whole value and no fraction; the map converts no units. A broken map is
+refused with the file, device and point named.
 """
 
 from __future__ import annotations
@@ -165,10 +166,10 @@ def _point(raw: Any, where: str, default_order: str) -> Point:
         raise MapError(f"{where}: bad type '{datatype}' (one of {', '.join(DATATYPES)})")
     if (table in BIT_TABLES) != (datatype == "bool"):
         raise MapError(f"{where}: bad type '{datatype}' for table '{table}' (bool iff bits)")
-    if table in BIT_TABLES and not signal.switch:  # (22 C was served as 1: a stranger's probe)
-        raise MapError(
-            f"{where}: a bit carries 0/1, and '{signal_name}' [{signal.unit}] is no on/off "
-            "signal; publish it in registers"
+    if table in BIT_TABLES and not (signal.switch or signal.whole):
+        raise MapError(  # (22 C was served as 1: a stranger's probe)
+            f"{where}: a bit carries 0/1, and '{signal_name}' [{signal.unit}] is neither an "
+            "on/off signal nor a command of whole numbers; publish it in registers"
         )
     address = raw["address"]
     if isinstance(address, bool) or not isinstance(address, int) or address < 0:
@@ -186,12 +187,15 @@ def _point(raw: Any, where: str, default_order: str) -> Point:
     if (encoding.is_float or encoding.is_bit) and (scale != 1.0 or offset != 0.0):
         carried = "a bit carries 0/1" if encoding.is_bit else "a float carries the value"
         raise MapError(f"{where}: 'scale'/'offset' apply to integer types only ({carried})")
-    if signal.whole and not (scale.is_integer() and offset.is_integer()):
-        raise MapError(
-            f"{where}: '{signal_name}' takes whole numbers only, so 'scale' and 'offset' must "
-            f"be whole (scale {scale:g}, offset {offset:g} decode some registers to fractions)"
-        )
     access = raw.get("access", "r")
+    # a writable point of a whole command carries each whole value and nothing between: a
+    # scale of 0.5 decoded fractions (the burner fired on 0.5), one of 2 could not carry 1
+    # (a re-probe: written on, it read off)
+    if signal.whole and access == "rw" and not (abs(scale) == 1.0 and offset.is_integer()):
+        raise MapError(
+            f"{where}: '{signal_name}' takes whole numbers only, so a writable point of it "
+            f"has scale 1 or -1 and a whole offset (scale {scale:g}, offset {offset:g})"
+        )
     if access not in ("r", "rw"):
         raise MapError(f"{where}: bad access '{access}' (r or rw)")
     if access == "rw":
@@ -214,10 +218,11 @@ def _point(raw: Any, where: str, default_order: str) -> Point:
     if not isinstance(name, str) or not name:
         raise MapError(f"{where}: 'name' must be a non-empty text, got {_kind(name)}")
     unit = _text(raw, "unit", signal.unit, where)
-    if unit != signal.unit:  # (unit: K served 22 C as "22 K": a stranger's probe)
+    if _unit_key(unit) != _unit_key(signal.unit):  # (unit: K served 22 C as "22 K": a probe)
         raise MapError(
-            f"{where}: the map does not convert units: 'unit' {_kind(unit)} is not the "
-            f"unit of '{signal_name}', {signal.unit!r} (leave 'unit' out)"
+            f"{where}: 'unit' {_kind(unit)} is not the unit of '{signal_name}' "
+            f"({signal.unit}): a point serves the signal in its own unit, a scale and an "
+            "offset give its register's resolution, not another unit; leave 'unit' out"
         )
     return Point(
         name=name,
@@ -234,6 +239,12 @@ def _point(raw: Any, where: str, default_order: str) -> Point:
         maximum=maximum,
         description=_text(raw, "description", signal.description, where),
     )
+
+
+def _unit_key(unit: str) -> str:
+    """A unit as written, compared: spaces, a degree sign and letter case aside ('°C' and
+    'C', 'kg / h' and 'kg/h' were refused as other units: a re-probe)."""
+    return unit.replace(" ", "").replace("°", "").replace("deg", "").lower()
 
 
 def _kind(value: Any) -> str:

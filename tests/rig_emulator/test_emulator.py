@@ -77,6 +77,10 @@ def test_reset_reproduces_the_run(params_12kw):
         ("boiler_command", math.inf),
         ("pump_on", 2.0),
         ("flue_gas_temp_C", 1.0),
+        # a re-probe: 1 + 5e-10 through a float64 point was taken as 1 while the point held
+        # 1.0000000005; a whole command's value is whole exactly
+        ("boiler_command", 1.0 + 5e-10),
+        ("fault_kind", 2.5),
     ],
 )
 def test_bad_commands_change_nothing(params_12kw, name, value):

@@ -4,7 +4,9 @@ point of a written command reads the new value as soon as the write is answered.
 
 from __future__ import annotations
 
+import json
 import struct
+import urllib.request
 from pathlib import Path
 from typing import Any
 
@@ -12,6 +14,7 @@ import pytest
 import yaml
 
 from hil_client.demo import rig_emulator_serve
+from hil_client.wait_for_port import free_port, wait_for_port
 from rig_emulator.registers import RegisterMap, encode, load_map, map_from_mapping
 from tests.modbus_helpers import ADVANCE, client, point, read_point, write
 
@@ -258,3 +261,83 @@ def test_a_write_refused_in_real_time_sets_no_fault(serve) -> None:
         assert len(srv.server.active_faults()) == 1
     finally:
         c.close()
+
+
+#: The flow setpoint in tenths (uint16) and as a float32 side by side; only in steps of 2.
+TWO_ENCODINGS: dict[str, Any] = {
+    "name": "two_encodings",
+    "devices": [
+        {"name": "plc", "unit_id": 1, "instrument": "PLC", "points": [
+            {"name": "sp_tenths", "signal": "water_flow_setpoint_kg_h", "table": "holding",
+             "address": 0, "datatype": "uint16", "scale": 0.1, "access": "rw"},
+            {"name": "sp_f32", "signal": "water_flow_setpoint_kg_h", "table": "holding",
+             "address": 1, "datatype": "float32", "access": "rw"},
+        ]},
+        {"name": "sim_control", "unit_id": 100, "instrument": "emulator", "points": [
+            {"name": "lockstep_advance", "signal": "lockstep_advance_s", "table": "holding",
+             "address": 0, "datatype": "uint32", "access": "rw"},
+        ]},
+    ],
+}  # fmt: skip
+
+
+def test_one_value_in_two_encodings_is_one_value(serve) -> None:
+    """A re-probe: one FC16 writing 500.3 kg/h to its uint16 x0.1 point and its float32
+    point (500.29998779 as float32) got 03 as "two values", though no client can write
+    500.3 more alike; the values agree within the two points' steps and are one, taken
+    from the finer point. Two values beyond those steps are still refused."""
+    srv = serve(register_map=map_from_mapping(TWO_ENCODINGS, source="two.yaml"))
+    c = client(srv.port)
+    try:
+        assert not c.write_registers(0, [5003, *_float32(500.3)], device_id=1).isError()
+        # the float32's value (its step 3e-5 kg/h against the tenths' 0.05)
+        assert (
+            srv.values()["water_flow_setpoint_kg_h"]
+            == struct.unpack(">f", struct.pack(">f", 500.3))[0]
+        )
+        r = c.write_registers(0, [5003, *_float32(500.5)], device_id=1)
+        assert r.isError() and r.exception_code == ILLEGAL_DATA_VALUE
+    finally:
+        c.close()
+
+
+def test_the_dashboard_sets_through_the_finest_point_and_says_what_it_set(tmp_path) -> None:
+    """A re-probe: the dashboard's control wrote through the first writable point of a
+    command, so 501 kg/h through a point of 2-kg/h steps went out as 500, and its answer
+    said 501. It now writes through the finest point, and answers with the value the server
+    holds."""
+    coarse = {
+        "name": "coarse",
+        "devices": [
+            {"name": "plc", "unit_id": 1, "instrument": "PLC", "points": [
+                {"name": "sp_steps_of_2", "signal": "water_flow_setpoint_kg_h",
+                 "table": "holding", "address": 0, "datatype": "uint16", "scale": 2,
+                 "access": "rw"},
+            ]},
+            {"name": "sim_control", "unit_id": 100, "instrument": "emulator", "points": [
+                {"name": "lockstep_advance", "signal": "lockstep_advance_s",
+                 "table": "holding", "address": 0, "datatype": "uint32", "access": "rw"},
+            ]},
+        ],
+    }  # fmt: skip
+    fine = json.loads(json.dumps(coarse))
+    fine["devices"][0]["points"].append(
+        {"name": "sp_f32", "signal": "water_flow_setpoint_kg_h", "table": "holding",
+         "address": 10, "datatype": "float32", "access": "rw"}
+    )  # fmt: skip
+    for register_map, applied in ((coarse, 500.0), (fine, 501.0)):
+        path = tmp_path / f"{register_map['name']}.yaml"
+        path.write_text(yaml.safe_dump(register_map, sort_keys=False))
+        http = free_port()
+        options = ("--lockstep", "--map", str(path), "--http", str(http), "--http-control")
+        with rig_emulator_serve("windhager_12kw", *options):
+            assert wait_for_port("127.0.0.1", http, 30.0)
+            request = urllib.request.Request(
+                f"http://127.0.0.1:{http}/api/control",
+                data=json.dumps({"signal": "water_flow_setpoint_kg_h", "value": 501}).encode(),
+                method="POST",
+                headers={"Content-Type": "application/json"},
+            )
+            with urllib.request.urlopen(request, timeout=10) as reply:
+                answer = json.loads(reply.read())
+        assert answer == {"ok": True, "signal": "water_flow_setpoint_kg_h", "value": applied}

@@ -15,7 +15,7 @@ import pytest
 import yaml
 
 from hil_client.cli import main as hil_main
-from rig_emulator.registers import load_map, map_from_mapping, map_identity
+from rig_emulator.registers import legacy_map_identity, load_map, map_from_mapping, map_identity
 from rig_emulator.registers.schema import MAP_DIR
 from tests.modbus_helpers import client, point, read_point
 
@@ -59,6 +59,12 @@ def _half_burner(d: dict[str, Any]) -> None:
     )
 
 
+def _double_burner(d: dict[str, Any]) -> None:
+    _points(d, "boiler_controller")["on_command"].update(
+        table="holding", datatype="uint16", address=5, scale=2
+    )
+
+
 def _offset_fault_kind(d: dict[str, Any]) -> None:
     _points(d, "sim_control")["fault_kind"]["offset"] = 0.5
 
@@ -93,20 +99,23 @@ REFUSED: list[tuple[Callable[[dict[str, Any]], None], str]] = [
     (
         _bool_room_temp,
         "device 'bench_plc' point 'room_temp': a bit carries 0/1, and 'room_temp_C' [C] "
-        "is no on/off signal",
+        "is neither an on/off signal nor a command of whole numbers",
     ),
     # int16 x0.5: raw 1 decoded to 0.5 and the burner fired on it
     (
         _half_burner,
         "device 'boiler_controller' point 'on_command': 'boiler_command' takes whole "
-        "numbers only, so 'scale' and 'offset' must be whole (scale 0.5, offset 0",
+        "numbers only, so a writable point of it has scale 1 or -1 and a whole offset "
+        "(scale 0.5, offset 0",
     ),
+    # a re-probe: a scale of 2 passed the first rule, and 1 written through it read 0
+    (_double_burner, "point 'on_command': 'boiler_command' takes whole numbers only"),
     (_offset_fault_kind, "point 'fault_kind': 'fault_kind' takes whole numbers only"),
     # unit: K relabelled 22 C as 22 K in map-doc and on the dashboard
     (
         _kelvin,
-        "device 'bench_plc' point 'return_temp': the map does not convert units: 'unit' "
-        "'K' is not the unit of 'water_in_temp_C', 'C'",
+        "device 'bench_plc' point 'return_temp': 'unit' 'K' is not the unit of "
+        "'water_in_temp_C' (C)",
     ),
     # accepted and ignored
     (
@@ -139,15 +148,26 @@ def test_serve_refuses_a_point_that_cannot_carry_its_signal(tmp_path, mutate, me
 
 def test_what_the_rules_leave_alone_is_served_as_before(tmp_path):
     """The shipped map passes every rule (its bits are switches, its codes uint16 x1);
-    the signal's own unit, a whole scale on a whole command, a range on a writable point
-    and a number as instrument text (its text, "42", like any free-text key) are
-    accepted."""
+    the signal's own unit (as 'C', '°C' or 'kg / h': a re-probe found them refused), a
+    whole scale on a whole command, a range on a writable point, a reset or a clock mode
+    on a coil and a read-only echo of a code in tenths (both served before the first
+    rules: a re-probe), and a number as instrument text (its text, "42", like any
+    free-text key) are accepted."""
     load_map()
 
     def mutate(d: dict[str, Any]) -> None:
         plc = _points(d, "bench_plc")
-        plc["return_temp"]["unit"] = "C"
-        plc["flow_setpoint"].update(min=0, max=1500)
+        plc["return_temp"]["unit"] = "°C"
+        plc["flow_setpoint"].update(min=0, max=1500, unit="kg / h")
+        sim = next(dev for dev in d["devices"] if dev["name"] == "sim_control")
+        sim["points"] += [
+            {"name": "reset_coil", "signal": "reset", "table": "coil", "address": 0,
+             "datatype": "bool", "access": "rw"},
+            {"name": "mode_coil", "signal": "clock_mode", "table": "coil", "address": 1,
+             "datatype": "bool", "access": "rw"},
+            {"name": "kind_tenths", "signal": "fault_kind", "table": "input", "address": 200,
+             "datatype": "int16", "scale": 0.1},
+        ]  # fmt: skip
         _points(d, "sim_control")["fault_kind"].update(scale=1, offset=0)
         _points(d, "boiler_controller")["on_command"].update(
             table="holding", datatype="uint16", address=5, scale=1
@@ -161,8 +181,8 @@ def test_what_the_rules_leave_alone_is_served_as_before(tmp_path):
     assert proc.returncode == 0, proc.stderr
     doc = out.read_text()
     assert "## Unit 2: `flue_gas_analyser`\n\n42\n" in doc
-    assert "| 2-3 | 30003 | return_temp | float32 | ABCD |  |  | C | r |" in doc
-    assert "| 0-1 | 40001 | flow_setpoint | float32 | ABCD |  |  | kg/h | rw | 0..1500 |" in doc
+    assert "| 2-3 | 30003 | return_temp | float32 | ABCD |  |  | °C | r |" in doc
+    assert "| 0-1 | 40001 | flow_setpoint | float32 | ABCD |  |  | kg / h | rw | 0..1500 |" in doc
 
 
 def _narrowed_flow(d: dict[str, Any]) -> None:
@@ -247,3 +267,16 @@ def test_generated_certificates_are_ignored_by_git(tmp_path):
     assert sorted(ignored.stdout.split()) == paths, ignored.stderr
     # the module of the same name stays tracked (exit 1: not ignored)
     assert _git("check-ignore", "--no-index", "rig_emulator/certs.py").returncode == 1
+
+
+def test_an_earlier_releases_id_and_a_minus_zero_range(tmp_path):
+    """Re-probes: a new client refused a server of the earlier release serving the very
+    same shipped map (its map_id, read over the wire from the release before the ranges
+    joined the hash, 0a72832f), and advised a --map that could not help; the client
+    accepts that older form of its own map's id. And a writable range written ``min:
+    -0.0`` changed the id, though nothing on the wire or in the answers changes."""
+    shipped = load_map()
+    assert legacy_map_identity(shipped) == 0x0A72832F  # published by a388971's server
+    assert legacy_map_identity(shipped) != map_identity(shipped)
+    path = _map_file(tmp_path, lambda d: _points(d, "bench_plc")["flow_setpoint"].update(min=-0.0))
+    assert map_identity(load_map(path)) == map_identity(shipped)
