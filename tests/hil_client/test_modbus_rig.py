@@ -204,6 +204,8 @@ def test_unreachable_server_gives_one_line_error(tmp_path, capsys):
 
 
 def _start_client(port: int, out: Path, *extra: str) -> subprocess.Popen:
+    """``hil-client run`` as a process that stops on a hangup, whatever the test run's own
+    disposition of SIGHUP (a CI started under nohup ignores it, and so would the client)."""
     return subprocess.Popen(
         [
             sys.executable,
@@ -225,8 +227,13 @@ def _start_client(port: int, out: Path, *extra: str) -> subprocess.Popen:
         env={**os.environ, "PYTHONUNBUFFERED": "1"},
         # Ctrl-C as a terminal gives it: a pytest-xdist worker ignores SIGINT, and a child
         # that starts with SIGINT ignored keeps ignoring it (Python installs no handler)
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        preexec_fn=_default_stop_signals,
     )
+
+
+def _default_stop_signals() -> None:
+    for how in (signal.SIGINT, signal.SIGHUP):
+        signal.signal(how, signal.SIG_DFL)
 
 
 def _wait_rows(out: Path, n: int, timeout: float = 120.0) -> None:

@@ -416,9 +416,8 @@ def test_serve_stops_cleanly_on_a_hangup_unless_started_under_nohup(nohup):
 
     port = free_port()
 
-    def ignore_hangup() -> None:
-        if nohup:
-            signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    def ignore_hangup() -> None:  # (the test run itself may be under nohup: the default)
+        signal.signal(signal.SIGHUP, signal.SIG_IGN if nohup else signal.SIG_DFL)
 
     proc = subprocess.Popen(
         [sys.executable, "-m", "rig_emulator.cli", "serve", "--boiler", "windhager_12kw",
