@@ -174,12 +174,21 @@ def _stuck(log: LabLog) -> list[str]:
     return out
 
 
+#: Readings of the flow below this share of its largest magnitude are a standstill's, the
+#: meter's zero (-0.3 kg/h over two hours of second cooling made the whole log's median
+#: negative, and a good log was refused: a re-probe); the flow's sign is read from the rest.
+FLOW_STANDSTILL_SHARE = 0.05
+
+
 def _flow(log: LabLog) -> list[str]:
     x = _readings(log, "water_flow_kg_h")
-    if len(x) and float(np.median(x)) < 0.0:
+    if not len(x):
+        return []
+    moving = x[np.abs(x) > FLOW_STANDSTILL_SHARE * float(np.max(np.abs(x)))]
+    if len(moving) and float(np.median(moving)) < 0.0:
         return [
-            f"column 'water_flow_kg_h' reads a median of {float(np.median(x)):.1f} kg/h:"
-            " negative (the meter's direction, or its sign?)"
+            f"column 'water_flow_kg_h' reads a median of {float(np.median(moving)):.1f} kg/h"
+            " while the water moves: negative (the meter's direction, or its sign?)"
         ]
     return []
 

@@ -193,28 +193,40 @@ def _get(section: Mapping[str, Any], prefix: str, key: str, source: str, kind: s
     return value
 
 
-def _text_key(section: Mapping[str, Any], key: str, full: str, source: str) -> str:
-    """A non-empty text key that can stand in a lab-log field (:func:`_log_text`); a key
-    given as a number was said to be missing (a stranger's probe)."""
+def _text_key(
+    section: Mapping[str, Any], key: str, full: str, source: str, in_log: bool = True
+) -> str:
+    """A non-empty text key without control characters and, ``in_log`` (a field of the lab
+    log), commas or quotes (:func:`_log_text`); a key given as a number was said to be
+    missing (a stranger's probe)."""
     if key not in section or section[key] is None:
         raise ProtocolError(f"{source}: missing required key '{full}' (a non-empty text)")
     value = section[key]
     if not isinstance(value, str) or not value.strip():
         raise ProtocolError(f"{source}: key '{full}' must be a non-empty text, got {value!r:.40}")
+    if not in_log and _control_free(value):
+        return value
     if not _log_text(value):
         raise ProtocolError(
-            f"{source}: key '{full}' {value!r:.40} may not hold a comma, a quote or control "
-            "characters (it is a field of the lab log)"
+            f"{source}: key '{full}' {value!r:.40} may not hold "
+            + (
+                "a comma, a quote or control characters (it is a field of the lab log)"
+                if in_log
+                else "control characters"
+            )
         )
     return value
+
+
+def _control_free(text: str) -> bool:
+    """Whether ``text`` holds no line break or other control character."""
+    return not any(unicodedata.category(ch) in ("Cc", "Cf", "Zl", "Zp") for ch in text)
 
 
 def _log_text(name: str) -> bool:
     """Whether ``name`` can stand in a lab-log field as it is: no comma, quote, line break
     or other control character."""
-    return not any(
-        ch in ',"' or unicodedata.category(ch) in ("Cc", "Cf", "Zl", "Zp") for ch in name
-    )
+    return _control_free(name) and not any(ch in ',"' for ch in name)
 
 
 def _not_longer(short: float, long: float, keys: tuple[str, str], source: str) -> None:
@@ -252,8 +264,8 @@ def protocol_from_mapping(data: Any, source: str = "<protocol>") -> ProtocolDefi
         "",
         source,
     )
-    for key in ("name", "test"):
-        _text_key(data, key, key, source)
+    for key in ("name", "test"):  # (the meta file's, not the log's: a comma is fine)
+        _text_key(data, key, key, source, in_log=False)
     period = _get(data, "", "acquisition_period_s", source, "positive")
     low, high = ACQUISITION_PERIOD_S
     if not low <= period <= high:

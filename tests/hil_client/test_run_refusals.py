@@ -489,3 +489,16 @@ def test_a_rig_host_that_is_no_host_name_is_one_line(tmp_path, capsys, scheme):
     argv = ["run", "stationary", "--boiler", "windhager_12kw", "--out", str(out)]
     _refused(capsys, [*argv, "--rig", f"{scheme}://lab..local:5020"], "'lab..local' is no host")
     assert out.read_text() == KEPT
+
+
+def test_a_protocol_named_with_a_comma_or_quotes_is_accepted(tmp_path):
+    """A re-probe: "EN 303-5, stationary" as the protocol's name (or its test) was refused
+    as "a field of the lab log", though the name and test go to the meta file only; a
+    sequence's name, which the log's sequence column holds, still may not have one."""
+    from hil_client.protocol.definition import load_protocol
+
+    path = _protocol(
+        tmp_path, lambda d: d.update(name='EN 303-5, "stationary"', test="stationary, nominal")
+    )
+    protocol = load_protocol(path)
+    assert protocol.name == 'EN 303-5, "stationary"'

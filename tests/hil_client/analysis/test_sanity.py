@@ -175,3 +175,17 @@ def test_a_flow_read_backwards_is_refused_by_every_analysis(logs, tmp_path, caps
         assert len(err.splitlines()) == 1, err
         assert "'water_flow_kg_h' reads a median of" in err and "sign" in err, err
     assert not any((tmp_path / n).exists() for n in ("b.json", "v", "c.yaml", "d"))
+
+
+def test_a_meters_zero_in_a_long_standstill_is_no_reversed_flow(logs):
+    """A re-probe: a log whose flow meter reads -0.3 kg/h at standstill (its zero), over
+    more than half the record (a long second cooling with the pump off), had a negative
+    median and was refused as a flow read backwards; its sign is read from the rows where
+    the water moves. The reversed meter is still named."""
+    log = logs["stationary"]
+    standstill = log.t > log.t[int(0.4 * len(log))]
+    zero = _mutated(log, water_flow_kg_h=lambda x, t: np.where(standstill, -0.3, x))
+    assert float(np.nanmedian(zero["water_flow_kg_h"])) < 0.0
+    assert not [w for w in suspicious(zero, load_boiler(BOILER)) if "water_flow_kg_h" in w]
+    reversed_meter = _mutated(zero, water_flow_kg_h=lambda x, t: -x)
+    assert any("negative" in w for w in suspicious(reversed_meter, load_boiler(BOILER)))
