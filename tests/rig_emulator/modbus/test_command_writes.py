@@ -201,32 +201,41 @@ def test_the_dashboard_write_of_a_fraction_to_a_switch_is_refused(serve, value: 
         c.close()
 
 
+def _small_map(name: str, plc: list[dict], sim: tuple[dict, ...] = ()) -> dict[str, Any]:
+    """A map of a PLC (unit 1) with ``plc``'s points and the simulation control (unit 100)
+    with the lockstep advance at holding 0-1 and ``sim``'s points."""
+    advance = {"name": "lockstep_advance", "signal": "lockstep_advance_s", "table": "holding",
+               "address": 0, "datatype": "uint32", "access": "rw"}  # fmt: skip
+    return {
+        "name": name,
+        "devices": [
+            {"name": "plc", "unit_id": 1, "instrument": "PLC", "points": plc},
+            {"name": "sim_control", "unit_id": 100, "instrument": "emulator",
+             "points": [advance, *sim]},
+        ],
+    }  # fmt: skip
+
+
+def _holding(name: str, signal: str, address: int, datatype: str, **more: Any) -> dict:
+    """A writable holding-register point."""
+    return {"name": name, "signal": signal, "table": "holding", "address": address,
+            "datatype": datatype, "access": "rw", **more}  # fmt: skip
+
+
 #: The fault block right after the advance, so one FC16 covers both.
-FAULT_AFTER_ADVANCE: dict[str, Any] = {
-    "name": "fault_after_advance",
-    "devices": [
-        {"name": "plc", "unit_id": 1, "instrument": "PLC", "points": [
-            {"name": "flow", "signal": "water_flow_kg_h", "table": "input", "address": 0,
-             "datatype": "float32"},
-        ]},
-        {"name": "sim_control", "unit_id": 100, "instrument": "emulator", "points": [
-            {"name": "lockstep_advance", "signal": "lockstep_advance_s", "table": "holding",
-             "address": 0, "datatype": "uint32", "access": "rw"},
-            {"name": "fault_kind", "signal": "fault_kind", "table": "holding", "address": 2,
-             "datatype": "uint16", "access": "rw"},
-            {"name": "fault_target", "signal": "fault_target", "table": "holding",
-             "address": 3, "datatype": "uint16", "access": "rw"},
-            {"name": "fault_parameter", "signal": "fault_parameter", "table": "holding",
-             "address": 4, "datatype": "float32", "access": "rw"},
-            {"name": "fault_duration", "signal": "fault_duration_s", "table": "holding",
-             "address": 6, "datatype": "float32", "access": "rw"},
-            {"name": "fault_at", "signal": "fault_at_s", "table": "holding", "address": 8,
-             "datatype": "float32", "access": "rw"},
-            {"name": "fault_command", "signal": "fault_command", "table": "holding",
-             "address": 10, "datatype": "uint16", "access": "rw"},
-        ]},
-    ],
-}  # fmt: skip
+FAULT_AFTER_ADVANCE = _small_map(
+    "fault_after_advance",
+    [{"name": "flow", "signal": "water_flow_kg_h", "table": "input", "address": 0,
+      "datatype": "float32"}],
+    (
+        _holding("fault_kind", "fault_kind", 2, "uint16"),
+        _holding("fault_target", "fault_target", 3, "uint16"),
+        _holding("fault_parameter", "fault_parameter", 4, "float32"),
+        _holding("fault_duration", "fault_duration_s", 6, "float32"),
+        _holding("fault_at", "fault_at_s", 8, "float32"),
+        _holding("fault_command", "fault_command", 10, "uint16"),
+    ),
+)  # fmt: skip
 
 
 def test_a_write_refused_in_real_time_sets_no_fault(serve) -> None:
@@ -263,22 +272,14 @@ def test_a_write_refused_in_real_time_sets_no_fault(serve) -> None:
         c.close()
 
 
-#: The flow setpoint in tenths (uint16) and as a float32 side by side; only in steps of 2.
-TWO_ENCODINGS: dict[str, Any] = {
-    "name": "two_encodings",
-    "devices": [
-        {"name": "plc", "unit_id": 1, "instrument": "PLC", "points": [
-            {"name": "sp_tenths", "signal": "water_flow_setpoint_kg_h", "table": "holding",
-             "address": 0, "datatype": "uint16", "scale": 0.1, "access": "rw"},
-            {"name": "sp_f32", "signal": "water_flow_setpoint_kg_h", "table": "holding",
-             "address": 1, "datatype": "float32", "access": "rw"},
-        ]},
-        {"name": "sim_control", "unit_id": 100, "instrument": "emulator", "points": [
-            {"name": "lockstep_advance", "signal": "lockstep_advance_s", "table": "holding",
-             "address": 0, "datatype": "uint32", "access": "rw"},
-        ]},
+#: The flow setpoint in tenths (uint16) and as a float32 side by side.
+TWO_ENCODINGS = _small_map(
+    "two_encodings",
+    [
+        _holding("sp_tenths", "water_flow_setpoint_kg_h", 0, "uint16", scale=0.1),
+        _holding("sp_f32", "water_flow_setpoint_kg_h", 1, "float32"),
     ],
-}  # fmt: skip
+)
 
 
 def test_one_value_in_two_encodings_is_one_value(serve) -> None:
@@ -306,25 +307,11 @@ def test_the_dashboard_sets_through_the_finest_point_and_says_what_it_set(tmp_pa
     command, so 501 kg/h through a point of 2-kg/h steps went out as 500, and its answer
     said 501. It now writes through the finest point, and answers with the value the server
     holds."""
-    coarse = {
-        "name": "coarse",
-        "devices": [
-            {"name": "plc", "unit_id": 1, "instrument": "PLC", "points": [
-                {"name": "sp_steps_of_2", "signal": "water_flow_setpoint_kg_h",
-                 "table": "holding", "address": 0, "datatype": "uint16", "scale": 2,
-                 "access": "rw"},
-            ]},
-            {"name": "sim_control", "unit_id": 100, "instrument": "emulator", "points": [
-                {"name": "lockstep_advance", "signal": "lockstep_advance_s",
-                 "table": "holding", "address": 0, "datatype": "uint32", "access": "rw"},
-            ]},
-        ],
-    }  # fmt: skip
-    fine = json.loads(json.dumps(coarse))
-    fine["devices"][0]["points"].append(
-        {"name": "sp_f32", "signal": "water_flow_setpoint_kg_h", "table": "holding",
-         "address": 10, "datatype": "float32", "access": "rw"}
-    )  # fmt: skip
+    steps_of_2 = _holding("sp_steps_of_2", "water_flow_setpoint_kg_h", 0, "uint16", scale=2)
+    coarse = _small_map("coarse", [steps_of_2])
+    fine = _small_map(
+        "fine", [steps_of_2, _holding("sp_f32", "water_flow_setpoint_kg_h", 10, "float32")]
+    )
     for register_map, applied in ((coarse, 500.0), (fine, 501.0)):
         path = tmp_path / f"{register_map['name']}.yaml"
         path.write_text(yaml.safe_dump(register_map, sort_keys=False))
