@@ -948,9 +948,7 @@ def _run(args: argparse.Namespace) -> int:
         "test": protocol.test,
         "protocol": protocol.name,
         "rig": args.rig,
-        "clock": ("lockstep" if rig.lockstep else f"real time x{rig.speed:g}")
-        if remote
-        else "offline",
+        "clock": _clock(rig) if remote else "offline",
         "profile": "set by the server" if remote else (args.profile or "clean"),
         "seed": None if remote else (args.seed or 0),
         # what the server publishes of its set-up (CONTRACT section 7)
@@ -986,6 +984,10 @@ def _run(args: argparse.Namespace) -> int:
     def save_meta(result: RunResult) -> None:
         # the marks as the log writes its times (1285.0, not 1285.0000000000364)
         meta.update({k: round(v, DECIMALS["time_s"]) for k, v in result.times.items()})
+        if remote:  # the clock as it is now (another client may have changed its speed)
+            meta["clock"] = _clock(rig)
+            if len(rig.speeds) > 1:
+                meta["clock_speeds"] = rig.speeds
         if announce:
             for key in result.times.keys() - announced:
                 announced.add(key)
@@ -1165,9 +1167,23 @@ _GAP_ACTIONS = {
 }
 
 
+def _clock(rig: ModbusRig) -> str:
+    """The meta file's ``clock``: the server's as it is now (``clock_speeds`` keeps every
+    speed seen: another client changed x20 to x40, and the meta said x20: a re-probe)."""
+    return "lockstep" if rig.lockstep else f"real time x{rig.speed:g}"
+
+
 def _gap_line(gap: dict[str, Any]) -> str:
-    """A break of the record as a sentence (the meta file's ``gaps`` entry)."""
+    """A break of the record as a sentence (the meta file's ``gaps`` entry); a change of
+    the server's speed is no break: no row is missing, the plant is the same (it was told
+    as "break ...; the run goes on from the plant as it is": a re-probe)."""
     start, end = gap.get("start_time_s"), gap.get("end_time_s")
+    if "speed_after" in gap:
+        where = "" if start is None else f" after time_s = {start:g} s"
+        return (
+            f"clock{where}: {gap.get('reason')}; the run goes on at the new speed, no row "
+            "missed (the rows' spacing follows the speed)"
+        )
     where = "before the first row" if start is None else f"after time_s = {start:g} s"
     if end is not None:
         where += f", rows again from {end:g} s"
@@ -1185,9 +1201,11 @@ def _coarse_sampling(median_s: float | None, period_s: float, meta: dict) -> str
     100 s), so the log and its phase marks are that coarse, whatever the meta's period."""
     if median_s is None or median_s <= COARSE_SAMPLING * period_s:
         return None
+    speeds = meta.get("clock_speeds")  # (x20, then x40 by another client: not "x20")
+    clock = f"real time {', then '.join(f'x{s:g}' for s in speeds)}" if speeds else meta["clock"]
     return (
         f"rows came {median_s:g} s apart (median, simulated), not every {period_s:g} s: "
-        f"the server's clock ({meta['clock']}) ran faster than the client could read, or "
+        f"the server's clock ({clock}) ran faster than the client could read, or "
         "than its own tick (serve --tick-hz); the log and its phase marks are that coarse "
         "(a slower --speed, a faster tick or --lockstep keeps the period)"
     )

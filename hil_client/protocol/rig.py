@@ -7,7 +7,7 @@ The same runner drives the in-process rig and the Modbus rig.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 #: Instrument readings every rig returns, by name (lab-log columns, CONTRACT section 3).
@@ -46,6 +46,29 @@ class RigCommand:
     return_heating: bool = False
 
 
+@dataclass(frozen=True, slots=True)
+class StepTiming:
+    """Where the wall time went between two reads of a real-time bench's clock: the one the
+    last row has and the one before. A hole in the rows lies between two such reads, and
+    the wait that made it may have come in the step before the hole's (a unit's late reply
+    after the clock was read: a 4-s delay fault was blamed on a server stall that never
+    was, a stranger's probe), so the reads of the clock bound it, not the steps."""
+
+    #: between the two reads of the clock [s]
+    wall_s: float = 0.0
+    #: waited on purpose for the clock to reach the next acquisition [s]
+    paced_s: float = 0.0
+    #: waited on the replies of the bench's own clock (its simulation control) [s]
+    server_s: float = 0.0
+    #: waited on the replies of each instrument, by unit ID [s]
+    units_s: Mapping[int, float] = field(default_factory=dict)
+
+    @property
+    def client_s(self) -> float:
+        """The rest: the client itself was held up (paused, swapped out, overloaded) [s]."""
+        return max(self.wall_s - self.paced_s - self.server_s - sum(self.units_s.values()), 0.0)
+
+
 class RigError(RuntimeError):
     """The rig cannot be reached or answered wrongly."""
 
@@ -70,8 +93,10 @@ class Rig(Protocol):
     #   log's ``water_flow_setpoint_kg_h``;
     # - ``refusal: str | None``: a plant command the bench refused as an illegal value
     #   (not a transient fault): the method cannot be carried out, the run stops;
-    # - ``step_timing: tuple[float, float]``: the last step's wall time [s] and the part of
-    #   it spent waiting on the bench's replies (who was held up in a hole of the rows).
+    # - ``step_timing: StepTiming``: where the wall time went between the reads of the
+    #   bench's clock the last two rows have (who was held up in a hole of the rows);
+    # - ``gaps``: breaks and outages (CONTRACT section 7); an entry with ``speed_after`` is
+    #   the bench's clock changing speed (another client), which loses no row.
 
     def close(self) -> None:
         """Release the rig."""

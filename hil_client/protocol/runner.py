@@ -36,7 +36,11 @@ A run that cannot carry out the test method stops (:class:`MethodNotCarriedOut`,
 setpoint was never written (a real-time server at x100000 read every 10000 s skipped the
 ramp, and the 240-s test lasted 2 h 47 min: a stranger's probe), or a plant command the rig
 reports refused as an illegal value (``refusal``: every setpoint of a 6-h run refused with
-exception 03 ended complete with a test of 0 kWh: a stranger's probe).
+exception 03 ended complete with a test of 0 kWh: a stranger's probe). A sequence lost to
+a break the run went on from (a gap the rig recorded over it, not a change of the clock's
+speed) is no such skip: the user asked the run to go on, and a note names it (a real-time
+server restarted in the second of five sequences with ``--on-restart continue`` stopped the
+run for the three the outage took: a stranger's probe).
 """
 
 from __future__ import annotations
@@ -47,9 +51,9 @@ from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from operator import itemgetter
 
-from hil_client.protocol.definition import ProtocolDefinition, ProtocolError
+from hil_client.protocol.definition import ProtocolDefinition, ProtocolError, Sequence
 from hil_client.protocol.rig import LOG_COLUMNS as LOG_COLUMNS  # the log's, declared there
-from hil_client.protocol.rig import READING_KEYS, Rig, RigCommand, RigError
+from hil_client.protocol.rig import READING_KEYS, Rig, RigCommand, RigError, StepTiming
 from rig_emulator.emulator import CommandError, check_command
 from rig_emulator.model.water_heat import flow_for_heat_kg_h
 
@@ -194,30 +198,61 @@ HOLE_TYPICAL_STEPS = 60
 HOLES_TOLD = 10
 
 
-#: Share of a step's wall time spent waiting on the server's replies from which a hole is
-#: the server's (it stalled, then its clock caught up), not the client's.
-SERVER_SHARE = 0.5
+#: An instrument's replies waited on this long between two reads of the clock: named in a
+#: hole's note (the rest answer in milliseconds on a local network)
+UNIT_LATE_S = 0.1
 
 
-def _hole(from_s: float, to_s: float, period_s: float, timing: tuple[float, float] | None) -> str:
-    """The note on a hole in the rows, blaming whoever was held up: the rig's
-    ``step_timing`` (the step's wall time, and the part of it spent waiting on the server's
-    replies) tells a client that kept its pace while the server stalled and caught up (a
-    server SIGSTOPped was blamed on the client: a stranger's probe)."""
+def _hole(from_s: float, to_s: float, period_s: float, timing: StepTiming | None) -> str:
+    """The note on a hole in the rows, blaming whoever held up the wall time between the
+    two reads of the server's clock the hole lies between (the rig's ``step_timing``), the
+    largest share of it: late replies of instruments (a slow unit, a delay fault: a 4-s
+    delay on unit 1 was blamed on a server stall "0.0 s late", a stranger's probe), the
+    server's own late replies (it stalled, and its clock made up the time: a server
+    SIGSTOPped was blamed on the client, a stranger's probe), or the client itself."""
     missed = round((to_s - from_s) / period_s) - 1
     head = f"no row from time_s = {from_s:g} to {to_s:g} s ({missed} acquisitions missed): "
     tail = ", and the rows between were not acquired"
-    if timing is not None and timing[1] >= SERVER_SHARE * timing[0]:
+    client_s = timing.client_s if timing is not None else math.inf
+    units_s = sum(timing.units_s.values()) if timing is not None else 0.0
+    server_s = timing.server_s if timing is not None else 0.0
+    if units_s > max(server_s, client_s):
+        slow = sorted(timing.units_s.items(), key=itemgetter(1), reverse=True)  # type: ignore[union-attr]
+        late = [(unit, waited) for unit, waited in slow if waited >= UNIT_LATE_S] or slow[:1]
+        if len(late) == 1:
+            who = f"unit {late[0][0]} (a slow unit, or a delay fault on it)"
+        else:
+            named = _listed([f"unit {unit} ({waited:.1f} s)" for unit, waited in late])
+            who = f"{named} (slow units, or delay faults)"
         return (
-            f"{head}the server answered {timing[1]:.1f} s late (it stalled: paused, swapped "
-            "out or overloaded, and its clock caught up), while the client kept its pace"
-            f"{tail}"
+            f"{head}the client waited {units_s:.1f} s on late replies of {who}, while the "
+            f"server's clock ran on{tail}"
         )
-    held = f" {timing[0] - timing[1]:.1f} s" if timing is not None else ""
+    if server_s > client_s:
+        return (
+            f"{head}the server answered {server_s:.1f} s late (it stalled: paused, swapped "
+            "out or overloaded, and its clock made up the time), while the client kept its "
+            f"pace{tail}"
+        )
+    held = f" {client_s:.1f} s" if timing is not None else ""
     return (
         f"{head}the client fell behind the server's real-time clock (held up{held}: paused, "
         f"swapped out or overloaded){tail}"
     )
+
+
+def _listed(items: list[str]) -> str:
+    """``a``, ``a and b``, ``a, b and c``."""
+    return " and ".join(filter(None, (", ".join(items[:-1]), items[-1])))
+
+
+def _sequences(indices: list[int], sequences: tuple[Sequence, ...]) -> tuple[str, str]:
+    """The sequences at ``indices`` named as a protocol file gives them, and the
+    grammatical number: ``("sequence 'a' (...)", "")`` or ``("sequences 'a' (...) and
+    'b' (...)", "s")``."""
+    named = [f"'{sequences[i].name}' (test_sequence.sequences[{i}])" for i in indices]
+    plural = "s" if len(named) > 1 else ""
+    return f"sequence{plural} {_listed(named)}", plural
 
 
 def _stop(result: RunResult, on_phase: Callable[[RunResult], None] | None, why: str) -> None:
@@ -294,6 +329,8 @@ def run_protocol(
     timed = hasattr(rig, "step_timing")
     refuses = hasattr(rig, "refusal")  # (looked up once: the in-process rig's rows are many)
     played = [False] * len(sequences)  # the sequences of the test that had a row
+    # ... that a break the run went on from overlapped: its span (time_s before, after)
+    lost: list[tuple[float, float] | None] = [None] * len(sequences)
     cooling_2_ends = math.inf  # t2 + until_after_t2_s, or after a restart of cooling_2
 
     while True:
@@ -338,6 +375,14 @@ def run_protocol(
         t += passed
         if len(gaps) != n_gaps:  # a break, an outage, the server's speed changed: the
             recent.clear()  # steps before tell nothing of the steps after
+            broke = any("speed_after" not in gap for gap in gaps[n_gaps:])
+            if broke and phase == "test":  # the sequences the break's time overlaps
+                start = seq_start
+                for i in range(seq_index, len(sequences)):
+                    end = start + sequences[i].duration_s
+                    if lost[i] is None and start < t and end > t - passed:
+                        lost[i] = (t - passed, t)
+                    start = end
         # (the first steps tell no typical step: a x100 server's first took 9.5 s)
         late = passed > HOLE_FACTOR * dt and len(gaps) == n_gaps and len(recent) >= 10
         if late and passed > HOLE_FACTOR * sorted(recent)[len(recent) // 2]:
@@ -364,6 +409,7 @@ def run_protocol(
                 if phase == "test":
                     sequence = sequences[0].name
                     played = [False] * len(sequences)  # the restarted test plays them all
+                    lost = [None] * len(sequences)
                 elif phase == "cooling_2":  # it lasts what it was to last after t3
                     cooling_2_ends = t + max(t4_after - (times["t3_s"] - times["t2_s"]), 0.0)
                 if gaps:
@@ -431,17 +477,28 @@ def run_protocol(
                     on_phase(result)
         elif phase == "test":
             ended = elapsed_phase >= protocol.test_duration_s - 1e-9
-            skipped = [
-                f"'{s.name}' (test_sequence.sequences[{i}])"
-                for i, s in enumerate(sequences[: len(sequences) if ended else seq_index])
-                if not played[i]
-            ]
+            unplayed = [i for i in range(len(sequences) if ended else seq_index) if not played[i]]
+            breaks: dict[tuple[float, float], list[int]] = {}  # a break's span: its lost
+            for i in unplayed:
+                span = lost[i]
+                if span is not None:
+                    breaks.setdefault(span, []).append(i)
+                    played[i] = True  # (named once: not again, nor as skipped)
+            for (before, after), broken in breaks.items():
+                named, plural = _sequences(broken, sequences)
+                result.notes.append(
+                    f"the test's {named} got no row: lost to the break from time_s = "
+                    f"{before:g} to {after:g} s, which the run went on from (the test is short "
+                    f"of {'them' if plural else 'it'})"
+                )
+            skipped = [i for i in unplayed if lost[i] is None]
             if skipped:
+                named, plural = _sequences(skipped, sequences)
                 _stop(
                     result,
                     on_phase,
-                    f"the test method could not be carried out: sequence "
-                    f"{', '.join(skipped)} got no row and its setpoint was never written "
+                    f"the test method could not be carried out: {named} got no row and "
+                    f"{'their setpoints were' if plural else 'its setpoint was'} never written "
                     f"(a step of {passed:g} s of simulated time, the acquisition period being "
                     f"{dt:g} s: a real-time server faster than this client reads; --lockstep "
                     f"or a slower --speed plays every sequence); stopped after time_s = {t:g} s",

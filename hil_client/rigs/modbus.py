@@ -43,12 +43,18 @@ simulation control (unit 100) must answer.
 Plant commands refused as an illegal value (exception 03: the server's map does not take
 that value, for the whole run) are no fault: a unit that answers its reads in the same step
 but refuses a write with 03 sets :attr:`refusal`, and the runner stops (a unit under an
-``exception`` fault answers its reads with it too: transient). :attr:`written_flow_setpoint_kg_h`
-is the flow setpoint the server took from this rig's writes, as its point's encoding
-carries it (the log's column). In real time every step also reads the server's speed: a
-change (another client, through the simulation control) is a gap, the run going on, and
-:attr:`step_timing` tells who a hole in the rows is due to: a server that answered late (it
-stalled and caught up) or a client held up between its steps.
+``exception`` fault answers its reads with it too: transient). A unit that takes commands
+but has no readings (a pump PLC of its own) is read back at a written point every step,
+so that its health is known the same way (never confirmed healthy, a 5-s exception fault
+on it stopped the run as a refusal: a stranger's probe).
+:attr:`written_flow_setpoint_kg_h` is the flow setpoint the server took from this rig's
+writes, as its point's encoding carries it (the log's column). In real time every step
+also reads the server's speed: a change (another client, through the simulation control)
+is a gap with ``speed_before`` and ``speed_after`` that loses no row, the run going on
+(:attr:`speeds`: every speed seen), and :attr:`step_timing` tells who a hole in the rows
+is due to, over the wall time between the two reads of the server's clock the hole lies
+between: a unit whose replies came late (a slow unit, a delay fault), a server that
+answered late (it stalled), or a client held up.
 
 Each break or outage is an entry of :attr:`gaps` in the log's own time base
 (``start_time_s``: the last row before, ``end_time_s``: the first row after, None if none).
@@ -79,7 +85,7 @@ from hil_client.modbus_client import (
     write_coils_pdu,
     write_registers_pdu,
 )
-from hil_client.protocol.rig import READING_KEYS, RigCommand, RigError
+from hil_client.protocol.rig import READING_KEYS, RigCommand, RigError, StepTiming
 from hil_client.rigs.transports import RtuConnection, url_port
 from rig_emulator.emulator import check_command
 from rig_emulator.registers import (
@@ -310,12 +316,14 @@ class ModbusRig:
         self._flow_carried = math.nan  # ... that the step being sent carries
         self._command_labels: list[str] = []  # what each command request of the step sets
         self._refused: list[tuple[int, str]] = []  # writes refused with 03 this step
-        self._faulty: set[int] = set()  # units whose reads got an exception, last step
+        self._faulty: set[int] = set()  # units a read of which got no data, last step
         #: a plant command refused as an illegal value (see the module docstring), or None
         self.refusal: str | None = None
-        #: the last step's wall time and the part of it spent waiting on replies [s]
-        self.step_timing = (0.0, 0.0)
-        self._waited_s = 0.0
+        #: where the wall time went between the last two reads of the server's clock
+        self.step_timing = StepTiming()
+        self._paced_s = 0.0  # ... since the last read of the clock: waited on purpose,
+        self._server_wait_s = 0.0  # on the simulation control's replies,
+        self._unit_waits: dict[int, float] = {}  # on each instrument's
         self.values: dict[str, float] = {}
         self._map_check = (plan, register_map)  # checked again when a server comes back
         try:
@@ -339,6 +347,9 @@ class ModbusRig:
             raise RigError(f"{url}: {exc}{why}") from None
         self.lockstep = status["clock_mode"] == 1.0
         self.speed = status["speed_factor"]
+        #: every speed of the server's clock this run saw, in order (another client may
+        #: change it)
+        self.speeds = [self.speed]
         self.sim_time_s = status["sim_time_s"]
         self.identity = {key: int(status[key]) for key in ("epoch_id", *_IDENTITY)}
         self._epoch_id = status["epoch_id"]
@@ -358,6 +369,9 @@ class ModbusRig:
         self._offset = -status["sim_time_s"]
         self._row_server_time = status["sim_time_s"]
         self._row_wall = time.monotonic()
+        self._clock_read_at = self._row_wall  # when the server's clock was last read
+        # the units that take commands but serve no reading: one written point read back
+        plan = plan + self._read_backs(plan)
         # the simulation control first: a slow instrument never holds up the step's checks
         self._reads = self._check_plan + plan if checks else plan
         if checks and not self.lockstep:  # the speed too: another client may change it
@@ -368,6 +382,24 @@ class ModbusRig:
             (r.unit, read_pdu(r.function, r.start, r.count)) for r in self._reads
         ]
         self._n_reads = len(self._reads)
+        #: the read of the server's clock among the step's reads (None: none, lockstep
+        #: without checks)
+        self._clock_index = next(
+            (i for i, r in enumerate(self._reads) if self._time_point in r.points), None
+        )
+
+    def _read_backs(self, plan: list[_Read]) -> list[_Read]:
+        """A read of one written point of each unit that takes this rig's plant commands
+        but serves none of the readings of ``plan``: without it such a unit is never seen
+        to answer, and its refusal with 03 (a fault's, or its map's) could not be told
+        apart (see the module docstring)."""
+        read_units = {r.unit for r in plan}
+        first_point: dict[int, str] = {}
+        for signal in WRITES:
+            unit = self._points[signal][0].unit_id
+            if unit not in read_units and unit not in self._own_units:
+                first_point.setdefault(unit, signal)
+        return [_read_plan(self.map, (s,), trim=True)[0] for s in first_point.values()]
 
     def _read_optional(self, register_map: RegisterMap, signal: str) -> float | None:
         """One read of ``signal``; None where this map or the server's has no such point."""
@@ -477,16 +509,23 @@ class ModbusRig:
         if not requests:
             return []
         sent = time.monotonic()
+        replies: list[Reply] = []
+        times: list[float] = []
         try:
             self._conn.send(requests)
             if not patient:
-                return [self._conn.receive() for _ in requests]
+                for _ in requests:
+                    replies.append(self._conn.receive())
+                    times.append(time.monotonic())
+                return replies  # type: ignore[return-value]
             everything = range(len(requests))
-            replies, _ = self._conn.receive_all(
+            replies, times = self._conn.receive_all(
                 len(requests), everything, self.reconnect_timeout_s, self._still_coming
             )
         finally:
-            self._waited_s += time.monotonic() - sent
+            if len(times) < len(requests):  # (the one that failed waited till now)
+                times.append(time.monotonic())
+            self._account(requests, sent, times)
         for reply in replies:
             if isinstance(reply, NoReply):
                 self._connect(abort=True)
@@ -495,11 +534,43 @@ class ModbusRig:
                 raise reply
         return replies  # type: ignore[return-value]
 
+    def _account(
+        self,
+        requests: list[tuple[int, bytes]],
+        sent: float,
+        times: list[float],
+        clock_read: int | None = None,
+    ) -> None:
+        """Each reply's wait (from the reply before it, or the send) to the unit it came
+        from; at the read of the server's clock (``clock_read``, an index of ``requests``)
+        :attr:`step_timing` closes and the next one starts. An in-order server answers a
+        pipelined request only after those before it, so the wait on a slow unit is its own
+        reply's, and the replies behind it come at once."""
+        previous = sent
+        for i, ((unit, _), at) in enumerate(zip(requests, times, strict=False)):
+            wait = max(at - previous, 0.0)
+            previous = at
+            if unit in self._own_units:
+                self._server_wait_s += wait
+            else:
+                self._unit_waits[unit] = self._unit_waits.get(unit, 0.0) + wait
+            if i == clock_read:
+                self.step_timing = StepTiming(
+                    at - self._clock_read_at, self._paced_s, self._server_wait_s, self._unit_waits
+                )
+                self._clock_read_at = at
+                self._paced_s = self._server_wait_s = 0.0
+                self._unit_waits = {}
+
     def _event(self, event: str, unit: int, function: int, **extra: Any) -> None:
         self._step_events.append({"event": event, "unit": unit, "function": function, **extra})
 
     def _exchange_tolerant(
-        self, requests: list[tuple[int, bytes]], own: range = range(0), patient: bool = False
+        self,
+        requests: list[tuple[int, bytes]],
+        own: range = range(0),
+        patient: bool = False,
+        clock_read: int | None = None,
     ) -> list[Reply]:
         """Like :meth:`_exchange`, but a unit's failure is its outcome, not an error; a
         timeout reconnects (late replies left behind, what the server has not carried out
@@ -508,7 +579,8 @@ class ModbusRig:
         ``reconnect_timeout_s``, a slow unit's counted as a timeout all the same; the rest,
         the rig's own at the indices ``own`` (the advance, the simulation control's reads)
         among them, come behind it on the same connection: given up on, the advance could be
-        carried out after the step was settled as lost, and sent again."""
+        carried out after the step was settled as lost, and sent again. ``clock_read``: the
+        index of the read of the server's clock, which closes :attr:`step_timing`."""
         assert self._conn is not None
         if not requests:
             return []
@@ -520,8 +592,10 @@ class ModbusRig:
             replies, times = self._conn.receive_all(
                 len(requests), own, patience, self._still_coming if patient else None
             )
-        finally:
-            self._waited_s += time.monotonic() - sent
+        except BaseException:
+            self._account(requests, sent, [time.monotonic()])
+            raise
+        self._account(requests, sent, times, clock_read)
         previous = sent
         for (unit, pdu), reply, at in zip(requests, replies, times, strict=True):
             late = at - previous > LATE_S
@@ -666,20 +740,23 @@ class ModbusRig:
         """The step's writes refused with 03 by a unit that answered its reads before the
         write (the last step's) and after it (this step's): the server does not accept the
         value (its map's range), for the whole run: :attr:`refusal`. A unit whose reads got
-        an exception too is under a fault (transient): written again (a fault that ended
-        between the write and the reads was taken for a refusal)."""
+        an exception too (or no reply) is under a fault (transient): written again (a fault
+        that ended between the write and the reads was taken for a refusal). A unit this
+        rig does not read is never seen to answer: no refusal (:meth:`_read_backs` reads
+        one point of each unit that takes commands)."""
         refused, self._refused = self._refused, []
         faulty = {
             read.unit
             for read, reply in zip(self._reads, read_replies, strict=True)
-            if isinstance(reply, ModbusExceptionResponse)
+            if not isinstance(reply, bytes)
         }
         faulty, before = faulty, self._faulty
         self._faulty = faulty
         if self.refusal is not None:
             return
-        for unit, label in refused:
-            if unit not in faulty and unit not in before:
+        read_units = {read.unit for read in self._reads}  # (a unit never read: never seen
+        for unit, label in refused:  # to answer; :meth:`_read_backs` reads one)
+            if unit in read_units and unit not in faulty and unit not in before:
                 self.refusal = (
                     f"{self.url}: unit {unit} refused {label} with exception 03 (illegal data "
                     "value) while it answered its reads: the server does not accept that value "
@@ -832,7 +909,7 @@ class ModbusRig:
         """After a lost connection: connect again and settle what the server holds."""
         self._event("disconnect", 0, 0, reason=reason)
         status = self._reconnect(reason)
-        self.speed = status["speed_factor"]
+        self._new_speed(status["speed_factor"])
         if status["epoch_id"] != self._epoch_id:
             self._check_identity(status)
             if self.lockstep and self._replayable and self._fresh(status):
@@ -961,7 +1038,6 @@ class ModbusRig:
         Returns the log time that passed [s]: ``dt_s`` in lockstep, more in real time when
         the client fell behind, and more across a break (see the module docstring).
         """
-        self._waited_s = 0.0
         for _ in range(1000):
             try:
                 step = self._step_lockstep if self.lockstep else self._step_realtime
@@ -978,10 +1054,10 @@ class ModbusRig:
                 self._on_break(brk)
                 continue
             except ModbusExceptionResponse as exc:
-                raise RigError(f"{self.url}: {exc}{_role_hint(self.url, exc)}") from None
-            now = time.monotonic()
-            self.step_timing = (now - self._row_wall, self._waited_s)
-            self._row_wall = now
+                raise RigError(
+                    f"{self.url}: {self._left_lockstep(exc) or exc}{_role_hint(self.url, exc)}"
+                ) from None
+            self._row_wall = time.monotonic()
             self._stepped = True
             for event in self._step_events:
                 self.comm_events.append(
@@ -994,6 +1070,27 @@ class ModbusRig:
                         gap["end_time_s"] = round(self.log_time_s, 3)
             return passed
         raise RigError(f"{self.url}: no progress after 1000 reconnections")
+
+    def _left_lockstep(self, exc: ModbusExceptionResponse) -> str | None:
+        """Why the simulation control refused this lockstep run's request where its clock
+        is no longer in lockstep (another client switched it to real time: the advance is
+        refused with 03, and the run stopped on "unit 100: function 16 refused with
+        exception 03" alone: a stranger's probe); the gap says so too. None otherwise."""
+        if not self.lockstep or exc.unit not in self._own_units:
+            return None
+        try:
+            status = self._read_status()
+        except (ConnectionLost, OSError, ModbusExceptionResponse):
+            return None
+        if status["clock_mode"] == 1.0:
+            return None
+        reason = (
+            f"the server's clock left lockstep (now real time x{status['speed_factor']:g}: "
+            "another client, through the simulation control), so it refused this run's "
+            f"advance ({exc})"
+        )
+        self._gap(reason, "abort", status)
+        return reason
 
     def _step_lockstep(self, dt_s: float) -> float:
         journal = self._journal
@@ -1029,7 +1126,10 @@ class ModbusRig:
         # the advance (the step's last request) and the simulation control's reads after it
         n_checks = len(self._check_plan) if self.checks else 0
         own = range(max(len(requests) - 1, 0), len(requests) + n_checks)
-        replies = self._exchange_tolerant(requests + self._read_requests, own, patient=True)
+        clock = None if self._clock_index is None else len(requests) + self._clock_index
+        replies = self._exchange_tolerant(
+            requests + self._read_requests, own, patient=True, clock_read=clock
+        )
         line = isinstance(self._conn, RtuConnection)  # one transaction at a time
         if any(isinstance(replies[i], NoReply) for i in own) and (self._head_own or line):
             # the rig's own request unanswered for --reconnect-timeout, no slow unit ahead
@@ -1089,7 +1189,7 @@ class ModbusRig:
         elif commands:
             self._commands_tolerant(commands, self._exchange_tolerant(commands))
         self._wait_until(self.log_time_s + dt_s - self._offset)
-        replies = self._exchange_tolerant(self._read_requests)
+        replies = self._exchange_tolerant(self._read_requests, clock_read=self._clock_index)
         values = self.values
         self._decode_tolerant(self._reads, replies, values)
         self._settle_refusals(replies)
@@ -1099,13 +1199,14 @@ class ModbusRig:
                 raise _Break(reason, dict(values))
             speed = values.get("speed_factor", self.speed)
             if speed != self.speed:  # (x100 -> x10000 by another client was blamed on
-                self._gap(  # this client falling behind, four times: a stranger's probe)
+                gap = self._gap(  # this client falling behind, four times: a stranger's probe)
                     f"the server's speed changed from x{self.speed:g} to x{speed:g} (another "
                     "client, through the simulation control)",
                     "continue",
                     values,
                 )
-                self.speed = speed
+                gap["speed_before"], gap["speed_after"] = self.speed, speed  # no row lost
+                self._new_speed(speed)
         self._check_boiler_switch(values)
         server_time = values["sim_time_s"]
         self.sim_time_s = server_time
@@ -1113,6 +1214,12 @@ class ModbusRig:
         passed = server_time + self._offset - self.log_time_s
         self.log_time_s = server_time + self._offset
         return passed
+
+    def _new_speed(self, speed: float) -> None:
+        """The server's clock runs at ``speed`` now (:attr:`speeds` keeps every one)."""
+        if speed != self.speed:
+            self.speeds.append(speed)
+        self.speed = speed
 
     def _wait_until(self, target: float) -> None:
         """Poll the server's time until it reaches ``target``, or it went back (a reset)."""
@@ -1125,7 +1232,9 @@ class ModbusRig:
                 return
             self._stop_if_time_pinned(status)  # (else waited for ever)
             wait = (target - now) / max(self.speed, 1e-9)
-            time.sleep(min(max(wait * 0.5, 0.001), 0.25))
+            pause = min(max(wait * 0.5, 0.001), 0.25)
+            time.sleep(pause)
+            self._paced_s += pause
 
     def read(self) -> dict[str, float]:
         values = self.values

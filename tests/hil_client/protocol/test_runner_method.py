@@ -1,10 +1,12 @@
 """The runner against real ``rig-emulator serve`` processes (real sockets, real files): the
 log says what the server took, a run that cannot carry out its test method is not
-complete (exit 1, the log kept, a note), and a restarted phase moves no mark."""
+complete (exit 1, the log kept, a note), a sequence lost to a break the run went on from
+is no such run, and a restarted phase moves no mark."""
 
 from __future__ import annotations
 
 import json
+import re
 import threading
 import time
 from pathlib import Path
@@ -258,3 +260,95 @@ def test_a_sequence_a_fast_server_skipped_leaves_the_run_not_complete(
     assert any("'ramp'" in n and "could not be carried out" in n for n in meta["notes"])
     log = read_log(out)
     assert "ramp" not in log.text["sequence"] and "peak" in log.text["sequence"]
+
+
+def test_several_skipped_sequences_are_named_in_one_sentence(servers, timed, tmp_path, capsys):
+    """A re-probe: with several sequences skipped, the stop said "sequence 's3' (...),
+    's4' (...), 's5' (...) got no row and its setpoint was never written". The sentence
+    names them as a list, in the plural."""
+    three = tmp_path / "three.yaml"
+    ramp = "    - {name: ramp, load_pct: [100, 40], duration: 120}\n"
+    three.write_text(timed.read_text().replace(ramp, ramp + ramp.replace("ramp", "tail")))
+    srv = servers("--speed", "100000")
+    out = tmp_path / "three.csv"
+    assert _run(three, srv.port, out) == 1
+    err = capsys.readouterr().err.strip()
+    named = (
+        "sequences 'ramp' (test_sequence.sequences[1]) and 'tail' (test_sequence.sequences[2]) "
+        "got no row and their setpoints were never written"
+    )
+    assert named in err, err
+    assert any(named in n for n in _meta(out)["notes"])
+
+
+# phases ended by time-outs; five 20-s sequences (the test's 100 s: 5 s of wall at x20)
+SHORT_RT = """\
+name: short_rt
+test: short_rt
+acquisition_period_s: 1
+flow_spread_K: 15
+preheat: {temperature_C: 80, tolerance_K: 0.1, hold_s: 10, load_pct: 100, max_duration_s: 20}
+start_up: {return_setpoint_C: 55, t1_window_s: 10, t1_max_rise_K_min: 0.001, min_duration_s: 10,
+           max_duration_s: 20}
+test_sequence:
+  return_setpoint_C: 55
+  sequences:
+    - {name: s1, load_pct: 100, duration: 20}
+    - {name: s2, load_pct: 80, duration: 20}
+    - {name: s3, load_pct: 60, duration: 20}
+    - {name: s4, load_pct: 40, duration: 20}
+    - {name: s5, load_pct: 30, duration: 20}
+cooling_1: {load_pct: 20, return_setpoint_C: 55, until_forward_C: 5, max_duration_s: 20}
+cooling_2: {until_after_t2_s: 60}
+"""
+SEQUENCES = {"s1", "s2", "s3", "s4", "s5"}
+
+
+def test_sequences_lost_to_a_break_the_run_went_on_from_leave_it_complete(tmp_path, capsys):
+    """A stranger's probe: a real-time server (x20) restarted during the second of five
+    sequences, the client run with ``--on-restart continue``; rows came again 127 s later,
+    and the run stopped, exit 1: "sequence 's3' ..., 's4' ..., 's5' ... got no row and
+    its setpoint was never written (... --lockstep or a slower --speed ...)". Those
+    sequences were lost to the break the user asked the run to go on from, not skipped by
+    a coarse step: the run completes, and a note names them as lost to the break."""
+    protocol = tmp_path / "short_rt.yaml"
+    protocol.write_text(SHORT_RT)
+    out = tmp_path / "restart.csv"
+    port = free_port()
+    args = ("--speed", "20", "--tick-hz", "20")  # a row a simulated second
+    first = ServerProcess(port, *args)
+    restarted: list[ServerProcess] = []
+
+    def restart() -> None:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            rows = _rows(out)
+            if rows and rows[-1][1:3] == ["test", "s2"]:
+                first.kill()
+                # 2 s of wall, 40 simulated seconds at x20, with the server's start: the
+                # rest of s2 and all of s3 at least (each sequence 20 s)
+                time.sleep(2.0)
+                restarted.append(ServerProcess(port, *args))
+                return
+            time.sleep(0.01)
+
+    other = threading.Thread(target=restart, daemon=True)
+    other.start()
+    try:
+        code = _run(protocol, port, out, "--on-restart", "continue")
+        other.join(timeout=70)
+    finally:
+        first.kill()
+        for server in restarted:
+            server.kill()
+    err = capsys.readouterr().err
+    assert restarted, "the server was never restarted"
+    assert code == 0, err
+    meta = _meta(out)
+    assert meta["complete"] is True and len(meta["gaps"]) == 1, meta
+    assert not [n for n in meta["notes"] if "could not be carried out" in n], meta["notes"]
+    (lost,) = [n for n in meta["notes"] if "lost to the break" in n]
+    named = set(re.findall(r"'(s\d)'", lost))
+    logged = set(read_log(out).text["sequence"]) - {""}
+    # each sequence either had rows or is named as lost, never both
+    assert named and named | logged == SEQUENCES and not named & logged, (named, logged)

@@ -1,6 +1,7 @@
 """Who a hole in a real-time run's rows is due to, against real ``rig-emulator serve``
-processes: another client that changed the server's speed, or a server that stalled, is
-not the client falling behind."""
+processes: another client that changed the server's speed, a server that stalled, or a
+unit whose replies came late, is not the client falling behind; and what another client
+changed of the server's clock is said as such."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ import pytest
 from hil_client.cli import main
 from hil_client.modbus_client import Connection, write_registers_pdu
 from hil_client.wait_for_port import free_port
+from rig_emulator.faults.wire import KIND_CODES
 from rig_emulator.registers import encode, load_map
 from tests.hil_client.test_restarts import ServerProcess
 
@@ -78,36 +80,54 @@ def _run(port: int, out: Path, protocol: Path) -> int:
                  "--out", str(out)])  # fmt: skip
 
 
+def _write(port: int, *points: tuple[str, float]) -> None:
+    """Another client writes points of the simulation control, in one request each."""
+    register_map = load_map()
+    conn = Connection("127.0.0.1", port, 5.0)
+    for name, value in points:
+        dev, point = register_map.point(name)
+        conn.send([(dev.unit_id, write_registers_pdu(point.address, encode(point, value)))])
+        conn.receive()
+    conn.close()
+
+
 def _meta(out: Path) -> dict:
     return json.loads(out.with_name(out.stem + ".meta.json").read_text())
 
 
-def test_another_client_changing_the_speed_is_recorded_not_blamed_on_the_client(server, tmp_path):
+def test_another_client_changing_the_speed_is_recorded_not_blamed_on_the_client(
+    server, tmp_path, capsys
+):
     """A stranger's probe: another client changed a real-time server's speed mid-run (x100
     -> x10000, through the simulation control); the notes said "the client fell behind the
     server's real-time clock (held up: paused, swapped out or overloaded)" four times and
     the meta file still said x100. The speed is read each step: the change is a gap in the
-    meta file, naming both speeds, and no hole is blamed on the client."""
+    meta file, naming both speeds, and no hole is blamed on the client.
+
+    A re-probe (x20 -> x40): the meta's ``clock`` still said x20, the coarse-rows note
+    quoted x20 alone, and stderr called the change a "break ... the run goes on from the
+    plant as it is", though no row was missing. The meta says the clock as it ended and
+    every speed seen, the note quotes both, and stderr says what happened."""
     srv = server("--speed", f"{SPEED:g}", "--allow-control")
     protocol = tmp_path / "rt.yaml"
     protocol.write_text(RT)
     out = tmp_path / "speed.csv"
-
-    def faster() -> None:
-        dev, point = load_map().point("speed_factor")
-        conn = Connection("127.0.0.1", srv.port, 5.0)
-        conn.send([(dev.unit_id, write_registers_pdu(point.address, encode(point, 10000.0)))])
-        conn.receive()
-        conn.close()
-
-    other = _when_cooling(out, 15, faster)
+    other = _when_cooling(out, 15, lambda: _write(srv.port, ("speed_factor", 10000.0)))
     assert _run(srv.port, out, protocol) == 0
     other.join(timeout=10)
     meta = _meta(out)
     (gap,) = meta["gaps"]
     assert "speed changed from x100 to x10000" in gap["reason"], gap
     assert gap["rig_epoch"] == 0 and gap["action"] == "continue"  # the same plant
+    assert (gap["speed_before"], gap["speed_after"]) == (100.0, 10000.0)
     assert not [n for n in meta["notes"] if CLIENT_BLAMED in n], meta["notes"]
+    assert meta["clock"] == "real time x10000" and meta["clock_speeds"] == [100.0, 10000.0]
+    # rows 10 s apart at x100 (a 10-Hz tick), then 1000 s: coarse, at both speeds
+    (coarse,) = [n for n in meta["notes"] if n.startswith("rows came")]
+    assert "(real time x100, then x10000)" in coarse, coarse
+    err = capsys.readouterr().err
+    told = [line for line in err.splitlines() if "speed changed" in line]
+    assert told and "break" not in told[0] and "no row missed" in told[0], err
 
 
 def test_a_server_that_stalled_is_not_blamed_on_the_client(server, tmp_path):
@@ -136,3 +156,51 @@ def test_a_server_that_stalled_is_not_blamed_on_the_client(server, tmp_path):
     assert not [n for n in holes if CLIENT_BLAMED in n], meta["notes"]
     assert all("the server answered" in n for n in holes), holes
     assert meta["gaps"] == []
+
+
+def test_a_hole_from_a_unit_s_late_replies_names_the_unit(server, tmp_path):
+    """A stranger's probe: a 4000-ms delay fault on unit 1 of a real-time server (x2) left
+    "no row from time_s = 54 to 59.8 s (5 acquisitions missed): the server answered 0.0 s
+    late (it stalled ...), while the client kept its pace": the wait came in the step
+    before, after it had read the server's time, and the hole showed in the next. The
+    note says the client waited on late replies of unit 1. Here another client sets a
+    1500-ms delay on unit 1 for 150 simulated seconds (1.5 s of wall at x100, rows 10 s
+    apart), which leaves a hole of at least a hundred seconds."""
+    srv = server("--speed", f"{SPEED:g}", "--allow-control")
+    protocol = tmp_path / "rt.yaml"
+    protocol.write_text(RT)
+    out = tmp_path / "delay.csv"
+    fault = (
+        ("fault_kind", KIND_CODES["delay"]),
+        ("fault_target", 1),
+        ("fault_parameter", 1500.0),
+        ("fault_duration_s", 150.0),
+        ("fault_at_s", 0.0),  # now
+        ("fault_command", 1),
+    )
+    other = _when_cooling(out, 15, lambda: _write(srv.port, *fault))
+    assert _run(srv.port, out, protocol) == 0
+    other.join(timeout=10)
+    meta = _meta(out)
+    holes = [n for n in meta["notes"] if n.startswith("no row from time_s")]
+    assert holes, meta["notes"]
+    for hole in holes:
+        assert "late replies of unit 1 (a slow unit, or a delay fault on it)" in hole, holes
+    assert meta["gaps"] == []
+
+
+def test_a_lockstep_server_switched_to_real_time_is_named(server, tmp_path, capsys):
+    """A tester's note: a lockstep run whose server another client switched to real time
+    stopped with "unit 100: function 16 refused with exception 03" alone. The message
+    and the meta file's gap say the server's clock left lockstep."""
+    srv = server("--lockstep")
+    protocol = tmp_path / "rt.yaml"
+    protocol.write_text(RT)
+    out = tmp_path / "left.csv"
+    other = _when_cooling(out, 15, lambda: _write(srv.port, ("clock_mode", 0.0)))
+    assert _run(srv.port, out, protocol) == 1
+    other.join(timeout=10)
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "the server's clock left lockstep" in err, err
+    (gap,) = _meta(out)["gaps"]
+    assert "left lockstep" in gap["reason"] and gap["action"] == "abort", gap
