@@ -20,6 +20,7 @@ from hil_client.modbus_client import Connection, write_registers_pdu
 from hil_client.wait_for_port import free_port
 from rig_emulator.registers import encode, load_map
 from tests.hil_client.test_restarts import ServerProcess
+from tests.hil_client.timed_protocol import timed_protocol
 
 BOILER = "windhager_12kw"
 SHIPPED_MAP = Path(__file__).resolve().parents[3] / "register_maps" / "wieselburg_bench.yaml"
@@ -33,22 +34,12 @@ MAP_ID_POINT = (
 
 # phases ended by their time-outs (rules that cannot be met) but the start-up's:
 # t0 = 60, t1 within a minute, t2 = t1 + 240 (two 120-s sequences), t3 = t2 + 3600
-TIMED = """\
-name: timed
-test: timed
-acquisition_period_s: 1
-flow_spread_K: 15
-preheat: {temperature_C: 80, tolerance_K: 0.1, hold_s: 10, load_pct: 100, max_duration_s: 60}
-start_up: {return_setpoint_C: 55, t1_window_s: 30, t1_max_rise_K_min: 0.001, min_duration_s: 30,
-           max_duration_s: 60}
-test_sequence:
-  return_setpoint_C: 55
-  sequences:
-    - {name: peak, load_pct: 100, duration: 120}
-    - {name: ramp, load_pct: [100, 40], duration: 120}
-cooling_1: {load_pct: 20, return_setpoint_C: 55, until_forward_C: 5, max_duration_s: 3600}
-cooling_2: {until_after_t2_s: 3700}
-"""
+TIMED = timed_protocol(
+    "timed",
+    [("peak", 100, 120), ("ramp", (100, 40), 120)],
+    cooling_1_s=3600,
+    cooling_2_after_t2_s=3700,
+)
 TEST_S = 240.0  # the two sequences
 
 
@@ -282,25 +273,14 @@ def test_several_skipped_sequences_are_named_in_one_sentence(servers, timed, tmp
 
 
 # phases ended by time-outs; five 20-s sequences (the test's 100 s: 5 s of wall at x20)
-SHORT_RT = """\
-name: short_rt
-test: short_rt
-acquisition_period_s: 1
-flow_spread_K: 15
-preheat: {temperature_C: 80, tolerance_K: 0.1, hold_s: 10, load_pct: 100, max_duration_s: 20}
-start_up: {return_setpoint_C: 55, t1_window_s: 10, t1_max_rise_K_min: 0.001, min_duration_s: 10,
-           max_duration_s: 20}
-test_sequence:
-  return_setpoint_C: 55
-  sequences:
-    - {name: s1, load_pct: 100, duration: 20}
-    - {name: s2, load_pct: 80, duration: 20}
-    - {name: s3, load_pct: 60, duration: 20}
-    - {name: s4, load_pct: 40, duration: 20}
-    - {name: s5, load_pct: 30, duration: 20}
-cooling_1: {load_pct: 20, return_setpoint_C: 55, until_forward_C: 5, max_duration_s: 20}
-cooling_2: {until_after_t2_s: 60}
-"""
+SHORT_RT = timed_protocol(
+    "short_rt",
+    [("s1", 100, 20), ("s2", 80, 20), ("s3", 60, 20), ("s4", 40, 20), ("s5", 30, 20)],
+    cooling_1_s=20,
+    cooling_2_after_t2_s=60,
+    preheat_s=20,
+    start_up_s=(10, 10, 20),
+)
 SEQUENCES = {"s1", "s2", "s3", "s4", "s5"}
 
 

@@ -20,25 +20,12 @@ from hil_client.wait_for_port import free_port
 from rig_emulator.faults.wire import KIND_CODES
 from rig_emulator.registers import encode, load_map
 from tests.hil_client.test_restarts import ServerProcess
+from tests.hil_client.timed_protocol import timed_protocol
 
 BOILER = "windhager_12kw"
 SPEED = 100.0  # rows 10 s apart (the server's 10-Hz tick), the first cooling 6 s of wall
 # phases ended by time-outs; the first cooling (600 s, 60 rows) is where things happen
-RT = """\
-name: rt
-test: rt
-acquisition_period_s: 1
-flow_spread_K: 15
-preheat: {temperature_C: 80, tolerance_K: 0.1, hold_s: 10, load_pct: 100, max_duration_s: 60}
-start_up: {return_setpoint_C: 55, t1_window_s: 30, t1_max_rise_K_min: 0.001, min_duration_s: 30,
-           max_duration_s: 60}
-test_sequence:
-  return_setpoint_C: 55
-  sequences:
-    - {name: stationary_100, load_pct: 100, duration: 60}
-cooling_1: {load_pct: 20, return_setpoint_C: 55, until_forward_C: 5, max_duration_s: 600}
-cooling_2: {until_after_t2_s: 700}
-"""
+RT = timed_protocol("rt", [("stationary_100", 100, 60)], cooling_1_s=600, cooling_2_after_t2_s=700)
 CLIENT_BLAMED = "the client fell behind"
 
 

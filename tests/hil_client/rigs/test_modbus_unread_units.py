@@ -12,6 +12,7 @@ import pytest
 from hil_client.cli import main
 from hil_client.wait_for_port import free_port
 from tests.hil_client.test_restarts import ServerProcess
+from tests.hil_client.timed_protocol import timed_protocol
 
 BOILER = "windhager_12kw"
 SHIPPED_MAP = Path(__file__).resolve().parents[3] / "register_maps" / "wieselburg_bench.yaml"
@@ -36,21 +37,7 @@ MAP_ID_POINT = (
     "      - {name: map_id, signal: map_id, table: input, address: 30, datatype: uint32}\n"
 )
 # phases ended by their time-outs: t0 = 60, t1 = 120, t2 = 240, the first cooling to 600
-TIMED = """\
-name: timed
-test: timed
-acquisition_period_s: 1
-flow_spread_K: 15
-preheat: {temperature_C: 80, tolerance_K: 0.1, hold_s: 10, load_pct: 100, max_duration_s: 60}
-start_up: {return_setpoint_C: 55, t1_window_s: 30, t1_max_rise_K_min: 0.001, min_duration_s: 30,
-           max_duration_s: 60}
-test_sequence:
-  return_setpoint_C: 55
-  sequences:
-    - {name: peak, load_pct: 100, duration: 120}
-cooling_1: {load_pct: 20, return_setpoint_C: 55, until_forward_C: 5, max_duration_s: 360}
-cooling_2: {until_after_t2_s: 400}
-"""
+TIMED = timed_protocol("timed", [("peak", 100, 120)], cooling_1_s=360, cooling_2_after_t2_s=400)
 
 
 def _split_map(tmp_path: Path, name: str, narrow: bool = False) -> Path:
