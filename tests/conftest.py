@@ -145,3 +145,22 @@ def serve() -> Iterator:
     yield start
     for server in servers:
         server.stop()
+
+
+@pytest.fixture
+def serve_process() -> Iterator:
+    """``serve_process(*serve_args)`` starts ``rig-emulator serve`` as its own process on a
+    free port (:class:`tests.hil_client.test_restarts.ServerProcess`); all killed after."""
+    from hil_client.wait_for_port import free_port
+    from tests.hil_client.test_restarts import ServerProcess
+
+    started: list[ServerProcess] = []
+
+    def start(*args: str) -> ServerProcess:
+        process = ServerProcess(free_port(), *args)
+        started.append(process)
+        return process
+
+    yield start
+    for process in started:
+        process.kill()

@@ -44,20 +44,6 @@ TEST_S = 240.0  # the two sequences
 
 
 @pytest.fixture
-def servers():
-    started: list[ServerProcess] = []
-
-    def start(*args: str) -> ServerProcess:
-        server = ServerProcess(free_port(), *args)
-        started.append(server)
-        return server
-
-    yield start
-    for server in started:
-        server.kill()
-
-
-@pytest.fixture
 def timed(tmp_path) -> Path:
     path = tmp_path / "timed.yaml"
     path.write_text(TIMED)
@@ -86,7 +72,7 @@ def _map(tmp_path: Path, name: str, flow_point: str, map_id: bool = True) -> Pat
     return path
 
 
-def test_the_log_says_the_flow_setpoint_the_server_holds(servers, timed, tmp_path):
+def test_the_log_says_the_flow_setpoint_the_server_holds(serve_process, timed, tmp_path):
     """A stranger's probe: with a map whose flow setpoint is a uint16 x0.5, 27,307 of
     52,118 rows logged a setpoint that is no multiple of 0.5 (137.4702 where the register
     held 137.5, and the flow settled at 137.5). The log says what was written: the value
@@ -96,7 +82,7 @@ def test_the_log_says_the_flow_setpoint_the_server_holds(servers, timed, tmp_pat
         "half.yaml",
         FLOW_POINT.replace("datatype: float32,", "datatype: uint16, scale: 0.5,"),
     )
-    srv = servers("--lockstep", "--map", str(half))
+    srv = serve_process("--lockstep", "--map", str(half))
     out = tmp_path / "half.csv"
     assert _run(timed, srv.port, out, "--map", str(half)) == 0
     log = read_log(out)
@@ -112,7 +98,9 @@ def test_the_log_says_the_flow_setpoint_the_server_holds(servers, timed, tmp_pat
     assert log["water_flow_kg_h"][cooling_1][-1] == pytest.approx(137.5, abs=1e-3)
 
 
-def test_a_setpoint_refused_as_illegal_stops_the_run_and_says_so(servers, timed, tmp_path, capsys):
+def test_a_setpoint_refused_as_illegal_stops_the_run_and_says_so(
+    serve_process, timed, tmp_path, capsys
+):
     """A stranger's probe: a server whose map narrowed the flow setpoint to 0..500 kg/h
     refused every setpoint write of a 6-h stationary run with exception 03; the run exited
     0, ``"complete": true``, a test of 0 kWh and one warning. The server's map here has no
@@ -125,7 +113,7 @@ def test_a_setpoint_refused_as_illegal_stops_the_run_and_says_so(servers, timed,
         FLOW_POINT.replace("access: rw}", "access: rw, min: 0, max: 500}"),
         map_id=False,
     )
-    srv = servers("--lockstep", "--map", str(narrow))
+    srv = serve_process("--lockstep", "--map", str(narrow))
     out = tmp_path / "narrow.csv"
     assert _run(timed, srv.port, out) == 1  # (the client's own map: the shipped one)
     err = capsys.readouterr().err.strip()
@@ -139,13 +127,13 @@ def test_a_setpoint_refused_as_illegal_stops_the_run_and_says_so(servers, timed,
     assert any("exception 03" in n and "water_flow_setpoint_kg_h" in n for n in meta["notes"])
 
 
-def test_an_injected_exception_03_is_a_fault_the_run_rides_out(servers, timed, tmp_path):
+def test_an_injected_exception_03_is_a_fault_the_run_rides_out(serve_process, timed, tmp_path):
     """The other side of the refusal: a fault that answers every request of the bench PLC
     with exception 03 for 20 s is the unit's state, not the server's range (its reads get
     it too): the writes are sent again, and the run completes."""
     faults = tmp_path / "faults.yaml"
     faults.write_text("faults:\n  - {kind: exception, unit: 1, code: 3, at_s: 200, for_s: 20}\n")
-    srv = servers("--lockstep", "--faults", str(faults))
+    srv = serve_process("--lockstep", "--faults", str(faults))
     out = tmp_path / "fault.csv"
     assert _run(timed, srv.port, out) == 0
     meta = _meta(out)
@@ -188,7 +176,7 @@ def _column_marks(log) -> dict[str, float]:
 
 
 @pytest.mark.parametrize("where", ["cooling_1", "test"])
-def test_a_restarted_phase_moves_no_mark(servers, timed, tmp_path, where):
+def test_a_restarted_phase_moves_no_mark(serve_process, timed, tmp_path, where):
     """A stranger's probe: ``--on-restart restart-phase`` with a break in the first cooling
     moved t2, the END of the test, from 3518 to 5107 s; the balance took 1487 cooling rows
     for a 0.913-h test at 91.1 % instead of 0.5 h at 80.6 %. A break in the test left the
@@ -196,7 +184,7 @@ def test_a_restarted_phase_moves_no_mark(servers, timed, tmp_path, where):
     test's first row said ``ramp``, not ``peak``. No mark moves: the meta file's marks are
     the phase column's, the test lasts its 240 s, and the restarted phase's first row is
     its first sequence's."""
-    srv = servers("--lockstep")
+    srv = serve_process("--lockstep")
     out = tmp_path / f"restart_{where}.csv"
     if where == "cooling_1":  # 600 s into the first cooling (its 3600 s)
 
@@ -234,14 +222,14 @@ def test_a_restarted_phase_moves_no_mark(servers, timed, tmp_path, where):
 
 
 def test_a_sequence_a_fast_server_skipped_leaves_the_run_not_complete(
-    servers, timed, tmp_path, capsys
+    serve_process, timed, tmp_path, capsys
 ):
     """A stranger's probe: at ``--speed 100000`` with 1-s acquisitions against a
     real-time server rows came 10000 s apart; the ``ramp`` sequence never had a row and
     its setpoint was never written, the 240-s test lasted 2 h 47 min, and the meta file
     said ``"complete": true`` with a generic "rows came 10000 s apart". The run stops
     there, naming the sequence on one line and in the meta file, exit 1."""
-    srv = servers("--speed", "100000")
+    srv = serve_process("--speed", "100000")
     out = tmp_path / "fast.csv"
     assert _run(timed, srv.port, out) == 1
     err = capsys.readouterr().err.strip()
@@ -253,14 +241,16 @@ def test_a_sequence_a_fast_server_skipped_leaves_the_run_not_complete(
     assert "ramp" not in log.text["sequence"] and "peak" in log.text["sequence"]
 
 
-def test_several_skipped_sequences_are_named_in_one_sentence(servers, timed, tmp_path, capsys):
+def test_several_skipped_sequences_are_named_in_one_sentence(
+    serve_process, timed, tmp_path, capsys
+):
     """A re-probe: with several sequences skipped, the stop said "sequence 's3' (...),
     's4' (...), 's5' (...) got no row and its setpoint was never written". The sentence
     names them as a list, in the plural."""
     three = tmp_path / "three.yaml"
     ramp = "    - {name: ramp, load_pct: [100, 40], duration: 120}\n"
     three.write_text(timed.read_text().replace(ramp, ramp + ramp.replace("ramp", "tail")))
-    srv = servers("--speed", "100000")
+    srv = serve_process("--speed", "100000")
     out = tmp_path / "three.csv"
     assert _run(three, srv.port, out) == 1
     err = capsys.readouterr().err.strip()

@@ -12,14 +12,10 @@ import threading
 import time
 from pathlib import Path
 
-import pytest
-
 from hil_client.cli import main
 from hil_client.modbus_client import Connection, write_registers_pdu
-from hil_client.wait_for_port import free_port
 from rig_emulator.faults.wire import KIND_CODES
 from rig_emulator.registers import encode, load_map
-from tests.hil_client.test_restarts import ServerProcess
 from tests.hil_client.timed_protocol import timed_protocol
 
 BOILER = "windhager_12kw"
@@ -27,20 +23,6 @@ SPEED = 100.0  # rows 10 s apart (the server's 10-Hz tick), the first cooling 6 
 # phases ended by time-outs; the first cooling (600 s, 60 rows) is where things happen
 RT = timed_protocol("rt", [("stationary_100", 100, 60)], cooling_1_s=600, cooling_2_after_t2_s=700)
 CLIENT_BLAMED = "the client fell behind"
-
-
-@pytest.fixture
-def server():
-    started: list[ServerProcess] = []
-
-    def start(*args: str) -> ServerProcess:
-        srv = ServerProcess(free_port(), *args)
-        started.append(srv)
-        return srv
-
-    yield start
-    for srv in started:
-        srv.kill()
 
 
 def _when_cooling(out: Path, rows: int, then) -> threading.Thread:
@@ -83,7 +65,7 @@ def _meta(out: Path) -> dict:
 
 
 def test_another_client_changing_the_speed_is_recorded_not_blamed_on_the_client(
-    server, tmp_path, capsys
+    serve_process, tmp_path, capsys
 ):
     """A stranger's probe: another client changed a real-time server's speed mid-run (x100
     -> x10000, through the simulation control); the notes said "the client fell behind the
@@ -95,7 +77,7 @@ def test_another_client_changing_the_speed_is_recorded_not_blamed_on_the_client(
     quoted x20 alone, and stderr called the change a "break ... the run goes on from the
     plant as it is", though no row was missing. The meta says the clock as it ended and
     every speed seen, the note quotes both, and stderr says what happened."""
-    srv = server("--speed", f"{SPEED:g}", "--allow-control")
+    srv = serve_process("--speed", f"{SPEED:g}", "--allow-control")
     protocol = tmp_path / "rt.yaml"
     protocol.write_text(RT)
     out = tmp_path / "speed.csv"
@@ -117,12 +99,12 @@ def test_another_client_changing_the_speed_is_recorded_not_blamed_on_the_client(
     assert told and "break" not in told[0] and "no row missed" in told[0], err
 
 
-def test_a_server_that_stalled_is_not_blamed_on_the_client(server, tmp_path):
+def test_a_server_that_stalled_is_not_blamed_on_the_client(serve_process, tmp_path):
     """A stranger's probe: the server process SIGSTOPped for a few seconds, its clock
     catching up once it went on, left a hole the notes blamed on the client ("held up:
     paused, swapped out or overloaded"). The client kept its pace, waiting on the
     server's replies: the note says the server answered late."""
-    srv = server("--speed", f"{SPEED:g}")
+    srv = serve_process("--speed", f"{SPEED:g}")
     protocol = tmp_path / "rt.yaml"
     protocol.write_text(RT)
     out = tmp_path / "stall.csv"
@@ -145,7 +127,7 @@ def test_a_server_that_stalled_is_not_blamed_on_the_client(server, tmp_path):
     assert meta["gaps"] == []
 
 
-def test_a_hole_from_a_unit_s_late_replies_names_the_unit(server, tmp_path):
+def test_a_hole_from_a_unit_s_late_replies_names_the_unit(serve_process, tmp_path):
     """A stranger's probe: a 4000-ms delay fault on unit 1 of a real-time server (x2) left
     "no row from time_s = 54 to 59.8 s (5 acquisitions missed): the server answered 0.0 s
     late (it stalled ...), while the client kept its pace": the wait came in the step
@@ -153,7 +135,7 @@ def test_a_hole_from_a_unit_s_late_replies_names_the_unit(server, tmp_path):
     note says the client waited on late replies of unit 1. Here another client sets a
     1500-ms delay on unit 1 for 150 simulated seconds (1.5 s of wall at x100, rows 10 s
     apart), which leaves a hole of at least a hundred seconds."""
-    srv = server("--speed", f"{SPEED:g}", "--allow-control")
+    srv = serve_process("--speed", f"{SPEED:g}", "--allow-control")
     protocol = tmp_path / "rt.yaml"
     protocol.write_text(RT)
     out = tmp_path / "delay.csv"
@@ -176,11 +158,11 @@ def test_a_hole_from_a_unit_s_late_replies_names_the_unit(server, tmp_path):
     assert meta["gaps"] == []
 
 
-def test_a_lockstep_server_switched_to_real_time_is_named(server, tmp_path, capsys):
+def test_a_lockstep_server_switched_to_real_time_is_named(serve_process, tmp_path, capsys):
     """A tester's note: a lockstep run whose server another client switched to real time
     stopped with "unit 100: function 16 refused with exception 03" alone. The message
     and the meta file's gap say the server's clock left lockstep."""
-    srv = server("--lockstep")
+    srv = serve_process("--lockstep")
     protocol = tmp_path / "rt.yaml"
     protocol.write_text(RT)
     out = tmp_path / "left.csv"

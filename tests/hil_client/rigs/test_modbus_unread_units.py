@@ -7,11 +7,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import pytest
-
 from hil_client.cli import main
-from hil_client.wait_for_port import free_port
-from tests.hil_client.test_restarts import ServerProcess
 from tests.hil_client.timed_protocol import timed_protocol
 
 BOILER = "windhager_12kw"
@@ -57,20 +53,6 @@ def _split_map(tmp_path: Path, name: str, narrow: bool = False) -> Path:
     return path
 
 
-@pytest.fixture
-def server():
-    started: list[ServerProcess] = []
-
-    def start(*args: str) -> ServerProcess:
-        srv = ServerProcess(free_port(), *args)
-        started.append(srv)
-        return srv
-
-    yield start
-    for srv in started:
-        srv.kill()
-
-
 def _run(port: int, out: Path, protocol: Path, register_map: Path) -> int:
     rig = f"modbus://127.0.0.1:{port}"
     return main(["run", str(protocol), "--boiler", BOILER, "--quiet", "--rig", rig,
@@ -81,7 +63,9 @@ def _meta(out: Path) -> dict:
     return json.loads(out.with_name(out.stem + ".meta.json").read_text())
 
 
-def test_an_exception_fault_on_a_unit_without_readings_is_transient(server, tmp_path, capsys):
+def test_an_exception_fault_on_a_unit_without_readings_is_transient(
+    serve_process, tmp_path, capsys
+):
     """A stranger's probe: a map with the command points on unit 8, which serves no
     reading, and a 5-s ``exception`` fault with code 3 on unit 8: the run stopped, exit 1,
     "unit 8 refused the write ... while it answered its reads", though unit 8 was never
@@ -92,7 +76,7 @@ def test_an_exception_fault_on_a_unit_without_readings_is_transient(server, tmp_
     faults.write_text("faults:\n  - {kind: exception, unit: 8, code: 3, at_s: 100, for_s: 5}\n")
     protocol = tmp_path / "timed.yaml"
     protocol.write_text(TIMED)
-    srv = server("--lockstep", "--map", str(split), "--faults", str(faults))
+    srv = serve_process("--lockstep", "--map", str(split), "--faults", str(faults))
     out = tmp_path / "fault.csv"
     assert _run(srv.port, out, protocol, split) == 0
     err = capsys.readouterr().err
@@ -106,7 +90,9 @@ def test_an_exception_fault_on_a_unit_without_readings_is_transient(server, tmp_
     assert reads and all(100 <= e["server_time_s"] <= 105 for e in reads), reads
 
 
-def test_a_unit_without_readings_that_refuses_a_value_still_stops_the_run(server, tmp_path, capsys):
+def test_a_unit_without_readings_that_refuses_a_value_still_stops_the_run(
+    serve_process, tmp_path, capsys
+):
     """The other side: unit 8 of a server whose map narrowed the flow setpoint to
     0..500 kg/h refuses the preheat's flow with 03 while it answers the read-back: the
     value is refused for the whole run, and the run stops on the first refusal, exit 1."""
@@ -114,7 +100,7 @@ def test_a_unit_without_readings_that_refuses_a_value_still_stops_the_run(server
     narrow = _split_map(tmp_path, "narrow.yaml", narrow=True)
     protocol = tmp_path / "timed.yaml"
     protocol.write_text(TIMED)
-    srv = server("--lockstep", "--map", str(narrow))
+    srv = serve_process("--lockstep", "--map", str(narrow))
     out = tmp_path / "narrow.csv"
     assert _run(srv.port, out, protocol, split) == 1
     err = capsys.readouterr().err.strip()
