@@ -167,8 +167,12 @@ def main(argv: list[str] | None = None) -> int:
     if len(args) not in (4, 5):
         print(__doc__.split("Usage: ")[1].split("\n\n")[0], file=sys.stderr)
         return 2
-    host, port, out, rows = args[0], int(args[1]), args[2], int(args[3])
-    period_s = float(args[4]) if len(args) == 5 else 1.0
+    try:  # one line for a bad number, as the project's own commands (a traceback: a probe)
+        host, port, out, rows = args[0], int(args[1]), args[2], int(args[3])
+        period_s = float(args[4]) if len(args) == 5 else 1.0
+    except ValueError as exc:
+        print(f"acquire.py: error: {exc}", file=sys.stderr)
+        return 2
     Acquisition(host, port).run(out, rows, lambda: time.sleep(period_s))
     return 0
 

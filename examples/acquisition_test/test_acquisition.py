@@ -139,3 +139,13 @@ def test_lab_faulty_profile_never_breaks_the_script(rig_emulator, tmp_path):
     acquisition = Acquisition(rig_emulator.host, rig_emulator.port, timeout_s=0.3)
     rows = acquisition.run(str(tmp_path / "acq.csv"), 120, lambda: rig_emulator.advance(60))
     assert [row["sim_time_s"] for row in rows] == [60.0 * (i + 1) for i in range(120)]
+
+
+@pytest.mark.parametrize("args", [["127.0.0.1", "five", "out.csv", "10"], ["h", "1", "o", "x"]])
+def test_a_bad_number_on_the_command_line_is_one_line(args, capsys):
+    """A probe: ``acquire.py 127.0.0.1 24412 out.csv abc`` ended in a traceback."""
+    from acquire import main
+
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("acquire.py: error: "), err

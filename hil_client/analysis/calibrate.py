@@ -68,6 +68,10 @@ R_AIR = 287.05  # [J/(kg K)]
 CP_AIR = 1.006  # [kJ/(kg K)]
 SKIP_S = 600.0  # transient at the start of a stationary interval
 MIN_INTERVAL_S = 1200.0  # shortest stationary interval kept (after the skip)
+#: The second cooling's decay is read from 30 min after t3 on, over this long at least [s]
+#: and from this many readings at least.
+COOLING_READ_S = 600.0
+COOLING_MIN_ROWS = 30
 TRIM_S = 300.0  # a slow approach is cut off in steps of this long
 #: Shortest start-up Pstart is read over [s]: at Pstart the auger feeds some 0.1 kg in two
 #: minutes, five steps of the balance (0.02 kg, Section 2.2); a time, not a count of rows,
@@ -432,7 +436,8 @@ def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibrati
     for log, ph in logs:
         t = log.t
         mask = ph.mask("cooling_2", t) & (t > ph.t3 + 1800.0)
-        if mask.sum() > 600:
+        # (10 min of it, in time: 600 rows were 100 min of a 10-s log)
+        if mask.sum() >= COOLING_MIN_ROWS and np.ptp(t[mask]) >= COOLING_READ_S:
             tb, tr = log["boiler_water_temp_C"][mask], log["room_temp_C"][mask]
             ok = ~(np.isnan(tb) | np.isnan(tr))
             tt = t[mask][ok]
@@ -539,14 +544,17 @@ def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibrati
     if not fitted:
         raise LogError(
             f"{names}: nothing to calibrate: no stationary interval, no second cooling "
-            "longer than 30 min plus 600 rows, no start-up recorded whole (too short a log?)"
+            f"longer than {(1800 + COOLING_READ_S) / 60:.0f} min, no start-up recorded whole "
+            "(too short a log?)"
         )
     params, flags = _plausible(doc, fitted)
     if not intervals:
         for key in STATIONARY_KEYS:
             flags[key] = (
-                "no stationary interval (a test phase with steady firing of at least "
-                f"{MIN_INTERVAL_S / 60:.0f} min)"
+                "no stationary interval (a step of the test phase with steady firing of at "
+                f"least {(SKIP_S + MIN_INTERVAL_S) / 60:.0f} min: its first "
+                f"{SKIP_S / 60:.0f} min are its transient, the {MIN_INTERVAL_S / 60:.0f} after "
+                "are read)"
             )
     elif not len(fig5["fuel"]):
         for key in ("fac_a_lambda", "fac_b_lambda_h_kg", "p_el_max_W", "p_el_min_W"):
