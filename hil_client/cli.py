@@ -790,6 +790,22 @@ def _refused_commands(events: list[dict]) -> str | None:
     )
 
 
+def _pinned(rig: object) -> str | None:
+    """One line on the readings the rig logged empty for standing at their register's
+    limit (the map's type and scale carry no more), or None."""
+    pinned = getattr(rig, "pinned", {})
+    if not pinned:
+        return None
+    each = "; ".join(
+        f"{signal} (unit {unit} point '{point}' at {limit:g}, {rows} rows)"
+        for signal, (unit, point, limit, rows) in pinned.items()
+    )
+    return (
+        f"readings at their register's limit, logged empty: {each}: the map's type and scale "
+        "carry no more (a wider type or a coarser scale in the map does)"
+    )
+
+
 #: Breaks said on stderr as they happen; the rest are in the meta file.
 BREAKS_TOLD = 10
 
@@ -1075,12 +1091,13 @@ def _run(args: argparse.Namespace) -> int:
             progress.done()
         kept = _what_is_kept(written[0], previous, getattr(rig, "gaps", []))
         overridden = _overridden(getattr(rig, "comm_events", []))
-        if overridden:  # (the end's warning came only for a run that ended)
-            print(f"hil-client: warning: {overridden}", file=sys.stderr)
+        pinned = _pinned(rig)
+        for warning in filter(None, (overridden, pinned)):  # (they came only at a run's end)
+            print(f"hil-client: warning: {warning}", file=sys.stderr)
         if written[0]:  # the meta says why the run is not complete (it said nothing)
             meta["notes"] = [
                 *meta["notes"],
-                *([overridden] if overridden else []),
+                *filter(None, (overridden, pinned)),
                 f"interrupted (Ctrl-C, SIGTERM or SIGHUP) after {written[0]} rows",
             ]
             meta["interrupted"] = True
@@ -1113,6 +1130,10 @@ def _run(args: argparse.Namespace) -> int:
         if overridden:
             result.notes.append(overridden)
             print(f"hil-client: warning: {overridden}", file=sys.stderr)
+        pinned = _pinned(rig)
+        if pinned:  # (the readings are no value: the rows stand, their fields empty)
+            result.notes.append(pinned)
+            print(f"hil-client: warning: {pinned}", file=sys.stderr)
     if summary.empty_at_s is not None:  # the balance went on losing fuel it did not hold
         empty = (
             f"the balance read below 0 kg from time_s = {summary.empty_at_s:g}: the pellet"

@@ -290,6 +290,19 @@ class ModbusRig:
             for p in d.points
             if p.signal in READING_KEYS and (v := invalid_value(p)) is not None
         }
+        #: each reading's register limits (the ends of what its point serves, a zero aside:
+        #: a uint's 0 is a reading): a value there is the register's, not the plant's (a
+        #: flue gas as int16 x0.001 read 32.767 C for hours, the phases were found from it
+        #: and the balance was wrong, exit 0: a stranger's probe)
+        self._limits: dict[str, tuple[int, str, tuple[float, ...]]] = {}
+        for signal in READING_KEYS:
+            device, point = register_map.point(signal)
+            ends = tuple(x for x in reading_range(point) if math.isfinite(x) and x != 0.0)
+            if ends:
+                self._limits[signal] = (device.unit_id, point.name, ends)
+        #: readings logged empty for standing at their register's limit: signal ->
+        #: [unit, point, limit, rows]
+        self.pinned: dict[str, list[Any]] = {}
         #: the ``rig_epoch`` column: 0, one higher after each break the rig went on from
         self.epoch = 0
         plan = _read_plan(register_map, READING_KEYS)  # a map without a reading fails here
@@ -704,6 +717,12 @@ class ModbusRig:
                 for signal in invalid:
                     into[signal] = math.nan
                 self._event("invalid", read.unit, read.function, signals=invalid)
+            for p in read.points:
+                limit = self._limits.get(p.signal)
+                if limit is not None and into[p.signal] in limit[2]:
+                    seen = self.pinned.setdefault(p.signal, [*limit[:2], into[p.signal], 0])
+                    seen[3] += 1
+                    into[p.signal] = math.nan
 
     def _check_boiler_switch(self, values: dict[str, float]) -> None:
         """Another client (or a hand at the bench) switched the boiler: its controller's
