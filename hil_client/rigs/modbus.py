@@ -445,9 +445,9 @@ class ModbusRig:
             if int(served) not in (ours, legacy_map_identity(register_map)):
                 return (
                     f"the server serves another register map than {register_map.source} "
-                    f"(map id {int(served):08x}, this one's {ours:08x}: a point moved, "
-                    "swapped, retyped or rescaled, or the access or range of its writes "
-                    "differ); give the client the server's map (--map)"
+                    f"(map id {int(served):08x}, this one's {ours:08x}: a device added or "
+                    "left out, a point moved, swapped, retyped or rescaled, or the access or "
+                    "range of its writes differ); give the client the server's map (--map)"
                 )
             return None
         if (self._read_optional(register_map, "active_fault_count") or 0.0) > 0:
