@@ -1134,6 +1134,9 @@ def _run(args: argparse.Namespace) -> int:
         if pinned:  # (the readings are no value: the rows stand, their fields empty)
             result.notes.append(pinned)
             print(f"hil-client: warning: {pinned}", file=sys.stderr)
+        absent = getattr(rig, "absent", ())
+        if absent:  # a bench without that instrument (a run without an FID was refused)
+            result.notes.append(f"the map has no point for {', '.join(absent)}: empty columns")
     if summary.empty_at_s is not None:  # the balance went on losing fuel it did not hold
         empty = (
             f"the balance read below 0 kg from time_s = {summary.empty_at_s:g}: the pellet"

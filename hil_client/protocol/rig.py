@@ -10,6 +10,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Protocol
 
+#: Readings beyond CONTRACT section 3 a bench may lack (the other analyser gases, the FID):
+#: a rig without them returns NaN, and the log's fields stay empty.
+OPTIONAL_READINGS: tuple[str, ...] = ("flue_gas_NOx_ppm", "flue_gas_SO2_ppm", "flue_gas_OGC_ppm")
+
 #: Instrument readings every rig returns, by name (lab-log columns, CONTRACT section 3).
 READING_KEYS: tuple[str, ...] = (
     "water_flow_kg_h",
@@ -28,10 +32,7 @@ READING_KEYS: tuple[str, ...] = (
     "relative_humidity_pct",
     "electric_power_W",
     "boiler_on",
-    # optional columns beyond CONTRACT section 3: the other analyser gases and the FID
-    "flue_gas_NOx_ppm",
-    "flue_gas_SO2_ppm",
-    "flue_gas_OGC_ppm",
+    *OPTIONAL_READINGS,
 )
 
 

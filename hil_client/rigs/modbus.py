@@ -85,7 +85,13 @@ from hil_client.modbus_client import (
     write_coils_pdu,
     write_registers_pdu,
 )
-from hil_client.protocol.rig import READING_KEYS, RigCommand, RigError, StepTiming
+from hil_client.protocol.rig import (
+    OPTIONAL_READINGS,
+    READING_KEYS,
+    RigCommand,
+    RigError,
+    StepTiming,
+)
 from hil_client.rigs.transports import RtuConnection, url_port
 from rig_emulator.emulator import check_command
 from rig_emulator.registers import (
@@ -122,7 +128,13 @@ WRITES = (
 #: The setpoints the rig writes every step (checked against what their points carry).
 SETPOINTS = ("water_flow_setpoint_kg_h", "return_setpoint_C")
 #: Every signal the rig reads or writes: a register map must have them all.
-NEEDED = (*READING_KEYS, *STATUS_KEYS, "clock_mode", "speed_factor", *WRITES)
+NEEDED = (
+    *(s for s in READING_KEYS if s not in OPTIONAL_READINGS),
+    *STATUS_KEYS,
+    "clock_mode",
+    "speed_factor",
+    *WRITES,
+)
 # a replay batch stays in one small segment: the server drops a receive buffer above 264
 # bytes (pymodbus's max_buffer_size for Modbus TCP: the largest frame, 260, and slack)
 _REPLAY_SEGMENT_BYTES = 240
@@ -149,6 +161,14 @@ class _Read:
     count: int
     points: tuple[Point, ...]
     decode: Callable[[Sequence[int]], list[float]]  # the run's registers -> its values
+
+
+def _has_point(register_map: RegisterMap, signal: str) -> bool:
+    try:
+        register_map.point(signal)
+    except KeyError:
+        return False
+    return True
 
 
 def check_map(register_map: RegisterMap) -> None:
@@ -295,7 +315,13 @@ class ModbusRig:
         #: flue gas as int16 x0.001 read 32.767 C for hours, the phases were found from it
         #: and the balance was wrong, exit 0: a stranger's probe)
         self._limits: dict[str, tuple[int, str, tuple[float, ...]]] = {}
-        for signal in READING_KEYS:
+        #: the readings this map serves (a bench without an FID has no OGC: its field empty)
+        self._served = tuple(
+            s for s in READING_KEYS if s not in OPTIONAL_READINGS or _has_point(register_map, s)
+        )
+        #: the optional readings the map has no point for (their columns stay empty)
+        self.absent = tuple(s for s in OPTIONAL_READINGS if s not in self._served)
+        for signal in self._served:
             device, point = register_map.point(signal)
             ends = tuple(x for x in reading_range(point) if math.isfinite(x) and x != 0.0)
             if ends:
@@ -305,7 +331,7 @@ class ModbusRig:
         self.pinned: dict[str, list[Any]] = {}
         #: the ``rig_epoch`` column: 0, one higher after each break the rig went on from
         self.epoch = 0
-        plan = _read_plan(register_map, READING_KEYS)  # a map without a reading fails here
+        plan = _read_plan(register_map, self._served)  # a required reading missing fails
         self._status_plan = _read_plan(register_map, STATUS_KEYS)
         self._check_plan = _read_plan(register_map, CHECK_KEYS, trim=True)
         self._clock_plan = _read_plan(register_map, ("clock_mode", "speed_factor"))
@@ -416,9 +442,7 @@ class ModbusRig:
 
     def _read_optional(self, register_map: RegisterMap, signal: str) -> float | None:
         """One read of ``signal``; None where this map or the server's has no such point."""
-        try:
-            register_map.point(signal)
-        except KeyError:
+        if not _has_point(register_map, signal):
             return None
         (read,) = _read_plan(register_map, (signal,), trim=True)
         values: dict[str, float] = {}

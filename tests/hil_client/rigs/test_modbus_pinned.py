@@ -40,3 +40,41 @@ def test_a_reading_pinned_at_its_registers_limit_is_logged_empty(serve_process, 
     assert said in err, err
     meta = json.loads(out.with_name("pinned.meta.json").read_text())
     assert any(said in note for note in meta["notes"]), meta["notes"]
+
+
+FID = """  - name: fid
+    unit_id: 3
+    instrument: flame-ionisation detector (organic gaseous carbon)
+    points:
+      - {name: OGC, signal: flue_gas_OGC_ppm, table: input, address: 0, datatype: int16,
+         scale: 0.1}
+
+"""
+
+
+def test_a_bench_without_an_fid_runs_with_that_column_empty(serve_process, tmp_path):
+    """A stranger's probe: a lab without an FID (the map without unit 3) could not run at
+    all ("no point for 'flue_gas_OGC_ppm' (the Modbus rig needs it)"), though the column
+    is beyond CONTRACT section 3. The run completes, the column empty, and the meta says
+    why; a reading the format requires is still refused."""
+    text = SHIPPED_MAP.read_text()
+    assert text.count(FID) == 1  # (the shipped map as this test knows it)
+    no_fid = tmp_path / "no_fid.yaml"
+    no_fid.write_text(text.replace(FID, ""))
+    protocol = tmp_path / "pinned.yaml"
+    protocol.write_text(PROTOCOL)
+    srv = serve_process("--lockstep", "--map", str(no_fid))
+    out = tmp_path / "no_fid.csv"
+    rig = f"modbus://127.0.0.1:{srv.port}"
+    argv = ["run", str(protocol), "--boiler", "windhager_12kw", "--quiet", "--rig", rig]
+    assert main([*argv, "--map", str(no_fid), "--out", str(out)]) == 0
+    log = read_log(out)
+    assert np.all(np.isnan(log["flue_gas_OGC_ppm"]))
+    assert np.all(np.isfinite(log["flue_gas_O2_pct"]))
+    meta = json.loads(out.with_name("no_fid.meta.json").read_text())
+    assert "the map has no point for flue_gas_OGC_ppm: empty columns" in meta["notes"]
+    assert meta["complete"] is True
+    flue_gas_probe = text.split("  - name: flue_gas_probe")[1].split("  - name:")[0]
+    no_probe = tmp_path / "no_probe.yaml"
+    no_probe.write_text(text.replace("  - name: flue_gas_probe" + flue_gas_probe, ""))
+    assert main([*argv, "--map", str(no_probe), "--out", str(tmp_path / "x.csv")]) == 2
