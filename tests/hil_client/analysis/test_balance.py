@@ -246,3 +246,24 @@ def test_the_fuel_flow_of_a_log_in_unix_time_is_the_same(run_log, tmp_path):
         results.append(rows_["test"].q_flue_gas_kW)
     # the same within the balance's readings written to 5 decimals (1e-5 kg in 8 h)
     assert results[1] == pytest.approx(results[0], rel=1e-3)
+
+
+def test_a_flue_gas_missing_over_most_of_the_firing_leaves_its_loss_unknown(run_log, params_12kw):
+    """A stranger's probe: a flue gas pinned at its register's limit (logged empty above
+    32.767 C) was interpolated across the firing from the cold rows either side: the test
+    read an indirect efficiency of 91.9 % (84.5 % with the readings), no word. Where the
+    flue gas misses more than half a phase's firing rows, its loss is unknown and said."""
+    from hil_client.analysis.logio import read_log
+    from hil_client.analysis.phases import find_phases
+
+    log = read_log(run_log("stationary", "windhager_12kw").path)
+    phases = find_phases(log)
+    columns = dict(log.columns)
+    hot = columns["flue_gas_temp_C"] > 32.767
+    columns["flue_gas_temp_C"] = np.where(hot, np.nan, columns["flue_gas_temp_C"])
+    pinned = LabLog(log.path, columns, log.text, log.meta)
+    test = {r.phase: r for r in energy_balance(pinned, params_12kw, phases)}["test"]
+    assert np.isnan(test.eta_indirect) and np.isnan(test.q_flue_gas_kW)
+    assert any("flue_gas_temp_C' has no reading in 100% of" in w for w in test.warnings)
+    whole = {r.phase: r for r in energy_balance(log, params_12kw, phases)}["test"]
+    assert np.isfinite(whole.eta_indirect) and not whole.warnings
