@@ -1,18 +1,24 @@
 """A lean blocking Modbus TCP client that pipelines: one connection, many requests in flight.
 
-Modbus TCP lets a client send several requests before the first reply comes back (the
-transaction ID pairs them); a server answers them in order. The rig sends all requests of
-one acquisition step (setpoint writes, the lockstep advance, one read per instrument) in one
-segment and then collects the replies, so a step costs one round trip, not one per request.
+Modbus TCP lets a client send several requests before the first reply comes back; the
+transaction ID pairs each reply with its request, whatever the order the replies come in (the
+Messaging on TCP/IP Implementation Guide V1.0b lets a server work on several transactions of
+a connection at once: a gateway to several serial lines answers as its lines do; the client
+took every server to answer in order, and gave up at once on every request ahead of a reply
+that came out of turn: a stranger's probe through a proxy that answers each burst in reverse
+could not even start a run). The rig sends all requests of one acquisition step (setpoint
+writes, the lockstep advance, one read per instrument) in one segment and then collects the
+replies, so a step costs one round trip, not one per request.
 
 Errors: :class:`ModbusExceptionResponse` for an exception reply (with its code),
 :class:`ConnectionLost` for a closed, reset or timed-out connection, :class:`BadReply` (one)
 for a reply that does not answer its request.
 
 :meth:`Connection.receive_all` survives a faulty unit: it returns, per request, the reply,
-the exception, or a :class:`NoReply` (the unit never answered: a later request's reply came
-first, which an in-order server only does when it dropped this one; or the timeout passed;
-or what came does not answer the request).
+the exception, or a :class:`NoReply` (the timeout passed with no reply; or what came does not
+answer the request; or, only on a connection that has shown its server answers in order, a
+later request's reply came first, which such a server does only when it dropped this one:
+``no reply`` at once, where waiting would cost the timeout every step).
 
 A reply is used only if it answers its request (:func:`reply_problem`): the MBAP header's
 protocol ID 0 and a length a frame can have, the transaction ID, unit and function of the
@@ -26,11 +32,13 @@ an exception without its code ended the run with a traceback).
 from __future__ import annotations
 
 import contextlib
+import itertools
 import socket
 import struct
 import time
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
+from typing import NamedTuple
 
 
 class ConnectionLost(ConnectionError):
@@ -114,12 +122,52 @@ def reply_problem(unit: int, request: bytes, got_unit: int, reply: bytes) -> str
     return None
 
 
+class _Sent(NamedTuple):
+    """A request sent and not collected yet: its place in the connection's order of sending
+    (transaction IDs wrap, this does not), its unit and PDU."""
+
+    seq: int
+    unit: int
+    pdu: bytes
+
+
+class _Came(NamedTuple):
+    """A frame that named a request: the unit and PDU it carries, why it does not answer
+    the request (None if it does), and whether it ended a silence of the timeout."""
+
+    unit: int
+    body: bytes
+    problem: str | None
+    late: bool
+
+
+#: replies that came for the oldest request waiting, while a younger one waited too, before a
+#: connection counts as one to a server that answers in order (:attr:`Connection.in_order`):
+#: a server that took its waiting requests in any order would answer the oldest of two or
+#: more with a chance of one half at most, so ten in turn leave it less than 0.1 % (2^-10);
+#: the first step of ``hil-client run`` on a connection (13 requests pipelined) gives them
+IN_ORDER_EVIDENCE = 10
+
+
 class Connection:
-    """A TCP connection to a Modbus server; requests to any unit ID, pipelined."""
+    """A TCP connection to a Modbus server; requests to any unit ID, pipelined, each reply
+    paired with its request by the transaction ID, whatever the order the replies come in."""
 
     def __init__(self, host: str, port: int, timeout_s: float) -> None:
         self._tid = 0
-        self._expect: deque[tuple[int, int, bytes]] = deque()  # (tid, unit, request PDU)
+        self._seq = 0
+        # the requests sent and not collected yet (transaction IDs in the order sent), those
+        # of them nothing usable came for yet, and the others' outcomes (with the wall time)
+        self._order: deque[int] = deque()
+        self._sent: dict[int, _Sent] = {}
+        self._waiting: dict[int, _Sent] = {}
+        self._outcome: dict[int, tuple[_Came | NoReply, float]] = {}
+        self._spoilt: dict[int, str] = {}  # why a frame naming a waiting request was passed over
+        self._given_up: dict[int, _Sent] = {}  # settled without their reply (it may come yet)
+        self._answered_seq = -1  # the last request sent that a reply came for
+        self._in_turn = 0  # replies that came for the oldest request waiting, a younger waiting
+        #: the server answered a request after one sent later (never assumed in order again)
+        self.reorders = False
         self._buffer = b""
         self._corrupt = ""  # why what the server sends is no longer read (a bad frame)
         try:
@@ -130,15 +178,36 @@ class Connection:
             ) from None
         self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
 
+    @property
+    def in_order(self) -> bool:
+        """Whether this connection has shown that its server answers in order: replies came
+        in turn (:data:`IN_ORDER_EVIDENCE`), and never one after a later request's. Only then
+        does a reply out of turn tell that the requests before it were dropped; it is never
+        assumed (the TCP guide lets a server work on several requests of a connection at
+        once, and a gateway to several lines answers as its lines do)."""
+        return not self.reorders and self._in_turn >= IN_ORDER_EVIDENCE
+
+    def learn_from(self, earlier: object) -> None:
+        """Take over what an earlier connection to the same server showed of the order it
+        answers in (a connection opened again after a timeout would otherwise start with no
+        evidence, and a unit that drops every request would cost the timeout every step)."""
+        if isinstance(earlier, Connection):
+            self.reorders = self.reorders or earlier.reorders
+            self._in_turn = max(self._in_turn, earlier._in_turn)
+
     def send(self, requests: Sequence[tuple[int, bytes]]) -> None:
-        """Send ``(unit, pdu)`` requests in one segment; :meth:`receive` returns their
-        replies in the same order."""
+        """Send ``(unit, pdu)`` requests in one segment; :meth:`receive` and
+        :meth:`receive_all` give their outcomes in the same order."""
         if self._corrupt:
             raise BadReply(self._corrupt)
         frames = []
         for unit, pdu in requests:
             self._tid = (self._tid + 1) & 0xFFFF
-            self._expect.append((self._tid, unit, pdu))
+            self._given_up.pop(self._tid, None)  # (an ID used again: no late reply of that one)
+            self._spoilt.pop(self._tid, None)
+            self._order.append(self._tid)
+            self._sent[self._tid] = self._waiting[self._tid] = _Sent(self._seq, unit, pdu)
+            self._seq += 1
             frames.append(_HEADER.pack(self._tid, 0, len(pdu) + 1, unit) + pdu)
         try:
             self.sock.sendall(b"".join(frames))
@@ -146,20 +215,26 @@ class Connection:
             raise ConnectionLost(f"send failed ({exc})") from None
 
     def receive(self) -> bytes:
-        """The reply PDU (function code first) of the oldest outstanding request;
+        """The reply PDU (function code first) of the oldest outstanding request, waited for
+        up to the timeout (the replies that come for the others meanwhile kept for them);
         :class:`BadReply` if what came does not answer it."""
-        tid, unit, pdu = self._expect.popleft()
-        function = pdu[0]
-        while True:
-            got_tid, got_unit, body = self._frame()
-            if got_tid == tid:
-                break  # a late reply to an earlier, timed-out request is skipped
-        problem = reply_problem(unit, pdu, got_unit, body)
-        if problem is not None:
-            raise BadReply(f"unit {unit}: function {function}: reply not used: {problem}")
-        if body[0] == function | 0x80:
-            raise ModbusExceptionResponse(unit, function, body[1])
-        return body
+        tid = self._order[0]
+        while tid not in self._outcome:
+            try:
+                self._take(*self._frame(), late=False)
+            except ReplyTimeout:
+                self._give_up(tid, "timeout")
+                self._collect(tid)
+                raise
+        try:
+            reply, _ = self._reply(tid, own=True)
+        finally:
+            self._collect(tid)
+        if isinstance(reply, ModbusExceptionResponse):
+            raise reply
+        if isinstance(reply, NoReply):  # (given up on by a receive_all that did not return)
+            raise ReplyTimeout(str(reply))
+        return reply
 
     def receive_all(
         self,
@@ -169,90 +244,191 @@ class Connection:
         still_coming: Callable[[int, int], bool] | None = None,
     ) -> tuple[list[Reply], list[float]]:
         """The outcome of each of the ``count`` oldest outstanding requests, in order, and
-        the wall time [s, monotonic] each outcome was known. After a timeout the connection
-        may still carry late replies: close it (or let the transaction IDs skip them).
+        the wall time [s, monotonic] each outcome was known. Each reply is its request's by
+        the transaction ID, in whatever order they come; a request is given up on at the
+        timeout (a silence that long) or, on a connection that has shown its server answers
+        in order (:attr:`in_order`), when a later request's reply came first and nothing
+        more is at hand (the server dropped it: ``no reply``). After a timeout the
+        connection may still carry late replies: close it (or let the transaction IDs skip
+        them).
 
         With ``patience_s``, the caller's own requests (the indices ``own``) are waited for,
-        up to ``patience_s`` in all: an in-order server answers each only after those sent
-        before it, so one slow unit ahead holds them back. A reading's reply before them
-        that comes more than the timeout after the last byte before it is ``too late`` all
-        the same (its unit's fields stay empty; a write's late reply says it was carried
-        out, and stands); the connection stays usable, and the caller's own requests are
-        carried out once, on it, and their outcome known. ``still_coming(unit, function)``,
-        asked at each silence of the timeout, says whether the request at the head of the
-        line is only slow (True) or the connection has died on the way (False: give up now,
-        as without patience).
+        up to ``patience_s`` in all (an in-order server answers each only after those sent
+        before it, so one slow unit ahead holds them back; they are never given up on as
+        dropped). A reading's reply that comes more than the timeout after the last byte
+        before it is ``too late`` all the same (its unit's fields stay empty; a write's late
+        reply says it was carried out, and stands); the connection stays usable, and the
+        caller's own requests are carried out once, on it, and their outcome known.
+        ``still_coming(unit, function)``, asked at each silence of the timeout, says whether
+        the oldest request waited for is only slow (True) or the connection has died on the
+        way (False: give up after one more silence, as without patience).
 
         A reply that does not answer its request (:func:`reply_problem`) is a ``timeout``
-        :class:`NoReply` (one whose transaction ID names a later request is not taken as a
-        sign that those before it were dropped: it is passed over); after a frame no Modbus
-        server sends, nothing more is read: every request left is one. :class:`BadReply`
-        instead where that befalls one of ``own``: the caller's own requests are not given
-        up on."""
-        out: list[Reply] = []
-        times: list[float] = []
+        :class:`NoReply`; one that names a request while an older one waits may be that
+        one's reply under a wrong ID: it is passed over, and the request it names waited for
+        on (no right reply in time: a ``timeout`` saying what was wrong). After a frame no
+        Modbus server sends nothing more is read: every request left is one.
+        :class:`BadReply` instead where that befalls one of ``own``: the caller's own
+        requests are not given up on."""
+        tids = list(itertools.islice(self._order, count))
+        mine = {tids[i] for i in own if i < len(tids)}
+        place = {tid: i for i, tid in enumerate(tids)}
+        out: list[Reply | None] = [None] * len(tids)
+        times = [0.0] * len(tids)
         deadline = time.monotonic() + patience_s
-        overdue: set[int] = set()  # transaction IDs whose reply came too late to count
-        last_look: int | None = None  # the head's tid, answered on a second connection
-        while len(out) < count:
+        last_look: int | None = None  # the oldest waited for, answered on a second connection
+        late = False  # a silence of the timeout passed: the next frame ends it
+        settled = [tid for tid in tids if tid in self._outcome]  # (came before this call)
+        while True:
+            for tid in settled:
+                if tid in place:
+                    out[place[tid]], times[place[tid]] = self._reply(tid, tid in mine)
+            left = [tid for tid, reply in zip(tids, out, strict=True) if reply is None]
+            if not left:
+                break
             try:
-                got_tid, got_unit, body = self._frame()
+                frame = self._frame()
             except ReplyTimeout:
-                now = time.monotonic()
-                tid, unit, pdu = self._expect[0]
-                function = pdu[0]
-                waiting_own = bool(own) and len(out) <= own[-1]
-                if waiting_own and now < deadline and last_look != tid:
-                    if still_coming is not None and not still_coming(unit, function):
-                        # answered there: the unit is not slow now, but may have been till
-                        # a moment ago (a delay fault that ended meanwhile lets its held
-                        # replies go): one more timeout here for a reply on its way, before
-                        # this connection counts as dead (it was dropped at once: a stray
+                head = self._sent[left[0]]
+                if mine.intersection(left) and time.monotonic() < deadline and last_look != left[0]:
+                    if still_coming is not None and not still_coming(head.unit, head.pdu[0]):
+                        # answered there: the unit is not slow now, but may have been till a
+                        # moment ago (a delay fault that ended meanwhile lets its held replies
+                        # go): one more timeout here for a reply on its way, before this
+                        # connection counts as dead (it was dropped at once: a stray
                         # reconnection and a gap)
-                        last_look = tid
-                    if len(out) not in own:
-                        overdue.add(tid)
+                        last_look = left[0]
+                    late = True
+                    settled = []
                     continue
-                while len(out) < count:
-                    _, unit, pdu = self._expect.popleft()
-                    out.append(NoReply(unit, pdu[0], "timeout"))
-                    times.append(now)
+                self._abandon(left, mine, out, times, place, "")
                 break
             except BadReply as exc:  # no frame a server sends: the rest cannot be read
-                if own and own[-1] >= len(out):
+                if mine.intersection(left):
                     raise
-                now = time.monotonic()
-                while len(out) < count:
-                    _, unit, pdu = self._expect.popleft()
-                    out.append(NoReply(unit, pdu[0], "timeout", str(exc)))
-                    times.append(now)
+                self._abandon(left, mine, out, times, place, str(exc))
                 break
-            wanted = list(self._expect)[: count - len(out)]
-            match = next((e for e in wanted if e[0] == got_tid), None)
-            if match is None:
-                continue  # a late reply to an earlier request given up on
-            problem = reply_problem(match[1], match[2], got_unit, body)
-            if problem is not None and match is not wanted[0]:
-                continue  # out of turn and no answer to its own request either: not used
-            now = time.monotonic()
-            while self._expect[0][0] != got_tid:  # answered out of turn: those were dropped
-                _, unit, pdu = self._expect.popleft()
-                out.append(NoReply(unit, pdu[0], "no reply"))
-                times.append(now)
-            _, unit, pdu = self._expect.popleft()
-            function = pdu[0]
-            if problem is not None:
-                if len(out) in own:
-                    raise BadReply(f"unit {unit}: function {function}: reply not used: {problem}")
-                out.append(NoReply(unit, function, "timeout", f"reply not used: {problem}"))
-            elif got_tid in overdue and function not in WRITE_FUNCTIONS:
-                out.append(NoReply(unit, function, "too late"))
-            elif body[0] == function | 0x80:
-                out.append(ModbusExceptionResponse(unit, function, body[1]))
-            else:
-                out.append(body)
-            times.append(now)
-        return out, times
+            settled = self._take(*frame, late=late)
+            settled += self._dropped(set(left) - mine)
+            late = False
+        for tid in tids:
+            self._collect(tid)
+        return out, times  # type: ignore[return-value]
+
+    def _take(self, tid: int, got_unit: int, body: bytes, late: bool) -> list[int]:
+        """File a frame that came (transaction ID, unit, PDU; ``late``: after a silence of the
+        timeout) under its request; the transaction IDs that got an outcome by it. A reply to
+        a request given up on is passed over; so is a frame that does not answer the request
+        it names while an older one waits (it may be that one's, under a wrong ID)."""
+        sent = self._waiting.get(tid)
+        if sent is None:
+            gone = self._given_up.get(tid)
+            if (
+                gone is not None
+                and gone.seq < self._answered_seq
+                and reply_problem(gone.unit, gone.pdu, got_unit, body) is None
+            ):
+                self.reorders = True  # it came after a later request's: it was not dropped
+            return []
+        problem = reply_problem(sent.unit, sent.pdu, got_unit, body)
+        oldest = next(iter(self._waiting))
+        if problem is not None and tid != oldest:
+            self._spoilt[tid] = problem
+            return []
+        del self._waiting[tid]
+        now = time.monotonic()
+        self._outcome[tid] = (_Came(got_unit, body, problem, late), now)
+        if problem is not None:
+            return [tid]
+        if sent.seq < self._answered_seq:
+            self.reorders = True
+        elif tid == oldest and self._waiting:
+            self._in_turn += 1
+        self._answered_seq = max(self._answered_seq, sent.seq)
+        return [tid]
+
+    def _dropped(self, droppable: Collection[int]) -> list[int]:
+        """On a connection :attr:`in_order`, with no whole frame left to read, the requests
+        of ``droppable`` still waiting that were sent before the last one answered: such a
+        server dropped them, and they are given up on (``no reply``). Not before the frames
+        at hand are read: replies that came together are taken together, whatever their
+        order (a server that showed no reordering yet may be one)."""
+        if not self.in_order or self._frame_at_hand():
+            return []
+        now = time.monotonic()
+        dropped = []
+        for tid, request in list(self._waiting.items()):
+            if request.seq > self._answered_seq:
+                break
+            if tid in droppable:
+                self._outcome[tid] = (self._give_up(tid, "no reply"), now)
+                dropped.append(tid)
+        return dropped
+
+    def _reply(self, tid: int, own: bool) -> tuple[Reply, float]:
+        """The outcome of a request that has one, and when it was known: its reply, the
+        exception it carries, or a :class:`NoReply` (a reply that does not answer it: a
+        ``timeout``, :class:`BadReply` if ``own``; a reading's ``too late``)."""
+        sent = self._sent[tid]
+        came, at = self._outcome.pop(tid)
+        function = sent.pdu[0]
+        if isinstance(came, NoReply):
+            return came, at
+        if came.problem is not None:
+            if own:
+                raise BadReply(
+                    f"unit {sent.unit}: function {function}: reply not used: {came.problem}"
+                )
+            return NoReply(sent.unit, function, "timeout", f"reply not used: {came.problem}"), at
+        if came.late and not own and function not in WRITE_FUNCTIONS:
+            return NoReply(sent.unit, function, "too late"), at
+        if came.body[0] == function | 0x80:
+            return ModbusExceptionResponse(sent.unit, function, came.body[1]), at
+        return came.body, at
+
+    def _abandon(
+        self,
+        tids: list[int],
+        mine: set[int],
+        out: list[Reply | None],
+        times: list[float],
+        place: dict[int, int],
+        detail: str,
+    ) -> None:
+        """Give up on the requests ``tids`` (the timeout passed, or the stream cannot be read:
+        ``detail``), each a ``timeout`` :class:`NoReply` saying why a frame naming it was not
+        used; :class:`BadReply` where that is one of the caller's own (``mine``)."""
+        now = time.monotonic()
+        for tid in tids:
+            problem = self._spoilt.get(tid)
+            if problem is not None and tid in mine:
+                sent = self._sent[tid]
+                raise BadReply(
+                    f"unit {sent.unit}: function {sent.pdu[0]}: reply not used: {problem}"
+                )
+            why = detail or (f"reply not used: {problem}" if problem is not None else "")
+            out[place[tid]] = self._give_up(tid, "timeout", why)
+            times[place[tid]] = now
+
+    def _give_up(self, tid: int, reason: str, detail: str = "") -> NoReply:
+        """Stop waiting for the request ``tid`` (a reply that still comes is passed over)."""
+        sent = self._waiting.pop(tid)
+        self._given_up[tid] = sent
+        return NoReply(sent.unit, sent.pdu[0], reason, detail)
+
+    def _collect(self, tid: int) -> None:
+        """Forget the oldest outstanding request, ``tid``, once its outcome is given."""
+        assert self._order[0] == tid
+        self._order.popleft()
+        del self._sent[tid]
+        self._spoilt.pop(tid, None)
+
+    def _frame_at_hand(self) -> bool:
+        """Whether a whole frame (or a header no frame has) is read and not taken yet."""
+        if len(self._buffer) < 7:
+            return False
+        length = _HEADER.unpack(self._buffer[:7])[2]
+        return len(self._buffer) >= 6 + length or not 1 <= length <= MAX_MBAP_LENGTH
 
     def _frame(self) -> tuple[int, int, bytes]:
         """(transaction ID, unit, PDU) of the next reply; a timeout loses nothing already

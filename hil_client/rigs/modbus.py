@@ -343,6 +343,7 @@ class ModbusRig:
         if any(p.signal == "reset" for d in register_map.devices for p in d.points):
             self._points["reset"] = register_map.point("reset")  # (optional: a rebuild)
         self._conn: Connection | None = None
+        self._earlier: Connection | None = None  # the last connection closed
         self._dead = False  # the last patient wait found its connection dead (_still_coming)
         self._head_own = False  # ... and the request it was silent on was the rig's own
         self._command: RigCommand | None = None
@@ -506,6 +507,12 @@ class ModbusRig:
     def _connect(self, abort: bool = False) -> None:
         self.close(abort)
         self._conn = self._open()
+        # what the connections before showed of the order the server answers in (opened
+        # again after each timeout, a fresh one would wait the timeout for every request a
+        # faulty unit drops: modbus_client.Connection.in_order)
+        learn = getattr(self._conn, "learn_from", None)  # (RTU: one request at a time)
+        if learn is not None and self._earlier is not None:
+            learn(self._earlier)
 
     def _reconnect(self, reason: str) -> dict[str, float]:
         """Connect again (with backoff); the server's status once back."""
@@ -535,7 +542,7 @@ class ModbusRig:
     def close(self, abort: bool = False) -> None:
         if self._conn is not None:
             self._conn.close(abort)
-            self._conn = None
+            self._earlier, self._conn = self._conn, None
 
     # ------------------------------------------------------------------ primitives
     def _exchange(self, requests: list[tuple[int, bytes]], patient: bool = False) -> list[bytes]:
