@@ -1,25 +1,32 @@
 """The dashboard's HTTP side: a small HTTP/1.1 server on the server's event loop.
 
-Routes (GET unless said):
+Routes (GET, or HEAD for the head alone, unless said; another method gets 405 with
+``Allow``):
 
 - ``/``: the page (``static/index.html``: plain HTML, CSS and canvas drawing, no library,
   nothing fetched from the internet);
 - ``/api/state[?window=S]``: the state as JSON (readings by unit, clock, faults, trends of
   the last S simulated seconds);
 - ``/api/stream``: the same pushed as server-sent events every :data:`PUSH_PERIOD_S` of
-  wall time (each event: readings, clock, faults and the newest trend sample);
+  wall time (each event: readings, clock, faults and the trend samples taken since the
+  last event, ``trend_point``);
 - POST ``/api/control`` with ``{"signal": NAME, "value": X}``: only with
-  ``--http-control``; the write takes the Modbus write path of
-  :meth:`~rig_emulator.modbus.server.BenchServer.write_signal` (the same checks, the same
-  exception codes), so the page can do nothing a Modbus client could not;
+  ``--http-control``, for the signals the state's ``controls`` lists (every plant command
+  the map has a writable point for, and the speed); the write takes the Modbus write path
+  of :meth:`~rig_emulator.modbus.server.BenchServer.write_signal` (the same checks, the
+  same exception codes, the guard of the clock commands: a real-time server without
+  ``--allow-control`` refuses the speed, 403), so the page can do nothing a Modbus client
+  could not;
 - POST ``/api/faults`` with ``{"inject": {FAULT}}`` (an entry as in ``FAULTS.yaml``,
   validated the same way), ``{"clear": true}``, or both (clear, then inject; a bad fault
   changes nothing): only with ``--http-control``, through
-  :meth:`~rig_emulator.modbus.server.BenchServer.inject` and ``clear_faults``.
+  :meth:`~rig_emulator.modbus.server.BenchServer.inject` (journaled with source
+  ``dashboard``) and ``clear_faults``, refused where the Modbus fault block is (403).
 
-Every request is bounded (8 kB of headers, 4 kB of body, 10 s to arrive); a malformed one
-gets 400 and the connection closes. The work per push is one snapshot shared by all
-streams; a stream that cannot keep up skips samples instead of queueing them.
+Every request is bounded (4 kB of request target, else 414; 8 kB of headers, 4 kB of body,
+10 s to arrive); a malformed one gets 400 and the connection closes. The work per push is
+one snapshot shared by all streams; a stream that cannot keep up skips samples instead of
+queueing them (the page fetches the history again now and then).
 """
 
 from __future__ import annotations
@@ -38,13 +45,24 @@ from urllib.parse import parse_qs, urlsplit
 
 import numpy as np
 
-from rig_emulator.dashboard.state import CLOCK_MODES, Trend, units, with_derived
+from rig_emulator.dashboard.state import (
+    CLOCK_MODES,
+    Trend,
+    served,
+    trend_points,
+    trend_values,
+    units,
+)
 from rig_emulator.faults import FaultError
+from rig_emulator.modbus.fault_control import FAULT_COMMANDS
 from rig_emulator.modbus.server import BenchServer
+from rig_emulator.registers import Point, precision
+from rig_emulator.registers.codec import accepted_range
 
 log = logging.getLogger("rig_emulator.dashboard")
 
 PUSH_PERIOD_S = 0.5
+MAX_TARGET_BYTES = 4096
 MAX_HEADER_BYTES = 8192
 MAX_BODY_BYTES = 4096
 REQUEST_TIMEOUT_S = 10.0
@@ -53,7 +71,24 @@ MAX_STREAMS = 64
 #: opening streams in a loop wrote a line per stream)
 EVICTION_LOG_S = 60.0
 INITIAL_WINDOW_S = 12 * 3600.0  # the trend sent with the page
-CONTROL_SIGNALS = ("water_flow_setpoint_kg_h", "boiler_command", "speed_factor")
+#: Signals the controls may write beside the plant's commands (those: every one the map
+#: has a writable point for, setpoints and switches)
+CLOCK_CONTROLS = ("speed_factor",)
+#: A real-time tick's sample joins the trend only this long after its last point [simulated
+#: s]: at high speed every tick adds one (x1000: one per 100 s), at low speed the pushes do
+TICK_SAMPLE_MIN_S = 1.0
+STREAM_HEAD = (
+    b"HTTP/1.1 200 OK\r\nContent-Type: text/event-stream\r\n"
+    b"Cache-Control: no-cache\r\nConnection: close\r\n\r\n"
+)
+#: What each path takes (HEAD: the head of the GET)
+ROUTES = {
+    "/": ("GET", "HEAD"),
+    "/api/state": ("GET", "HEAD"),
+    "/api/stream": ("GET", "HEAD"),
+    "/api/control": ("POST",),
+    "/api/faults": ("POST",),
+}
 
 
 class BadRequest(Exception):
@@ -62,6 +97,10 @@ class BadRequest(Exception):
 
 class CrossSite(Exception):
     """A control request that may come from another web site (refused with 403)."""
+
+
+class TooLong(Exception):
+    """A request target longer than :data:`MAX_TARGET_BYTES` (refused with 414)."""
 
 
 def _check_same_site(headers: dict[str, str]) -> None:
@@ -104,6 +143,10 @@ class Dashboard:
         self.port = port
         self.control = control
         self.trend = Trend()
+        self._trend_points = trend_points(server.map)
+        #: the controls: each writable signal's finest point (the one write_signal takes)
+        self._controls = _control_points(server) if control else {}
+        self._trend_sent = 0  # trend samples taken when the last event was pushed
         self._page = resources.files("rig_emulator.dashboard").joinpath("static/index.html")
         #: the live streams, oldest first: each one's queue of events and its connection
         self._streams: dict[asyncio.Queue, asyncio.StreamWriter] = {}
@@ -122,6 +165,11 @@ class Dashboard:
         self._srv = await asyncio.start_server(self._handle, self.host, self.port)
         self.port = self._srv.sockets[0].getsockname()[1]
         self._sample()
+        self.server.on_advance_sample = self._sample_advance
+        previous = self.server.on_tick
+        self.server.on_tick = (
+            self._sample_tick if previous is None else lambda: (previous(), self._sample_tick())
+        )
         self._task = asyncio.create_task(self._push_loop(), name="dashboard push")
 
     async def stop(self) -> None:
@@ -149,10 +197,36 @@ class Dashboard:
                 await asyncio.wait_for(self._srv.wait_closed(), 2.0)
 
     # ------------------------------------------------------------------ state
-    def _sample(self) -> dict:
-        values = with_derived(self.server.values())
+    def _published(self) -> dict[str, float]:
+        """What the server last published (before its first publish: its values)."""
+        return self.server.published_values or self.server.values()
+
+    def _sample_trend(self, values: dict[str, float]) -> None:
+        self.trend.add(values["sim_time_s"], trend_values(self._trend_points, values))
+
+    def _sample_tick(self) -> None:
+        """A real-time tick published: a trend point if the last is a simulated second old."""
+        if self.server.emulator.sim_time_s - self.trend.last_time_s >= TICK_SAMPLE_MIN_S:
+            self._sample_trend(self._published())
+
+    def _sample_advance(self, done: bool) -> None:
+        """A trend point from a lockstep advance: once published (``done``), what the wire
+        serves (a run of short advances is drawn step by step, not between two pushes);
+        part way through it, the readings as their points would serve them, a signal
+        under an instrument fault with none there (a fault acts at publication only: what
+        it would serve inside is not known)."""
+        if done:
+            self._sample_trend(self._published())
+            return
+        faulted = [f["signal"] for f in self.server.active_faults() if "signal" in f]
+        values = self.server.sample_values()
         time_s = self.server.emulator.sim_time_s
-        self.trend.add(time_s, values)
+        self.trend.add(time_s, trend_values(self._trend_points, values, hidden=faulted))
+
+    def _sample(self) -> dict:
+        values = self._published()
+        time_s = values["sim_time_s"]
+        self._sample_trend(values)
         clock = self.server.clock
         recent = list(itertools.islice(reversed(self.server.lateness.samples), 600))
         lateness = {
@@ -170,9 +244,26 @@ class Dashboard:
             },
             "faults": list(getattr(self.server, "active_faults", lambda: [])()),
             "control": self.control,
+            "controls": [self._control_state(s, p, values) for s, p in self._controls.items()],
+            "fault_controls": {"refused": self.server.control_refusal(FAULT_COMMANDS)},
             "units": units(self.server.map, values),
         }
         return self._last
+
+    def _control_state(self, signal: str, point: Point, values: dict[str, float]) -> dict:
+        """A control as the page offers it: its point, what it accepts, the value it holds,
+        and why the server would refuse it now (None: it would not)."""
+        lo, hi = accepted_range(point)
+        return {
+            "signal": signal,
+            "name": point.name,
+            "unit": point.unit,
+            "switch": point.datatype == "bool" or (lo, hi) == (0.0, 1.0),
+            "min": lo,
+            "max": hi,
+            "value": served(point, values.get(signal, math.nan)),
+            "refused": self.server.control_refusal([signal]),
+        }
 
     def state(self, window_s: float | None = None) -> dict:
         return self._last | {"trend": self.trend.as_dict(window_s)}
@@ -181,10 +272,11 @@ class Dashboard:
         while True:
             await asyncio.sleep(PUSH_PERIOD_S)
             state = self._sample()
+            new = self.trend.since(self._trend_sent)
+            self._trend_sent = self.trend.added
             if not self._streams:
                 continue
-            newest = self.trend.as_dict(0.0)
-            event = json.dumps(state | {"trend_point": newest}, allow_nan=False)
+            event = json.dumps(state | {"trend_point": new}, allow_nan=False)
             for queue in self._streams:
                 if queue.full():
                     with contextlib.suppress(asyncio.QueueEmpty):
@@ -205,6 +297,8 @@ class Dashboard:
             await self._route(method, target, body, writer)
         except BadRequest as exc:
             await _respond(writer, 400, {"error": str(exc)})
+        except TooLong as exc:
+            await _respond(writer, 414, {"error": str(exc)})
         except CrossSite as exc:
             log.warning("dashboard: refused a POST from another site (%s)", exc)
             await _respond(writer, 403, {"error": str(exc)})
@@ -216,33 +310,47 @@ class Dashboard:
                 writer.close()
 
     async def _route(self, method: str, target: str, body: bytes, writer) -> None:
-        url = urlsplit(target)
-        if url.path == "/" and method == "GET":
+        path, query = _path_and_query(target)
+        allowed = ROUTES.get(path)
+        if allowed is None:
+            await _respond(writer, 404, {"error": f"no such page: {path}"})
+            return
+        if method not in allowed:
+            await _respond(
+                writer,
+                405,
+                {"error": f"{method} not allowed on {path} (only {', '.join(allowed)})"},
+                {"Allow": ", ".join(allowed)},
+            )
+            return
+        head = method == "HEAD"
+        if path == "/":
             # inside the page's script: no "<" at all ("</script>", "<!--<script>" in a map's
             # text would end or hide the script); JSON reads \u003c as "<"
             state = json.dumps(self.state(INITIAL_WINDOW_S), allow_nan=False)
             state = state.replace("<", "\\u003c")
             page = self._page.read_text(encoding="utf-8").replace("/*INITIAL_STATE*/null", state, 1)
-            await _respond_raw(writer, 200, "text/html; charset=utf-8", page.encode())
-        elif url.path == "/api/state" and method == "GET":
-            window = parse_qs(url.query).get("window", [None])[0]
+            await _respond_raw(writer, 200, "text/html; charset=utf-8", page.encode(), head=head)
+        elif path == "/api/state":
+            window = parse_qs(query).get("window", [None])[0]
             try:
                 window_s = float(window) if window is not None else None
             except ValueError:
                 raise BadRequest(f"window: '{window}' is not a number") from None
             if window_s is not None and not (math.isfinite(window_s) and window_s >= 0):
                 raise BadRequest("window must be a non-negative number of seconds")
-            await _respond(writer, 200, self.state(window_s))
-        elif url.path == "/api/stream" and method == "GET":
-            await self._stream(writer)
-        elif url.path == "/api/control" and method == "POST":
+            await _respond(writer, 200, self.state(window_s), head=head)
+        elif path == "/api/stream":
+            if head:  # the head a stream starts with, and no stream
+                writer.write(STREAM_HEAD)
+                with contextlib.suppress(ConnectionError):
+                    await writer.drain()
+            else:
+                await self._stream(writer)
+        elif path == "/api/control":
             await self._control(body, writer)
-        elif url.path == "/api/faults" and method == "POST":
-            await self._faults(body, writer)
-        elif url.path in ("/", "/api/state", "/api/stream", "/api/control", "/api/faults"):
-            await _respond(writer, 405, {"error": f"{method} not allowed on {url.path}"})
         else:
-            await _respond(writer, 404, {"error": f"no such page: {url.path}"})
+            await self._faults(body, writer)
 
     async def _stream(self, writer: asyncio.StreamWriter) -> None:
         if len(self._streams) >= MAX_STREAMS:
@@ -264,10 +372,7 @@ class Dashboard:
         queue: asyncio.Queue = asyncio.Queue(maxsize=2)
         self._streams[queue] = writer
         try:
-            writer.write(
-                b"HTTP/1.1 200 OK\r\nContent-Type: text/event-stream\r\n"
-                b"Cache-Control: no-cache\r\nConnection: close\r\n\r\n"
-            )
+            writer.write(STREAM_HEAD)
             first = self._last | {"trend_point": self.trend.as_dict(0.0)}
             writer.write(f"data: {json.dumps(first, allow_nan=False)}\n\n".encode())
             await writer.drain()
@@ -286,15 +391,12 @@ class Dashboard:
         if not self.control:
             await _respond(writer, 403, {"error": "controls are off (serve --http-control)"})
             return
-        try:
-            request = json.loads(body or b"{}")
-        except (ValueError, RecursionError):  # JSONDecodeError, UnicodeDecodeError too
-            raise BadRequest("the body is not JSON") from None
+        request = _json_body(body)
         if not isinstance(request, dict):
             raise BadRequest('expected {"signal": NAME, "value": NUMBER}')
         signal, value = request.get("signal"), request.get("value")
-        if signal not in CONTROL_SIGNALS:
-            raise BadRequest(f"signal: expected one of {', '.join(CONTROL_SIGNALS)}")
+        if signal not in self._controls:
+            raise BadRequest(f"signal: expected one of {', '.join(self._controls)}")
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise BadRequest("value: expected a number")
         try:
@@ -303,10 +405,13 @@ class Dashboard:
             raise BadRequest("value: too large a number") from None
         if not math.isfinite(number):  # NaN and Infinity: JSON has neither, Python takes both
             raise BadRequest("value: expected a finite number")
+        # the clock guard refuses it (write_signal would too, with exception 01): 403, as
+        # what the server does not allow, not what the request got wrong
+        guard = self.server.control_refusal([signal])
         refused = await self.server.write_signal(signal, number)
         if refused is not None:
             log.info("dashboard control refused: %s = %r (%s)", signal, value, refused)
-            await _respond(writer, 400, {"error": refused})
+            await _respond(writer, 403 if guard else 400, {"error": f"{signal}: {refused}"})
             return
         # what the server holds: the value as its register carries it (501 through a point
         # of 2-kg/h steps is 500: the answer said 501, a re-probe)
@@ -319,10 +424,7 @@ class Dashboard:
         if not self.control:
             await _respond(writer, 403, {"error": "controls are off (serve --http-control)"})
             return
-        try:
-            request = json.loads(body or b"{}")
-        except (ValueError, RecursionError):  # JSONDecodeError, UnicodeDecodeError too
-            raise BadRequest("the body is not JSON") from None
+        request = _json_body(body)
         usage = 'expected {"inject": {FAULT}}, {"clear": true} or both (clear, then inject)'
         if not isinstance(request, dict) or not request or set(request) - {"inject", "clear"}:
             raise BadRequest(usage)
@@ -330,6 +432,10 @@ class Dashboard:
             raise BadRequest(usage)
         if "clear" in request and request["clear"] is not True:
             raise BadRequest(usage)
+        refused = self.server.control_refusal(FAULT_COMMANDS)
+        if refused is not None:  # as the Modbus fault block: exception 01
+            await _respond(writer, 403, {"error": f"faults: refused: {refused}"})
+            return
         entry = None
         if "inject" in request:
             try:  # checked before anything is cleared: a bad fault changes nothing
@@ -341,10 +447,44 @@ class Dashboard:
             self.server.clear_faults()
             log.info("dashboard control: faults cleared")
         if entry is not None:
-            self.server.inject(entry)
+            self.server.inject(entry, source="dashboard")
             log.info("dashboard control: fault %s", request["inject"])
         self._sample()
         await _respond(writer, 200, {"ok": True, "faults": self.server.active_faults()})
+
+
+def _control_points(server: BenchServer) -> dict[str, Point]:
+    """The signals the controls write, each with the point :meth:`BenchServer.write_signal`
+    takes (the finest writable one): every plant command with a writable point (setpoints,
+    switches), then the speed."""
+    wanted = [*server.emulator.commands, *CLOCK_CONTROLS]
+    writable = [p for d in server.map.devices for p in d.points if p.writable]
+    out = {}
+    for signal in wanted:
+        points = [p for p in writable if p.signal == signal]
+        if points:
+            out[signal] = min(points, key=lambda p: precision(p, 1.0))
+    return out
+
+
+def _json_body(body: bytes):
+    """The request's body as JSON; an empty one, or one that is not JSON, is refused."""
+    if not body.strip():
+        raise BadRequest("the body is not JSON: it is empty")
+    try:
+        return json.loads(body)
+    except (ValueError, RecursionError):  # JSONDecodeError, UnicodeDecodeError too
+        raise BadRequest("the body is not JSON") from None
+
+
+def _path_and_query(target: str) -> tuple[str, str]:
+    """The path and query of a request target as asked (``//api/state`` is that path, not
+    a host ``api`` and the path ``/state``); an absolute URL's own (RFC 9112 3.2.2)."""
+    if "://" in target.split("?", 1)[0]:
+        url = urlsplit(target)
+        return url.path or "/", url.query
+    path, _, query = target.partition("#")[0].partition("?")
+    return path, query
 
 
 def _end(queue: asyncio.Queue) -> None:
@@ -359,21 +499,33 @@ def _num(x: float) -> float | None:
 
 
 async def _read_request(reader: asyncio.StreamReader) -> tuple[str, str, dict[str, str], bytes]:
-    try:
-        head = await reader.readuntil(b"\r\n\r\n")
+    try:  # the request line first: a target too long (414) is told from long headers (400)
+        line = await reader.readuntil(b"\r\n")
     except asyncio.LimitOverrunError:
-        raise BadRequest("headers too long") from None
-    if len(head) > MAX_HEADER_BYTES:
-        raise BadRequest("headers too long")
+        raise TooLong(f"request target longer than {MAX_TARGET_BYTES} bytes") from None
     try:
-        lines = head.decode("latin-1").split("\r\n")
-        method, target, version = lines[0].split(" ")
+        method, target, version = line.decode("latin-1").removesuffix("\r\n").split(" ")
     except ValueError:
         raise BadRequest("malformed request line") from None
+    if len(target) > MAX_TARGET_BYTES:
+        raise TooLong(f"request target of {len(target)} bytes (at most {MAX_TARGET_BYTES})")
+    lines: list[str] = []
+    size = 0
+    while True:
+        try:
+            field = await reader.readuntil(b"\r\n")
+        except asyncio.LimitOverrunError:
+            raise BadRequest("headers too long") from None
+        size += len(field)
+        if size > MAX_HEADER_BYTES:
+            raise BadRequest("headers too long")
+        if field == b"\r\n":
+            break
+        lines.append(field.decode("latin-1").removesuffix("\r\n"))
     if not version.startswith("HTTP/1."):
         raise BadRequest(f"unsupported protocol {version!r}")
     headers = {}
-    for line in lines[1:]:
+    for line in lines:
         if ":" in line:
             name, value = line.split(":", 1)
             headers[name.strip().lower()] = value.strip()
@@ -389,9 +541,15 @@ async def _read_request(reader: asyncio.StreamReader) -> tuple[str, str, dict[st
     return method, target, headers, body
 
 
-async def _respond(writer: asyncio.StreamWriter, status: int, content: dict) -> None:
+async def _respond(
+    writer: asyncio.StreamWriter,
+    status: int,
+    content: dict,
+    extra: dict[str, str] | None = None,
+    head: bool = False,
+) -> None:
     body = json.dumps(content, allow_nan=False).encode()
-    await _respond_raw(writer, status, "application/json", body)
+    await _respond_raw(writer, status, "application/json", body, extra, head)
 
 
 REASONS = {
@@ -400,15 +558,27 @@ REASONS = {
     403: "Forbidden",
     404: "Not Found",
     405: "Method Not Allowed",
+    414: "URI Too Long",
     503: "Service Unavailable",
 }
 
 
-async def _respond_raw(writer: asyncio.StreamWriter, status: int, kind: str, body: bytes) -> None:
-    head = (
+async def _respond_raw(
+    writer: asyncio.StreamWriter,
+    status: int,
+    kind: str,
+    body: bytes,
+    extra: dict[str, str] | None = None,
+    head: bool = False,
+) -> None:
+    """Send a whole response (``head``: its head alone, with the body's length, as HEAD
+    asks: RFC 9110 9.3.2); ``extra``: more header fields (a 405's ``Allow``)."""
+    fields = "".join(f"{name}: {value}\r\n" for name, value in (extra or {}).items())
+    text = (
         f"HTTP/1.1 {status} {REASONS[status]}\r\nContent-Type: {kind}\r\n"
-        f"Content-Length: {len(body)}\r\nCache-Control: no-cache\r\nConnection: close\r\n\r\n"
+        f"Content-Length: {len(body)}\r\n{fields}Cache-Control: no-cache\r\n"
+        "Connection: close\r\n\r\n"
     )
-    writer.write(head.encode() + body)
+    writer.write(text.encode() + (b"" if head else body))
     with contextlib.suppress(ConnectionError):
         await writer.drain()

@@ -76,6 +76,12 @@ CLOCK_COMMANDS = ("speed_factor", "clock_mode", "lockstep_advance_s", "reset")
 TICK_BUDGET_FRACTION = 0.5  # share of a tick period the physics of one tick may take
 CHUNK_STEPS = 64  # physics steps between two looks at the clock (~1-2 ms with the lab profile)
 ADVANCE_SLICE_S = 0.005  # wall time a lockstep advance runs before it lets others in [s]
+#: Moments inside one lockstep advance :attr:`BenchServer.on_advance_sample` is called at,
+#: at most (evenly spaced: the dashboard's trend shows what the plant did within an hour's
+#: advance, a start-up and a cut-out, not a straight line between its ends: a probe)
+ADVANCE_SAMPLES = 200
+#: Why a clock or fault command is refused with exception 01 (Modbus and dashboard alike)
+CONTROL_REFUSAL = "the server runs in real time without --allow-control"
 
 
 @dataclass(frozen=True, slots=True)
@@ -242,6 +248,12 @@ class BenchServer:
         self._published: dict[tuple[int, str], dict[int, list]] = {}
         self._write_plans: dict[tuple[int, str, int, int], _WritePlan] = {}
         self.on_tick: Callable[[], None] | None = None
+        #: called with False inside a lockstep advance, at most :data:`ADVANCE_SAMPLES` times,
+        #: the plant part way (nothing is published then: read it with
+        #: :meth:`sample_values`), and with True once the advance is published
+        self.on_advance_sample: Callable[[bool], None] | None = None
+        #: what :meth:`publish` last encoded: what the wire serves (the dashboard shows it)
+        self.published_values: dict[str, float] = {}
         #: fault injection (CONTRACT section 5): engine, gate, command and truth blocks
         self.faults = ServerFaults(
             emulator, register_map, faults, fault_log, epoch_id=self.epoch_id
@@ -405,19 +417,34 @@ class BenchServer:
             await self._kernels()
             loop = asyncio.get_running_loop()
             n, dt = self.emulator.substeps(seconds)
+            # steps between two samples for on_advance_sample (chunks end on them: the
+            # same physics, chunked differently, :meth:`Emulator.substeps`)
+            every = math.ceil(n / ADVANCE_SAMPLES) if self.on_advance_sample else n
+            done = 0
             while n > 0:
                 until_s = loop.time() + ADVANCE_SLICE_S
                 while n > 0 and loop.time() < until_s:
-                    chunk = min(n, CHUNK_STEPS)
+                    chunk = min(n, CHUNK_STEPS, every - done % every)
                     self.emulator.advance_steps(chunk, dt)
                     n -= chunk
+                    done += chunk
+                    if n > 0 and done % every == 0 and self.on_advance_sample is not None:
+                        self.on_advance_sample(False)
                 if n > 0:  # a short advance never awaits: its reply keeps its place in line
                     await asyncio.sleep(0)
         self.last_advance_s = seconds
         self.lockstep_counter += 1
         await self.publish()
+        if self.on_advance_sample is not None:
+            self.on_advance_sample(True)
 
     # ------------------------------------------------------------------ publishing
+    def sample_values(self) -> dict[str, float]:
+        """The instruments' readings and the commands now, without the side effects of
+        :meth:`values` (the balance's stable flag, the faults' schedule and journal): a look
+        inside an advance, before instrument faults (a fault acts at publication)."""
+        return self.emulator.reading_by_name() | self.emulator.commands
+
     def values(self) -> dict[str, float]:
         out = self.emulator.values()
         realtime = self.clock.mode == REALTIME
@@ -435,10 +462,12 @@ class BenchServer:
         return out
 
     # ------------------------------------------------------------------ faults (Python API)
-    def inject(self, fault: Mapping[str, Any] | Entry) -> None:
+    def inject(self, fault: Mapping[str, Any] | Entry, source: str = "python") -> None:
         """Set a fault (a dict as in ``FAULTS.yaml``, e.g. ``{"kind": "no_reply", "unit":
-        2, "for_s": 30}``); without ``at_s`` it starts now. Safe from any thread."""
-        self.faults.inject(fault)
+        2, "for_s": 30}``); without ``at_s`` it starts now. ``source`` names who set it in
+        the journal and :meth:`active_faults` (the dashboard's: ``dashboard``). Safe from
+        any thread."""
+        self.faults.inject(fault, source)
         self._republish()
 
     def clear_faults(self) -> None:
@@ -476,6 +505,7 @@ class BenchServer:
         (one call per contiguous run of registers, one per bit)."""
         assert self._server is not None
         values = self.values()
+        self.published_values = values
         self._internal = True
         try:
             for unit_id, runs in self._runs.items():
@@ -568,12 +598,11 @@ class BenchServer:
                 self._write_plans[key] = plan  # valid writes only: few, whatever clients send
         return plan
 
-    async def _write(
-        self, device: Device, table: str, address: int, values, operator: bool = False
-    ) -> ExcCodes | None:
+    async def _write(self, device: Device, table: str, address: int, values) -> ExcCodes | None:
         """Check a client write of ``values`` at ``address``; apply it or refuse it whole.
-        ``operator``: the write comes from the dashboard's own controls (``--http-control``),
-        which the guard of the clock commands does not apply to."""
+        The dashboard's controls come this way too (:meth:`write_signal`), the guard of the
+        clock commands included (a stranger's probe: the dashboard set the speed of a
+        real-time server started without --allow-control, which Modbus refused with 01)."""
         plan = self._write_plan(device.unit_id, table, address, len(values))
         if isinstance(plan, ExcCodes):
             return plan
@@ -599,7 +628,7 @@ class BenchServer:
                 if here >= step[point.signal]:
                     continue
             new[point.signal], step[point.signal] = checked, here
-        refused = await self._apply(new, operator)
+        refused = await self._apply(new)
         # the client's registers are stored after this returns (a trigger such as the fault
         # command's over the 0 published): publish them again next time
         self._published.pop((device.unit_id, table), None)
@@ -634,31 +663,42 @@ class BenchServer:
                 registers = encode(point, value)
             except (ValueError, OverflowError, struct.error):
                 return f"{value!r} cannot be encoded as {point.datatype}"
-        refused = await self._write(device, point.table, point.address, registers, operator=True)
+        refused = await self._write(device, point.table, point.address, registers)
         if refused is None:  # published, its own point too (no client stores it)
             return None
-        return f"refused with Modbus exception {int(refused):02X} ({refused.name})"
+        why = self.control_refusal([signal]) if refused == ExcCodes.ILLEGAL_FUNCTION else None
+        return f"refused with Modbus exception {int(refused):02X} ({refused.name})" + (
+            f": {why}" if why else ""
+        )
+
+    def control_refusal(self, signals: Iterable[str]) -> str | None:
+        """Why a write of ``signals`` would be refused with exception 01 now (clock or fault
+        commands to a real-time server without --allow-control), or None. The dashboard
+        asks it to show a control it cannot use as such, and why."""
+        if self.allow_control or self.clock.mode == LOCKSTEP:
+            return None
+        if not any(s in CLOCK_COMMANDS or s in FAULT_COMMANDS for s in signals):
+            return None
+        return CONTROL_REFUSAL
 
     def _control_refused(self, new: dict[str, float]) -> bool:
         """Whether a write of clock commands must be refused (real time, no --allow-control);
         logged once per command name and server mode, not once per request."""
+        if self.control_refusal(new) is None:
+            return False
         commands = sorted(k for k in new if k in CLOCK_COMMANDS or k in FAULT_COMMANDS)
-        if not commands or self.allow_control:
-            return False
-        if self.clock.mode == LOCKSTEP:
-            return False
         new_names = [n for n in commands if (n, "realtime") not in self._refusals_logged]
         if new_names:  # one line for a write, however many commands it holds (a fault
             self._refusals_logged.update((n, "realtime") for n in new_names)  # block's six
             log.warning(  # wrote six lines: a re-probe)
-                "refused a write of %s (exception 01): the server runs in real time "
-                "without --allow-control (further refusals of these not logged)",
+                "refused a write of %s (exception 01): %s (further refusals of these not logged)",
                 ", ".join(new_names),
+                CONTROL_REFUSAL,
             )
         return True
 
-    async def _apply(self, new: dict[str, float], operator: bool = False) -> ExcCodes | None:
-        if not operator and self._control_refused(new):
+    async def _apply(self, new: dict[str, float]) -> ExcCodes | None:
+        if self._control_refused(new):
             return ExcCodes.ILLEGAL_FUNCTION
         # every write waits for a clock command under way (a long advance runs in slices,
         # answering reads meanwhile): another client's setpoint lands between two advances,

@@ -1,0 +1,298 @@
+"""A stranger's probe of the live dashboard (CONTRACT section 8), against a real
+`rig-emulator serve` over real HTTP and Modbus sockets: the controls meet Modbus's clock
+guard, the trends' cadence and what they show inside a long advance, the values as the
+wire serves them, the axes and the faults in a real headless browser, and HTTP details."""
+
+from __future__ import annotations
+
+import html
+import itertools
+import json
+import math
+import re
+import socket
+import subprocess
+import time
+
+import pytest
+
+from hil_client.demo import rig_emulator_serve
+from hil_client.wait_for_port import free_port, wait_for_port
+from rig_emulator.dashboard.state import TREND_SIGNALS, Trend
+from rig_emulator.registers import invalid_value
+from tests.modbus_helpers import client, point, read_point, start_boiler, write
+from tests.rig_emulator.dashboard.test_dashboard import CHROMIUM, MAP, _get, _post
+
+
+@pytest.fixture
+def served():
+    """``served(*options)`` -> (modbus port, http port) of ``serve --http`` (real time
+    unless ``--lockstep`` is among the options)."""
+    stack = []
+
+    def start(*options: str) -> tuple[int, int]:
+        http = free_port()
+        ctx = rig_emulator_serve("windhager_12kw", "--http", str(http), *options)
+        port, _ = ctx.__enter__()
+        stack.append(ctx)
+        assert wait_for_port("127.0.0.1", http, 30.0)
+        return port, http
+
+    yield start
+    for ctx in stack:
+        ctx.__exit__(None, None, None)
+
+
+def _state(http: int) -> dict:
+    return json.loads(_get(http, "/api/state")[2])
+
+
+def _raw(http: int, request: bytes) -> bytes:
+    """The whole answer to ``request`` (the server closes after each)."""
+    with socket.create_connection(("127.0.0.1", http), timeout=10) as s:
+        s.sendall(request)
+        answer = b""
+        while chunk := s.recv(65536):
+            answer += chunk
+    return answer
+
+
+def test_the_dashboard_is_refused_what_modbus_refuses(served):
+    """A stranger's probe: on a real-time server started without --allow-control, Modbus
+    refused speed_factor with exception 01, but the dashboard's POST answered 200 and
+    applied it. Now its controls meet the same guard: 403 naming --allow-control, nothing
+    changes, and the state says why the page disables the control (faults too, as the
+    Modbus fault block)."""
+    port, http = served("--http-control")
+    status, body = _post(http, b'{"signal": "speed_factor", "value": 50}')
+    assert status == 403 and "--allow-control" in body["error"] and "01" in body["error"]
+    status, body = _post(http, b'{"inject": {"kind": "no_reply", "unit": 2}}', "/api/faults")
+    assert status == 403 and "--allow-control" in body["error"]
+    c = client(port)
+    try:
+        dev, p = point(MAP, "sim_control", "speed_factor")
+        assert read_point(c, dev, p) == 1.0  # unchanged
+    finally:
+        c.close()
+    state = _state(http)
+    assert state["clock"]["speed"] == 1.0 and state["faults"] == []
+    refused = {c["signal"]: c["refused"] for c in state["controls"]}
+    assert "--allow-control" in refused["speed_factor"]
+    assert refused["water_flow_setpoint_kg_h"] is None  # a plant setpoint is not guarded
+    assert "--allow-control" in state["fault_controls"]["refused"]
+
+    port, http = served("--http-control", "--allow-control")
+    assert _post(http, b'{"signal": "speed_factor", "value": 50}')[0] == 200
+    c = client(port)
+    try:
+        assert read_point(c, dev, p) == 50.0
+    finally:
+        c.close()
+
+
+def test_every_writable_setpoint_is_offered_through_the_write_path(served):
+    """A stranger's probe: CONTRACT lists "setpoints" among the controls, but only the
+    flow setpoint was offered (return_setpoint_C and boiler_set_temp_C, writable points of
+    the map, were refused as unknown signals)."""
+    port, http = served("--lockstep", "--http-control")
+    offered = {c["signal"] for c in _state(http)["controls"]}
+    writable_plant = {"water_flow_setpoint_kg_h", "return_setpoint_C", "boiler_set_temp_C",
+                      "boiler_command", "pump_on", "return_heating"}  # fmt: skip
+    assert writable_plant | {"speed_factor"} == offered
+    c = client(port)
+    try:
+        for signal, device, name, value in (
+            ("return_setpoint_C", "bench_plc", "return_setpoint", 60.0),
+            ("boiler_set_temp_C", "boiler_controller", "set_temp", 65.5),
+        ):
+            status, _ = _post(http, json.dumps({"signal": signal, "value": value}).encode())
+            assert status == 200, signal
+            assert read_point(c, *point(MAP, device, name)) == pytest.approx(value, abs=1e-9)
+        # the map's 40..80 for the boiler's set temperature: Modbus exception 03
+        status, body = _post(http, b'{"signal": "boiler_set_temp_C", "value": 95}')
+        assert status == 400 and "03" in body["error"]
+    finally:
+        c.close()
+
+
+def _trend_times(http: int, seconds: float) -> list[float]:
+    """The simulated times of the trend samples the stream pushes over ``seconds``."""
+    times: list[float] = []
+    with socket.create_connection(("127.0.0.1", http), timeout=10) as s:
+        s.sendall(b"GET /api/stream HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
+        stream = s.makefile("rb")
+        b"".join(iter(stream.readline, b"\r\n"))
+        stream.readline()  # the first event: the state of the moment
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            line = stream.readline()
+            if line.startswith(b"data: "):
+                times += json.loads(line.removeprefix(b"data: "))["trend_point"]["time_s"]
+    return times
+
+
+def test_at_real_time_the_trends_get_a_point_every_wall_second(served):
+    """A stranger's probe: at real time x1 the trends got a new point only every ~11 s
+    (12 h / 4000 points); CONTRACT 8 says at least once per simulated-or-wall second."""
+    _, http = served()
+    times = sorted(set(_trend_times(http, 4.0)))  # (the old stream sent its last again)
+    assert len(times) >= 4  # 4 s of wall time: at least one new point a second
+    gaps = [b - a for a, b in itertools.pairwise(times)]
+    assert max(gaps) <= 1.0, times  # x1: a simulated second is a wall second
+
+
+def test_the_trend_is_bounded_with_the_recent_past_in_full():
+    """A stranger's probe: the trend kept one point per 10.8 s at most. Now every sample of
+    the recent past is kept and older ones thinned: 12 h of samples twice a second stay
+    within the bound, the 12 h window is covered, the newest minutes at full resolution."""
+    trend = Trend()
+    values = dict.fromkeys(TREND_SIGNALS, 1.0)
+    for i in range(2 * 13 * 3600):  # 13 h of samples every 0.5 s
+        trend.add(i * 0.5, values)
+    history = trend.as_dict()
+    times = history["time_s"]
+    assert len(times) <= 2760  # the tiers' sum: 600 + 720 + 1440
+    assert times[-1] - times[0] >= 12 * 3600 - 60  # the window, less one thinned step
+    assert times[-300:] == [times[-1] - 0.5 * k for k in range(299, -1, -1)]  # 2.5 min
+    assert all(b > a for a, b in itertools.pairwise(times))
+    assert len(trend.as_dict(3600.0)["time_s"]) < len(times)
+
+
+def test_a_long_lockstep_advance_shows_what_the_plant_did_inside(served):
+    """A stranger's probe: one advance of 3600 s became one straight segment from its
+    start to its end on the trends (time_s [0, 3600]), over a start-up. Now the trend is
+    sampled inside the advance (at most ADVANCE_SAMPLES points), and the flue gas rises in
+    minutes, not as a ramp over the hour."""
+    port, http = served("--lockstep")
+    c = client(port)
+    try:
+        start_boiler(c, MAP, seconds=3600)
+        fg = read_point(c, *point(MAP, "flue_gas_probe", "flue_gas_temp"))
+    finally:
+        c.close()
+    time.sleep(1.2)  # a push period and more
+    trend = _state(http)["trend"]
+    times, flue = trend["time_s"], trend["flue_gas_temp_C"]
+    inside = [t for t in times if 0 < t < 3600]
+    assert 100 <= len(inside) <= 200  # ADVANCE_SAMPLES = 200 per advance at most
+    assert times[-1] == pytest.approx(3600) and flue[-1] == pytest.approx(fg, abs=1e-9)
+    # a straight line from the start to the end would be half way at 1800 s; the plant
+    # was hot long before (a start-up takes minutes: 20 °C of margin is far above noise)
+    at_half = flue[min(range(len(times)), key=lambda i: abs(times[i] - 1800))]
+    assert at_half > (flue[0] + flue[-1]) / 2 + 20, (flue[0], at_half, flue[-1])
+
+
+def test_the_api_shows_each_reading_as_its_registers_carry_it(served):
+    """A stranger's probe: with the clean profile /api/state showed the plant's values,
+    not the wire's (the FID's int16 x0.1 served 3.1, the API said 3.0731...; the flue gas
+    118.71 on the wire, 118.70835... in the API and its trend)."""
+    port, http = served("--lockstep")
+    c = client(port)
+    try:
+        start_boiler(c, MAP, seconds=1665)
+        time.sleep(1.2)  # a push period and more: the dashboard samples the new state
+        state = _state(http)
+        for unit in state["units"]:
+            dev = MAP.map.device(unit["name"])
+            for r in unit["readings"]:
+                p = next(p for p in dev.points if p.name == r["name"])
+                wire = read_point(c, dev, p)
+                if r["value"] is None:
+                    assert math.isnan(wire) or wire == invalid_value(p), (p.name, wire)
+                elif p.datatype.startswith("float"):  # its float32's shortest decimal
+                    assert r["value"] == pytest.approx(wire, rel=2**-24), (p.name, wire)
+                else:  # a scaled integer: exactly its step's decimals
+                    assert r["value"] == round(wire, r["decimals"]), (p.name, wire)
+        wire_fg = read_point(c, *point(MAP, "flue_gas_probe", "flue_gas_temp"))
+        assert state["trend"]["flue_gas_temp_C"][-1] == round(wire_fg, 2)
+    finally:
+        c.close()
+
+
+@pytest.mark.parametrize(
+    ("request_bytes", "expect"),
+    [
+        # HEAD of a page: its head, no body (RFC 9110 9.3.2)
+        (b"HEAD / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n", (b"200", b"text/html", None)),
+        (b"HEAD /api/state HTTP/1.1\r\n\r\n", (b"200", b"application/json", None)),
+        # 405 names what is allowed (RFC 9110 15.5.6)
+        (b"PUT /api/state HTTP/1.1\r\n\r\n", (b"405", b"Allow: GET, HEAD", b"PUT")),
+        (b"GET /api/control HTTP/1.1\r\n\r\n", (b"405", b"Allow: POST", b"GET")),
+        # the path asked for, not a host "api" and a path "/state"
+        (b"GET //api/state HTTP/1.1\r\n\r\n", (b"404", b"", b"//api/state")),
+        (b"GET /api/state?window=" + b"9" * 5000 + b" HTTP/1.1\r\n\r\n", (b"414", b"", b"4096")),
+        (b"GET /" + b"a" * 70_000 + b" HTTP/1.1\r\n\r\n", (b"414", b"", b"4096")),
+    ],
+)
+def test_http_methods_paths_and_lengths(served, request_bytes, expect):
+    """A stranger's probe: HEAD / got 405, a 405 carried no Allow, GET //api/state said
+    "no such page: /state", a URL of 5000 bytes got 400 "headers too long"."""
+    _, http = served("--lockstep")
+    status, header, in_body = expect
+    answer = _raw(http, request_bytes)
+    head, _, body = answer.partition(b"\r\n\r\n")
+    assert head.split(b" ")[1] == status, answer[:300]
+    assert header in head
+    if in_body is None:  # HEAD: the length of the body it would get, and no body
+        length = int(head.split(b"Content-Length: ")[1].split(b"\r\n")[0])
+        assert length > 0 and body == b""
+    else:
+        assert in_body in body, body
+
+
+@pytest.mark.parametrize("body", [b"", b"  ", b"signal=speed_factor"])
+def test_an_empty_or_non_json_control_body_says_not_json(served, body):
+    """A stranger's probe: an empty body to /api/control was read as {} and answered
+    "signal: expected one of ...", as if the signal were missing."""
+    _, http = served("--lockstep", "--http-control")
+    for path in ("/api/control", "/api/faults"):
+        status, answer = _post(http, body, path)
+        assert status == 400 and "not JSON" in answer["error"], (path, answer)
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="chromium not installed (make tools installs it)")
+def test_axes_and_faults_are_readable_in_a_real_browser(served, tmp_path):
+    """A stranger's probe (lab profile, steady state): the flue gas axis read 118 118 118
+    118 118 while the line swung over the plot's whole height (sensor noise of a tenth of
+    a degree), the heat axis 12.4 12.3 12.3 ...; the y axes had no units and the time axis
+    only its two ends; the active faults were raw JSON at the bottom of the page, and a
+    fault set from the dashboard said "source": "python"."""
+    journal = tmp_path / "journal.jsonl"
+    port, http = served(
+        "--lockstep", "--profile", "lab", "--http-control", "--fault-log", str(journal)
+    )
+    c = client(port)
+    try:
+        start_boiler(c, MAP, seconds=3 * 3600)
+        assert not write(c, MAP, "sim_control", "lockstep_advance", 3600).isError()
+    finally:
+        c.close()
+    fault = b'{"inject": {"kind": "no_reply", "unit": 2, "for_s": 600}}'
+    assert _post(http, fault, "/api/faults")[0] == 200
+    assert [f["source"] for f in _state(http)["faults"]] == ["dashboard"]
+    started = [json.loads(x) for x in journal.read_text().splitlines()]
+    assert [e["source"] for e in started if e["event"] == "start"] == ["dashboard"]
+
+    flags = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+             "--disable-background-networking", "--disable-component-update", "--disable-sync",
+             f"--user-data-dir={tmp_path / 'profile'}", "--window-size=1400,1000",
+             "--timeout=10000"]  # fmt: skip
+    url = f"http://127.0.0.1:{http}/"
+    dom = subprocess.run(
+        [CHROMIUM, *flags, "--dump-dom", url], capture_output=True, timeout=120, text=True
+    ).stdout
+    for canvas in ("c_temp", "c_heat", "c_o2", "c_mass"):
+        tag = dom.split(f'id="{canvas}"', 1)[1].split(">", 1)[0]
+        ticks = json.loads(html.unescape(tag.split('data-ticks="', 1)[1].split('"', 1)[0]))
+        for side in ("left", "right"):
+            if ticks[side]:
+                unit, *labels = ticks[side]
+                assert unit.startswith("[") and len(labels) >= 2, (canvas, ticks)
+                assert len(set(labels)) == len(labels), (canvas, ticks)  # all distinct
+        assert len(ticks["time"]) >= 3, (canvas, ticks)  # intermediate times too
+    # the faults near the top, before the readings, each as words, not JSON
+    bar = dom.split('id="faultbar"', 1)[1].split("</section>", 1)[0]
+    assert dom.index('id="faultbar"') < dom.index('id="units"')
+    text = re.sub(r"<[^>]+>", " ", bar)
+    assert "no_reply" in text and "unit 2" in text and "from dashboard" in text
+    assert '"kind"' not in text and "{" not in text
