@@ -41,6 +41,10 @@ import pytest
 DEFAULTS = {"boiler": "windhager_12kw", "profile": "clean", "seed": 0, "faults": None}
 START_TIMEOUT_S = 120.0  # the first start may compile numba's kernels
 MAX_ADVANCE_S = 86_400  # the server's limit for one lockstep advance (a day)
+#: The most one ``advance`` call may ask for [s]: a year of the plant, over a minute of the
+#: machine's time (a simulated day takes about 0.2 s); ``advance(10**12)``, a count of
+#: milliseconds given as seconds, ran for days without a word (a stranger's probe).
+MAX_ADVANCE_CALL_S = 366 * 86_400
 #: How long ``read``, ``write`` and the fault calls wait for a reply [s]: a lockstep server
 #: answers at once but for a ``delay`` fault (a few seconds at most in practice); a
 #: ``no_reply`` fault costs this long, then :class:`RigEmulatorError` (it cost 60 s and
@@ -303,8 +307,9 @@ class RigEmulator:
         """Advance the simulation by ``seconds`` and return once the new state is readable.
 
         Whole seconds (the register is a uint32 of seconds); 0 does nothing; more than a
-        day goes as several writes of at most a day each. A fraction, a negative number or
-        one that is not finite is refused with ``ValueError`` before anything moves. A
+        day goes as several writes of at most a day each. A fraction, a negative number,
+        one that is not finite or more than a year (:data:`MAX_ADVANCE_CALL_S`) is refused
+        with ``ValueError`` before anything moves. A
         connection lost meanwhile is settled by the lockstep counter: each write happens
         exactly once."""
         __tracebackhide__ = True  # a bad duration fails the user's line, not the plugin's
@@ -315,6 +320,11 @@ class RigEmulator:
             raise ValueError(
                 f"advance({seconds!r}): the emulator advances whole seconds, 0 or more "
                 "(the lockstep_advance register is a uint32 of seconds)"
+            )
+        if seconds > MAX_ADVANCE_CALL_S:
+            raise ValueError(
+                f"advance({seconds:g}): more than a year ({MAX_ADVANCE_CALL_S} s) in one call"
+                " (milliseconds given as seconds?); call it again for longer"
             )
         left = int(seconds)
         while left > 0:

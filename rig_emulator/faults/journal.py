@@ -2,7 +2,7 @@
 
 Each line: ``event`` (``start`` | ``end``), ``id`` (the same for a fault's start and end),
 ``t_sim_s`` (simulated time of the event), ``t_wall`` (Unix time), ``kind``, ``unit`` or
-``signal``, ``source`` (``file``, ``profile``, ``random``, ``python``, ``modbus``),
+``signal``, ``source`` (``file``, ``profile``, ``random``, ``python``, ``modbus``, ``dashboard``),
 ``parameter`` (the kind's own: ``delay_ms``, ``code``, ``rate_per_h`` or ``value``) and
 ``served``: what the server answered (``delay_ms``, ``reply: none``, ``exception_code``,
 ``connections_closed``) or the reading it published next to the instrument's own reading

@@ -198,9 +198,13 @@ class ServerFaults:
 
     def write(self, new: Mapping[str, float]) -> ExcCodes | None:
         """A client's write to the command block: applied whole, or refused with 03 and
-        nothing changed."""
+        nothing changed. A set comes with the whole block in the same write: a set alone
+        (FC6 of the command, or a write from part of the block) armed whatever an earlier
+        write had left there, a second offset on top of the first (a stranger's probe)."""
         block = {**self.block, **new}
         command = int(block["fault_command"])
+        if command == COMMAND_SET and not set(BLOCK_SIGNALS) <= set(new):
+            return ExcCodes.ILLEGAL_VALUE
         try:
             spec = spec_from_block(block) if command == COMMAND_SET else None
             if spec is not None:

@@ -229,6 +229,10 @@ def test_advance_and_inject_take_what_a_user_gives_or_say_why(tmp_path):
         for bad in (0.5, 1.5, -1, float("nan"), float("inf"), "10", True):
             with pytest.raises(ValueError, match="advance"):
                 rig.advance(bad)
+        # a stranger's probe: advance(10**12) (milliseconds as seconds?) ran for days
+        for bad in (10**12, 366 * 86_400 + 1):
+            with pytest.raises(ValueError, match="more than a year"):
+                rig.advance(bad)
         assert rig.read("sim_time_s") == 0.0  # nothing moved
         rig.advance(2 * 86_400 + 5)
         assert rig.read("sim_time_s") == 2 * 86_400 + 5

@@ -60,6 +60,22 @@ def _write(port: int, *points: tuple[str, float]) -> None:
     conn.close()
 
 
+def _write_block(port: int, *points: tuple[str, float]) -> None:
+    """Another client writes points of the simulation control that lie one after another,
+    in one request (a fault's set comes with its whole block)."""
+    register_map = load_map()
+    (dev, first), *_ = [register_map.point(name) for name, _ in points]
+    words: list[int] = []
+    for name, value in points:
+        _, point = register_map.point(name)
+        assert point.address == first.address + len(words), name  # one after another
+        words += encode(point, value)
+    conn = Connection("127.0.0.1", port, 5.0)
+    conn.send([(dev.unit_id, write_registers_pdu(first.address, words))])
+    conn.receive()
+    conn.close()
+
+
 def _meta(out: Path) -> dict:
     return json.loads(out.with_name(out.stem + ".meta.json").read_text())
 
@@ -147,7 +163,7 @@ def test_a_hole_from_a_unit_s_late_replies_names_the_unit(serve_process, tmp_pat
         ("fault_at_s", 0.0),  # now
         ("fault_command", 1),
     )
-    other = _when_cooling(out, 15, lambda: _write(srv.port, *fault))
+    other = _when_cooling(out, 15, lambda: _write_block(srv.port, *fault))
     assert _run(srv.port, out, protocol) == 0
     other.join(timeout=10)
     meta = _meta(out)

@@ -390,3 +390,25 @@ def test_random_faults_without_signals_draw_from_what_the_map_publishes(serve, t
     served = {p.signal for d in no_fid.devices if d.unit_id not in (100, 101) for p in d.points}
     assert "flue_gas_OGC_ppm" not in served and len(drawn) >= 5
     assert drawn <= served, drawn - served
+
+
+def test_a_set_without_the_whole_block_in_the_same_write_is_refused(serve):
+    """A stranger's probe: after one valid block (an offset of 5 kg/h on the flow), a write
+    of the command alone (FC6 at address 20, or FC16 of it alone) armed the block left
+    there again: two offsets, the flow read 10 kg/h off. A set must come with the whole
+    block; the command alone gets 03 and nothing is set (a clear alone stays a clear)."""
+    srv = serve()
+    c = client(srv.port)
+    flow = SIGNAL_CODES["water_flow_kg_h"]
+    words = _block(srv, "offset", flow, 5.0, 0.0)
+    assert not c.write_registers(10, words, device_id=100).isError()
+    dev, count = point(srv, "sim_control", "active_fault_count")
+    assert read_point(c, dev, count) == 1.0
+    command_address = point(srv, "sim_control", "fault_command")[1].address
+    set_alone = c.write_register(command_address, 1, device_id=100)
+    assert set_alone.isError() and set_alone.exception_code == 3, set_alone
+    tail = c.write_registers(command_address - 4, words[-5:], device_id=100)  # at + command
+    assert tail.isError() and tail.exception_code == 3, tail
+    assert read_point(c, dev, count) == 1.0  # nothing set
+    assert not c.write_register(command_address, 2, device_id=100).isError()  # clear alone
+    assert read_point(c, dev, count) == 0.0
