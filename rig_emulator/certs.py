@@ -221,3 +221,32 @@ def validity_problem(path: str | Path, now: datetime.datetime | None = None) -> 
     if now < cert.not_valid_before_utc:
         return f"not valid before {cert.not_valid_before_utc:%Y-%m-%d %H:%M} UTC"
     return None
+
+
+_USAGE_NAMES = {
+    ExtendedKeyUsageOID.SERVER_AUTH: "serverAuth",
+    ExtendedKeyUsageOID.CLIENT_AUTH: "clientAuth",
+    ExtendedKeyUsageOID.CODE_SIGNING: "codeSigning",
+    ExtendedKeyUsageOID.EMAIL_PROTECTION: "emailProtection",
+    ExtendedKeyUsageOID.TIME_STAMPING: "timeStamping",
+    ExtendedKeyUsageOID.OCSP_SIGNING: "OCSPSigning",
+}
+
+
+def purpose_problem(path: str | Path, server: bool) -> str | None:
+    """Why the certificate in ``path`` (PEM) is not for its side of TLS: a server's (or a
+    client's, ``server`` False) whose extended key usage leaves out serverAuth (clientAuth),
+    which the other side's OpenSSL refuses ("unsuitable certificate purpose"); a server
+    certificate made for clients was taken without a word (a stranger's probe). None if it
+    is fit, has no extended key usage (any purpose), or cannot be read."""
+    try:
+        cert = x509.load_pem_x509_certificate(Path(path).read_bytes())
+        usage = cert.extensions.get_extension_for_class(x509.ExtendedKeyUsage).value
+    except (OSError, ValueError, x509.ExtensionNotFound):
+        return None
+    needed = ExtendedKeyUsageOID.SERVER_AUTH if server else ExtendedKeyUsageOID.CLIENT_AUTH
+    if needed in usage or ExtendedKeyUsageOID.ANY_EXTENDED_KEY_USAGE in usage:
+        return None
+    names = ", ".join(_USAGE_NAMES.get(oid, oid.dotted_string) for oid in usage) or "empty"
+    side = "a TLS server" if server else "a TLS client"
+    return f"is not for {side}: its extended key usage is {names}"

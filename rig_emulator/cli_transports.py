@@ -21,6 +21,7 @@ import logging
 import ssl
 from dataclasses import dataclass
 
+from rig_emulator.certs import purpose_problem
 from rig_emulator.cli_support import UsageError, int_in, text_file
 from rig_emulator.modbus import BenchServer
 from rig_emulator.modbus.roles import (
@@ -87,6 +88,8 @@ class TransportPlan:
     serial: str | None
     baud: int
     parity: str
+    #: what is wrong with the server certificate though it loads (logged at start)
+    certificate_warnings: tuple[str, ...] = ()
 
 
 def plan(args: argparse.Namespace) -> TransportPlan:
@@ -94,6 +97,7 @@ def plan(args: argparse.Namespace) -> TransportPlan:
     files = {"--tls-cert": args.tls_cert, "--tls-key": args.tls_key, "--tls-ca": args.tls_ca}
     given = [k for k, v in files.items() if v]
     context = None
+    warnings: tuple[str, ...] = ()
     if given:
         missing = [k for k, v in files.items() if not v]
         if missing:
@@ -102,6 +106,8 @@ def plan(args: argparse.Namespace) -> TransportPlan:
             context = server_context(args.tls_cert, args.tls_key, args.tls_ca)
         except TlsConfigError as exc:
             raise UsageError(str(exc)) from None
+        if problem := purpose_problem(args.tls_cert, server=True):
+            warnings = (f"warning: --tls-cert {args.tls_cert} {problem}: clients refuse it",)
     elif args.tcp_port is not None:
         raise UsageError("--tcp-port goes with --tls-* (without TLS, --port is plain TCP)")
     if args.roles is not None and context is None and args.plain_role is None:
@@ -133,6 +139,7 @@ def plan(args: argparse.Namespace) -> TransportPlan:
         args.serial,
         args.baud,
         args.parity,
+        warnings,
     )
 
 
@@ -145,6 +152,8 @@ async def start(server: BenchServer, transport_plan: TransportPlan) -> Transport
     transports = Transports(modbus)
     p = transport_plan
     policy = p.policy if p.policy is not None else default_policy(server.map)
+    for warning in p.certificate_warnings:  # as serve warns of an expired one
+        log.warning("%s", warning)
     if p.ssl_context is not None or p.plain_role is not None:
         transports.authorise(policy, p.plain_role)
         log.info(

@@ -93,14 +93,25 @@ def parse_endpoint(url: str) -> Endpoint:
     if parsed.scheme == "modbus-rtu":
         if not parsed.path or parsed.netloc:
             raise ValueError(f"'{url}' names no device (modbus-rtu:///dev/ttyX?baud=N)")
-        query = parse_qs(parsed.query)
-        unknown = sorted(set(query) - {"baud", "parity"})
-        if unknown:
-            raise ValueError(f"'{url}': unknown parameter '{unknown[0]}' (baud, parity)")
-        baud_text = query.get("baud", [str(DEFAULT_BAUD)])[-1]
+        # each parameter once, with a value: "?baud", "?baud=", "?=&&" and a baud given
+        # twice ran with the defaults or the last one, without a word (a stranger's probe)
+        try:
+            query = parse_qs(parsed.query, keep_blank_values=True, strict_parsing=True)
+        except ValueError:  # a field without "=" ("?baud"), or an empty one ("?baud=1&")
+            query = {"": [""]} if parsed.query else {}
+        for name, values in query.items():
+            if not name:
+                raise ValueError(f"'{url}': a parameter is empty or has no value (baud=N&parity=E)")
+            if name not in ("baud", "parity"):
+                raise ValueError(f"'{url}': unknown parameter '{name}' (baud=N, parity=E|N|O)")
+            if len(values) > 1:
+                raise ValueError(f"'{url}': parameter '{name}' is given {len(values)} times")
+            if not values[0]:
+                raise ValueError(f"'{url}': parameter '{name}' has no value ({name}=...)")
+        baud_text = query.get("baud", [str(DEFAULT_BAUD)])[0]
         if not baud_text.isdigit() or not 50 <= int(baud_text) <= 4_000_000:
             raise ValueError(f"'{url}': baud '{baud_text}' is not a line speed")
-        parity = query.get("parity", [DEFAULT_PARITY])[-1].upper()
+        parity = query.get("parity", [DEFAULT_PARITY])[0].upper()
         if parity not in PARITIES:
             raise ValueError(f"'{url}': parity '{parity}' is not one of {', '.join(PARITIES)}")
         return Endpoint("modbus-rtu", path=parsed.path, baud=int(baud_text), parity=parity)

@@ -35,6 +35,7 @@ MAX_RW_READ = 0x7D  # 6.17: read 1 to 125
 MAX_RW_WRITE = 0x79  # 6.17: write 1 to 121
 ADDRESS_SPACE = 0x10000
 COIL_ON, COIL_OFF = 0xFF00, 0x0000
+ENCAPSULATED_INTERFACE = 0x2B  # 6.19: FC 43, its MEI type in the next byte
 MEI_READ_DEVICE_ID = 0x0E
 
 
@@ -260,7 +261,7 @@ HANDLERS: dict[int, Handler] = {
     15: _write_multiple_coils,
     16: _write_multiple_registers,
     23: _read_write_registers,
-    43: _encapsulated,
+    ENCAPSULATED_INTERFACE: _encapsulated,
 }
 
 

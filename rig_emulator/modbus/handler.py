@@ -40,6 +40,7 @@ from pymodbus.simulator.simcore import SimCore
 
 from rig_emulator.faults.engine import DelayHold, holding
 from rig_emulator.modbus.conformance import (
+    ENCAPSULATED_INTERFACE,
     GATEWAY_TARGET_FAILED,
     SERVER_DEVICE_FAILURE,
     DeviceIdentity,
@@ -75,6 +76,15 @@ class RequestInfo:
     function_code: int
     peer: str  # "host:port" or "pty"
     role: str | None  # TLS role of the connection; None on plain TCP / RTU
+    #: FC 43's MEI type (14: read device identification), None for other functions or a
+    #: PDU too short to hold one: what a request does depends on it (the role gate)
+    mei_type: int | None = None
+
+    @classmethod
+    def of(cls, unit_id: int, pdu: bytes, peer: str, role: str | None) -> RequestInfo:
+        """The info of request ``pdu`` (not empty) to ``unit_id``."""
+        mei_type = pdu[1] if pdu[0] == ENCAPSULATED_INTERFACE and len(pdu) > 1 else None
+        return cls(unit_id, pdu[0], peer, role, mei_type)
 
 
 @dataclass(frozen=True)
@@ -142,6 +152,14 @@ async def _hold(delay_s: float, holds: list[DelayHold]) -> None:
     finally:
         for hold in holds:
             hold.close()
+
+
+def _ordinary_close(exc: BaseException) -> bool:
+    """Whether ``exc``, ending a connection, is only a client that spoke after the server had
+    closed the connection (its idle timeout, the connection limit): OpenSSL reports the bytes
+    that came after the server's close_notify as an error, which the log showed as
+    "disconnected ([SSL: APPLICATION_DATA_AFTER_CLOSE_NOTIFY] ...)" (a stranger's probe)."""
+    return isinstance(exc, ssl.SSLError) and exc.reason == "APPLICATION_DATA_AFTER_CLOSE_NOTIFY"
 
 
 class RequestHandler(asyncio.Protocol):
@@ -255,7 +273,7 @@ class RequestHandler(asyncio.Protocol):
         self._forget()
         if not registered:
             return
-        reason = f" ({exc})" if exc else ""
+        reason = f" ({exc})" if exc and not _ordinary_close(exc) else ""
         level = logging.INFO if self._spoke else logging.DEBUG
         log.log(
             level,
@@ -463,7 +481,7 @@ class RequestHandler(asyncio.Protocol):
             self.transport.write(b"".join(replies))
 
     async def _answer(self, frame: MbapFrame) -> bytes | None:
-        info = RequestInfo(frame.unit_id, frame.pdu[0], self.peer, self.role)
+        info = RequestInfo.of(frame.unit_id, frame.pdu, self.peer, self.role)
         try:
             response = await self.server.execute(info, frame.pdu)
         except Exception:  # a gate failed: the spec's 04, and the connection goes on
@@ -578,6 +596,11 @@ class BenchModbusServer:
         verify = getattr(exc, "verify_message", None)  # why a certificate was refused
         if verify:
             reason = f"{reason}: the client's certificate: {verify}"
+        if verify == "unhandled critical extension":
+            reason += (
+                " (a Modbus role extension marked critical is one: Python's ssl cannot accept it,"
+                " issue it non-critical; see the README)"
+            )
         log.warning("client %s: TLS handshake failed (%s); connection closed", peer, reason)
 
     async def shutdown(self) -> None:

@@ -25,11 +25,23 @@ taken as written (here the defaults of the shipped map)::
       operator: {read: all, write: [1, 2, 3, 4, 5, 6, 7]}
       engineer: {read: all, write: [1, 2, 3, 4, 5, 6, 7, 100]}
 
-``read``/``write`` are ``all`` or a list of unit IDs (0-255). The role only decides who may
-ask: what may be written at all (``rw`` points, ranges) is still checked by the server.
+``read``/``write`` are ``all`` or a list of unit IDs (1-247: 0 is the serial line's
+broadcast and 248-255 are reserved, so no unit of a map has them); a key left out is no
+unit (``write: all`` alone reads nothing: the start-up summary says what each role reads
+and writes). The role only decides who may ask: what may be written at all (``rw`` points,
+ranges) is still checked by the server.
 
-Function codes: 1, 2, 3, 4 (reads), 7, 11, 12, 17 and 43 (diagnostic reads) need ``read``;
-every other function code (writes, FC 23 read/write, FC 8 diagnostics ...) needs ``write``.
+A request is allowed only if the role may do every part of it (:func:`rights_needed`):
+reads (1, 2, 3, 4, 7, 11, 12, 17, 20, 24, and 43/14 read device identification) need
+``read``; writes whose answer holds no register value (5, 6, 15, 16, 21, 22) need ``write``;
+23 (read/write multiple registers), which writes and then returns the registers it reads,
+and every other function code (8 diagnostics, other 43 MEI types, codes nobody defined)
+need both. An FC23 by a role that writes a unit but may not read it used to write and
+return that unit's registers (a stranger's probe).
+
+Role names are printable text without ``<`` or ``>``: those mark the server's own
+stand-ins (:data:`INVALID_ROLE`, the role of a certificate whose role extension is
+malformed, which may do nothing whatever a file says).
 """
 
 from __future__ import annotations
@@ -40,11 +52,24 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from rig_emulator.modbus.conformance import ENCAPSULATED_INTERFACE, MEI_READ_DEVICE_ID
 from rig_emulator.registers import RegisterMap, control_units, instrument_units
 from rig_emulator.yamlio import read_yaml
 
-READ_FUNCTIONS = frozenset({1, 2, 3, 4, 7, 11, 12, 17, 43})
+READ = "read"
+WRITE = "write"
+#: function codes that only read (43 only with MEI type 14, see :func:`rights_needed`)
+READ_FUNCTIONS = frozenset({1, 2, 3, 4, 7, 11, 12, 17, 20, 24, 43})
+#: function codes that only write: their answer echoes the request or a count
+WRITE_FUNCTIONS = frozenset({5, 6, 15, 16, 21, 22})
 ALL_UNITS = frozenset(range(256))
+#: the unit IDs a ROLES.yaml may name (Modbus over Serial Line V1.02 section 2.2: 0 is the
+#: broadcast address, 248-255 are reserved; a map's units are 1-247)
+UNIT_IDS = range(1, 248)
+#: the role of a certificate whose role extension is malformed (not one UTF8String, given
+#: twice, not parsed): no ROLES.yaml can name it (its ``<``), and it may do nothing
+INVALID_ROLE = "<invalid role extension>"
+RESERVED_NAME_CHARACTERS = "<>"
 #: The instruments and the simulation control of the shipped map (:data:`DEFAULT_POLICY`)
 INSTRUMENT_UNITS = frozenset(range(1, 8))
 SIM_CONTROL_UNIT = 100
@@ -62,11 +87,28 @@ class Role:
     read_units: frozenset[int]
     write_units: frozenset[int]
 
-    def refusal(self, unit_id: int, function_code: int) -> str | None:
-        """Why this role may not send ``function_code`` to ``unit_id`` (None: it may)."""
-        if function_code in READ_FUNCTIONS:
-            return None if unit_id in self.read_units else f"may not read unit {unit_id}"
-        return None if unit_id in self.write_units else f"may not write unit {unit_id}"
+    def refusal(self, unit_id: int, function_code: int, mei_type: int | None = None) -> str | None:
+        """Why this role may not send ``function_code`` (of ``mei_type`` for 43) to
+        ``unit_id`` (None: it may): every right the request needs must be granted."""
+        needed = rights_needed(function_code, mei_type)
+        if READ in needed and unit_id not in self.read_units:
+            return f"may not read unit {unit_id}"
+        if WRITE in needed and unit_id not in self.write_units:
+            return f"may not write unit {unit_id}"
+        return None
+
+
+def rights_needed(function_code: int, mei_type: int | None = None) -> frozenset[str]:
+    """The rights (:data:`READ`, :data:`WRITE`) a request of ``function_code`` needs: both
+    unless it only reads or only writes (the module docstring); FC 43 only reads for MEI
+    type 14 (read device identification; 13, CANopen, may write)."""
+    if function_code == ENCAPSULATED_INTERFACE and mei_type != MEI_READ_DEVICE_ID:
+        return frozenset({READ, WRITE})
+    if function_code in READ_FUNCTIONS:
+        return frozenset({READ})
+    if function_code in WRITE_FUNCTIONS:
+        return frozenset({WRITE})
+    return frozenset({READ, WRITE})
 
 
 @dataclass(frozen=True)
@@ -76,17 +118,25 @@ class RolePolicy:
     roles: Mapping[str, Role]
     default_role: str
 
-    def refusal(self, role: str, unit_id: int, function_code: int) -> str | None:
-        """Why ``role`` may not send ``function_code`` to ``unit_id`` (None: it may)."""
+    def refusal(
+        self, role: str, unit_id: int, function_code: int, mei_type: int | None = None
+    ) -> str | None:
+        """Why ``role`` may not send ``function_code`` (of ``mei_type`` for 43) to
+        ``unit_id`` (None: it may)."""
+        if role == INVALID_ROLE:  # never a policy's role, whatever it holds
+            return "the certificate's role extension is malformed, so it may send nothing"
         known = self.roles.get(role)
         if known is None:
             return f"unknown role '{role}', which may send nothing"
-        return known.refusal(unit_id, function_code)
+        return known.refusal(unit_id, function_code, mei_type)
 
     def summary(self) -> str:
-        """What each role may write, for the log (``operator writes units 1-7``)."""
+        """What each role may read and write, for the log (``operator reads every unit,
+        writes units 1-7``): a role granted writes without reads was shown as writing
+        "every unit" while it could read nothing (a stranger's probe)."""
         return "; ".join(
-            f"{name} writes {_shown_units(role.write_units)}" for name, role in self.roles.items()
+            f"{name} reads {_shown_units(role.read_units)}, writes {_shown_units(role.write_units)}"
+            for name, role in self.roles.items()
         )
 
 
@@ -138,10 +188,31 @@ def _units(value: Any, where: str) -> frozenset[int]:
         raise RolesError(f"{where}: '{value}' is neither 'all' nor a list of unit IDs")
     units = set()
     for item in value:
-        if isinstance(item, bool) or not isinstance(item, int) or not 0 <= item <= 255:
-            raise RolesError(f"{where}: '{item}' is not a unit ID (0-255)")
+        if isinstance(item, bool) or not isinstance(item, int) or item not in UNIT_IDS:
+            raise RolesError(
+                f"{where}: '{item}' is not a unit ID (1-247; 0 is the broadcast address, "
+                "248-255 are reserved)"
+            )
         units.add(item)
     return frozenset(units)
+
+
+def _check_role_name(name: Any, source: str) -> None:
+    """RolesError unless ``name`` is a role a certificate may name: printable text (no
+    control character, which no log line shows as it is) without ``<`` or ``>`` (the
+    server's stand-ins: a file defining ``<invalid role extension>`` gave its rights to
+    every malformed role extension; a stranger's probe)."""
+    if not isinstance(name, str) or not name.strip():
+        raise RolesError(f"{source}: role name '{name}' is not a non-empty text")
+    shown = name.encode("unicode_escape").decode("ascii")
+    if not name.isprintable():
+        raise RolesError(f"{source}: role name '{shown}' holds a character that is not printable")
+    reserved = sorted(set(name) & set(RESERVED_NAME_CHARACTERS))
+    if reserved:
+        raise RolesError(
+            f"{source}: role name '{shown}' holds '{reserved[0]}': names in angle brackets "
+            "are the server's own (a malformed role extension may do nothing)"
+        )
 
 
 def policy_from_mapping(data: Any, source: str) -> RolePolicy:
@@ -157,9 +228,8 @@ def policy_from_mapping(data: Any, source: str) -> RolePolicy:
         raise RolesError(f"{source}: 'roles' must be a non-empty mapping of role names")
     roles: dict[str, Role] = {}
     for name, spec in entries.items():
+        _check_role_name(name, source)
         where = f"{source}: roles.{name}"
-        if not isinstance(name, str) or not name.strip():
-            raise RolesError(f"{source}: role name '{name}' is not a non-empty text")
         if not isinstance(spec, dict):
             raise RolesError(f"{where}: expected a mapping with read and write")
         extra = sorted(set(spec) - {"read", "write"})

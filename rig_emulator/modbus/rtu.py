@@ -22,6 +22,13 @@ The same units and map as TCP: every request goes through
   character would have arrived, and the next request starts on the line no earlier than a
   silence after that. A transaction thus takes at least request + silence + reply +
   silence, as on a line;
+- bytes cannot come faster than the baud rate on a line, but a pty takes them as fast as a
+  writer gives them: 64 KiB written at once held the line for its 38 s of wire time at
+  19,200 baud, and 20 MB for 50 hours at 1,200 (a stranger's probe). The line owes at most
+  :data:`OWED_CHARACTERS` characters of line time ahead of the present (more than a frame
+  is long, so only noise reaches the bound); bytes beyond it are discarded with a log line
+  (at most one a minute). A burst that stops leaves the line silent and answering again
+  at most that many characters and a t3.5 later (0.15 s at 19,200 baud, 2.4 s at 1,200);
 - a unit under a ``delay`` fault answers that much after its reply would have come, unless
   the master speaks again first (it timed out): then the unit keeps its reply, which would
   collide with the master's request on a line, and the new request is answered.
@@ -62,6 +69,11 @@ log = logging.getLogger("rig_emulator.serve")
 WRITE_FUNCTIONS = frozenset({5, 6, 15, 16, 22, 23})
 READ_AHEAD_FUNCTIONS = frozenset({1, 2, 3, 4})
 MAX_FRAME_BYTES = 256  # the longest RTU frame (section 2.5.1.1); longer runs are noise
+#: the line time the line may owe ahead of the present [characters]: one more than the
+#: longest frame, so a frame is never cut, while a burst faster than the baud rate cannot
+#: hold the line for its whole wire time
+OWED_CHARACTERS = MAX_FRAME_BYTES + 1
+DISCARD_LOG_INTERVAL_S = 60.0  # bytes discarded for coming too fast: a log line at most
 EXECUTE_TIMEOUT_S = 30.0
 _BAUD_CONSTANTS = {
     int(name[1:]): getattr(termios, name)
@@ -99,14 +111,33 @@ def open_line(path: str, baud: int, parity: str) -> tuple[int, int | None, str, 
         fd = os.open(path, os.O_RDWR | os.O_NOCTTY)
     except OSError as exc:
         raise SerialConfigError(f"--serial {path}: {exc.strerror}") from None
+    if is_pty_multiplexer(fd):
+        os.close(fd)
+        raise SerialConfigError(
+            f"--serial {path}: the pseudo-terminal multiplexer opens a new pty whose other "
+            "side no client can reach; use --serial pty"
+        )
     try:
         configured = _configure(fd, baud, parity)
     except termios.error:
         os.close(fd)
-        raise SerialConfigError(f"--serial {path}: not a serial line (a terminal)") from None
+        raise SerialConfigError(
+            f"--serial {path}: is not a terminal (a serial line or pty)"
+        ) from None
     if not configured:
         log.warning("RTU %s: the line refused %d baud, parity %s; served raw", path, baud, parity)
     return fd, None, path, configured
+
+
+def is_pty_multiplexer(fd: int) -> bool:
+    """Whether ``fd`` is Linux's ``/dev/ptmx`` (or ``/dev/pts/ptmx``, a link to it: device
+    5, 2): opening it makes a new pty master whose slave nobody unlocked, so a line served
+    there answers no client (it was served without a word; a stranger's probe)."""
+    try:
+        rdev = os.fstat(fd).st_rdev
+    except OSError:
+        return False
+    return (os.major(rdev), os.minor(rdev)) == (5, 2)
 
 
 def is_pty(fd: int) -> bool:
@@ -173,6 +204,10 @@ class RtuLine:
             )
         self.crc_errors = 0
         self.transactions = 0
+        #: bytes discarded because they came faster than the line carries them
+        self.discarded = 0
+        self._discards_unlogged = 0
+        self._discard_logged_at = -float("inf")
         self._stop_r, self._stop_w = os.pipe()
         self._thread: threading.Thread | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -214,7 +249,12 @@ class RtuLine:
                     continue
                 if not received:
                     frame_start = max(now, line_free)
-                received += len(data)
+                carried = self._carried(
+                    len(data), frame_start + received * self.character_s, max(now, line_free)
+                )
+                if carried < len(data):
+                    self._discard(len(data) - carried, now)
+                received += carried
                 if len(buffer) <= MAX_FRAME_BYTES:  # beyond: noise until the next silence
                     buffer += data[: MAX_FRAME_BYTES + 1 - len(buffer)]
                 wire_end = frame_start + received * self.character_s
@@ -227,6 +267,33 @@ class RtuLine:
                 early = None
                 line_free = self._transaction(request, deadline, answer)
 
+    def _carried(self, count: int, wire_end: float, present: float) -> int:
+        """How many of ``count`` bytes, arriving when the line's characters so far end at
+        ``wire_end``, the line carries without owing more than :data:`OWED_CHARACTERS` of
+        line time beyond ``present`` (now, or the end of the silence after a reply)."""
+        room = (present + OWED_CHARACTERS * self.character_s - wire_end) / self.character_s
+        return max(0, min(count, int(room)))
+
+    def _discard(self, count: int, now: float) -> None:
+        """Count ``count`` bytes discarded for coming too fast; a log line at most every
+        :data:`DISCARD_LOG_INTERVAL_S`, saying how many."""
+        self.discarded += count
+        self._discards_unlogged += count
+        if now - self._discard_logged_at < DISCARD_LOG_INTERVAL_S:
+            return
+        log.warning(
+            "RTU %s: bytes come faster than %d baud carries them; those beyond %d characters "
+            "of line time (%.2f s) are discarded as noise (%d bytes since the last such line; "
+            "one a minute at most)",
+            self.path,
+            self.baud,
+            OWED_CHARACTERS,
+            OWED_CHARACTERS * self.character_s,
+            self._discards_unlogged,
+        )
+        self._discards_unlogged = 0
+        self._discard_logged_at = now
+
     def _read_ahead(self, request: bytes) -> tuple[int, Future] | None:
         """Start answering ``request`` before its silence has passed if it is already a whole
         read frame (CRC valid): reads change nothing, so an answer that more bytes turn out
@@ -238,7 +305,7 @@ class RtuLine:
         unit_id, pdu = decoded
         if unit_id not in self.server.units or self._loop is None:
             return None
-        info = RequestInfo(unit_id, pdu[0], self.path, None)
+        info = RequestInfo.of(unit_id, pdu, self.path, None)
         return len(request), asyncio.run_coroutine_threadsafe(
             self.server.answer(info, pdu), self._loop
         )
@@ -264,7 +331,7 @@ class RtuLine:
         if unit_id not in self.server.units:
             return ended  # nobody on the line has that address: silence, as on a line
         if answer is None:
-            info = RequestInfo(unit_id, pdu[0], self.path, None)
+            info = RequestInfo.of(unit_id, pdu, self.path, None)
             answer = asyncio.run_coroutine_threadsafe(self.server.answer(info, pdu), self._loop)
         delay_s, reply = self._result(answer) or (0.0, None)
         if reply is None:
@@ -316,7 +383,7 @@ class RtuLine:
 
     async def _broadcast(self, pdu: bytes) -> None:
         for unit_id in sorted(self.server.units - self.server.own_units):
-            await self.server.answer(RequestInfo(unit_id, pdu[0], self.path, None), pdu)
+            await self.server.answer(RequestInfo.of(unit_id, pdu, self.path, None), pdu)
 
     def _run(self, coro) -> None:
         assert self._loop is not None

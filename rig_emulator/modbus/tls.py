@@ -24,6 +24,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from cryptography import x509
+from cryptography.exceptions import UnsupportedAlgorithm
+from cryptography.hazmat.primitives import serialization
 
 from rig_emulator.certs import role_of
 from rig_emulator.modbus.handler import (
@@ -32,13 +34,12 @@ from rig_emulator.modbus.handler import (
     RequestHandler,
     RequestInfo,
 )
-from rig_emulator.modbus.roles import DEFAULT_POLICY, RefusalLog, RolePolicy
+from rig_emulator.modbus.roles import DEFAULT_POLICY, INVALID_ROLE, RefusalLog, RolePolicy
 
 log = logging.getLogger("rig_emulator.serve")
 
 DEFAULT_TLS_PORT = 802  # Modbus/TCP Security's registered port
 ILLEGAL_FUNCTION = 1
-INVALID_ROLE = "<invalid role extension>"  # a role no policy has: every request refused
 
 
 class TlsConfigError(ValueError):
@@ -66,6 +67,8 @@ def client_context(cert: str | Path, key: str | Path, ca: str | Path) -> ssl.SSL
 
 def _load(ctx: ssl.SSLContext, cert: str | Path, key: str | Path, ca: str | Path) -> None:
     for name, path in (("certificate", cert), ("key", key), ("CA", ca)):
+        if Path(path).is_dir():  # it said "no such file" of a directory (a stranger's probe)
+            raise TlsConfigError(f"TLS {name} {path}: is a directory, not a PEM file")
         if not Path(path).is_file():
             raise TlsConfigError(f"TLS {name} {path}: no such file")
     try:
@@ -74,12 +77,43 @@ def _load(ctx: ssl.SSLContext, cert: str | Path, key: str | Path, ca: str | Path
         raise
     except (ssl.SSLError, ValueError) as exc:
         raise TlsConfigError(
-            f"TLS certificate {cert} / key {key}: cannot be used ({_reason(exc)})"
+            pair_problem(cert, key)
+            or f"TLS certificate {cert} / key {key}: cannot be used ({_reason(exc)})"
         ) from None
     try:
         ctx.load_verify_locations(cafile=str(ca))
     except (ssl.SSLError, ValueError) as exc:
-        raise TlsConfigError(f"TLS CA {ca}: cannot be used ({_reason(exc)})") from None
+        problem = "not a PEM certificate" if not _certificates(ca) else _reason(exc)
+        raise TlsConfigError(f"TLS CA {ca}: cannot be used ({problem})") from None
+
+
+def _certificates(path: str | Path) -> list[x509.Certificate]:
+    """The PEM certificates in ``path`` (none if it holds none, or cannot be read)."""
+    try:
+        return x509.load_pem_x509_certificates(Path(path).read_bytes())
+    except (OSError, ValueError):
+        return []
+
+
+def pair_problem(cert: str | Path, key: str | Path) -> str | None:
+    """Why OpenSSL refused ``cert`` and ``key`` in words ("not a PEM certificate", "not a PEM
+    private key", "the key does not match the certificate"), where its own reason says only
+    "[SSL] PEM lib (_ssl.c:3905)" (a stranger's probe); None if none of these is why."""
+    certificates = _certificates(cert)
+    if not certificates:
+        return f"TLS certificate {cert}: not a PEM certificate"
+    try:
+        private = serialization.load_pem_private_key(Path(key).read_bytes(), password=None)
+    except TypeError:  # protected by a passphrase: the password callback says so
+        return None
+    except (OSError, ValueError, UnsupportedAlgorithm):
+        return f"TLS key {key}: not a PEM private key"
+    public = serialization.PublicFormat.SubjectPublicKeyInfo
+    if private.public_key().public_bytes(serialization.Encoding.DER, public) != certificates[
+        0
+    ].public_key().public_bytes(serialization.Encoding.DER, public):
+        return f"TLS key {key}: the key does not match the certificate {cert}"
+    return None
 
 
 def _no_passphrase(key: str | Path):
@@ -190,7 +224,7 @@ class Authorisation:
             return None
         if self._server is not None and info.unit_id not in self._server.units:
             return None
-        reason = self.policy.refusal(role, info.unit_id, info.function_code)
+        reason = self.policy.refusal(role, info.unit_id, info.function_code, info.mei_type)
         if reason is None:
             return None
         self.refusals += 1

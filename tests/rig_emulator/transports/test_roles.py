@@ -11,6 +11,7 @@ from rig_emulator.modbus.roles import (
     RolesError,
     default_policy,
     load_policy,
+    policy_from_mapping,
 )
 from rig_emulator.registers import load_map, map_from_mapping
 from tests.rig_emulator.transports.remapped import shipped_map_with_units
@@ -36,7 +37,8 @@ def test_default_roles(role, writable_units):
 def test_default_policy_of_the_shipped_map_is_the_default_policy():
     assert default_policy(load_map()) == DEFAULT_POLICY
     assert DEFAULT_POLICY.summary() == (
-        "observer writes no unit; operator writes units 1-7; engineer writes units 1-7, 100"
+        "observer reads every unit, writes no unit; operator reads every unit, writes units "
+        "1-7; engineer reads every unit, writes units 1-7, 100"
     )
 
 
@@ -106,9 +108,58 @@ def test_unknown_role_may_do_nothing():
     assert DEFAULT_POLICY.refusal("admin", 1, 4) == "unknown role 'admin', which may send nothing"
 
 
-def test_unlisted_function_codes_need_write():
+def test_unlisted_function_codes_need_read_and_write():
     assert DEFAULT_POLICY.refusal("observer", 1, 8) is not None  # diagnostics
-    assert DEFAULT_POLICY.refusal("observer", 1, 43) is None  # device identification
+    assert DEFAULT_POLICY.refusal("observer", 1, 43, 14) is None  # device identification
+    assert DEFAULT_POLICY.refusal("observer", 1, 43, 13) is not None  # CANopen may write
+    assert DEFAULT_POLICY.refusal("observer", 1, 200) is not None  # nobody knows what it does
+
+
+@pytest.mark.parametrize(
+    ("function_code", "mei_type", "needs"),
+    [
+        *((fc, None, {"read"}) for fc in (1, 2, 3, 4, 7, 11, 12, 17, 20, 24)),
+        (43, 14, {"read"}),
+        *((fc, None, {"write"}) for fc in (5, 6, 15, 16, 21, 22)),
+        (23, None, {"read", "write"}),  # writes, then returns the registers it reads
+        (8, None, {"read", "write"}),
+        (43, 13, {"read", "write"}),
+        (43, None, {"read", "write"}),  # no MEI type: not the read it claims
+        (99, None, {"read", "write"}),
+    ],
+)
+def test_a_request_needs_every_right_of_what_it_does(function_code, mei_type, needs):
+    """A stranger's probe: a role that writes unit 1 but may not read it read unit 1's
+    holding registers through FC23 (its read half was never checked)."""
+    policy = policy_from_mapping(
+        {
+            "roles": {
+                "reader": {"read": [1]},
+                "writer": {"write": [1]},
+                "both": {"read": [1], "write": [1]},
+            },
+            "default_role": "reader",
+        },
+        "test",
+    )
+    for role, granted in (("reader", {"read"}), ("writer", {"write"}), ("both", {"read", "write"})):
+        refused = policy.refusal(role, 1, function_code, mei_type)
+        assert (refused is None) == (needs <= granted), (role, function_code, mei_type, refused)
+
+
+def test_the_summary_says_what_a_role_reads():
+    """``write: all`` without ``read`` reads nothing; the start-up line said only
+    "engineer writes every unit" (a stranger's probe)."""
+    policy = policy_from_mapping(
+        {
+            "roles": {"engineer": {"write": "all"}, "operator": {"read": [7], "write": [1, 7]}},
+            "default_role": "operator",
+        },
+        "test",
+    )
+    assert policy.summary() == (
+        "engineer reads no unit, writes every unit; operator reads unit 7, writes units 1, 7"
+    )
 
 
 def test_file_redefines_roles(tmp_path):
@@ -134,6 +185,16 @@ def test_file_redefines_roles(tmp_path):
         ("roles: {a: {read: all}}\nextra: 1\n", "unknown key 'extra'"),
         ("roles: {a: {read: all, wrte: []}}\n", "roles.a: unknown key 'wrte'"),
         ("roles: {a: {read: [1, 300]}}\n", "roles.a.read: '300' is not a unit ID"),
+        # the broadcast address and the reserved ones were taken (a stranger's probe)
+        ("roles: {a: {write: [0]}}\n", "roles.a.write: '0' is not a unit ID (1-247; 0 is"),
+        ("roles: {a: {write: [248]}}\n", "roles.a.write: '248' is not a unit ID (1-247;"),
+        ("roles: {a: {read: [255]}}\n", "roles.a.read: '255' is not a unit ID (1-247;"),
+        # a file gave the rights of its '<invalid role extension>' to every malformed role
+        # extension (a stranger's probe); a name no log line shows as it is, likewise
+        ("roles: {'<invalid role extension>': {read: all}}\n", "names in angle brackets"),
+        ("roles: {'a>b': {read: all}}\n", "holds '>'"),
+        ('roles: {"eng\\nineer": {read: all}}\n', "'eng\\nineer' holds a character that"),
+        ('roles: {"eng\\tineer": {read: all}}\n', "is not printable"),
         ("roles: {a: {read: some}}\n", "roles.a.read: 'some' is neither"),
         ("roles: {a: {write: [true]}}\n", "roles.a.write: 'True' is not a unit ID"),
         ("roles: {a: {read: all}}\ndefault_role: b\n", "default_role 'b' is not one"),
