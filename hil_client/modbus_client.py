@@ -141,11 +141,15 @@ class _Came(NamedTuple):
     late: bool
 
 
-#: replies that came for the oldest request waiting, while a younger one waited too, before a
-#: connection counts as one to a server that answers in order (:attr:`Connection.in_order`):
-#: a server that took its waiting requests in any order would answer the oldest of two or
-#: more with a chance of one half at most, so ten in turn leave it less than 0.1 % (2^-10);
-#: the first step of ``hil-client run`` on a connection (13 requests pipelined) gives them
+#: replies in turn (each for the first request sent after the last one answered, while a
+#: later one waited too) before a connection counts as one to a server that answers in order
+#: (:attr:`Connection.in_order`): a server that took its waiting requests in any order would
+#: answer that one of two or more with a chance of one half at most, so ten in turn leave it
+#: less than 0.1 % (2^-10). Requests a server drops (a faulty unit) stay waiting before the
+#: last one answered and do not stop the count (the first unit of every step silent cost the
+#: timeout at every step when only replies to the oldest request waiting counted: a
+#: re-probe); the first step of ``hil-client run`` on a connection (13 requests pipelined)
+#: gives them
 IN_ORDER_EVIDENCE = 10
 
 
@@ -165,7 +169,7 @@ class Connection:
         self._spoilt: dict[int, str] = {}  # why a frame naming a waiting request was passed over
         self._given_up: dict[int, _Sent] = {}  # settled without their reply (it may come yet)
         self._answered_seq = -1  # the last request sent that a reply came for
-        self._in_turn = 0  # replies that came for the oldest request waiting, a younger waiting
+        self._in_turn = 0  # replies in turn (IN_ORDER_EVIDENCE)
         #: the server answered a request after one sent later (never assumed in order again)
         self.reorders = False
         self._buffer = b""
@@ -335,6 +339,9 @@ class Connection:
         if problem is not None and tid != oldest:
             self._spoilt[tid] = problem
             return []
+        # in turn: the first request sent after the last one answered, another after it
+        after = [s.seq for s in self._waiting.values() if s.seq > self._answered_seq]
+        in_turn = len(after) >= 2 and sent.seq == after[0]
         del self._waiting[tid]
         now = time.monotonic()
         self._outcome[tid] = (_Came(got_unit, body, problem, late), now)
@@ -342,7 +349,7 @@ class Connection:
             return [tid]
         if sent.seq < self._answered_seq:
             self.reorders = True
-        elif tid == oldest and self._waiting:
+        elif in_turn:
             self._in_turn += 1
         self._answered_seq = max(self._answered_seq, sent.seq)
         return [tid]
