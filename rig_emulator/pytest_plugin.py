@@ -323,7 +323,7 @@ class RigEmulator:
             )
         if seconds > MAX_ADVANCE_CALL_S:
             raise ValueError(
-                f"advance({seconds:g}): more than a year ({MAX_ADVANCE_CALL_S} s) in one call"
+                f"advance({int(seconds)}): more than a year ({MAX_ADVANCE_CALL_S} s) in one call"
                 " (milliseconds given as seconds?); call it again for longer"
             )
         left = int(seconds)

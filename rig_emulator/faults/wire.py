@@ -14,7 +14,9 @@ Holding registers (documented in ``register_maps/wieselburg_bench.yaml`` and the
 
 Input register 19 (``active_fault_count``) counts the active faults. Write the block in
 one FC16 request (kind to command, 11 registers) or the fields first and the command last.
-A block that does not describe a valid fault gets exception 03 and changes nothing.
+A block that does not describe a valid fault gets exception 03 and changes nothing; so does
+a set whose fields were not all written since the last set (the command alone would arm the
+last fault again).
 
 The truth unit (101, read-only): input registers 0 onwards hold the plant's true value of
 every measured signal as float64, in :data:`SIGNAL_CODES` order (4 registers each, signal

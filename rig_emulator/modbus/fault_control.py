@@ -111,6 +111,9 @@ class ServerFaults:
         self.engine.add_initial(entries, "file")
         emulator.reading_hook = self.engine.apply
         self.block: dict[str, float] = dict.fromkeys(BLOCK_SIGNALS, 0.0)
+        #: the block's fields written since the last set: a set takes only a block whose
+        #: every field was written for it (:meth:`write`)
+        self._fields_written: set[str] = set()
         self._ranges = reading_ranges(register_map)
         self.engine.reading_ranges = self._ranges
         #: the units a communication fault may name (the bench's; 0: all of them)
@@ -198,12 +201,16 @@ class ServerFaults:
 
     def write(self, new: Mapping[str, float]) -> ExcCodes | None:
         """A client's write to the command block: applied whole, or refused with 03 and
-        nothing changed. A set comes with the whole block in the same write: a set alone
-        (FC6 of the command, or a write from part of the block) armed whatever an earlier
-        write had left there, a second offset on top of the first (a stranger's probe)."""
+        nothing changed. A set takes a block every field of which was written since the
+        last set, in this write or before it (the whole block in one FC16, or the fields
+        first and the command last, as a map with the command apart from its fields needs):
+        a set alone armed whatever the last set had left there, a second offset on top of
+        the first (a stranger's probe)."""
         block = {**self.block, **new}
         command = int(block["fault_command"])
-        if command == COMMAND_SET and not set(BLOCK_SIGNALS) <= set(new):
+        fields = set(BLOCK_SIGNALS) - {"fault_command"}
+        written = self._fields_written | (set(new) & fields)
+        if command == COMMAND_SET and not fields <= written:
             return ExcCodes.ILLEGAL_VALUE
         try:
             spec = spec_from_block(block) if command == COMMAND_SET else None
@@ -216,8 +223,10 @@ class ServerFaults:
             return ExcCodes.ILLEGAL_VALUE
         block["fault_command"] = 0.0
         self.block = block
+        self._fields_written = written
         if spec is not None:
             self.engine.add(spec, "modbus")
+            self._fields_written = set()  # the next set needs a block written for it
         elif command == COMMAND_CLEAR:
             self.engine.clear()
         return None

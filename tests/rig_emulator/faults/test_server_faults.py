@@ -392,11 +392,14 @@ def test_random_faults_without_signals_draw_from_what_the_map_publishes(serve, t
     assert drawn <= served, drawn - served
 
 
-def test_a_set_without_the_whole_block_in_the_same_write_is_refused(serve):
+def test_a_set_takes_only_a_block_written_for_it(serve):
     """A stranger's probe: after one valid block (an offset of 5 kg/h on the flow), a write
     of the command alone (FC6 at address 20, or FC16 of it alone) armed the block left
-    there again: two offsets, the flow read 10 kg/h off. A set must come with the whole
-    block; the command alone gets 03 and nothing is set (a clear alone stays a clear)."""
+    there again: two offsets, the flow read 10 kg/h off. A set takes a block every field of
+    which was written since the last set: the command alone, or with part of the block, gets
+    03 and nothing is set; the fields first and the command last still set one (a re-probe:
+    the first fix refused that, which a map with the command apart from its fields needs);
+    a clear alone stays a clear."""
     srv = serve()
     c = client(srv.port)
     flow = SIGNAL_CODES["water_flow_kg_h"]
@@ -410,5 +413,12 @@ def test_a_set_without_the_whole_block_in_the_same_write_is_refused(serve):
     tail = c.write_registers(command_address - 4, words[-5:], device_id=100)  # at + command
     assert tail.isError() and tail.exception_code == 3, tail
     assert read_point(c, dev, count) == 1.0  # nothing set
+    # the fields first (kind to at), the command last: a second fault
+    assert not c.write_registers(10, words[:-1], device_id=100).isError()
+    assert read_point(c, dev, count) == 1.0
+    assert not c.write_register(command_address, 1, device_id=100).isError()
+    assert read_point(c, dev, count) == 2.0
+    set_again = c.write_register(command_address, 1, device_id=100)  # that block is spent
+    assert set_again.isError() and set_again.exception_code == 3, set_again
     assert not c.write_register(command_address, 2, device_id=100).isError()  # clear alone
     assert read_point(c, dev, count) == 0.0
