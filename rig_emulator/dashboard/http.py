@@ -55,9 +55,8 @@ from rig_emulator.dashboard.state import (
 )
 from rig_emulator.faults import FaultError
 from rig_emulator.modbus.fault_control import FAULT_COMMANDS
-from rig_emulator.modbus.server import BenchServer
+from rig_emulator.modbus.server import BenchServer, carried_range
 from rig_emulator.registers import Point, precision
-from rig_emulator.registers.codec import accepted_range
 
 log = logging.getLogger("rig_emulator.dashboard")
 
@@ -202,11 +201,21 @@ class Dashboard:
         return self.server.published_values or self.server.values()
 
     def _sample_trend(self, values: dict[str, float]) -> None:
-        self.trend.add(values["sim_time_s"], trend_values(self._trend_points, values))
+        """A trend point of what the server published (of the plant run it published: a
+        look taken inside an advance is older than the trend's last and dropped)."""
+        self.trend.add(
+            values["sim_time_s"],
+            trend_values(self._trend_points, values),
+            run=self.server.published_resets,
+        )
 
     def _sample_tick(self) -> None:
-        """A real-time tick published: a trend point if the last is a simulated second old."""
-        if self.server.emulator.sim_time_s - self.trend.last_time_s >= TICK_SAMPLE_MIN_S:
+        """A real-time tick published: a trend point if the last is a simulated second old
+        (or the plant was reset)."""
+        if (
+            self.server.published_resets != self.trend.run
+            or self.server.emulator.sim_time_s - self.trend.last_time_s >= TICK_SAMPLE_MIN_S
+        ):
             self._sample_trend(self._published())
 
     def _sample_advance(self, done: bool) -> None:
@@ -218,10 +227,16 @@ class Dashboard:
         if done:
             self._sample_trend(self._published())
             return
+        if self.server.published_resets != self.trend.run:  # a reset came before: its start
+            self._sample_trend(self._published())  # (published, not yet sampled) first
         faulted = [f["signal"] for f in self.server.active_faults() if "signal" in f]
         values = self.server.sample_values()
         time_s = self.server.emulator.sim_time_s
-        self.trend.add(time_s, trend_values(self._trend_points, values, hidden=faulted))
+        self.trend.add(
+            time_s,
+            trend_values(self._trend_points, values, hidden=faulted),
+            run=self.server.resets,
+        )
 
     def _sample(self) -> dict:
         values = self._published()
@@ -236,6 +251,9 @@ class Dashboard:
         self._last = {
             "boiler": self.server.emulator.params.name,
             "time_s": time_s,
+            # which plant the trend is of: a new epoch (a restarted server) or reset count
+            # starts a new history, whatever the times (the page keeps it the same way)
+            "run": {"epoch_id": self.server.epoch_id, "resets": self.server.published_resets},
             "clock": {
                 "mode": CLOCK_MODES.get(int(clock.mode), str(clock.mode)),
                 "speed": clock.speed,
@@ -251,16 +269,18 @@ class Dashboard:
         return self._last
 
     def _control_state(self, signal: str, point: Point, values: dict[str, float]) -> dict:
-        """A control as the page offers it: its point, what it accepts, the value it holds,
-        and why the server would refuse it now (None: it would not)."""
-        lo, hi = accepted_range(point)
+        """A control as the page offers it: its point, the lowest and highest value a write
+        can set (what its registers carry within its range, as the point serves them: an
+        int32 x0.05 +0.025 in 10..90 offers 10.025..89.975), the value it holds, and why the
+        server would refuse it now (None: it would not)."""
+        lo, hi = carried_range(point)
         return {
             "signal": signal,
             "name": point.name,
             "unit": point.unit,
             "switch": point.datatype == "bool" or (lo, hi) == (0.0, 1.0),
-            "min": lo,
-            "max": hi,
+            "min": _as_served(point, lo),
+            "max": _as_served(point, hi),
             "value": served(point, values.get(signal, math.nan)),
             "refused": self.server.control_refusal([signal]),
         }
@@ -292,9 +312,7 @@ class Dashboard:
             method, target, headers, body = await asyncio.wait_for(
                 _read_request(reader), REQUEST_TIMEOUT_S
             )
-            if method == "POST":
-                _check_same_site(headers)
-            await self._route(method, target, body, writer)
+            await self._route(method, target, headers, body, writer)
         except BadRequest as exc:
             await _respond(writer, 400, {"error": str(exc)})
         except TooLong as exc:
@@ -309,7 +327,9 @@ class Dashboard:
             with contextlib.suppress(ConnectionError, RuntimeError):
                 writer.close()
 
-    async def _route(self, method: str, target: str, body: bytes, writer) -> None:
+    async def _route(
+        self, method: str, target: str, headers: dict[str, str], body: bytes, writer
+    ) -> None:
         path, query = _path_and_query(target)
         allowed = ROUTES.get(path)
         if allowed is None:
@@ -323,6 +343,8 @@ class Dashboard:
                 {"Allow": ", ".join(allowed)},
             )
             return
+        if method == "POST":  # after the method: a POST to a GET page is 405, not 403
+            _check_same_site(headers)
         head = method == "HEAD"
         if path == "/":
             # inside the page's script: no "<" at all ("</script>", "<!--<script>" in a map's
@@ -413,9 +435,10 @@ class Dashboard:
             log.info("dashboard control refused: %s = %r (%s)", signal, value, refused)
             await _respond(writer, 403 if guard else 400, {"error": f"{signal}: {refused}"})
             return
-        # what the server holds: the value as its register carries it (501 through a point
-        # of 2-kg/h steps is 500: the answer said 501, a re-probe)
-        applied = self.server.emulator.commands.get(signal, number)
+        # what the server holds, as /api/state serves it (501 through a point of 2-kg/h
+        # steps is 500: the answer said 501; 65.12500000000001 for 65.125, and the speed
+        # asked for, not the float32 the clock took: re-probes)
+        applied = _as_served(self._controls[signal], self.server.published_values[signal])
         log.info("dashboard control: %s = %r (applied %r)", signal, value, applied)
         self._sample()
         await _respond(writer, 200, {"ok": True, "signal": signal, "value": applied})
@@ -465,6 +488,12 @@ def _control_points(server: BenchServer) -> dict[str, Point]:
         if points:
             out[signal] = min(points, key=lambda p: precision(p, 1.0))
     return out
+
+
+def _as_served(point: Point, value: float) -> float:
+    """``value`` as ``point`` serves it (:func:`served`; itself where it serves none)."""
+    shown = served(point, value)
+    return value if shown is None else shown
 
 
 def _json_body(body: bytes):

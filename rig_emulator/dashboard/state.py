@@ -147,24 +147,31 @@ _Row = tuple[float, ...]
 class Trend:
     """A bounded history of the trend signals against simulated time, in
     :data:`TREND_TIERS`: each sample goes to the newest tier and, if far enough after that
-    tier's last point, to each older one; a history is read back newest tier first."""
+    tier's last point, to each older one; a history is read back newest tier first. One
+    history per plant ``run`` (the server's reset count): a sample of another run starts a
+    new history."""
 
     def __init__(self, tiers: tuple[tuple[int, float], ...] = TREND_TIERS) -> None:
         self.tiers = [(deque[_Row](maxlen=size), step_s) for size, step_s in tiers]
         self.added = 0  # samples taken so far (a stream sends those since its last event)
+        self.run = 0  # the plant run the history is of
 
     @property
     def last_time_s(self) -> float:
         newest = self.tiers[0][0]
         return newest[-1][0] if newest else -math.inf
 
-    def add(self, time_s: float, values: Mapping[str, float | None]) -> None:
-        """Take a sample at simulated ``time_s`` (one at the time of the last is dropped; an
-        earlier one means the plant was reset: a new history)."""
-        if time_s < self.last_time_s:
+    def add(self, time_s: float, values: Mapping[str, float | None], run: int = 0) -> None:
+        """Take a sample at simulated ``time_s`` of plant ``run``: of another run than the
+        history's, a new history (the plant was reset); of the same run, one no later than
+        the last is dropped (a look at what was published before an advance, taken while
+        the advance runs, is older than the samples taken inside it: read as a reset, it
+        wiped the history, a re-probe)."""
+        if run != self.run:
             for rows, _ in self.tiers:
                 rows.clear()
-        elif time_s == self.last_time_s:
+            self.run = run
+        elif time_s <= self.last_time_s:
             return
         row = (time_s, *(_nan(values.get(s)) for s in TREND_SIGNALS))
         for rows, step_s in self.tiers:

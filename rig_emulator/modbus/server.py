@@ -65,6 +65,7 @@ from rig_emulator.registers import (
     written_value,
 )
 from rig_emulator.registers.codec import accepted_range
+from rig_emulator.registers.datatypes import DATATYPES
 
 log = logging.getLogger("rig_emulator.serve")
 
@@ -109,6 +110,45 @@ def _limits(points: list[Point]) -> tuple[tuple[Point, float, float], ...]:
             half = abs(p.scale) / 2.0
             out.append((p, lo - half, hi + half))
     return tuple(out)
+
+
+def carried_range(point: Point) -> tuple[float, float]:
+    """The lowest and highest value a write of ``point`` can set: of what its registers
+    carry, what lies in :func:`accepted_range` (a re-probe: an int32 x0.05 +0.025 offered
+    10..90 carries 9.975 and 10.025, not 10, so a write of 10 was refused). A float point:
+    its range (a bound its type cannot carry exactly is read as that bound,
+    :func:`written_value`); empty (low above high) where no step lies in the range."""
+    lo, hi = accepted_range(point)
+    datatype = DATATYPES[point.datatype]
+    if datatype.is_float or datatype.is_bit or lo > hi:
+        return lo, hi
+    raw_lo, raw_hi = datatype.int_range
+    near_ends = {
+        r
+        for end in (lo, hi)
+        for r in range(
+            math.floor((end - point.offset) / point.scale) - 1,
+            math.ceil((end - point.offset) / point.scale) + 2,
+        )
+        if raw_lo <= r <= raw_hi
+    }
+    # the values the raw integers near each end decode to (decode's own arithmetic, which
+    # the server's range check sees), those in the range
+    inside = [v for v in (r * point.scale + point.offset for r in near_ends) if lo <= v <= hi]
+    return (min(inside), max(inside)) if inside else (hi, lo)
+
+
+def _number(value: float) -> str:
+    """A value a point carries, as a message shows it: its digits, not the binary
+    remainder of its scale (10.025, not 10.025000000000000355)."""
+    return f"{value:.12g}"
+
+
+def _steps(point: Point) -> str:
+    """A point's encoding as a message names it: its type and its step (int32 x0.05
+    +0.025)."""
+    offset = f" {point.offset:+g}" if point.offset else ""
+    return f"{point.datatype} x{point.scale:g}{offset}"
 
 
 def _run(table: str, points: list[Point]) -> _Run:
@@ -229,6 +269,12 @@ class BenchServer:
         self.clock = SimClock(speed=speed, mode=LOCKSTEP if lockstep else REALTIME)
         self.lateness = LatenessStats()
         self.lockstep_counter = 0
+        #: plant resets since the start (a reset write): what tells a history that the plant
+        #: started over (its time going back alone does not: a look published before an
+        #: advance is older than the samples taken inside it, a re-probe), and the count
+        #: the last :meth:`publish` saw, which :attr:`published_values` belong to
+        self.resets = 0
+        self.published_resets = 0
         #: random per start: a client that sees it change knows the plant is a new one
         self.epoch_id = secrets.randbits(32)
         self.last_advance_s = 0.0
@@ -505,7 +551,7 @@ class BenchServer:
         (one call per contiguous run of registers, one per bit)."""
         assert self._server is not None
         values = self.values()
-        self.published_values = values
+        self.published_values, self.published_resets = values, self.resets
         self._internal = True
         try:
             for unit_id, runs in self._runs.items():
@@ -636,11 +682,9 @@ class BenchServer:
 
     async def write_signal(self, signal: str, value: float) -> str | None:
         """Write one command signal as a Modbus client would: encoded into its registers
-        and through the same checks (:meth:`_write`); None when applied, else why not."""
-        try:  # before encoding: a uint16 switch took 0.5 as 0, rounded, and applied "off"
-            value = check_command(signal, value)
-        except CommandError as exc:
-            return f"{exc}: Modbus exception 03"
+        and through the same checks (:meth:`_write`); None when applied, else why not
+        (without the signal's name: the caller names it, once), with the nearest value the
+        point can set where it cannot set this one."""
         # through its finest point (a float before a uint16 x2: 501 went out as 500)
         writable = [
             (d, p) for d in self.map.devices for p in d.points if p.signal == signal and p.writable
@@ -648,21 +692,35 @@ class BenchServer:
         if not writable:
             return f"no writable point carries '{signal}'"
         device, point = min(writable, key=lambda dp: precision(dp[1], value))
+        lo, hi = accepted_range(point)  # (encode clips: 687 went out as 655.35)
+        low, high = carried_range(point)
+        try:  # before encoding: a uint16 switch took 0.5 as 0, rounded, and applied "off"
+            value = check_command(signal, value, within=(lo, hi))
+        except CommandError as exc:
+            why = str(exc).removeprefix(f"{signal}: ")
+            if math.isfinite(value) and not lo <= value <= hi and low <= high:
+                nearest = _number(low if value < lo else high)
+                why += (
+                    f" (the nearest value point '{point.name}' ({_steps(point)}) sets: {nearest})"
+                )
+            return f"{why}: Modbus exception 03"
         if point.table == "coil":
             if value not in (0.0, 1.0):  # FC5 takes FF00 or 0000, nothing else
                 return f"{value!r} is not 0 or 1 (a switch): Modbus exception 03"
             registers: list = [value == 1.0]
         else:
-            lo, hi = accepted_range(point)
-            if not lo <= value <= hi:  # (encode clips: 687 went out as 655.35)
-                return (
-                    f"{value!r} outside {lo:g}..{hi:g}, what point '{point.name}' "
-                    f"({point.datatype}) accepts: Modbus exception 03"
-                )
             try:
                 registers = encode(point, value)
             except (ValueError, OverflowError, struct.error):
                 return f"{value!r} cannot be encoded as {point.datatype}"
+            carried = written_value(point, registers)
+            if not lo <= carried <= hi:  # its step's nearest lies outside the range
+                nearest = _number(low if abs(value - low) <= abs(value - high) else high)
+                return (
+                    f"{value!r} is carried by point '{point.name}' ({_steps(point)}) as "
+                    f"{_number(carried)}, outside {lo:g}..{hi:g} (the nearest value it sets: "
+                    f"{nearest}): Modbus exception 03"
+                )
         refused = await self._write(device, point.table, point.address, registers)
         if refused is None:  # published, its own point too (no client stores it)
             return None
@@ -743,6 +801,7 @@ class BenchServer:
             self._reanchor()
         if new.get("reset") == 1.0:
             self.emulator.reset()
+            self.resets += 1
             self.lockstep_counter = 0
             self._reanchor()
             await self.publish()

@@ -12,15 +12,19 @@ import math
 import re
 import socket
 import subprocess
+import threading
 import time
+from types import SimpleNamespace
 
 import pytest
 
 from hil_client.demo import rig_emulator_serve
 from hil_client.wait_for_port import free_port, wait_for_port
+from rig_emulator.dashboard.http import PUSH_PERIOD_S
 from rig_emulator.dashboard.state import TREND_SIGNALS, Trend
-from rig_emulator.registers import invalid_value
-from tests.modbus_helpers import client, point, read_point, start_boiler, write
+from rig_emulator.modbus.server import ADVANCE_SAMPLES
+from rig_emulator.registers import MAP_DIR, invalid_value, load_map
+from tests.modbus_helpers import ADVANCE, client, point, read_point, start_boiler, write
 from tests.rig_emulator.dashboard.test_dashboard import CHROMIUM, MAP, _get, _post
 
 
@@ -218,6 +222,13 @@ def test_the_api_shows_each_reading_as_its_registers_carry_it(served):
         # 405 names what is allowed (RFC 9110 15.5.6)
         (b"PUT /api/state HTTP/1.1\r\n\r\n", (b"405", b"Allow: GET, HEAD", b"PUT")),
         (b"GET /api/control HTTP/1.1\r\n\r\n", (b"405", b"Allow: POST", b"GET")),
+        # the method before the body's type: a POST to a page that takes none is 405
+        # (a re-probe: 403 "Content-Type none"), with or without a body
+        (
+            b"POST /api/state HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n",
+            (b"405", b"Allow: GET, HEAD", b"POST"),
+        ),
+        (b"POST / HTTP/1.1\r\nContent-Length: 2\r\n\r\n{}", (b"405", b"Allow: GET, HEAD", b"POST")),
         # the path asked for, not a host "api" and a path "/state"
         (b"GET //api/state HTTP/1.1\r\n\r\n", (b"404", b"", b"//api/state")),
         (b"GET /api/state?window=" + b"9" * 5000 + b" HTTP/1.1\r\n\r\n", (b"414", b"", b"4096")),
@@ -296,3 +307,134 @@ def test_axes_and_faults_are_readable_in_a_real_browser(served, tmp_path):
     text = re.sub(r"<[^>]+>", " ", bar)
     assert "no_reply" in text and "unit 2" in text and "from dashboard" in text
     assert '"kind"' not in text and "{" not in text
+
+
+def _stream_events(http: int, stop: threading.Event, events: list[dict]) -> None:
+    """Collect the stream's events into ``events`` until ``stop`` is set."""
+    with socket.create_connection(("127.0.0.1", http), timeout=30) as s:
+        s.sendall(b"GET /api/stream HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
+        stream = s.makefile("rb")
+        b"".join(iter(stream.readline, b"\r\n"))
+        while not stop.is_set():
+            line = stream.readline()
+            if not line:
+                return
+            if line.startswith(b"data: "):
+                events.append(json.loads(line.removeprefix(b"data: ")))
+
+
+def _inside(times: list[float], start: float, end: float) -> int:
+    return sum(start < t < end for t in times)
+
+
+def test_a_push_inside_a_long_advance_keeps_the_trend(served):
+    """A stranger's re-probe: lockstep with the lab profile, six advances of 21600 s: after
+    each, the trend held only the last advance (184, 158, ..., 7 points), two of 86400 s
+    78 points and a jump. A push landing inside an advance added the state published
+    before it, older than the samples already taken inside, and the trend read the time
+    going back as a plant reset. Now only a reset (the server's count of them) starts a
+    new history: every advance keeps its samples, and a real reset still starts over."""
+    port, http = served("--lockstep", "--profile", "lab")
+    events: list[dict] = []
+    stop = threading.Event()
+    reader = threading.Thread(target=_stream_events, args=(http, stop, events), daemon=True)
+    reader.start()
+    day = 86400
+    c = client(port, timeout_s=120.0)
+    try:
+        assert not write(c, MAP, "boiler_controller", "on_command", 1).isError()
+        began = time.monotonic()
+        for _ in range(3):  # each about 0.9 s of wall time here: pushes land inside
+            assert not write(c, MAP, *ADVANCE, day).isError()
+        advancing_s = time.monotonic() - began
+        time.sleep(2 * PUSH_PERIOD_S)
+        times = _state(http)["trend"]["time_s"]
+        assert times[0] == 0.0 and times[-1] == 3 * day, (times[:3], times[-3:])
+        assert all(b > a for a, b in itertools.pairwise(times))
+        counts = [_inside(times, i * day, (i + 1) * day) for i in range(3)]
+        # the same advance thrice: as many samples inside each, ADVANCE_SAMPLES at most
+        # (the existing probe's bound: at least half of them)
+        assert len(set(counts)) == 1 and ADVANCE_SAMPLES // 2 <= counts[0] <= ADVANCE_SAMPLES
+        # the case was met: an event pushed while an advance ran (the state it carries is
+        # the one published before the advance, its new samples are later)
+        pushed_inside = [
+            e
+            for e in events
+            if e["trend_point"]["time_s"] and max(e["trend_point"]["time_s"]) > e["time_s"]
+        ]
+        assert pushed_inside, (advancing_s, len(events))
+
+        # a reset is one: the trend starts over, of the new run
+        assert not write(c, MAP, "sim_control", "reset", 1).isError()
+        assert not write(c, MAP, *ADVANCE, 3600).isError()
+        time.sleep(2 * PUSH_PERIOD_S)
+        state = _state(http)
+        times = state["trend"]["time_s"]
+        assert state["run"]["resets"] == 1
+        assert times[0] == 0.0 and times[-1] == 3600.0 and max(times) == 3600.0
+        assert _inside(times, 0, 3600) >= ADVANCE_SAMPLES // 2
+    finally:
+        c.close()
+        stop.set()
+        reader.join(timeout=5)
+
+
+def _custom_map(tmp_path) -> str:
+    """The bench's map with the return setpoint as int32 CDAB x0.05 +0.025 (range 10..90,
+    the signal's): its steps carry 9.975 and 10.025, 89.975 and 90.025, not the ends."""
+    text = (MAP_DIR / "wieselburg_bench.yaml").read_text(encoding="utf-8")
+    custom = text.replace(
+        "address: 2,\n         datatype: float32, access: rw}",
+        "address: 2,\n         datatype: int32, word_order: CDAB, scale: 0.05, offset: 0.025,"
+        " access: rw}",
+    )
+    assert custom != text
+    path = tmp_path / "map.yaml"
+    path.write_text(custom, encoding="utf-8")
+    return str(path)
+
+
+def test_controls_offer_and_answer_what_the_point_carries(served, tmp_path):
+    """A stranger's re-probe, on a map with the return setpoint as int32 CDAB x0.05 +0.025
+    in 10..90: the control offered min 10.0, and a write of 10 was refused with a bare
+    "exception 03 (ILLEGAL_VALUE)" (its step carries 9.975, outside the range); 65.123
+    was answered 65.12500000000001, a speed the float32 clock holds otherwise answered as
+    asked; a refusal named its signal twice. Now the controls offer what the point sets,
+    a value it cannot set is refused naming why and the nearest it can, an answer is the
+    value held as /api/state serves it."""
+    custom = _custom_map(tmp_path)
+    port, http = served("--lockstep", "--http-control", "--map", custom)
+    dev, p = point(SimpleNamespace(map=load_map(custom)), "bench_plc", "return_setpoint")
+    control = next(c for c in _state(http)["controls"] if c["signal"] == "return_setpoint_C")
+    assert (control["min"], control["max"]) == (10.025, 89.975)
+
+    def post(signal: str, value: float) -> tuple[int, dict]:
+        return _post(http, json.dumps({"signal": signal, "value": value}).encode())
+
+    c = client(port)
+    try:
+        for offered in (control["min"], control["max"]):  # the ends offered are taken
+            assert post("return_setpoint_C", offered) == (
+                200,
+                {"ok": True, "signal": "return_setpoint_C", "value": offered},
+            )
+            assert read_point(c, dev, p) == pytest.approx(offered, abs=1e-9)  # (float64)
+        status, body = post("return_setpoint_C", 10)
+        assert status == 400, body
+        error = body["error"]
+        assert "9.975" in error and "10.025" in error and "03" in error, error
+        assert error.count("return_setpoint_C") == 1, error
+        assert read_point(c, dev, p) == pytest.approx(89.975, abs=1e-9)  # unchanged
+        assert post("return_setpoint_C", 65.123)[1]["value"] == 65.125
+        # the clock holds the float32 of what was asked: the answer says what it holds,
+        # as the state serves it
+        for asked, held in ((1000.3, 1000.3), (1000.0000001, 1000.0)):
+            status, body = post("speed_factor", asked)
+            assert (status, body["value"]) == (200, held), body
+            offered = next(c for c in _state(http)["controls"] if c["signal"] == "speed_factor")
+            assert offered["value"] == held
+        status, body = post("water_flow_setpoint_kg_h", 2001)
+        assert status == 400 and body["error"].count("water_flow_setpoint_kg_h") == 1, body
+        assert "2000" in body["error"]
+    finally:
+        c.close()
