@@ -24,24 +24,6 @@ from tests.modbus_helpers import client, point, read_point, write
 MAP = SimpleNamespace(map=load_map())
 
 
-@pytest.fixture
-def dashboard():
-    """``dashboard(*options)`` -> (modbus port, http port) of a lockstep server."""
-    stack = []
-
-    def start(*options: str) -> tuple[int, int]:
-        http = free_port()
-        ctx = rig_emulator_serve("windhager_12kw", "--lockstep", "--http", str(http), *options)
-        port, _ = ctx.__enter__()
-        stack.append(ctx)
-        assert wait_for_port("127.0.0.1", http, 30.0)
-        return port, http
-
-    yield start
-    for ctx in stack:
-        ctx.__exit__(None, None, None)
-
-
 def _get(http: int, path: str):
     with urllib.request.urlopen(f"http://127.0.0.1:{http}{path}", timeout=10) as r:
         return r.status, r.headers.get("Content-Type"), r.read()

@@ -18,33 +18,12 @@ from types import SimpleNamespace
 
 import pytest
 
-from hil_client.demo import rig_emulator_serve
-from hil_client.wait_for_port import free_port, wait_for_port
 from rig_emulator.dashboard.http import PUSH_PERIOD_S
 from rig_emulator.dashboard.state import TREND_SIGNALS, Trend
 from rig_emulator.modbus.server import ADVANCE_SAMPLES
 from rig_emulator.registers import MAP_DIR, invalid_value, load_map
 from tests.modbus_helpers import ADVANCE, client, point, read_point, start_boiler, write
 from tests.rig_emulator.dashboard.test_dashboard import CHROMIUM, MAP, _get, _post
-
-
-@pytest.fixture
-def served():
-    """``served(*options)`` -> (modbus port, http port) of ``serve --http`` (real time
-    unless ``--lockstep`` is among the options)."""
-    stack = []
-
-    def start(*options: str) -> tuple[int, int]:
-        http = free_port()
-        ctx = rig_emulator_serve("windhager_12kw", "--http", str(http), *options)
-        port, _ = ctx.__enter__()
-        stack.append(ctx)
-        assert wait_for_port("127.0.0.1", http, 30.0)
-        return port, http
-
-    yield start
-    for ctx in stack:
-        ctx.__exit__(None, None, None)
 
 
 def _state(http: int) -> dict:
