@@ -30,6 +30,7 @@ from rig_emulator.modbus.roles import (
     RolesError,
     default_policy,
     load_policy,
+    shown,
 )
 from rig_emulator.modbus.rtu import SerialConfigError, check_line_options
 from rig_emulator.modbus.rtu_wire import PARITIES
@@ -143,6 +144,28 @@ def plan(args: argparse.Namespace) -> TransportPlan:
     )
 
 
+def who_has_which_role(transport_plan: TransportPlan, default_role: str) -> str:
+    """Whose requests the roles judge on this server, for the start-up summary: TLS clients
+    by their certificate's role (``default_role`` without one), plain TCP and RTU clients by
+    ``--plain-role`` or by none. With ``--plain-role`` and no TLS, the summary spoke only of
+    certificates, which that server has none of (a stranger's probe)."""
+    p = transport_plan
+    said: list[str] = []
+    if p.ssl_context is not None:
+        said.append(f"a certificate without a role is {shown(default_role)}")
+    plain_tcp = p.ssl_context is None or p.tcp_port is not None  # without TLS, --port is plain
+    plain = " and ".join(
+        kind for kind, served in (("plain TCP", plain_tcp), ("RTU", p.serial is not None)) if served
+    )
+    if plain and p.plain_role is not None:
+        said.append(f"{plain} clients are held to {shown(p.plain_role)}")
+    elif plain:
+        said.append(f"{plain} clients carry no role and pass the role gate")
+    elif p.plain_role is not None:
+        said.append(f"--plain-role {shown(p.plain_role)} holds nobody (no plain TCP or RTU here)")
+    return "; ".join(said)
+
+
 async def start(server: BenchServer, transport_plan: TransportPlan) -> Transports:
     """Add the planned listeners, role gate and lines to the started ``server``; without a
     ROLES.yaml, the roles are the defaults of the map it serves (they were those of the
@@ -157,10 +180,10 @@ async def start(server: BenchServer, transport_plan: TransportPlan) -> Transport
     if p.ssl_context is not None or p.plain_role is not None:
         transports.authorise(policy, p.plain_role)
         log.info(
-            "roles%s: %s; a certificate without a role is %s",
+            "roles%s: %s; %s",
             "" if p.policy is not None else " (defaults of the map's devices)",
             policy.summary(),
-            policy.default_role,
+            who_has_which_role(p, policy.default_role),
         )
     if p.ssl_context is not None:
         log.info(

@@ -27,7 +27,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
-from urllib.parse import parse_qs, urlparse
+from urllib.parse import unquote_plus, urlparse
 
 from hil_client.modbus_client import (
     BadReply,
@@ -39,12 +39,14 @@ from hil_client.modbus_client import (
     ReplyTimeout,
     reply_problem,
 )
+from rig_emulator.modbus.rtu import PTY_MULTIPLEXER, is_pty_multiplexer
 from rig_emulator.modbus.rtu_wire import PARITIES, frame, reply_length, silence_s, unframe
 
 DEFAULT_TLS_PORT = 802
 DEFAULT_BAUD = 19200
 DEFAULT_PARITY = "E"
 SCHEMES = ("modbus", "modbus+tls", "modbus-rtu")
+RTU_PARAMETERS = ("baud", "parity")  # of a modbus-rtu:// URL's query
 RIG_TIMEOUT_S = 5.0  # one request, as ModbusRig's default
 
 
@@ -93,25 +95,14 @@ def parse_endpoint(url: str) -> Endpoint:
     if parsed.scheme == "modbus-rtu":
         if not parsed.path or parsed.netloc:
             raise ValueError(f"'{url}' names no device (modbus-rtu:///dev/ttyX?baud=N)")
-        # each parameter once, with a value: "?baud", "?baud=", "?=&&" and a baud given
-        # twice ran with the defaults or the last one, without a word (a stranger's probe)
-        try:
-            query = parse_qs(parsed.query, keep_blank_values=True, strict_parsing=True)
-        except ValueError:  # a field without "=" ("?baud"), or an empty one ("?baud=1&")
-            query = {"": [""]} if parsed.query else {}
-        for name, values in query.items():
-            if not name:
-                raise ValueError(f"'{url}': a parameter is empty or has no value (baud=N&parity=E)")
-            if name not in ("baud", "parity"):
-                raise ValueError(f"'{url}': unknown parameter '{name}' (baud=N, parity=E|N|O)")
-            if len(values) > 1:
-                raise ValueError(f"'{url}': parameter '{name}' is given {len(values)} times")
-            if not values[0]:
-                raise ValueError(f"'{url}': parameter '{name}' has no value ({name}=...)")
-        baud_text = query.get("baud", [str(DEFAULT_BAUD)])[0]
-        if not baud_text.isdigit() or not 50 <= int(baud_text) <= 4_000_000:
+        query = rtu_query(url, parsed.query)
+        baud_text = query.get("baud", str(DEFAULT_BAUD))
+        # ASCII digits only: "²" passes isdigit() and ended in int()'s own words (a probe)
+        if not (baud_text.isascii() and baud_text.isdigit()) or not (
+            50 <= int(baud_text) <= 4_000_000
+        ):
             raise ValueError(f"'{url}': baud '{baud_text}' is not a line speed")
-        parity = query.get("parity", [DEFAULT_PARITY])[0].upper()
+        parity = query.get("parity", DEFAULT_PARITY).upper()
         if parity not in PARITIES:
             raise ValueError(f"'{url}': parity '{parity}' is not one of {', '.join(PARITIES)}")
         return Endpoint("modbus-rtu", path=parsed.path, baud=int(baud_text), parity=parity)
@@ -126,6 +117,32 @@ def parse_endpoint(url: str) -> Endpoint:
         ) from None
     port = url_port(url, DEFAULT_TLS_PORT if parsed.scheme == "modbus+tls" else 502)
     return Endpoint(parsed.scheme, host=parsed.hostname, port=port)
+
+
+def rtu_query(url: str, query: str) -> dict[str, str]:
+    """The parameters of the ``query`` of a ``modbus-rtu://`` ``url``, each known, once and
+    with a value; ValueError naming the one at fault. An empty piece between ``&`` is
+    nothing (``?baud=9600&``, ``?&baud=9600``: a stray ``&`` is harmless, as to browsers
+    and urllib); a name without a value (``?baud``, ``?baud=``), an unknown name and a
+    name given twice are refused: each ran with the defaults or the last one without a
+    word, and then a strict parse refused them all, stray ``&`` included, as "a parameter
+    is empty" without naming it (stranger's probes)."""
+    given: dict[str, list[str]] = {}
+    for piece in query.split("&"):
+        if not piece:
+            continue
+        name, _, value = (unquote_plus(part) for part in piece.partition("="))
+        if not name:
+            raise ValueError(f"'{url}': '{piece}' names no parameter (baud=N&parity=E)")
+        if name not in RTU_PARAMETERS:
+            raise ValueError(f"'{url}': unknown parameter '{name}' (baud=N, parity=E|N|O)")
+        given.setdefault(name, []).append(value)
+    for name, values in given.items():
+        if len(values) > 1:
+            raise ValueError(f"'{url}': parameter '{name}' is given {len(values)} times")
+        if not values[0]:
+            raise ValueError(f"'{url}': parameter '{name}' has no value ({name}=...)")
+    return {name: values[0] for name, values in given.items()}
 
 
 def url_port(url: str, default: int) -> int:
@@ -339,5 +356,10 @@ def connector(url: str, timeout_s: float, tls: TlsFiles | None = None) -> Connec
     if tls is not None:
         raise ValueError(f"--tls-* options need a modbus+tls:// rig, not {url}")
     if endpoint.scheme == "modbus-rtu":
+        if is_pty_multiplexer(endpoint.path):  # checked before anything opens it
+            raise ValueError(
+                f"'{url}': {endpoint.path}: {PTY_MULTIPLEXER}; give the line the server "
+                "printed (serial: /dev/pts/N)"
+            )
         return lambda: RtuConnection(endpoint.path, endpoint.baud, endpoint.parity, timeout_s)
     return lambda: Connection(endpoint.host, endpoint.port, timeout_s)

@@ -39,14 +39,20 @@ and every other function code (8 diagnostics, other 43 MEI types, codes nobody d
 need both. An FC23 by a role that writes a unit but may not read it used to write and
 return that unit's registers (a stranger's probe).
 
-Role names are printable text without ``<`` or ``>``: those mark the server's own
+Role names are text of any script, spaces of any kind included, without a character of
+:data:`HIDDEN_CATEGORIES` (a control or format character, a line or paragraph separator, a
+surrogate, a private-use or unassigned code point: they let a name display as another, or
+as nothing), and not in angle brackets: ``<...>`` is the form of the server's own
 stand-ins (:data:`INVALID_ROLE`, the role of a certificate whose role extension is
-malformed, which may do nothing whatever a file says).
+malformed, which may do nothing whatever a file says). Logs show a role by :func:`shown`,
+as written but for such characters, so a certificate's role cannot write lines of its own
+into the log.
 """
 
 from __future__ import annotations
 
 import time
+import unicodedata
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -69,7 +75,19 @@ UNIT_IDS = range(1, 248)
 #: the role of a certificate whose role extension is malformed (not one UTF8String, given
 #: twice, not parsed): no ROLES.yaml can name it (its ``<``), and it may do nothing
 INVALID_ROLE = "<invalid role extension>"
-RESERVED_NAME_CHARACTERS = "<>"
+#: the Unicode categories (``unicodedata.category``) no role name holds and a log shows
+#: escaped: a control character writes lines of its own into a log, a format character
+#: (soft hyphen, zero-width space, a bidi override such as U+202E) makes a name display as
+#: another; spaces of any kind (Zs) are text
+HIDDEN_CATEGORIES = {
+    "Cc": "a control character",
+    "Cf": "a format character, which makes a name display as another",
+    "Zl": "a line separator",
+    "Zp": "a paragraph separator",
+    "Cs": "a surrogate",
+    "Co": "a private-use character",
+    "Cn": "an unassigned code point",
+}
 #: The instruments and the simulation control of the shipped map (:data:`DEFAULT_POLICY`)
 INSTRUMENT_UNITS = frozenset(range(1, 8))
 SIM_CONTROL_UNIT = 100
@@ -135,9 +153,23 @@ class RolePolicy:
         writes units 1-7``): a role granted writes without reads was shown as writing
         "every unit" while it could read nothing (a stranger's probe)."""
         return "; ".join(
-            f"{name} reads {_shown_units(role.read_units)}, writes {_shown_units(role.write_units)}"
+            f"{shown(name)} reads {_shown_units(role.read_units)}, "
+            f"writes {_shown_units(role.write_units)}"
             for name, role in self.roles.items()
         )
+
+
+def _hidden(character: str) -> bool:
+    return unicodedata.category(character) in HIDDEN_CATEGORIES
+
+
+def shown(text: str) -> str:
+    """``text`` (a role, a certificate's subject) as a log shows it: as written, but each
+    character of :data:`HIDDEN_CATEGORIES` escaped as Python writes it (``\\n``,
+    ``\\u202e``), so a certificate cannot write lines of its own into the log. The same
+    everywhere: a role ``Ingenieur Ä`` read so in the start-up summary but ``Ingenieur
+    \\xc4`` in the connection and refusal lines (a stranger's probe)."""
+    return "".join(c.encode("unicode_escape").decode("ascii") if _hidden(c) else c for c in text)
 
 
 def _shown_units(units: frozenset[int]) -> str:
@@ -198,20 +230,26 @@ def _units(value: Any, where: str) -> frozenset[int]:
 
 
 def _check_role_name(name: Any, source: str) -> None:
-    """RolesError unless ``name`` is a role a certificate may name: printable text (no
-    control character, which no log line shows as it is) without ``<`` or ``>`` (the
-    server's stand-ins: a file defining ``<invalid role extension>`` gave its rights to
-    every malformed role extension; a stranger's probe)."""
+    """RolesError unless ``name`` is a role a certificate may name (module docstring): a
+    name of the stand-ins' form ``<...>`` (a file defining ``<invalid role extension>`` gave
+    its rights to every malformed role extension), or holding a character of
+    :data:`HIDDEN_CATEGORIES` (named by its code point), is refused; ``a->b``, ``op<1>`` and
+    ``lab tech`` with a no-break space are names (they were refused: a stranger's probe)."""
     if not isinstance(name, str) or not name.strip():
-        raise RolesError(f"{source}: role name '{name}' is not a non-empty text")
-    shown = name.encode("unicode_escape").decode("ascii")
-    if not name.isprintable():
-        raise RolesError(f"{source}: role name '{shown}' holds a character that is not printable")
-    reserved = sorted(set(name) & set(RESERVED_NAME_CHARACTERS))
-    if reserved:
+        shown_name = shown(name) if isinstance(name, str) else name
+        raise RolesError(f"{source}: role name '{shown_name}' is not a non-empty text")
+    hidden = next((c for c in name if _hidden(c)), None)
+    if hidden is not None:
+        called = unicodedata.name(hidden, "")
         raise RolesError(
-            f"{source}: role name '{shown}' holds '{reserved[0]}': names in angle brackets "
-            "are the server's own (a malformed role extension may do nothing)"
+            f"{source}: role name '{shown(name)}' holds U+{ord(hidden):04X}"
+            f"{' ' + called if called else ''}: "
+            f"{HIDDEN_CATEGORIES[unicodedata.category(hidden)]}"
+        )
+    if name.startswith("<") and name.endswith(">"):
+        raise RolesError(
+            f"{source}: role name '{name}' is in angle brackets, the form of the server's own "
+            "stand-ins (a malformed role extension may do nothing)"
         )
 
 
@@ -243,7 +281,8 @@ def policy_from_mapping(data: Any, source: str) -> RolePolicy:
     default = data.get("default_role", "observer")
     if default not in roles:
         raise RolesError(
-            f"{source}: default_role '{default}' is not one of the roles ({', '.join(roles)})"
+            f"{source}: default_role '{shown(str(default))}' is not one of the roles "
+            f"({', '.join(roles)})"
         )
     return RolePolicy(roles, default)
 

@@ -107,16 +107,12 @@ def open_line(path: str, baud: int, parity: str) -> tuple[int, int | None, str, 
         applied = _configure(client_fd, baud, parity)
         tty.setraw(server_fd)
         return server_fd, client_fd, os.ttyname(client_fd), applied
+    if is_pty_multiplexer(path):  # before opening: that would make a pty of its own
+        raise SerialConfigError(f"--serial {path}: {PTY_MULTIPLEXER}; use --serial pty")
     try:
         fd = os.open(path, os.O_RDWR | os.O_NOCTTY)
     except OSError as exc:
         raise SerialConfigError(f"--serial {path}: {exc.strerror}") from None
-    if is_pty_multiplexer(fd):
-        os.close(fd)
-        raise SerialConfigError(
-            f"--serial {path}: the pseudo-terminal multiplexer opens a new pty whose other "
-            "side no client can reach; use --serial pty"
-        )
     try:
         configured = _configure(fd, baud, parity)
     except termios.error:
@@ -129,12 +125,21 @@ def open_line(path: str, baud: int, parity: str) -> tuple[int, int | None, str, 
     return fd, None, path, configured
 
 
-def is_pty_multiplexer(fd: int) -> bool:
-    """Whether ``fd`` is Linux's ``/dev/ptmx`` (or ``/dev/pts/ptmx``, a link to it: device
-    5, 2): opening it makes a new pty master whose slave nobody unlocked, so a line served
-    there answers no client (it was served without a word; a stranger's probe)."""
+#: why a line on ``/dev/ptmx`` is refused, by the server (``--serial``) and the client
+#: (``hil-client --rig modbus-rtu:///dev/ptmx``) alike
+PTY_MULTIPLEXER = (
+    "the pseudo-terminal multiplexer opens a new pty whose other side no client can reach"
+)
+
+
+def is_pty_multiplexer(line: int | str) -> bool:
+    """Whether ``line`` (a path, links followed, or an open fd) is Linux's ``/dev/ptmx`` (or
+    ``/dev/pts/ptmx``, another node of it: device 5, 2): opening it makes a new pty master
+    whose slave nobody unlocked, so a line served there answers no client (it was served
+    without a word), and a client opening it waits for a reply nobody sends (it said "no
+    reply within 5 s"; stranger's probes). False for a path that does not exist."""
     try:
-        rdev = os.fstat(fd).st_rdev
+        rdev = os.stat(line).st_rdev
     except OSError:
         return False
     return (os.major(rdev), os.minor(rdev)) == (5, 2)

@@ -10,7 +10,8 @@ The authorisation side is a gate of :class:`~rig_emulator.modbus.handler.BenchMo
 first in its ``gates``: a request the connection's role may not send is answered with
 exception 01 (illegal function) before it reaches any datastore, so it changes nothing.
 Each refusal is logged with the client certificate's subject, once per connection and
-reason and at most :attr:`RefusalLog.burst` lines a minute (a flood does not flood the log).
+reason and at most :attr:`RefusalLog.burst` lines a minute (a flood does not flood the log);
+roles and subjects are shown as :func:`~rig_emulator.modbus.roles.shown` writes them.
 
 Plain TCP and RTU requests carry no role (``RequestInfo.role`` is None) and pass this gate,
 unless ``plain_role`` names a role for them.
@@ -34,7 +35,13 @@ from rig_emulator.modbus.handler import (
     RequestHandler,
     RequestInfo,
 )
-from rig_emulator.modbus.roles import DEFAULT_POLICY, INVALID_ROLE, RefusalLog, RolePolicy
+from rig_emulator.modbus.roles import (
+    DEFAULT_POLICY,
+    INVALID_ROLE,
+    RefusalLog,
+    RolePolicy,
+    shown,
+)
 
 log = logging.getLogger("rig_emulator.serve")
 
@@ -157,12 +164,6 @@ def peer_of(ssl_object: ssl.SSLObject | ssl.SSLSocket, policy: RolePolicy) -> Pe
     except (ValueError, x509.DuplicateExtension):  # not one UTF8String, or given twice
         return Peer(subject, INVALID_ROLE)
     return Peer(subject, policy.default_role if role is None else role)
-
-
-def shown(role: str) -> str:
-    """``role`` as a log shows it: control characters escaped (a certificate's role must
-    not write lines of its own into the log)."""
-    return role.encode("unicode_escape").decode("ascii")
 
 
 class Authorisation:

@@ -116,8 +116,8 @@ def test_a_roles_file_cannot_name_the_invalid_role(tmp_path):
     exit 2, as is a role name with a control character."""
     _, tls = _lab(tmp_path)
     for name, fault in (
-        (f'"{INVALID_ROLE}"', "names in angle brackets are the server's own"),
-        ('"engineer\\u0000"', "holds a character that is not printable"),
+        (f'"{INVALID_ROLE}"', "is in angle brackets, the form of the server's own stand-ins"),
+        ('"engineer\\u0000"', "holds U+0000: a control character"),
     ):
         roles = tmp_path / "roles.yaml"
         roles.write_text(

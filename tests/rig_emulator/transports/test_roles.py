@@ -191,10 +191,10 @@ def test_file_redefines_roles(tmp_path):
         ("roles: {a: {read: [255]}}\n", "roles.a.read: '255' is not a unit ID (1-247;"),
         # a file gave the rights of its '<invalid role extension>' to every malformed role
         # extension (a stranger's probe); a name no log line shows as it is, likewise
-        ("roles: {'<invalid role extension>': {read: all}}\n", "names in angle brackets"),
-        ("roles: {'a>b': {read: all}}\n", "holds '>'"),
-        ('roles: {"eng\\nineer": {read: all}}\n', "'eng\\nineer' holds a character that"),
-        ('roles: {"eng\\tineer": {read: all}}\n', "is not printable"),
+        ("roles: {'<invalid role extension>': {read: all}}\n", "is in angle brackets"),
+        ('roles: {"eng\\nineer": {read: all}}\n', "'eng\\nineer' holds U+000A: a control"),
+        ('roles: {"eng\\tineer": {read: all}}\n', "holds U+0009: a control character"),
+        ('roles: {"\\n": {read: all}}\n', "role name '\\n' is not a non-empty text"),
         ("roles: {a: {read: some}}\n", "roles.a.read: 'some' is neither"),
         ("roles: {a: {write: [true]}}\n", "roles.a.write: 'True' is not a unit ID"),
         ("roles: {a: {read: all}}\ndefault_role: b\n", "default_role 'b' is not one"),
