@@ -47,6 +47,8 @@ DEFAULT_BAUD = 19200
 DEFAULT_PARITY = "E"
 SCHEMES = ("modbus", "modbus+tls", "modbus-rtu")
 RTU_PARAMETERS = ("baud", "parity")  # of a modbus-rtu:// URL's query
+#: The usual speeds of a Modbus serial line, named when a URL asks for another
+STANDARD_BAUDS = (1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200)
 RIG_TIMEOUT_S = 5.0  # one request, as ModbusRig's default
 
 
@@ -102,6 +104,10 @@ def parse_endpoint(url: str) -> Endpoint:
             50 <= int(baud_text) <= 4_000_000
         ):
             raise ValueError(f"'{url}': baud '{baud_text}' is not a line speed")
+        # a speed the line cannot be set to left it at its own, silently (a re-probe)
+        if getattr(termios, f"B{int(baud_text)}", None) is None:
+            known = ", ".join(str(b) for b in STANDARD_BAUDS)
+            raise ValueError(f"'{url}': baud {int(baud_text)} is not a serial line speed ({known})")
         parity = query.get("parity", DEFAULT_PARITY).upper()
         if parity not in PARITIES:
             raise ValueError(f"'{url}': parity '{parity}' is not one of {', '.join(PARITIES)}")

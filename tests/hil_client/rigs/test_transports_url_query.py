@@ -34,6 +34,8 @@ NAMED = [
     ("modbus-rtu:///dev/pts/0?baud=%C2%B2", "baud '\u00b2' is not a line speed"),
     ("modbus-rtu:///dev/pts/0?baud=\u0661\u0669\u0662\u0660\u0660", "is not a line speed"),
     ("modbus-rtu:///dev/pts/0?baud=9600&&parity=E&baud=9600", "parameter 'baud' is given 2"),
+    # a speed the line cannot be set to was passed over, the line left at its own speed
+    ("modbus-rtu:///dev/pts/0?baud=19201", r"baud 19201 is not a serial line speed \(1200, "),
 ]
 
 
