@@ -8,7 +8,10 @@ and address + quantity valid? (else 02) -> the operation itself (its own refusal
 Exception codes (section 7): 01 ILLEGAL FUNCTION, 02 ILLEGAL DATA ADDRESS, 03 ILLEGAL DATA
 VALUE ("a fault in the structure of the remainder of a complex request, such as that the
 implied length is incorrect"), 04 SERVER DEVICE FAILURE, 0B GATEWAY TARGET DEVICE FAILED TO
-RESPOND (answered for unit identifiers no instrument of the bench has).
+RESPOND (answered for unit identifiers no instrument of the bench has). A unit whose device
+fails (a fault's 04: "an unrecoverable error occurred while the server was attempting to
+perform the requested action") fails at the operation, after the checks
+(:func:`process_failing`).
 
 Implemented: 01, 02, 03, 04 (reads), 05, 06, 15, 16 (writes), 23 (read/write multiple
 registers) and 43/14 (read device identification, basic objects). Everything else gets 01.
@@ -251,6 +254,43 @@ async def _encapsulated(
     return bytes([43, MEI_READ_DEVICE_ID, read_code, conformity, 0, 0, len(chosen)]) + body
 
 
+#: A write checked without being made: (unit, function code, address, values) -> the
+#: exception code it would get, or None where it would be carried out
+WriteCheck = Callable[[int, int, int, list], Awaitable[int | None]]
+#: the read of the table a write function writes (a write's addresses, checked by reading)
+_READ_OF_WRITE = {5: 1, 15: 1, 6: 3, 16: 3, 23: 3}
+
+
+class FailingOperation:
+    """The datastore of a unit whose device fails at the operation (a fault's 04).
+
+    Reads read as always (a read changes nothing, and its refusal, 02, answers as always); a
+    write is checked and never made: by ``check_write`` (the server's write rules) where
+    given, else its addresses by a read of the range; one that passes is refused with 04
+    SERVER DEVICE FAILURE."""
+
+    def __init__(self, store: Datastore, check_write: WriteCheck | None = None) -> None:
+        self.store = store
+        self.check_write = check_write
+
+    async def async_getValues(
+        self, device_id: int, func_code: int, address: int, count: int = 1
+    ) -> list | int:
+        return await self.store.async_getValues(device_id, func_code, address, count)
+
+    async def async_setValues(
+        self, device_id: int, func_code: int, address: int, values: list
+    ) -> int | None:
+        if self.check_write is not None:
+            refused = await self.check_write(device_id, func_code, address, values)
+        else:
+            read = await self.store.async_getValues(
+                device_id, _READ_OF_WRITE[func_code], address, len(values)
+            )
+            refused = None if isinstance(read, list) else int(read)
+        return refused or SERVER_DEVICE_FAILURE
+
+
 HANDLERS: dict[int, Handler] = {
     1: _read_bits_or_registers,
     2: _read_bits_or_registers,
@@ -278,3 +318,23 @@ async def process(
         return await handler(store, unit, pdu, identity)
     except Refused as refusal:
         return exception_pdu(function_code, refusal.code)
+
+
+async def process_failing(
+    store: Datastore,
+    unit: int,
+    pdu: bytes,
+    identity: DeviceIdentity | None = None,
+    check_write: WriteCheck | None = None,
+) -> bytes:
+    """The response PDU to request ``pdu`` for a ``unit`` whose device fails (a fault's 04):
+    the spec's checks first, as :func:`process` makes them (01, 03, 02: the state diagrams
+    of section 6, and the write rules ``check_write`` gives), each answering as always;
+    a request that passes them gets 04 at the operation, and nothing is written
+    (:class:`FailingOperation`). A stranger's probe: under such a fault an unsupported
+    function code, a quantity of 0, an unmapped address and an FC5 value of 0x1234 all got
+    04, as if the device had failed before it could tell an illegal request."""
+    response = await process(FailingOperation(store, check_write), unit, pdu, identity)
+    if response[0] & 0x80:  # refused by a check (or the failing write itself: 04)
+        return response
+    return exception_pdu(pdu[0], SERVER_DEVICE_FAILURE)

@@ -4,11 +4,13 @@ pymodbus keeps the datastore (``SimCore`` over one ``SimDevice`` per instrument)
 is here, written from the Modbus specs rather than from pymodbus's server:
 
 - :mod:`rig_emulator.modbus.framing` cuts the byte stream into MBAP frames, however TCP
-  segments it; a frame with a wrong header is discarded, one whose length cannot be
-  trusted (over 254) closes the connection, each with a log line;
+  segments it; a frame with a wrong protocol identifier is discarded; a header that shows
+  the stream out of step (a length below 2 or over 254, three wrong frames in a row)
+  closes the connection once the requests before it are answered, each with a log line;
 - :meth:`BenchModbusServer.execute` is transport-neutral (TCP, TLS and RTU use it): the
-  gates first (:class:`GateDecision`: delay, drop or force an exception), then the unit
-  check (0B), then :func:`rig_emulator.modbus.conformance.process`; a fault's delay ends
+  gates first (:class:`GateDecision`: delay, drop or force an exception; 04 comes at the
+  operation, after the request's checks), then the unit check (0B), then
+  :func:`rig_emulator.modbus.conformance.process`; a fault's delay ends
   early when the fault does (:func:`rig_emulator.faults.engine.holding`);
 - answers go out in the order the requests came, per connection. A request that never
   waits is answered at once, without a task (the answers of one turn leave in one write);
@@ -45,10 +47,18 @@ from rig_emulator.modbus.conformance import (
     SERVER_DEVICE_FAILURE,
     DeviceIdentity,
     DocumentedBits,
+    WriteCheck,
     exception_pdu,
     process,
+    process_failing,
 )
-from rig_emulator.modbus.framing import MbapFrame, frame_bytes, frame_ready, split_frames
+from rig_emulator.modbus.framing import (
+    MAX_DISCARDED_IN_ROW,
+    MbapFrame,
+    frame_bytes,
+    frame_ready,
+    split_frames,
+)
 
 log = logging.getLogger("rig_emulator.serve")
 _PENDING: set[asyncio.Task] = set()  # strong references to requests that had to wait
@@ -93,7 +103,9 @@ class GateDecision:
 
     delay_s: float = 0.0  # answer this much later (later requests of the connection wait)
     drop: bool = False  # send no reply at all
-    exception_code: int | None = None  # answer FC|0x80 with this code, change nothing
+    #: answer FC|0x80 with this code and change nothing: at once, or for 04 (SERVER DEVICE
+    #: FAILURE) at the operation, after the request's checks (:meth:`_carry_out`)
+    exception_code: int | None = None
 
 
 Gate = Callable[[RequestInfo], "GateDecision | None"]
@@ -191,6 +203,7 @@ class RequestHandler(asyncio.Protocol):
         self._last_activity = time.monotonic()
         self._idle_timer: asyncio.TimerHandle | None = None
         self._discarded = 0  # frames discarded for a wrong MBAP header
+        self._discarded_in_row = 0  # the last of them, with no valid frame after them
         self._yielding = False  # a slice of requests was answered; the rest come next turn
         #: it sent a whole request: its connection and disconnection are logged at INFO (a
         #: port probe, a health check that connects and closes, only at DEBUG)
@@ -367,12 +380,17 @@ class RequestHandler(asyncio.Protocol):
         """Take up to :data:`MAX_ANSWERS_PER_TURN` frames from the buffer into the queue
         (a stream of thousands is cut into turns, never parsed in one go); returns how
         many were discarded for their header."""
-        frames, discarded, error = split_frames(self._buffer, MAX_ANSWERS_PER_TURN)
+        frames, discarded, error, self._discarded_in_row = split_frames(
+            self._buffer, MAX_ANSWERS_PER_TURN, self._discarded_in_row
+        )
         for why in discarded:
             self._log_discard(why)
         if error is not None:  # answer the frames before the bad header, then close
             self._buffer.clear()
-            self._close_after = f"bad MBAP header ({error}); the stream cannot be resynchronised"
+            self._close_after = (
+                f"bad MBAP header ({error}); the stream cannot be resynchronised: the"
+                " requests before it were answered, the bytes from it on are dropped"
+            )
         for frame in frames:
             self._queue.append(frame)
             self._queued_bytes += len(frame.pdu) + 7
@@ -385,15 +403,19 @@ class RequestHandler(asyncio.Protocol):
 
     def _log_discard(self, why: str) -> None:
         """One warning for the first frame of a connection discarded for its header, the
-        rest counted at debug level (a stream of them must not flood the log)."""
+        rest counted at debug level (a stream of them must not flood the log). It says only
+        what is known when it is logged: whether the frames after it are answered depends
+        on them (:data:`MAX_DISCARDED_IN_ROW` in a row close the connection, in a line of
+        its own)."""
         self._discarded += 1
         level = logging.WARNING if self._discarded == 1 else logging.DEBUG
         log.log(
             level,
-            "discarded a frame of %s: bad MBAP header (%s); the frames after it are answered"
-            " (%d discarded on this connection)",
+            "discarded a frame of %s without an answer: bad MBAP header (%s); the connection"
+            " goes on, closed at %d such frames in a row (%d discarded on this connection)",
             self.peer,
             why,
+            MAX_DISCARDED_IN_ROW,
             self._discarded,
         )
 
@@ -534,6 +556,9 @@ class BenchModbusServer:
         self.ssl = ssl
         #: consulted in order for every decoded request; the first non-None decision wins
         self.gates: list[Gate] = []
+        #: the datastore's write rules, asked without writing for a unit whose operation
+        #: fails (a gate's 04); None: a write's addresses alone are checked
+        self.write_check: WriteCheck | None = None
         #: called with each new connection (a TLS transport sets ``handler.role`` here)
         self.connection_hooks: list[Callable[[RequestHandler], None]] = []
         self.handlers: set[RequestHandler] = set()
@@ -715,13 +740,25 @@ class BenchModbusServer:
     async def _carry_out(
         self, decision: GateDecision, info: RequestInfo, pdu: bytes
     ) -> bytes | None:
+        """The response PDU to ``pdu`` under a gate's ``decision`` (its delay waited out).
+
+        A gate's exception code answers before any check (a busy device, 05 or 06; a
+        gateway that cannot reach its target, 0A or 0B; a role's 01: whatever the request),
+        except 04 SERVER DEVICE FAILURE, which comes at the operation
+        (:func:`process_failing`): an illegal request to a failing unit still gets its
+        01/03/02, a legal one 04, and nothing is written."""
         if decision.drop:
             return None
-        if decision.exception_code is not None:
+        failing = decision.exception_code == SERVER_DEVICE_FAILURE
+        if decision.exception_code is not None and not failing:
             return exception_pdu(info.function_code, decision.exception_code)
         if info.unit_id not in self.units:
             return exception_pdu(info.function_code, GATEWAY_TARGET_FAILED)
         try:
+            if failing:
+                return await process_failing(
+                    self.requests_store, info.unit_id, pdu, self.identity, self.write_check
+                )
             return await process(self.requests_store, info.unit_id, pdu, self.identity)
         except Exception:  # a datastore fault: the spec's 04, and the server goes on
             log.exception("request %s of %s failed", pdu[:8].hex(), info.peer)

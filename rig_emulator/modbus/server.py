@@ -196,6 +196,13 @@ def device_layout(device: Device) -> tuple[list[SimData], ...]:
     )
 
 
+def _refusal(code: ExcCodes, why: str | None = None) -> str:
+    """A write the server refused, as :meth:`BenchServer.write_signal` says it."""
+    return f"refused with Modbus exception {int(code):02X} ({code.name})" + (
+        f": {why}" if why else ""
+    )
+
+
 def _catch_all_device() -> SimDevice:
     """Device id 0 answers every unknown unit ID with exception 0B."""
 
@@ -360,6 +367,7 @@ class BenchServer:
             raise OSError(
                 f"cannot listen on {self.host}:{self.port}: {_listen_error(self.host, self.port)}"
             ) from None
+        self._server.write_check = self.check_write  # a unit failing (04) checks writes
         self.faults.attach(self._server)
         if begin_journal:
             self.faults.begin_journal()
@@ -645,13 +653,46 @@ class BenchServer:
         return plan
 
     async def _write(self, device: Device, table: str, address: int, values) -> ExcCodes | None:
-        """Check a client write of ``values`` at ``address``; apply it or refuse it whole.
-        The dashboard's controls come this way too (:meth:`write_signal`), the guard of the
-        clock commands included (a stranger's probe: the dashboard set the speed of a
-        real-time server started without --allow-control, which Modbus refused with 01)."""
-        plan = self._write_plan(device.unit_id, table, address, len(values))
+        """Check a client write of ``values`` at ``address`` (:meth:`_checked_write`); apply
+        it or refuse it whole. The dashboard's controls come this way too
+        (:meth:`write_signal`), the guard of the clock commands included (a stranger's
+        probe: the dashboard set the speed of a real-time server started without
+        --allow-control, which Modbus refused with 01)."""
+        new = self._checked_write(device.unit_id, table, address, values)
+        if isinstance(new, ExcCodes):
+            return new
+        refused = await self._apply(new)
+        # the client's registers are stored after this returns (a trigger such as the fault
+        # command's over the 0 published): publish them again next time
+        self._published.pop((device.unit_id, table), None)
+        return refused
+
+    async def check_write(
+        self, unit_id: int, function_code: int, address: int, values: list
+    ) -> int | None:
+        """The exception code a client write (FC 5, 6, 15, 16 or 23) of ``values`` at
+        ``address`` would get from the write rules, changing nothing; None: it would be
+        carried out. The Modbus server asks it for a unit whose operation fails (a fault's
+        04), which answers an illegal write what it always gets and a legal one 04, nothing
+        written (:class:`rig_emulator.modbus.conformance.FailingOperation`). The clock and
+        fault commands' own refusals at their application are not asked: their devices are
+        never faulted (:func:`rig_emulator.registers.emulator_units`)."""
+        checked = self._checked_write(unit_id, _WRITE_FC[function_code], address, values)
+        return int(checked) if isinstance(checked, ExcCodes) else None
+
+    def _checked_write(
+        self, unit_id: int, table: str, address: int, values: list
+    ) -> dict[str, float] | ExcCodes:
+        """The commands a client write of ``values`` at ``address`` sets, each checked, or
+        the exception the write gets; changes nothing. The points written first (02 for an
+        address no writable point has, as the datastore answers an unmapped one before
+        asking this; 03 for part of a multi-register value), then the clock guard
+        (:meth:`_control_refused`: 01 whatever the values), then each value (03)."""
+        plan = self._write_plan(unit_id, table, address, len(values))
         if isinstance(plan, ExcCodes):
             return plan
+        if self._control_refused(point.signal for point, _ in plan):
+            return ExcCodes.ILLEGAL_FUNCTION
         new: dict[str, float] = {}
         step: dict[str, float] = {}  # the encoding precision the value of ``new`` came with
         for point, first in plan:
@@ -674,11 +715,7 @@ class BenchServer:
                 if here >= step[point.signal]:
                     continue
             new[point.signal], step[point.signal] = checked, here
-        refused = await self._apply(new)
-        # the client's registers are stored after this returns (a trigger such as the fault
-        # command's over the 0 published): publish them again next time
-        self._published.pop((device.unit_id, table), None)
-        return refused
+        return new
 
     async def write_signal(self, signal: str, value: float) -> str | None:
         """Write one command signal as a Modbus client would: encoded into its registers
@@ -692,6 +729,9 @@ class BenchServer:
         if not writable:
             return f"no writable point carries '{signal}'"
         device, point = min(writable, key=lambda dp: precision(dp[1], value))
+        guard = self.control_refusal([signal])
+        if guard is not None:  # the server's state, before the value, as on Modbus
+            return _refusal(ExcCodes.ILLEGAL_FUNCTION, guard)
         lo, hi = accepted_range(point)  # (encode clips: 687 went out as 655.35)
         low, high = carried_range(point)
         try:  # before encoding: a uint16 switch took 0.5 as 0, rounded, and applied "off"
@@ -724,27 +764,35 @@ class BenchServer:
         refused = await self._write(device, point.table, point.address, registers)
         if refused is None:  # published, its own point too (no client stores it)
             return None
-        why = self.control_refusal([signal]) if refused == ExcCodes.ILLEGAL_FUNCTION else None
-        return f"refused with Modbus exception {int(refused):02X} ({refused.name})" + (
-            f": {why}" if why else ""
-        )
+        return _refusal(refused)
 
     def control_refusal(self, signals: Iterable[str]) -> str | None:
         """Why a write of ``signals`` would be refused with exception 01 now (clock or fault
         commands to a real-time server without --allow-control), or None. The dashboard
         asks it to show a control it cannot use as such, and why."""
-        if self.allow_control or self.clock.mode == LOCKSTEP:
+        if self._control_allowed:
             return None
         if not any(s in CLOCK_COMMANDS or s in FAULT_COMMANDS for s in signals):
             return None
         return CONTROL_REFUSAL
 
-    def _control_refused(self, new: dict[str, float]) -> bool:
-        """Whether a write of clock commands must be refused (real time, no --allow-control);
-        logged once per command name and server mode, not once per request."""
-        if self.control_refusal(new) is None:
+    @property
+    def _control_allowed(self) -> bool:
+        """Whether clients may write the clock and fault commands now (``allow_control``)."""
+        return self.allow_control or self.clock.mode == LOCKSTEP
+
+    def _control_refused(self, signals: Iterable[str]) -> bool:
+        """Whether a write of ``signals`` is refused for touching a clock or fault command
+        on a real-time server without --allow-control: 01 before its values are looked at
+        ("the server is in the wrong state to process a request of this type", spec
+        section 7; a stranger's probe got 01 for an advance of 5 s and 03 for one of 0, 01
+        for a speed of 2 and 03 for 0.001). Logged once per command name and server mode,
+        not once per request."""
+        if self._control_allowed:
             return False
-        commands = sorted(k for k in new if k in CLOCK_COMMANDS or k in FAULT_COMMANDS)
+        commands = sorted({s for s in signals if s in CLOCK_COMMANDS or s in FAULT_COMMANDS})
+        if not commands:
+            return False
         new_names = [n for n in commands if (n, "realtime") not in self._refusals_logged]
         if new_names:  # one line for a write, however many commands it holds (a fault
             self._refusals_logged.update((n, "realtime") for n in new_names)  # block's six
@@ -756,8 +804,6 @@ class BenchServer:
         return True
 
     async def _apply(self, new: dict[str, float]) -> ExcCodes | None:
-        if self._control_refused(new):
-            return ExcCodes.ILLEGAL_FUNCTION
         # every write waits for a clock command under way (a long advance runs in slices,
         # answering reads meanwhile): another client's setpoint lands between two advances,
         # never at a point inside one that the machine's load would choose

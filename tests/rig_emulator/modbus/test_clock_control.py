@@ -14,6 +14,7 @@ from rig_emulator.emulator import Emulator
 from rig_emulator.instruments import load_profile
 from rig_emulator.registers import encode
 from tests.modbus_helpers import ADVANCE, client, point, read_point, start_boiler, write
+from tests.rig_emulator.modbus.raw import ask, write_registers_pdu
 
 
 def test_speed_100000_with_lab_profile_answers_reads_and_stops_on_sigterm():
@@ -285,3 +286,38 @@ def test_replies_go_on_while_the_kernels_load(serve, params_12kw):
     assert read_point(reader, dev, sim_time) == 60.0
     advancer.close()
     reader.close()
+
+
+def test_the_clock_guard_answers_01_whatever_the_values(serve):
+    """A stranger's probe: on a real-time server without --allow-control a clock or fault
+    command got 01 or 03 depending on its value (an advance of 5 s 01, of 0 s 03; a speed
+    of 2 01, of 0.001 03; clock_mode 1 01, 2 03; reset 2 03; fault_kind 10 03). The guard
+    is the server's state (spec section 7, 01: "the server is in the wrong state to process
+    a request of this type"), checked before the values: every write touching such a
+    command gets 01, raw frames over a real socket, nothing changed; the dashboard's path
+    gives the guard as its reason."""
+    srv = serve(lockstep=False)
+    sim = {name: point(srv, "sim_control", name)[1] for name in ("speed_factor", "reset")}
+    advance = point(srv, *ADVANCE)[1]
+    fc6 = lambda address, value: struct.pack(">BHH", 6, address, value)  # noqa: E731
+    writes = [
+        ("lockstep_advance = 5", write_registers_pdu(advance.address, encode(advance, 5))),
+        ("lockstep_advance = 0", write_registers_pdu(advance.address, [0, 0])),
+        ("speed_factor = 2", write_registers_pdu(0, encode(sim["speed_factor"], 2.0))),
+        ("speed_factor = 0.001", write_registers_pdu(0, encode(sim["speed_factor"], 0.001))),
+        ("clock_mode = 1", fc6(2, 1)),
+        ("clock_mode = 2", fc6(2, 2)),
+        ("reset = 1", fc6(sim["reset"].address, 1)),
+        ("reset = 2", fc6(sim["reset"].address, 2)),
+        ("fault_kind = 10", fc6(10, 10)),
+        ("fault block, fault_kind = 10", write_registers_pdu(10, [10, 1])),
+    ]
+    before = srv.values()
+    for label, pdu in writes:
+        assert ask(srv.port, 100, pdu) == bytes([pdu[0] | 0x80, 0x01]), label
+    after = srv.values()
+    for name in ("speed_factor", "clock_mode", "lockstep_counter", "fault_kind"):
+        assert after[name] == before[name], name
+    assert srv.server.emulator.sim_time_s >= before["sim_time_s"]  # no reset: time went on
+    why = srv.call(srv.server.write_signal("speed_factor", 0.001))
+    assert why is not None and "exception 01" in why and "--allow-control" in why, why

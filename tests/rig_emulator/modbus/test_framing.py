@@ -137,8 +137,6 @@ def test_an_undecodable_frame_does_not_discard_the_frames_after_it(serve):
         ("protocol id 1", struct.pack(">HHHB", 9, 1, 6, PLC) + read_pdu(4, 0, 1)),
         ("protocol id 0xFFFF", struct.pack(">HHHB", 9, 0xFFFF, 6, PLC) + read_pdu(4, 0, 1)),
         ("protocol id 5, 2-byte PDU", struct.pack(">HHHB", 9, 5, 3, PLC) + bytes([4, 0])),
-        ("length 0", struct.pack(">HHH", 9, 0, 0)),
-        ("length 1", struct.pack(">HHHB", 9, 0, 1, PLC)),
     ],
 )
 def test_a_frame_with_a_wrong_mbap_header_is_discarded_and_the_rest_answered(
@@ -146,9 +144,10 @@ def test_a_frame_with_a_wrong_mbap_header_is_discarded_and_the_rest_answered(
 ):
     """The guide's 4.4.2.2: "If an error is detected on the MBAP, the indication is
     discarded"; "The Protocol Identifier field has to be checked: If it is different from
-    MODBUS protocol type, the indication is simply discarded." Its length still says where
-    the next frame starts: no answer to it, the frames before and after it are answered on
-    the same connection, one warning names it."""
+    MODBUS protocol type, the indication is simply discarded." Its length (2 to 254) still
+    says where the next frame starts: no answer to it, the frames before and after it are
+    answered on the same connection, one warning names it (two in a row are still
+    discarded: three end the stream, see below)."""
     srv = serve()
     good, counts = _reads(2)
     caplog.set_level(logging.WARNING, logger="rig_emulator.serve")
@@ -169,13 +168,18 @@ def test_a_frame_with_a_wrong_mbap_header_is_discarded_and_the_rest_answered(
         ("length 255", struct.pack(">HHHB", 9, 0, 255, PLC) + read_pdu(4, 0, 1)),
         ("length 0xFFFF", struct.pack(">HHHB", 9, 0, 0xFFFF, PLC) + read_pdu(4, 0, 1)),
         ("length 0xFFFF, 6 bytes only", struct.pack(">HHH", 9, 0, 0xFFFF)),
+        ("length 0", struct.pack(">HHH", 9, 0, 0)),
+        ("length 1", struct.pack(">HHHB", 9, 0, 1, PLC)),
+        ("length 1, 6 bytes only", struct.pack(">HHH", 9, 0, 1)),
     ],
 )
-def test_a_length_over_254_answers_what_came_before_then_closes_with_a_log_line(
+def test_a_length_over_254_or_below_2_answers_what_came_before_then_closes_with_a_log_line(
     serve, caplog, label, header
 ):
-    """A frame longer than any Modbus TCP ADU (260 bytes): its length cannot be trusted to
-    find the next frame. Never a silent stall: the requests before it are answered, then
+    """A frame longer than any Modbus TCP ADU (260 bytes), or a length that no frame has
+    (the guide's 3.1.3: it counts the unit identifier and the PDU, so 1 leaves no function
+    code and 0 not even the unit): the stream is out of step, its length cannot be trusted
+    to find the next frame. Never a silent stall: the requests before it are answered, then
     the connection is closed (one warning naming the header), and the server serves
     others. Six bytes of header are enough to decide."""
     srv = serve()
@@ -189,6 +193,65 @@ def test_a_length_over_254_answers_what_came_before_then_closes_with_a_log_line(
     with connect(srv.port) as s:
         s.sendall(good)
         _check_read_replies(Replies(s).take(2), counts)
+
+
+def test_a_client_whose_length_leaves_out_a_byte_is_closed_not_left_hanging(serve, caplog):
+    """A stranger's probe: a request whose MBAP length is one byte short (a client that
+    leaves out the unit identifier) put every later header a byte off; each 6 bytes then
+    read as a "frame" with protocol id not 0 and length 0, discarded one by one, and the
+    well-formed requests after it got no answer until the 300 s idle timeout, the log
+    saying "the frames after it are answered". Now the short frame gets its 03 (its PDU is
+    cut), the out-of-step header after it closes the connection at once, and the log line
+    says so."""
+    srv = serve()
+    caplog.set_level(logging.WARNING, logger="rig_emulator.serve")
+    short = read_pdu(3, 0, 2)
+    with connect(srv.port) as s:
+        s.sendall(frame(7, PLC, short, length=len(short)))  # unit id + 4 of its 5 bytes
+        assert Replies(s).next() == (7, PLC, bytes([0x83, 0x03]))
+        s.sendall(frame(8, PLC, short))  # well formed, read from a byte off
+        # 5 s: the old server held the connection open and silent for its idle timeout
+        assert closed_by_server(s, timeout=5.0)
+    messages = [r.getMessage() for r in caplog.records]
+    closes = [m for m in messages if m.startswith("closing the connection")]
+    assert len(closes) == 1 and "length field 0" in closes[0] and "out of step" in closes[0]
+    assert not any("the frames after it are answered" in m for m in messages)
+    good, counts = _reads(2)
+    with connect(srv.port) as s:  # the server serves others as before
+        s.sendall(good)
+        _check_read_replies(Replies(s).take(2), counts)
+
+
+@pytest.mark.parametrize("segments", ["one", "each alone"])
+def test_three_frames_of_another_protocol_in_a_row_close_the_stream(serve, caplog, segments):
+    """A stranger's probe showed a stream out of step yielding wrong frames one after the
+    other, each discarded and none answered. Two in a row are discarded as the guide's
+    4.4.2.2 says (the test above); a third with no valid frame between them shows the
+    stream out of step, whether they come in one segment or one by one: the requests
+    before them are answered, the connection is closed with one line saying why, the
+    request after them is not answered."""
+    srv = serve()
+    caplog.set_level(logging.WARNING, logger="rig_emulator.serve")
+    good, counts = _reads(2)
+    bad = [struct.pack(">HHHB", 9 + i, 7, 6, PLC) + read_pdu(4, 0, 1) for i in range(3)]
+    with connect(srv.port) as s:
+        if segments == "one":
+            s.sendall(good + b"".join(bad) + good)
+        else:
+            s.sendall(good)
+            for piece in bad:
+                time.sleep(0.05)  # each its own segment, parsed on its own (TCP_NODELAY)
+                s.sendall(piece)
+            s.sendall(good)
+        replies = Replies(s)
+        _check_read_replies(replies.take(2), counts)
+        assert closed_by_server(s, timeout=5.0)  # (the 5 s a bound only: closed at once)
+        assert replies.data == b"", "the request after the run was answered"
+    messages = [r.getMessage() for r in caplog.records]
+    closes = [m for m in messages if m.startswith("closing the connection")]
+    assert len(closes) == 1 and "3 frames in a row" in closes[0], closes
+    assert "transaction 11: protocol identifier 7" in closes[0]
+    assert not any("the frames after it are answered" in m for m in messages)
 
 
 def test_truncated_frames_then_close_leave_the_server_serving(serve):
