@@ -78,7 +78,7 @@ INVALID_ROLE = "<invalid role extension>"
 #: the Unicode categories (``unicodedata.category``) no role name holds and a log shows
 #: escaped: a control character writes lines of its own into a log, a format character
 #: (soft hyphen, zero-width space, a bidi override such as U+202E) makes a name display as
-#: another; spaces of any kind (Zs) are text
+#: another (but for :data:`SPELLING_FORMAT_CHARACTERS`); spaces of any kind (Zs) are text
 HIDDEN_CATEGORIES = {
     "Cc": "a control character",
     "Cf": "a format character, which makes a name display as another",
@@ -159,8 +159,17 @@ class RolePolicy:
         )
 
 
+#: The format characters that are part of the spelling of names: the zero-width non-joiner
+#: and joiner (Persian, the Indic scripts, emoji sequences such as a scientist's; refusing
+#: them refused names that worked before: a re-probe)
+SPELLING_FORMAT_CHARACTERS = frozenset("\u200c\u200d")
+
+
 def _hidden(character: str) -> bool:
-    return unicodedata.category(character) in HIDDEN_CATEGORIES
+    return (
+        unicodedata.category(character) in HIDDEN_CATEGORIES
+        and character not in SPELLING_FORMAT_CHARACTERS
+    )
 
 
 def shown(text: str) -> str:

@@ -17,8 +17,21 @@ from rig_emulator.modbus.roles import INVALID_ROLE, RolesError, policy_from_mapp
 from tests.rig_emulator.transports.served import run_serve, serving, tcp_exchange, tls_connect
 
 #: names a stranger's probe saw refused ("holds '>'", "not printable") that display as
-#: themselves: a no-break space and an em space are spaces, a combining accent is text
-NAMES_TAKEN = ["a->b", "op<1>", "lab\u00a0tech", "lab\u2003tech", "e\u0301ng", "运维", "😀"]
+#: themselves: a no-break space and an em space are spaces, a combining accent is text; and
+#: names a re-probe saw refused that worked before, spelt with a zero-width non-joiner
+#: (Persian) or joiner (Devanagari, an emoji sequence)
+NAMES_TAKEN = [
+    "a->b",
+    "op<1>",
+    "lab\u00a0tech",
+    "lab\u2003tech",
+    "e\u0301ng",
+    "运维",
+    "😀",
+    "\u06a9\u0627\u0631\u0634\u0646\u0627\u0633\u200c\u0627\u0631\u0634\u062f",
+    "\u0915\u094d\u200d\u0937",
+    "\U0001f469\u200d\U0001f52c",
+]
 #: names holding a character that displays as another or as nothing, and the code point
 #: the refusal names
 NAMES_REFUSED = [
