@@ -253,7 +253,7 @@ class Dashboard:
             "time_s": time_s,
             # which plant the trend is of: a new epoch (a restarted server) or reset count
             # starts a new history, whatever the times (the page keeps it the same way)
-            "run": {"epoch_id": self.server.epoch_id, "resets": self.server.published_resets},
+            "run": self._trend_run(),
             "clock": {
                 "mode": CLOCK_MODES.get(int(clock.mode), str(clock.mode)),
                 "speed": clock.speed,
@@ -286,7 +286,14 @@ class Dashboard:
         }
 
     def state(self, window_s: float | None = None) -> dict:
-        return self._last | {"trend": self.trend.as_dict(window_s)}
+        """The last push's state with the trend as it is now, tagged with the plant run the
+        trend is of (the push's run, up to a push old, named the plant before a reset
+        while the trend was the new one's: a page would have thrown its points away, a
+        re-probe)."""
+        return self._last | {"trend": self.trend.as_dict(window_s), "run": self._trend_run()}
+
+    def _trend_run(self) -> dict:
+        return {"epoch_id": self.server.epoch_id, "resets": self.trend.run}
 
     async def _push_loop(self) -> None:
         while True:
@@ -395,7 +402,10 @@ class Dashboard:
         self._streams[queue] = writer
         try:
             writer.write(STREAM_HEAD)
-            first = self._last | {"trend_point": self.trend.as_dict(0.0)}
+            first = self._last | {
+                "trend_point": self.trend.as_dict(0.0),
+                "run": self._trend_run(),
+            }
             writer.write(f"data: {json.dumps(first, allow_nan=False)}\n\n".encode())
             await writer.drain()
             while True:
