@@ -19,9 +19,30 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from rig_emulator.certs import ROLE_OID, Issued
 from rig_emulator.modbus.rtu_wire import frame, reply_length
 
 REPO = Path(__file__).resolve().parents[3]
+
+
+def with_role_extension(ca: Issued, client: Issued, der: bytes, critical: bool) -> Issued:
+    """``client`` issued again by ``ca`` with one more role extension (OID
+    1.3.6.1.4.1.50316.802.1) of the DER value ``der`` (a role encoded wrongly, or marked
+    critical: what ``rig-emulator certs`` never makes)."""
+    from cryptography import x509
+    from cryptography.hazmat.primitives import hashes
+
+    role = x509.UnrecognizedExtension(x509.ObjectIdentifier(ROLE_OID), der)
+    builder = x509.CertificateBuilder(
+        client.cert.issuer,
+        client.cert.subject,
+        client.cert.public_key(),
+        client.cert.serial_number,
+        client.cert.not_valid_before_utc,
+        client.cert.not_valid_after_utc,
+        [*client.cert.extensions],
+    ).add_extension(role, critical=critical)
+    return Issued(client.key, builder.sign(ca.key, hashes.SHA256()))
 
 
 @dataclass

@@ -7,10 +7,8 @@ from __future__ import annotations
 import struct
 
 import pytest
-from cryptography import x509
-from cryptography.hazmat.primitives import hashes
 
-from rig_emulator.certs import ROLE_OID, Issued, make_ca, make_client, make_server, write_pair
+from rig_emulator.certs import Issued, make_ca, make_client, make_server, write_pair
 from rig_emulator.modbus.roles import INVALID_ROLE, Role, RolePolicy
 from tests.rig_emulator.transports.served import (
     RtuClient,
@@ -18,6 +16,7 @@ from tests.rig_emulator.transports.served import (
     serving,
     tcp_exchange,
     tls_connect,
+    with_role_extension,
 )
 
 #: the stranger's roles file: the operator reads only unit 7, writes units 1 and 7
@@ -136,20 +135,9 @@ def test_a_malformed_role_extension_may_do_nothing_whatever_the_policy(serve, tm
     from rig_emulator.modbus.transports import Transports
 
     ca, _ = _lab(tmp_path)
-    printable = x509.UnrecognizedExtension(
-        x509.ObjectIdentifier(ROLE_OID), bytes([0x13, 8]) + b"engineer"
-    )
     client = make_client(ca, "printable", None)
-    builder = x509.CertificateBuilder(
-        client.cert.issuer,
-        client.cert.subject,
-        client.cert.public_key(),
-        client.cert.serial_number,
-        client.cert.not_valid_before_utc,
-        client.cert.not_valid_after_utc,
-        [*client.cert.extensions],
-    ).add_extension(printable, critical=False)
-    write_pair(Issued(client.key, builder.sign(ca.key, hashes.SHA256())), tmp_path, "printable")
+    printable = bytes([0x13, 8]) + b"engineer"  # a PrintableString, not a UTF8String
+    write_pair(with_role_extension(ca, client, printable, False), tmp_path, "printable")
     everything = frozenset(range(256))
     policy = RolePolicy(
         {

@@ -9,11 +9,15 @@ import struct
 import time
 
 import pytest
-from cryptography import x509
-from cryptography.hazmat.primitives import hashes
 
-from rig_emulator.certs import ROLE_OID, Issued, make_ca, make_client, make_server, write_pair
-from tests.rig_emulator.transports.served import run_serve, serving, tcp_exchange, tls_connect
+from rig_emulator.certs import make_ca, make_client, make_server, write_pair
+from tests.rig_emulator.transports.served import (
+    run_serve,
+    serving,
+    tcp_exchange,
+    tls_connect,
+    with_role_extension,
+)
 
 
 @pytest.fixture
@@ -122,17 +126,8 @@ def test_a_critical_role_extension_is_refused_and_the_log_says_why(lab):
     guess which extension and what to do; now it names the role extension and the cure."""
     ca, d = lab
     client = make_client(ca, "critical engineer", None)
-    role = x509.UnrecognizedExtension(x509.ObjectIdentifier(ROLE_OID), b"\x0c\x08engineer")
-    builder = x509.CertificateBuilder(
-        client.cert.issuer,
-        client.cert.subject,
-        client.cert.public_key(),
-        client.cert.serial_number,
-        client.cert.not_valid_before_utc,
-        client.cert.not_valid_after_utc,
-        [*client.cert.extensions],
-    ).add_extension(role, critical=True)
-    write_pair(Issued(client.key, builder.sign(ca.key, hashes.SHA256())), d, "critical")
+    role = b"\x0c\x08engineer"  # the right UTF8String, marked critical
+    write_pair(with_role_extension(ca, client, role, True), d, "critical")
     with serving(*_tls(d)) as served:
         with pytest.raises((ssl.SSLError, ConnectionError, OSError)):
             sock = tls_connect(served.port, d, "critical")
