@@ -43,10 +43,17 @@ def _when_cooling(out: Path, rows: int, then) -> threading.Thread:
     return thread
 
 
-def _run(port: int, out: Path, protocol: Path) -> int:
+def _run_while(port: int, out: Path, then) -> int:
+    """``hil-client run`` of :data:`RT` to ``out``; ``then()`` from another thread 15 rows
+    into its first cooling (:func:`_when_cooling`). The run's exit code."""
+    protocol = out.with_name("rt.yaml")
+    protocol.write_text(RT)
+    other = _when_cooling(out, 15, then)
     rig = f"modbus://127.0.0.1:{port}"
-    return main(["run", str(protocol), "--boiler", BOILER, "--quiet", "--rig", rig,
+    code = main(["run", str(protocol), "--boiler", BOILER, "--quiet", "--rig", rig,
                  "--out", str(out)])  # fmt: skip
+    other.join(timeout=10)
+    return code
 
 
 def _write(port: int, *points: tuple[str, float]) -> None:
@@ -94,12 +101,8 @@ def test_another_client_changing_the_speed_is_recorded_not_blamed_on_the_client(
     plant as it is", though no row was missing. The meta says the clock as it ended and
     every speed seen, the note quotes both, and stderr says what happened."""
     srv = serve_process("--speed", f"{SPEED:g}", "--allow-control")
-    protocol = tmp_path / "rt.yaml"
-    protocol.write_text(RT)
     out = tmp_path / "speed.csv"
-    other = _when_cooling(out, 15, lambda: _write(srv.port, ("speed_factor", 10000.0)))
-    assert _run(srv.port, out, protocol) == 0
-    other.join(timeout=10)
+    assert _run_while(srv.port, out, lambda: _write(srv.port, ("speed_factor", 10000.0))) == 0
     meta = _meta(out)
     (gap,) = meta["gaps"]
     assert "speed changed from x100 to x10000" in gap["reason"], gap
@@ -121,8 +124,6 @@ def test_a_server_that_stalled_is_not_blamed_on_the_client(serve_process, tmp_pa
     paused, swapped out or overloaded"). The client kept its pace, waiting on the
     server's replies: the note says the server answered late."""
     srv = serve_process("--speed", f"{SPEED:g}")
-    protocol = tmp_path / "rt.yaml"
-    protocol.write_text(RT)
     out = tmp_path / "stall.csv"
 
     def stall() -> None:
@@ -130,9 +131,7 @@ def test_a_server_that_stalled_is_not_blamed_on_the_client(serve_process, tmp_pa
         time.sleep(2.0)  # 200 simulated seconds, under the client's reply timeout
         os.kill(srv.proc.pid, signal.SIGCONT)
 
-    other = _when_cooling(out, 15, stall)
-    assert _run(srv.port, out, protocol) == 0
-    other.join(timeout=10)
+    assert _run_while(srv.port, out, stall) == 0
     meta = _meta(out)
     holes = [n for n in meta["notes"] if n.startswith("no row from time_s")]
     # the server now drops a stall rather than chase it (rig_emulator.clock.RealTimeTicks),
@@ -152,8 +151,6 @@ def test_a_hole_from_a_unit_s_late_replies_names_the_unit(serve_process, tmp_pat
     1500-ms delay on unit 1 for 150 simulated seconds (1.5 s of wall at x100, rows 10 s
     apart), which leaves a hole of at least a hundred seconds."""
     srv = serve_process("--speed", f"{SPEED:g}", "--allow-control")
-    protocol = tmp_path / "rt.yaml"
-    protocol.write_text(RT)
     out = tmp_path / "delay.csv"
     fault = (
         ("fault_kind", KIND_CODES["delay"]),
@@ -163,9 +160,7 @@ def test_a_hole_from_a_unit_s_late_replies_names_the_unit(serve_process, tmp_pat
         ("fault_at_s", 0.0),  # now
         ("fault_command", 1),
     )
-    other = _when_cooling(out, 15, lambda: _write_block(srv.port, *fault))
-    assert _run(srv.port, out, protocol) == 0
-    other.join(timeout=10)
+    assert _run_while(srv.port, out, lambda: _write_block(srv.port, *fault)) == 0
     meta = _meta(out)
     holes = [n for n in meta["notes"] if n.startswith("no row from time_s")]
     assert holes, meta["notes"]
@@ -179,12 +174,8 @@ def test_a_lockstep_server_switched_to_real_time_is_named(serve_process, tmp_pat
     stopped with "unit 100: function 16 refused with exception 03" alone. The message
     and the meta file's gap say the server's clock left lockstep."""
     srv = serve_process("--lockstep")
-    protocol = tmp_path / "rt.yaml"
-    protocol.write_text(RT)
     out = tmp_path / "left.csv"
-    other = _when_cooling(out, 15, lambda: _write(srv.port, ("clock_mode", 0.0)))
-    assert _run(srv.port, out, protocol) == 1
-    other.join(timeout=10)
+    assert _run_while(srv.port, out, lambda: _write(srv.port, ("clock_mode", 0.0))) == 1
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "the server's clock left lockstep" in err, err
     (gap,) = _meta(out)["gaps"]

@@ -25,14 +25,16 @@ from rig_emulator.modbus.rtu_wire import frame, reply_length
 REPO = Path(__file__).resolve().parents[3]
 
 
-def with_role_extension(ca: Issued, client: Issued, der: bytes, critical: bool) -> Issued:
-    """``client`` issued again by ``ca`` with one more role extension (OID
-    1.3.6.1.4.1.50316.802.1) of the DER value ``der`` (a role encoded wrongly, or marked
-    critical: what ``rig-emulator certs`` never makes)."""
+def with_role_extension(
+    ca: Issued, client: Issued, der: bytes, critical: bool, oid: str = ROLE_OID
+) -> Issued:
+    """``client`` issued again by ``ca`` with one more extension, the role's (OID
+    1.3.6.1.4.1.50316.802.1) unless ``oid`` says another, of the DER value ``der`` (a role
+    encoded wrongly, or marked critical: what ``rig-emulator certs`` never makes)."""
     from cryptography import x509
     from cryptography.hazmat.primitives import hashes
 
-    role = x509.UnrecognizedExtension(x509.ObjectIdentifier(ROLE_OID), der)
+    role = x509.UnrecognizedExtension(x509.ObjectIdentifier(oid), der)
     builder = x509.CertificateBuilder(
         client.cert.issuer,
         client.cert.subject,

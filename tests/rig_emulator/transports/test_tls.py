@@ -633,33 +633,16 @@ def _der_with_role_twice() -> bytes:
     """A client certificate whose role extension comes twice (observer, then engineer): the
     builder refuses that, so a second, unknown extension is renamed in the DER (the
     signature no longer matters: OpenSSL verified the chain before ``peer_of`` is asked)."""
-    from cryptography import x509
-    from cryptography.hazmat.primitives import hashes, serialization
+    from cryptography.hazmat.primitives import serialization
 
     from rig_emulator.certs import ROLE_OID, utf8_string_der
+    from tests.rig_emulator.transports.served import with_role_extension
 
     ca = make_ca()
     client = make_client(ca, "twice", "observer")
     other = ROLE_OID[:-1] + "2"
-    builder = x509.CertificateBuilder(
-        client.cert.issuer,
-        client.cert.subject,
-        client.cert.public_key(),
-        client.cert.serial_number,
-        client.cert.not_valid_before_utc,
-        client.cert.not_valid_after_utc,
-        [
-            *client.cert.extensions,
-            x509.Extension(
-                x509.ObjectIdentifier(other),
-                False,
-                x509.UnrecognizedExtension(
-                    x509.ObjectIdentifier(other), utf8_string_der("engineer")
-                ),
-            ),
-        ],
-    )
-    der = builder.sign(ca.key, hashes.SHA256()).public_bytes(serialization.Encoding.DER)
+    twice = with_role_extension(ca, client, utf8_string_der("engineer"), False, oid=other)
+    der = twice.cert.public_bytes(serialization.Encoding.DER)
     # the OIDs' DER ends: 802 is 0x86 0x22, then the last arc
     tail_other, tail_role = bytes([0x86, 0x22, 0x02]), bytes([0x86, 0x22, 0x01])
     assert der.count(tail_other) == 1
