@@ -39,6 +39,7 @@ from rig_emulator.bench.bench import (
     YB_VELOCITY,
 )
 from rig_emulator.instruments import InstrumentBank, Profile
+from rig_emulator.instruments.profile import InstrumentSpec
 from rig_emulator.model.constants import V_MOLAR_N
 from rig_emulator.model.layout import (
     K_SET,
@@ -129,6 +130,15 @@ def boiler_identity(params: BoilerParams, config: BenchConfig | None = None) -> 
     return _hash32([values, dataclasses.asdict(config or BenchConfig())])
 
 
+def _spec_identity(spec: InstrumentSpec) -> dict[str, object]:
+    """An instrument's spec as hashed: an absent ``reading_min`` left out, so a profile
+    without floors keeps the ``profile_id`` it had before instruments could have one."""
+    fields = dataclasses.asdict(spec)
+    if fields.get("reading_min") is None:
+        fields.pop("reading_min", None)
+    return fields
+
+
 def plant_identity(
     params: BoilerParams, profile: Profile, seed: int, config: BenchConfig
 ) -> dict[str, float]:
@@ -137,7 +147,7 @@ def plant_identity(
     2**32. Two servers started with the same files and seed publish the same values."""
     profile_data = {
         "name": profile.name,
-        "instruments": {k: dataclasses.asdict(v) for k, v in profile.instruments.items()},
+        "instruments": {k: _spec_identity(v) for k, v in profile.instruments.items()},
         "effects": {k: dict(v) for k, v in profile.effects.items()},
     }
     return {

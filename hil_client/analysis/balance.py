@@ -1,9 +1,14 @@
 """Energy balance from the instruments, as the lab computes it (Eq. 3-7, EN 14785).
 
 Per phase:
-- fuel power on a cumulative basis (the balance does not resolve single seconds):
-  m_dry = (mass at start - mass at end) / (as-received per kg dry - ash), Q_fuel = m_dry HHV
-  / duration (Eq. 3);
+- fuel power on a cumulative basis (the balance does not resolve single seconds). The boiler
+  stands on the balance with its ash box (:mod:`rig_emulator.bench.bench`), so the balance
+  loses the fuel as received less its ash, which stays in the box:
+  balance loss = mass at start - mass at end, refills taken out (``balance_loss_kg``);
+  m_dry = balance loss / (as-received per kg dry - ash per kg dry) (``fuel_dry_kg``);
+  fuel as received = m_dry x as-received per kg dry = m_dry / (1 - moisture)
+  (``fuel_as_received_kg``, the balance loss plus the ash m_dry x ash);
+  Q_fuel = m_dry HHV / duration (Eq. 3);
 - excess air from the dry O2 reading (exact inverse of the stoichiometry, ~21/(21-O2));
 - flue-gas losses per kg of dry fuel from flue-gas temperature, composition and CO
   (Eq. 4-6), averaged over the rows where the burner fires (O2 below 19 vol-%), times the
@@ -53,7 +58,10 @@ class PhaseBalance:
 
     phase: str
     duration_s: float
+    #: the fuel burnt, as received (with its moisture and ash) [kg]
     fuel_as_received_kg: float
+    #: what the balance lost, refills taken out: the fuel as received less its ash [kg]
+    balance_loss_kg: float
     fuel_dry_kg: float
     q_fuel_kW: float
     q_water_kW: float
@@ -154,7 +162,7 @@ def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[Ph
                 f"{duration / 60:.0f} min recorded, not the whole phase"
             )
         first = max(idx[0] - 1, 0)
-        fuel_ar = float(get["balance_mass_kg"][first] - get["balance_mass_kg"][idx[-1]])
+        balance_loss = float(get["balance_mass_kg"][first] - get["balance_mass_kg"][idx[-1]])
         burn = idx[firing[idx]]
         fired_s = float(dt[burn].sum())
         read = mass[first : idx[-1] + 1]
@@ -165,7 +173,7 @@ def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[Ph
                 "efficiencies unknown"
             )
         elif stuck_all or (fired_s >= STUCK_FIRING_S and (not len(read) or np.ptp(read) == 0)):
-            fuel_ar = math.nan
+            balance_loss = math.nan
             what = f"reads {read[0]:g} kg" if len(read) else "has no reading"
             where = "the log's" if stuck_all else "the phase's"
             minutes = (fired_all if stuck_all else fired_s) / 60
@@ -173,7 +181,11 @@ def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[Ph
                 f"the balance {what} throughout {where} {minutes:.0f} min of firing (stuck?): "
                 "fuel, Q_fuel, flue-gas loss and efficiencies unknown"
             )
-        fuel_dry = max(fuel_ar, 0.0) / per_kg_dry if math.isfinite(fuel_ar) else math.nan
+        fuel_dry = max(balance_loss, 0.0) / per_kg_dry if math.isfinite(balance_loss) else math.nan
+        # (the balance's loss was given as the fuel as received, short of the ash left in
+        # the box: read as such, it made a moisture error that does not exist, a stranger's
+        # probe)
+        fuel_as_received = fuel_dry * params.fuel.as_received_per_kg_dry
         q_fuel = fuel_dry * hhv / duration
         q_w = float((q_water[idx] * dt[idx]).sum() / duration)
         if no_water:
@@ -220,7 +232,8 @@ def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[Ph
             PhaseBalance(
                 name,
                 duration,
-                fuel_ar,
+                fuel_as_received,
+                balance_loss,
                 fuel_dry,
                 q_fuel,
                 q_w,

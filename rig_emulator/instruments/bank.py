@@ -2,8 +2,9 @@
 
 Each measured signal passes, in this order: dead time (sample line), first-order lag
 (thermowell, analyser cell), then at each update instant a fixed accuracy error drawn once
-from the tolerance band, white noise, and rounding to the resolution; between updates the
-reading is held. With an ideal spec the reading equals the plant value exactly.
+from the tolerance band, white noise, rounding to the resolution, and the floor of what the
+instrument can show (``reading_min``: a vortex meter reads no negative velocity); between
+updates the reading is held. With an ideal spec the reading equals the plant value exactly.
 """
 
 from __future__ import annotations
@@ -29,11 +30,13 @@ def _update(
     noise_rel,
     normals,
     resolution,
+    reading_min,
     period,
     next_update,
     reading,
 ):
-    """Lag, then (where an update is due) fixed error, noise, rounding; arrays in place."""
+    """Lag, then (where an update is due) fixed error, noise, rounding, floor; arrays in
+    place."""
     for i in range(x.size):
         lagged[i] = x[i] + (lagged[i] - x[i]) * keep[i]
         if time_s + 1e-9 < next_update[i]:
@@ -44,6 +47,8 @@ def _update(
         v += normals[i] * (noise_sd[i] + noise_rel[i] * mag)
         if resolution[i] > 0:
             v = np.round(v / resolution[i]) * resolution[i]
+        if v < reading_min[i]:  # (a NaN stays NaN)
+            v = reading_min[i]
         reading[i] = v
         if period[i] > 0:
             next_update[i] = (np.floor(time_s / period[i]) + 1.0) * period[i]
@@ -63,6 +68,10 @@ class InstrumentBank:
         self.noise_sd = np.array([s.noise_sd for s in specs])
         self.noise_rel = np.array([s.noise_rel for s in specs])
         self.resolution = np.array([s.resolution for s in specs])
+        # no floor: -inf, which every reading is above
+        self.reading_min = np.array(
+            [-np.inf if s.reading_min is None else s.reading_min for s in specs]
+        )
         self.lag_s = np.array([s.lag_s for s in specs])
         self.delay_s = [s.delay_s for s in specs]
         self.period = np.array([s.update_period_s for s in specs])
@@ -112,6 +121,7 @@ class InstrumentBank:
             self.noise_rel,
             self._rng.standard_normal(len(x)),
             self.resolution,
+            self.reading_min,
             self.period,
             self._next_update,
             self._reading,

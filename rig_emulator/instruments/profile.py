@@ -17,7 +17,15 @@ Keys of an instrument (all optional, default 0 = ideal):
 - ``resolution`` [unit]: the reading is rounded to a multiple of it;
 - ``lag_s`` [s]: first-order response time constant (thermowell, analyser cell);
 - ``delay_s`` [s]: dead time (sample line transport);
-- ``update_period_s`` [s]: the reading is refreshed only this often and held in between.
+- ``update_period_s`` [s]: the reading is refreshed only this often and held in between;
+- ``reading_min`` [unit]: the lowest value the instrument can show (absent: none), applied
+  after the error, noise and rounding. It is a property of how the instrument measures, not
+  of the signal: a vortex flow meter counts the frequency of the vortices shed behind its
+  bluff body and a frequency is never below zero, so a fixed error and noise around a
+  near-still flue gas read 0 m/s, never -0.18 m/s (a stranger's probe of the ``lab``
+  profile). A gas analyser's small negative reading, by contrast, is its zero drift and is
+  real, so the shipped profiles give a floor to the vortex meter only. Any measured signal
+  may have one (the profile author's choice); it is 0 or more, in the signal's unit.
 
 Signals not listed are ideal. ``clean`` lists none.
 
@@ -51,7 +59,8 @@ from rig_emulator.yamlio import finite_number, read_yaml, resolve_named
 
 PROFILE_DIR = Path(__file__).resolve().parent.parent / "profiles"
 
-INSTRUMENT_KEYS = (
+#: The keys of an instrument's errors: 0 is the ideal instrument's value of each.
+ERROR_KEYS = (
     "accuracy_abs",
     "accuracy_rel",
     "noise_sd",
@@ -61,12 +70,15 @@ INSTRUMENT_KEYS = (
     "delay_s",
     "update_period_s",
 )
+#: Every key of an instrument: its errors and the lowest value it can show (absent: none).
+INSTRUMENT_KEYS = (*ERROR_KEYS, "reading_min")
 
 
 #: The largest value each key may take: a relative error of 100 %; a lag, dead time or
 #: update period of an hour (beyond that the reading is of another test); an absolute
-#: error of 10,000 of the signal's units (the widest range of the bench's instruments: CO
-#: and OGC in ppm). Beyond these a profile describes no instrument (a noise of 1e300 K).
+#: error or a lowest reading of 10,000 of the signal's units (the widest range of the
+#: bench's instruments: CO and OGC in ppm). Beyond these a profile describes no instrument
+#: (a noise of 1e300 K).
 INSTRUMENT_BOUNDS = {
     "accuracy_abs": 1e4,
     "accuracy_rel": 1.0,
@@ -76,6 +88,7 @@ INSTRUMENT_BOUNDS = {
     "lag_s": 3600.0,
     "delay_s": 3600.0,
     "update_period_s": 3600.0,
+    "reading_min": 1e4,
 }
 
 
@@ -95,10 +108,14 @@ class InstrumentSpec:
     lag_s: float = 0.0
     delay_s: float = 0.0
     update_period_s: float = 0.0
+    #: the lowest value the instrument can show; None: no such limit
+    reading_min: float | None = None
 
     @property
     def ideal(self) -> bool:
-        return all(getattr(self, key) == 0.0 for key in INSTRUMENT_KEYS)
+        """Whether the reading is the plant value exactly: no error and no floor (a floor
+        alone changes a plant value below it)."""
+        return self.reading_min is None and all(getattr(self, key) == 0.0 for key in ERROR_KEYS)
 
 
 @dataclass(frozen=True, slots=True)

@@ -10,6 +10,7 @@ import pytest
 from hil_client.analysis.balance import energy_balance
 from hil_client.analysis.logio import LabLog
 from hil_client.analysis.phases import Phases
+from rig_emulator.boilers import load_boiler
 from rig_emulator.model import pack_constants, steady_state
 from rig_emulator.model.fuel import stoichiometry
 
@@ -90,8 +91,48 @@ def test_no_efficiency_from_a_step_of_the_balance(params_12kw):
     t_end = float(log.t[-1])
     phases = Phases(0.0, 0.5, t_end, t_end + 1, t_end + 2, "test")
     test = next(r for r in energy_balance(log, params_12kw, phases) if r.phase == "test")
-    assert test.fuel_as_received_kg == pytest.approx(0.02)
+    assert test.balance_loss_kg == pytest.approx(0.02)
+    fuel = params_12kw.fuel
+    assert test.fuel_as_received_kg == pytest.approx(
+        0.02 / fuel.balance_loss_per_kg_dry * fuel.as_received_per_kg_dry
+    )
     assert np.isnan(test.eta_direct) and np.isnan(test.eta_indirect)
+
+
+def test_the_fuel_as_received_is_the_fuel_not_what_the_balance_lost(run_log, capsys):
+    """A stranger's probe: `balance.json` gave the 12-kW stationary test's
+    `fuel_as_received_kg` as 15.985 kg, what the balance lost; but the boiler stands on the
+    balance with its ash box, so it loses the fuel as received less the ash that stays in
+    the box. Read as the fuel as received, 15.985 x (1 - 0.0594) = 15.035 kg dry against
+    the 15.089 kg given: a moisture error that does not exist. The fuel as received is the
+    dry fuel's 16.042 kg with its moisture; what the balance lost is `balance_loss_kg`."""
+    from hil_client.cli import main
+
+    rec = run_log("stationary", "windhager_12kw")
+    assert main(["balance", str(rec.path)]) == 0
+    table = capsys.readouterr().out
+    data = json.loads(rec.path.with_name(rec.path.stem + ".balance.json").read_text())
+    test = next(r for r in data["balance"] if r["phase"] == "test")
+    fuel = load_boiler("windhager_12kw").fuel
+    # what the balance lost over the test, from the log itself: the reading before the
+    # test's first row less its last (no refill in 6 h: 16 kg of the hopper's 100)
+    rows = [i for i, phase in enumerate(rec["phase"]) if phase == "test"]
+    mass = rec["balance_mass_kg"]
+    assert test["balance_loss_kg"] == pytest.approx(mass[rows[0] - 1] - mass[rows[-1]], abs=1e-9)
+    # the stranger's own reading of the key now gives the dry fuel given beside it
+    assert test["fuel_as_received_kg"] * (1.0 - fuel.moisture) == pytest.approx(
+        test["fuel_dry_kg"], rel=1e-12
+    )
+    # and the two differ by the ash left in the box (0.057 kg over this test)
+    assert test["fuel_as_received_kg"] - test["balance_loss_kg"] == pytest.approx(
+        test["fuel_dry_kg"] * fuel.ash, rel=1e-9
+    )
+    assert test["fuel_dry_kg"] * fuel.ash > 0.05
+    # the table's fuel column is the fuel as received, as its header says
+    head, units, *lines = table.splitlines()[1:]
+    assert head.split()[2:4] == ["fuel", "kg"] and units.split()[1] == "(a.r.)"
+    row = next(line for line in lines if line.startswith("test "))
+    assert row.split()[2] == f"{test['fuel_as_received_kg']:.2f}"
 
 
 def test_a_run_cut_short_gets_the_balance_of_the_phases_it_recorded(run_log, tmp_path, capsys):

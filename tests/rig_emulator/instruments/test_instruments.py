@@ -115,11 +115,39 @@ def test_lab_profile_covers_every_measured_signal_and_is_reproducible():
         # an integer of 400 digits has no float (OverflowError, a traceback: a probe)
         ({"name": "x", "instruments": {"room_temp_C": {"lag_s": 10**400}}}, "0..3600"),
         ({"name": "x", "extra": 1}, "unknown key 'extra'"),
+        # the lowest reading: a number of the signal's unit, 0 or more, as every key
+        *(
+            (
+                {"name": "x", "instruments": {"flue_gas_velocity_m_s": {"reading_min": bad}}},
+                f"'instruments.flue_gas_velocity_m_s.reading_min' must be {what}",
+            )
+            for bad, what in (
+                (-0.1, "finite, in 0..10000"),
+                (float("nan"), "finite, in 0..10000"),
+                (float("inf"), "finite, in 0..10000"),
+                (1e5, "finite, in 0..10000"),
+                ("0", "a number"),
+                (None, "a number"),
+                (True, "a number"),
+                ([0], "a number"),
+            )
+        ),
     ],
 )
 def test_broken_profiles_name_the_key(data, message):
     with pytest.raises(ProfileError, match=message.replace("(", r"\(")):
         profile_from_mapping(data, "p.yaml")
+
+
+@pytest.mark.parametrize("signal", MEASURED)
+def test_a_reading_floor_is_the_profile_authors_choice_on_any_signal(signal):
+    """A floor is declared per instrument, not kept for velocities and flows: any measured
+    signal takes one (0 included: the vortex meter's), and no floor is the default."""
+    profile = profile_from_mapping({"name": "x", "instruments": {signal: {"reading_min": 0}}})
+    assert profile.spec(signal).reading_min == 0.0 and not profile.spec(signal).ideal
+    profile = profile_from_mapping({"name": "x", "instruments": {signal: {"reading_min": 12.5}}})
+    assert profile.spec(signal).reading_min == 12.5
+    assert profile_from_mapping({"name": "x"}).spec(signal).reading_min is None
 
 
 def test_unknown_profile_name():
