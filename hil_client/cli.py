@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import filecmp
 import json
 import math
@@ -48,7 +49,7 @@ from hil_client.analysis.validate import compare, validation_metrics
 from hil_client.fault_files import EventsWriter, events_path, fault_report, write_report
 from hil_client.fault_files import summary as fault_summary
 from hil_client.jsonio import strict_json
-from hil_client.lablog import DECIMALS, LabLogWriter, meta_path, write_meta
+from hil_client.lablog import DECIMALS, LabLogWriter, meta_path, same_companions, write_meta
 from hil_client.modbus_client import WRITE_FUNCTIONS
 from hil_client.progress import LiveView, ProgressLine, hms
 from hil_client.protocol.definition import ProtocolError, load_protocol
@@ -823,58 +824,163 @@ def _overridden(events: list[dict]) -> str | None:
     )
 
 
-def _set_aside(out: Path) -> list[tuple[Path, Path]]:
-    """Move the files of a previous run at ``out`` (log, meta, Modbus events) aside, so a
-    run that fails before its first row (a server refusing this client's writes, Ctrl-C)
-    loses nothing; (original, aside) pairs."""
-    moved = []
-    for path in (out, meta_path(out), events_path(out)):
-        if path.exists():
-            aside = path.with_name(path.name + ".previous")
-            path.replace(aside)
-            moved.append((path, aside))
-    return moved
+#: How many names an earlier run's files are tried under (``NAME.previous.csv``,
+#: ``NAME.previous2.csv``, ...): each taken one is a log kept by a re-run that did not
+#: complete, or another run's.
+ASIDE_NAMES = 100
 
 
-def _earlier_run(out: Path, moved: list[tuple[Path, Path]]) -> str:
-    """A line on the earlier run's log at ``out`` that this run replaces (set aside in
-    ``moved`` until this run's first row)."""
-    aside = dict(moved)
-    what = "an earlier run's files"
-    if out in aside and aside[out].is_file():  # (a FIFO would be read forever)
-        try:
-            with aside[out].open("rb") as fh:
-                rows = max(sum(1 for _ in fh) - 1, 0)
-            meta_aside = aside.get(meta_path(out))
-            meta = json.loads(meta_aside.read_text()) if meta_aside and meta_aside.is_file() else {}
-        except (OSError, ValueError):
-            rows, meta = None, {}
-        done = {True: "complete", False: "not complete"}.get(meta.get("complete"), "")
-        facts = ", ".join(x for x in (f"{rows} rows" if rows is not None else "", done) if x)
-        what = f"an earlier run's log ({facts})" if facts else "an earlier run's log"
-    return f"{out} holds {what}: this run replaces it once it writes its first row"
+class _EarlierRun:
+    """The files an earlier run left at ``--out`` (its log, meta and Modbus events), set
+    aside while this run writes as a log of their own beside it: ``NAME.previous.csv``
+    with ``NAME.previous.meta.json`` and ``NAME.previous.modbus_events.jsonl`` (the first
+    of ``NAME.previous2.csv``, ... none of whose files exists), readable by every analysis
+    as they are, and what a run killed with -9 leaves. Only a run that completes replaces
+    them (deletes them); one that stops without a row puts them back; one that stops after
+    rows (Ctrl-C, a rig error, a full disk) keeps them there beside its partial log and
+    says so (a stranger's probe: Ctrl-C 2 s into a re-run, or a full disk, deleted the
+    complete 18-h log at its ``--out``; and the ``.previous`` a run killed with -9 left
+    was overwritten by the next run's set-aside). The name is locked as a log is
+    (:mod:`hil_client.run_lock`), so no other run writes or sets aside there meanwhile."""
 
+    def __init__(self, out: Path, held: contextlib.ExitStack) -> None:
+        self.out = out
+        self.moved: list[tuple[Path, Path]] = []  # (at --out, aside)
+        self.told = False  # where they are, said on stderr
+        self._held = held
+        self.aside = self._free_name() if self._present() else None
 
-def _settle_previous(out: Path, moved: list[tuple[Path, Path]], rows: int, gaps: list) -> None:
-    """After a run that wrote ``rows`` rows: with none, the previous run's files come back
-    and this run's own go (a header and a meta file with nothing to describe), unless,
-    with no previous run, its meta records a break (``gaps``: why it never got a row);
-    with rows, the previous run's files are deleted (this run's log replaces them)."""
-    if not rows and (moved or not gaps):
-        for path in (out, meta_path(out), events_path(out)):
-            with contextlib.suppress(OSError):  # (a read-only file system has none to go)
-                path.unlink(missing_ok=True)
-    for path, aside in moved:
-        if not rows:
+    def __bool__(self) -> bool:
+        return bool(self.moved)
+
+    def _present(self) -> list[Path]:
+        return [path for path in _log_files(self.out).values() if os.path.lexists(path)]
+
+    def _free_name(self) -> Path:
+        """The first free name for the earlier run's log, locked for this run (exit 2
+        where all are taken: the kept logs are the user's to look through)."""
+        for number in range(1, ASIDE_NAMES + 1):
+            tail = f"previous{number if number > 1 else ''}"
+            aside = self.out.with_name(f"{self.out.stem}.{tail}{self.out.suffix}")
+            files = [*_log_files(aside).values(), *same_companions(aside)]
+            if any(os.path.lexists(path) for path in files):
+                continue
+            try:
+                self._held.enter_context(run_lock(aside, "keeping", self.out))
+            except RunBusy:
+                continue
+            return aside
+        raise UsageError(
+            f"--out: '{self.out}' holds an earlier run's log, and {ASIDE_NAMES} earlier runs "
+            f"are kept beside it already ({self.out.stem}.previous*{self.out.suffix}): move "
+            "them away, or give another --out"
+        )
+
+    def set_aside(self) -> None:
+        """Move the earlier run's files to the free name, and say so on stderr."""
+        if self.aside is None:
+            return
+        names = dict(
+            zip(_log_files(self.out).values(), _log_files(self.aside).values(), strict=True)
+        )
+        for path in self._present():
+            path.replace(names[path])
+            self.moved.append((path, names[path]))
+        if self.moved:
+            self._held.callback(self._tell_if_left)
+            print(f"hil-client: {self._holds()}", file=sys.stderr)
+
+    def _holds(self) -> str:
+        """A line on the earlier run's log at ``--out`` and where it waits."""
+        aside = dict(self.moved)
+        what = "an earlier run's files"
+        if self.out in aside and aside[self.out].is_file():  # (a FIFO would be read forever)
+            try:
+                with aside[self.out].open("rb") as fh:
+                    rows = max(sum(1 for _ in fh) - 1, 0)
+                meta_aside = aside.get(meta_path(self.out))
+                meta = (
+                    json.loads(meta_aside.read_text())
+                    if meta_aside and meta_aside.is_file()
+                    else {}
+                )
+            except (OSError, ValueError):
+                rows, meta = None, {}
+            complete = meta.get("complete") if isinstance(meta, dict) else None
+            done = {True: "complete", False: "not complete"}.get(complete, "")
+            facts = ", ".join(x for x in (f"{rows} rows" if rows is not None else "", done) if x)
+            what = f"an earlier run's log ({facts})" if facts else "an earlier run's log"
+        return (
+            f"{self.out} holds {what}: this run replaces it once it completes; until then "
+            f"it is kept as {self._where()}"
+        )
+
+    def _where(self) -> str:
+        """The name the earlier run's files wait under (its log's, or each file's)."""
+        aside = dict(self.moved)
+        if self.out in aside:
+            return str(aside[self.out])
+        return ", ".join(str(path) for _, path in self.moved)
+
+    def kept(self, disk_full: bool = False) -> str:
+        """Where the earlier run's files stay after a run that stopped with rows (and, on
+        a full disk, that they take part of it: the user decides, nothing is deleted)."""
+        self.told = True
+        line = f"the earlier run's log is kept as {self._where()} (a run that did not complete"
+        line += " replaces nothing"
+        if disk_full:
+            size = sum(path.stat().st_size for _, path in self.moved if path.is_file())
+            line += (
+                f"; it takes {size / 1e6:.1f} MB of the full disk: delete it only if it is not"
+                " needed"
+            )
+        return line + ")"
+
+    def _tell_if_left(self) -> None:
+        """Said as the run ends where nothing else said it (a run that stopped between
+        its last row and its complete meta file)."""
+        if self.moved and not self.told:
+            print(f"hil-client: {self.kept()}", file=sys.stderr)
+
+    def put_back(self) -> None:
+        """The earlier run's files back at ``--out`` (this run wrote no row of its own)."""
+        for path, aside in self.moved:
             aside.replace(path)
-        else:
+        self.moved = []
+
+    def drop(self) -> None:
+        """Delete the earlier run's files: this run completed, and replaces them."""
+        for _, aside in self.moved:
             aside.unlink(missing_ok=True)
+        self.moved = []
 
 
-def _what_is_kept(rows: int, previous: list, gaps: list) -> str:
+def _settle_previous(
+    out: Path, previous: _EarlierRun, rows: int, gaps: list, completed: bool
+) -> None:
+    """After a run that wrote ``rows`` rows: one that completed replaces the previous
+    run's files (they are deleted); one that stopped with rows keeps them where they were
+    set aside; with no row, they come back and this run's own files go (a header and a
+    meta file with nothing to describe), unless, with no previous run, its meta records a
+    break (``gaps``: why it never got a row). A signal waits until the files are settled."""
+    with _signals_held():
+        if completed:
+            previous.drop()
+            return
+        if rows:
+            return
+        if previous or not gaps:
+            for path in _log_files(out).values():
+                with contextlib.suppress(OSError):  # (a read-only file system has none to go)
+                    path.unlink(missing_ok=True)
+        previous.put_back()
+
+
+def _what_is_kept(rows: int, previous: _EarlierRun, gaps: list, disk_full: bool = False) -> str:
     """What a run that stopped leaves at ``--out`` (see :func:`_settle_previous`)."""
     if rows:  # (a full disk loses the row it could not write: "every row" was wrong)
-        return f"the log keeps the {rows} row{'s' if rows != 1 else ''} written"
+        kept = f"the log keeps the {rows} row{'s' if rows != 1 else ''} written"
+        return f"{kept}, and {previous.kept(disk_full)}" if previous else kept
     if previous:
         return "no row was acquired; the previous run's log is back"
     if gaps:
@@ -882,21 +988,45 @@ def _what_is_kept(rows: int, previous: list, gaps: list) -> str:
     return "no row was acquired; no log written"
 
 
+def _refuse_shared_companions(out: Path) -> None:
+    """Refuse an ``--out`` beside a log of the same name but for the case of ``.csv``:
+    both logs would have one meta and one events file (a stranger's probe: a run to
+    ``s.CSV`` replaced the meta of ``s.csv``, whose balance then read the other boiler)."""
+    for other in same_companions(out):
+        if other.is_file() and not (out.exists() and os.path.samefile(other, out)):
+            raise UsageError(
+                f"--out: '{out}' would share its meta and events files ('{meta_path(out).name}',"
+                f" '{events_path(out).name}') with the log '{other}' beside it (the names differ"
+                f" only in the case of .csv); give another --out, or move '{other.name}' away"
+            )
+
+
+def _busy_line(out: Path, busy: RunBusy) -> str:
+    """The refusal of a run whose ``--out`` (or a name sharing its files) another run holds."""
+    line = f"--out: '{out}' is being written by another run ({busy})"
+    if busy.role == "keeping":
+        line += f": it keeps the earlier run's files of its --out '{busy.out}' there"
+    elif busy.out and os.path.realpath(busy.out) != os.path.realpath(out):
+        line += (
+            f": it writes '{busy.out}', whose meta and events files are this log's too (the"
+            " names differ only in the case of .csv)"
+        )
+    return line + "; give another --out, or wait until that run ends"
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     if args.out.is_symlink():  # the log is the file it names: written there, locked there
         args.out = Path(os.path.realpath(args.out))  # (the link was set aside and replaced
         # by a plain file, and a second run through it went unlocked: a re-probe)
     try:
-        with run_lock(args.out):
-            return _run(args)
+        with contextlib.ExitStack() as held:  # the locks of --out and of the set-aside
+            held.enter_context(run_lock(args.out))
+            return _run(args, held)
     except RunBusy as busy:
-        raise UsageError(
-            f"--out: '{args.out}' is being written by another run ({busy}); give another "
-            "--out, or wait until that run ends"
-        ) from None
+        raise UsageError(_busy_line(args.out, busy)) from None
 
 
-def _run(args: argparse.Namespace) -> int:
+def _run(args: argparse.Namespace, held: contextlib.ExitStack) -> int:
     # validate everything before any file is written
     params = boiler_arg(args.boiler)
     with bad_input(ProtocolError):
@@ -915,6 +1045,7 @@ def _run(args: argparse.Namespace) -> int:
             "the --map file": _file_given(args.map),
         },
     )
+    _refuse_shared_companions(out)
     if args.fault_report is not None and args.fault_journal is None:
         raise UsageError("--fault-report needs --fault-journal JOURNAL.jsonl")
     if args.fault_report is not None and args.rig == "local":
@@ -944,6 +1075,7 @@ def _run(args: argparse.Namespace) -> int:
     )
     with bad_input(ProtocolError, prefix=f"{args.protocol}: "):
         check_setpoints(protocol, params.p_nom_kW, params.name, limits)
+    previous = _EarlierRun(out, held)  # (its name chosen and locked: nothing moved yet)
     try:
         rig = _make_rig(args, params, register_map)
     except RigError as exc:
@@ -1014,11 +1146,10 @@ def _run(args: argparse.Namespace) -> int:
         meta["gaps"] = getattr(rig, "gaps", [])
         write_meta(out, meta)
 
-    previous = _set_aside(out)
-    if previous:  # (a killed run's partial log went without a word: a stranger's probe)
-        print(f"hil-client: {_earlier_run(out, previous)}", file=sys.stderr)
+    previous.set_aside()  # said on stderr (a killed run's partial log went without a word)
     written = [0]  # rows of this run in the log
     events = EventsWriter(out) if remote else None  # what faulty units did, beside the log
+    finished = False  # the protocol ran to its end
     try:
         with LabLogWriter(out) as writer:
             write_meta(out, meta)
@@ -1062,6 +1193,7 @@ def _run(args: argparse.Namespace) -> int:
             result = run_protocol(
                 protocol, params.p_nom_kW, rig, sink, progress, on_phase=save_meta
             )
+            finished = True
     except RigError as exc:
         if progress is not None:
             progress.done()
@@ -1071,7 +1203,8 @@ def _run(args: argparse.Namespace) -> int:
     except OSError as exc:  # the log's disk full, its file system gone read-only
         if progress is not None:
             progress.done()
-        kept = _what_is_kept(written[0], previous, getattr(rig, "gaps", []))
+        full = exc.errno in (errno.ENOSPC, errno.EDQUOT)  # (the kept log may be what filled it)
+        kept = _what_is_kept(written[0], previous, getattr(rig, "gaps", []), disk_full=full)
         where = exc.filename or out
         print(
             f"hil-client: error: cannot write {where}: {exc.strerror or exc}; {kept}",
@@ -1113,7 +1246,8 @@ def _run(args: argparse.Namespace) -> int:
         if not written[0] and gaps and not previous:  # the meta that stays says why
             meta["gaps"] = gaps
             write_meta(out, meta)
-        _settle_previous(out, previous, written[0], gaps)
+        if not finished:  # (one that finished replaces them once its meta says complete)
+            _settle_previous(out, previous, written[0], gaps, completed=False)
     if progress is not None:
         progress.done()
     wall = time.monotonic() - started
@@ -1152,6 +1286,7 @@ def _run(args: argparse.Namespace) -> int:
         result.notes.append(coarse)
         print(f"hil-client: warning: {coarse}", file=sys.stderr)
     save_meta(result)
+    _settle_previous(out, previous, written[0], meta["gaps"], completed=True)
     if args.fault_report is not None:
         with bad_input(ValueError, LogError, prefix="--fault-report: "):
             fault_rep = fault_report(out, args.fault_journal)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import io
+import itertools
 import math
 import os
 import re
@@ -127,6 +128,18 @@ def meta_path(log_path: Path) -> Path:
     """``NAME.meta.json`` beside ``NAME.csv``."""
     log_path = Path(log_path)
     return log_path.with_name(log_path.stem + ".meta.json")
+
+
+def same_companions(log_path: Path) -> list[Path]:
+    """The other names of a log beside ``log_path`` that share its meta file and Modbus
+    events file: its ``.csv`` in every other case (``NAME.CSV``, ``NAME.Csv``, ...), as
+    both are named from the stem (a stranger's probe: runs writing ``s.csv`` and ``s.CSV``
+    wrote one ``s.meta.json``)."""
+    log_path = Path(log_path)
+    if log_path.suffix.lower() != ".csv":
+        return []
+    spellings = ("." + "".join(c) for c in itertools.product("cC", "sS", "vV"))
+    return [log_path.with_suffix(s) for s in spellings if s != log_path.suffix]
 
 
 def write_meta(log_path: Path, meta: dict[str, Any]) -> Path:

@@ -4,9 +4,18 @@ log is refused before it moves anything. Without it the second run set the first
 live log aside as ``.previous`` and deleted it at its own first row, while the first went
 on writing into the deleted file (a probe: two CI jobs given one ``--out``).
 
+The lock is one per log *name*: ``NAME.csv`` and ``NAME.CSV`` (any case of ``.csv``) take
+the same ``.NAME.csv.lock``, as they share ``NAME.meta.json`` and
+``NAME.modbus_events.jsonl`` (a stranger's probe: a run writing ``s.CSV`` replaced the
+meta file of a live run writing ``s.csv`` and truncated its events, and ``balance s.csv``
+then read the other run's boiler and phase marks without a word). So the lock covers
+every file a run writes.
+
 The lock is the kernel's (``flock``): it goes with the process however the process ends
 (kill -9 included), so a stale file never blocks a later run; the file is removed when the
-run ends."""
+run ends. It holds the holder's pid, what it does with the name (``writing`` a log, or
+``keeping`` an earlier run's files there) and the ``--out`` it was given, for the refusal
+to say."""
 
 from __future__ import annotations
 
@@ -16,37 +25,63 @@ import os
 from collections.abc import Iterator
 from pathlib import Path
 
+#: The suffix of a log; any case of it names the same meta and events files.
+LOG_SUFFIX = ".csv"
+
 
 class RunBusy(Exception):
-    """Another live process holds the lock of this log."""
+    """Another live process holds the lock of this log: its ``pid`` (None if it did not
+    say), what it does there (``role``: ``writing`` or ``keeping``) and the ``--out`` it
+    was given (``out``), each None if unknown (a lock file of an older version)."""
+
+    def __init__(self, pid: int | None, role: str | None = None, out: str | None = None):
+        super().__init__(f"pid {pid}" if pid is not None else "another process")
+        self.pid, self.role, self.out = pid, role, out
 
 
 def lock_path(log_path: Path) -> Path:
     """The lock file of ``log_path``, beside the file it resolves to (a link and its
-    target are one log)."""
+    target are one log), one for every case of ``.csv`` (they share the companions)."""
     real = Path(os.path.realpath(log_path))
+    if real.suffix.lower() == LOG_SUFFIX:
+        return real.with_name(f".{real.stem}{LOG_SUFFIX}.lock")
     return real.with_name(f".{real.name}.lock")
 
 
 @contextlib.contextmanager
-def run_lock(log_path: Path) -> Iterator[None]:
+def run_lock(log_path: Path, role: str = "writing", out: Path | None = None) -> Iterator[None]:
     """Hold the lock of ``log_path`` for the ``with`` block; :class:`RunBusy` naming the
-    holder's pid if another process holds it. Where no lock file can be made (a directory
-    without write permission), the run goes on without one: its log cannot be written
-    there either, and the run says so itself."""
+    holder if another process holds it. ``role`` and ``out`` (``log_path`` if None) are
+    written in the lock for a refused run to say. Where no lock file can be made (a
+    directory without write permission), the run goes on without one: its log cannot be
+    written there either, and the run says so itself."""
     path = lock_path(log_path)
     fd = _locked(path)
     if fd is None:
         yield
         return
     try:
+        given = os.fsencode(os.path.abspath(out if out is not None else log_path))
         os.ftruncate(fd, 0)
-        os.write(fd, f"{os.getpid()}\n".encode())
+        os.write(fd, f"{os.getpid()}\n{role}\n".encode() + given + b"\n")
         yield
     finally:
         with contextlib.suppress(OSError):
             os.unlink(path)
         os.close(fd)
+
+
+def _holder(fd: int) -> RunBusy:
+    """What the lock file open at ``fd`` says of the process holding it: pid, role and
+    ``--out`` lines (a path may hold a line break: the rest of the file is the path)."""
+    text = os.read(fd, 65536)
+    pid, _, rest = text.partition(b"\n")
+    role, _, out = rest.partition(b"\n")
+    return RunBusy(
+        int(pid) if pid.strip().isdigit() else None,
+        role.decode("ascii", "replace") or None,
+        os.fsdecode(out[:-1] if out.endswith(b"\n") else out) or None,
+    )
 
 
 def _locked(path: Path) -> int | None:
@@ -59,9 +94,9 @@ def _locked(path: Path) -> int | None:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            holder = os.read(fd, 32).decode("ascii", "replace").strip()
+            busy = _holder(fd)
             os.close(fd)
-            raise RunBusy(f"pid {holder}" if holder.isdigit() else "another process") from None
+            raise busy from None
         try:  # the file a finished run removed after this one opened it: open it again
             same = os.path.samestat(os.fstat(fd), os.stat(path))
         except FileNotFoundError:
