@@ -24,7 +24,12 @@ from typing import Any
 
 import numpy as np
 
-from hil_client.analysis.fault_report import check_journal, compare, journal_epoch
+from hil_client.analysis.fault_report import (
+    check_journal,
+    check_log_served,
+    compare,
+    journal_epoch,
+)
 from hil_client.analysis.logio import LabLog, read_log
 from hil_client.jsonio import strict_json
 from hil_client.protocol.rig import LOG_COLUMNS
@@ -126,6 +131,7 @@ def fault_report(
             "not counted"
         )
     log = read_log(Path(log_path), as_read=True)
+    check_log_served(log.meta, str(log_path), str(journal_path), journal_epoch(journal))
     offset = log.meta.get("server_time_offset_s", 0.0)
     offset = finite_number(offset) or 0.0
     server_time = log.t - offset

@@ -148,6 +148,32 @@ def journal_epoch(journal: Sequence[Mapping[str, Any]]) -> str | None:
     return epoch.lower() if isinstance(epoch, str) else None
 
 
+#: The ``rig`` a lab log's meta file names for a run without a server (``run --rig local``).
+LOCAL_RIG = "local"
+
+
+def check_log_served(
+    meta: Mapping[str, Any], log_name: str, journal_name: str, epoch: str | None = None
+) -> None:
+    """Refuse a log whose own meta file says no server ran it (``"rig": "local"``: the plant
+    stepped in-process, where no journalled fault acts): ValueError naming the journal, its
+    server (``epoch``, :func:`journal_epoch`) and the log. Judged, its faults were all
+    "missed", exit 0 (a stranger's probe), where a Modbus log beside another server's
+    journal is refused. A log without a meta file or without ``rig`` in it (another
+    acquisition program's) is judged as before: nothing says it had no server. Nor is a
+    Modbus rig's address compared: the journal names no address, and one address serves
+    many server starts; the server's start (``epoch_id``) is what tells a journal of
+    another server (compared with the meta's ``server_epoch_id`` by the caller)."""
+    if meta.get("rig") != LOCAL_RIG:
+        return
+    server = f"its server (epoch_id {epoch})" if epoch is not None else "its server"
+    raise ValueError(
+        f"{journal_name}: {server} served none of the rows of {log_name}: its meta file says "
+        f"rig {LOCAL_RIG} (the plant stepped in-process, no server and no fault in it): the "
+        "journal of another run"
+    )
+
+
 def fault_windows(
     journal: Sequence[Mapping[str, Any]], source: str = "fault journal"
 ) -> list[dict[str, Any]]:

@@ -77,7 +77,7 @@ def _from_column(log: LabLog, partial: bool = False) -> Phases | None:
     short without its meta file) gives those (a re-probe: refused, "cannot find t2")."""
     if not log.has("phase"):
         return None
-    phase = [p.strip().lower() for p in log.text["phase"]]
+    phase = _column_names(log)
     t = log.t
     bounds = {}
     last = None  # the latest of the format's phases so far
@@ -122,6 +122,33 @@ def _from_column(log: LabLog, partial: bool = False) -> Phases | None:
         float(t[-1]),
         "phase column",
     )
+
+
+def _column_names(log: LabLog) -> list[str]:
+    """The ``phase`` column's names, in lower case, spaces around them left out."""
+    return [p.strip().lower() for p in log.text["phase"]]
+
+
+def _column_begins_late(log: LabLog) -> str | None:
+    """The phase the ``phase`` column begins in where it is one of the format's after
+    ``preheat`` and the column holds no other names: a record begun mid-run, whose column
+    lacks the marks before that phase, so :func:`_from_column` gives no phases and the
+    signals find them (the source said "signals" alone, as if the log had no phase column:
+    a stranger's probe); None otherwise (no column, one from ``preheat``, or one with names
+    of its own, of which a note speaks; or the rows of a later plant, begun mid-run by the
+    break, of which :func:`~hil_client.analysis.logio.one_plant`'s note speaks)."""
+    if not log.has("phase") or log.meta.get(EPOCH_KEPT) is not None:
+        return None
+    held = [p for p in _column_names(log) if p]
+    if not held or set(held) - set(NAMES) or held[0] == NAMES[0]:
+        return None
+    return held[0]
+
+
+def _log_name(log: LabLog) -> str:
+    """The log as its notes name it: the path as given (its name alone was not what the
+    user typed beside every other message: a stranger's probe)."""
+    return str(log.path) if log.path else "the log"
 
 
 def _from_meta(log: LabLog) -> Phases | None:
@@ -249,11 +276,10 @@ def _check_against_signals(log: LabLog, phases: Phases) -> None:
         if abs(phases.t3 - stop) > MARK_SLACK_S:
             far.append(f"t3_s = {phases.t3:g} s, the circulation stopping at {stop:g} s")
     if far:
-        name = log.path.name if log.path else "the log"
         log.notes.append(
-            f"the meta file's {'; '.join(far)} in {name}: marks of another log? (the phases "
-            "follow the marks; remove t0_s..t4_s from the meta file to find them from the "
-            "signals)"
+            f"the meta file's {'; '.join(far)} in {_log_name(log)}: marks of another log? (the "
+            "phases follow the marks; remove t0_s..t4_s from the meta file to find them from "
+            "the signals)"
         )
 
 
@@ -297,9 +323,8 @@ def _from_signals(log: LabLog) -> Phases:
         settled = ok[0] == np.searchsorted(t, t0 + 300.0)  # at its first full window
         if settled:  # (a preheat of its first row and a start-up of 5 min at full load
             t0 = t1 = t0 - float(np.median(np.diff(t)))  # were made up: a re-probe)
-        name = path.name if path else "the log"
         log.notes.append(
-            f"{name} begins with the burner firing (time_s {t[0]:g}) and "
+            f"{_log_name(log)} begins with the burner firing (time_s {t[0]:g}) and "
             + (
                 "its flue gas settled: no preheat or start-up is in it, and its test is read "
                 "from its first row"
@@ -350,6 +375,19 @@ def _marks_in_meta(log: LabLog) -> bool:
     return any(log.meta.get(key) is not None for key in MARKS)
 
 
+def _signals_found(log: LabLog, column_passed_over: bool) -> Phases:
+    """:func:`_from_signals`; where the phase column was passed over because it begins
+    mid-run (:func:`_column_begins_late`; ``column_passed_over``: it was looked at), the
+    source says so rather than "signals" alone."""
+    found = _from_signals(log)
+    first = _column_begins_late(log) if column_passed_over else None
+    if first is None:
+        return found
+    marks = " or ".join(f"t{i}" for i in range(NAMES.index(first)))  # those before it
+    source = f"signals; the phase column begins mid-run, in its {first} phase: no {marks} in it"
+    return replace(found, source=source)
+
+
 def find_phases(log: LabLog, prefer_signals: bool = False, partial: bool = False) -> Phases:
     """Phase boundaries from the phase column, the meta file, or the signals (see above).
     With ``partial``, a run cut short (its meta file's marks up to those it reached) gives
@@ -367,7 +405,7 @@ def find_phases(log: LabLog, prefer_signals: bool = False, partial: bool = False
             return found
     reached = [key for key in MARKS if log.meta.get(key) is not None]
     if reached == list(MARKS) or not any(key in log.meta for key in MARKS):
-        return _from_signals(log)
+        return _signals_found(log, not prefer_signals)
     first_null = next(key for key in MARKS if log.meta.get(key) is None)
     after = [key for key in MARKS[MARKS.index(first_null) + 1 :] if key in reached]
     if after:  # no run writes that: it stops marking at the first mark it does not reach
@@ -380,7 +418,7 @@ def find_phases(log: LabLog, prefer_signals: bool = False, partial: bool = False
     if cut is not None:  # the marks the bench recorded, not the signals' guess at the rest
         return cut  # (a run cut in a cooling got marks of its last row: a re-probe)
     try:  # a run cut short: its meta file has the marks it reached, null for the rest
-        return _from_signals(log)
+        return _signals_found(log, not prefer_signals)
     except LogError as exc:
         if log.meta.get(EPOCH_KEPT) is not None:  # (its marks are set aside, not missing)
             raise LogError(
