@@ -77,6 +77,7 @@ from rig_emulator.cli_support import (
     output_file,
     path_arg,
     refuse_overwriting,
+    release_outputs,
     report,
     report_os_error,
     text_file,
@@ -153,7 +154,12 @@ def _build_parser() -> argparse.ArgumentParser:
         "(rig_epoch, gaps in the meta file). A restarted lockstep server with the same "
         "boiler, profile and seed is rebuilt by replay whatever this says [abort]",
     )
-    run.add_argument("--out", required=True, type=path_arg, help="lab log to write (CSV)")
+    run.add_argument(
+        "--out",
+        required=True,
+        type=path_arg,
+        help="lab log to write (CSV), missing directories created",
+    )
     run.add_argument(
         "--live", action="store_true", help="live view of phase, sequence, time and key values"
     )
@@ -187,7 +193,12 @@ def _build_parser() -> argparse.ArgumentParser:
         type=text_input,
         help="boiler NAME or PATH (its fuel) [the meta file's boiler]",
     )
-    bal.add_argument("--out", type=path_arg, default=None, help="JSON to write [LOG.balance.json]")
+    bal.add_argument(
+        "--out",
+        type=path_arg,
+        default=None,
+        help="JSON to write, missing directories created [LOG.balance.json]",
+    )
     cal = sub.add_parser(
         "calibrate",
         help="fit the model's parameters from lab logs (Section 3.1 of the paper)",
@@ -199,7 +210,12 @@ def _build_parser() -> argparse.ArgumentParser:
     cal.add_argument(
         "--boiler", required=True, type=text_input, help="documentation values: NAME or PATH"
     )
-    cal.add_argument("--out", required=True, type=path_arg, help="parameter file to write (YAML)")
+    cal.add_argument(
+        "--out",
+        required=True,
+        type=path_arg,
+        help="parameter file to write (YAML), missing directories created",
+    )
     val = sub.add_parser(
         "validate",
         help="simulate the model with a log's measured inputs and compare (Table 4)",
@@ -212,7 +228,9 @@ def _build_parser() -> argparse.ArgumentParser:
     val.add_argument(
         "--boiler", required=True, type=text_input, help="parameters: NAME or PATH (calibrated)"
     )
-    val.add_argument("--out", required=True, type=path_arg, help="output directory")
+    val.add_argument(
+        "--out", required=True, type=path_arg, help="output directory, created with its parents"
+    )
     dia = sub.add_parser(
         "diagnose",
         help="where the model departs from the lab, which unmodelled effect, how far it shrinks",
@@ -222,7 +240,9 @@ def _build_parser() -> argparse.ArgumentParser:
     dia.add_argument("--calibration", required=True, type=path_arg, help="CAL.csv (fitted on)")
     dia.add_argument("--validation", required=True, type=path_arg, help="VAL.csv (held out)")
     dia.add_argument("--boiler", required=True, help="documentation values: NAME or PATH")
-    dia.add_argument("--out", required=True, type=path_arg, help="output directory")
+    dia.add_argument(
+        "--out", required=True, type=path_arg, help="output directory, created with its parents"
+    )
     dia.add_argument(
         "--ignition-charge-kg",
         type=finite_float(0.0, 10.0, "kg"),
@@ -243,7 +263,12 @@ def _build_parser() -> argparse.ArgumentParser:
         "log", type=data_file, help="lab log (CSV) of a Modbus run, hil-client's or your own"
     )
     frep.add_argument("--journal", required=True, type=text_file, help="fault journal (JSONL)")
-    frep.add_argument("--out", required=True, type=path_arg, help="report to write (JSON)")
+    frep.add_argument(
+        "--out",
+        required=True,
+        type=path_arg,
+        help="report to write (JSON), missing directories created",
+    )
     frep.add_argument(
         "--map",
         default=None,
@@ -273,7 +298,9 @@ def _build_parser() -> argparse.ArgumentParser:
     gap.add_argument(
         "--seed", type=int_in(0, 2**32 - 1), default=0, help="seed of the case generator [0]"
     )
-    gap.add_argument("--out", required=True, type=path_arg, help="output directory")
+    gap.add_argument(
+        "--out", required=True, type=path_arg, help="output directory, created with its parents"
+    )
     gap.add_argument(
         "--workers", type=int_in(1, 256), default=2, help="parallel processes, 1..256 [2]"
     )
@@ -1036,6 +1063,9 @@ def _run(args: argparse.Namespace, held: contextlib.ExitStack) -> int:
         raise UsageError(f"--out: '{out}' must name a .csv file")
     if out.is_dir():
         raise UsageError(f"--out: '{out}' is a directory")
+    if out.exists() and not out.is_file():  # (a FIFO was set aside as an earlier run and
+        # replaced by a file, its reader getting nothing: a probe)
+        raise UsageError(f"--out: '{out}' is not a regular file; a lab log is a file")
     _check_out_parent(out)
     refuse_overwriting(  # (a protocol saved as .csv was replaced by the log: a probe)
         out,
@@ -1292,7 +1322,7 @@ def _run(args: argparse.Namespace, held: contextlib.ExitStack) -> int:
             fault_rep = fault_report(out, args.fault_journal)
         for note in fault_rep["notes"]:
             print(f"hil-client: warning: {note}", file=sys.stderr)
-        write_report(fault_rep, output_file(args.fault_report))
+        write_report(fault_rep, output_file(args.fault_report, "--fault-report"))
         if not args.quiet:
             print(fault_summary(fault_rep))
     if not args.quiet:
@@ -1420,6 +1450,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("hil-client: interrupted", file=sys.stderr)
         return 1
     finally:
+        release_outputs()
         _restore_signals(previous)
 
 

@@ -69,3 +69,16 @@ def write_atomically(path: Path, text: str) -> None:
         return
     with replacing(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
+
+
+def open_without_waiting(path: Path, flags: int = os.O_WRONLY, *, blocking: bool = True) -> int:
+    """A descriptor of ``path`` opened for writing (``flags``) that never waits for a FIFO's
+    reader: a FIFO no process reads is an ``OSError`` ENXIO at once (a plain open waits for
+    one, taken up again after every signal whose handler raises nothing, as the server's
+    stop signals' do: ``serve --fault-log FIFO`` hung deaf to them, a stranger's probe).
+    Once open it blocks as any other, unless ``blocking`` is False: a writer that must never
+    wait (the server's fault journal, written from its event loop) then gets
+    ``BlockingIOError`` from a pipe its reader stopped emptying."""
+    fd = os.open(path, flags | os.O_NONBLOCK, 0o666)
+    os.set_blocking(fd, blocking)
+    return fd

@@ -36,6 +36,7 @@ from rig_emulator.cli_support import (
     output_file,
     path_arg,
     refuse_overwriting,
+    release_outputs,
     report,
     report_os_error,
     text_file,
@@ -135,7 +136,8 @@ def _build_parser() -> argparse.ArgumentParser:
         default=None,
         type=path_arg,
         metavar="JOURNAL.jsonl",
-        help="write one JSON line per fault start and end [none]",
+        help="write one JSON line per fault start and end; missing directories are "
+        "created, a FIFO needs its reader running [none]",
     )
     serve.add_argument(
         "--idle-timeout",
@@ -174,7 +176,9 @@ def _build_parser() -> argparse.ArgumentParser:
     doc.add_argument(
         "--map", default=None, type=text_input, help="register map YAML [the shipped one]"
     )
-    doc.add_argument("--out", default=None, help="file to write [stdout]")
+    doc.add_argument(
+        "--out", default=None, help="file to write, missing directories created [stdout]"
+    )
     check = sub.add_parser("check", help="validate a boiler parameter file and print it")
     check.add_argument(
         "--boiler", required=True, type=text_input, help="boiler NAME or parameter file PATH"
@@ -343,10 +347,7 @@ def _cmd_serve(args: argparse.Namespace) -> int:
         check_units(profile.faults, units, f"{args.profile}: faults", emulator_units(register_map))
         check_spikes(profile.faults, reading_ranges(register_map), f"{args.profile}: faults")
     if args.fault_log is not None:
-        try:
-            output_file(args.fault_log)
-        except UsageError as exc:
-            raise UsageError(str(exc).replace("--out:", "--fault-log:", 1)) from None
+        output_file(args.fault_log, "--fault-log")  # (before any port: a FIFO unread)
         named = {  # (the journal replaced the fault, boiler, map or key file: probes)
             "the --faults file": args.faults,
             "the boiler file (--boiler)": resolve_boiler(args.boiler),
@@ -513,6 +514,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:  # serve stops on its own; the other commands end here
         print("rig-emulator: interrupted", file=sys.stderr)
         return 1
+    finally:
+        release_outputs()
 
 
 if __name__ == "__main__":

@@ -7,12 +7,15 @@ import contextlib
 import errno
 import math
 import os
+import re
+import stat
 import sys
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
+from rig_emulator.atomic import open_without_waiting
 from rig_emulator.boilers import load_boiler
 from rig_emulator.model.params import BoilerParams, ParameterError
 
@@ -25,8 +28,21 @@ class UsageError(Exception):
         self.prog = prog
 
 
+#: An argument that is a negative number to ``float``: argparse's own pattern (``-5``,
+#: ``-.5``) missed ``-inf``, ``-nan`` and exponents (``-1e400``), which it took for an
+#: unknown option (``--load -inf``: "expected one argument", not the range: a probe)
+_NEGATIVE_NUMBER = re.compile(r"^-(?:\d|\.\d|inf|nan)", re.IGNORECASE)
+
+
 class Parser(argparse.ArgumentParser):
-    """An argument parser whose errors raise :class:`UsageError` instead of exiting."""
+    """An argument parser whose errors raise :class:`UsageError` instead of exiting, and
+    that gives an option any argument that looks like a negative number (``--load -inf``,
+    ``--room-temp -2e1``), so its ``type`` judges it (argparse treats such arguments as
+    values where no option of the parser looks like a negative number: none does)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = _NEGATIVE_NUMBER
 
     def error(self, message: str) -> None:  # type: ignore[override]
         raise UsageError(message, self.prog)
@@ -276,25 +292,83 @@ _PACKAGE_ROOTS = tuple(
 )
 
 
-def output_file(path: Path) -> Path:
+def output_file(path: Path, option: str = "--out") -> Path:
     """``path``, its missing parent directories created (as ``--out`` users expect);
     a parent that is a file, or a ``path`` that is a directory or a loop of symbolic links,
-    is a :class:`UsageError`."""
+    is a :class:`UsageError` (``option``: the option its message names), and so is a
+    ``path`` no output can go to (:func:`_check_destination`: a FIFO without a reader, a
+    socket)."""
     try:
         real = path.resolve()
     except (RuntimeError, OSError):  # (a traceback: a stranger's probe)
-        raise UsageError(f"--out: '{path}' is a loop of symbolic links") from None
+        raise UsageError(f"{option}: '{path}' is a loop of symbolic links") from None
     if any(real.is_relative_to(root) for root in _PACKAGE_ROOTS):  # (the shipped map or
         raise UsageError(  # boiler a NAME resolves to was replaced: a re-probe)
-            f"--out: '{path}' lies in the installed package (its shipped data); name another"
+            f"{option}: '{path}' lies in the installed package (its shipped data); name another"
         )
     if path.is_dir():
-        raise UsageError(f"--out: '{path}' is a directory")
+        raise UsageError(f"{option}: '{path}' is a directory")
+    _check_destination(path, option)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise UsageError(f"--out: cannot create '{path.parent}' ({exc.strerror})") from None
+        raise UsageError(f"{option}: cannot create '{path.parent}' ({exc.strerror})") from None
     return path
+
+
+#: What an output that exists may be besides a regular file or a FIFO: a character device
+#: (``/dev/null``, ``/dev/full``: a clear line and exit 1, a terminal, ``/dev/stdout``)
+_NOT_WRITABLE = {stat.S_IFSOCK: "a socket", stat.S_IFBLK: "a block device"}
+
+#: The write ends of the FIFOs :func:`output_file` found read, by path: held open until
+#: :func:`release_outputs` (see :func:`_hold_reader`)
+_HELD_WRITERS: dict[str, int] = {}
+
+
+def _check_destination(path: Path, option: str) -> None:
+    """Refuse an existing ``path`` that is no file to write: a socket or a block device, or
+    a FIFO no process reads (:func:`_hold_reader`)."""
+    try:
+        mode = path.stat().st_mode
+    except OSError:  # not there (its writer creates it), or a dangling link
+        return
+    if stat.S_ISFIFO(mode):
+        _hold_reader(path, option)
+    elif not (stat.S_ISREG(mode) or stat.S_ISCHR(mode)):
+        kind = _NOT_WRITABLE.get(stat.S_IFMT(mode), "not a regular file")
+        raise UsageError(f"{option}: '{path}' is {kind}; name a file")
+
+
+def _hold_reader(fifo: Path, option: str) -> None:
+    """Check, without waiting, that a process reads ``fifo`` (a journal or report streamed
+    through a named pipe), and hold a write end of it open until :func:`release_outputs`.
+
+    A FIFO no process read blocked the open for good: ``serve --fault-log FIFO`` listened
+    on its port, then hung deaf to SIGINT and SIGTERM, ``balance --out FIFO`` waited
+    forever (a stranger's probe). Closed at once, the check would end the reader's stream
+    before the command writes (``cat FIFO`` stops when the last writer closes), and the
+    command's own open of the path would wait for a reader again; held, that open finds
+    the reader still there."""
+    key = str(fifo.absolute())
+    if key in _HELD_WRITERS:
+        return
+    try:
+        _HELD_WRITERS[key] = open_without_waiting(fifo)
+    except OSError as exc:
+        if exc.errno == errno.ENXIO:
+            raise UsageError(
+                f"{option}: no process reads the FIFO '{fifo}'; start its reader first"
+            ) from None
+        raise UsageError(f"{option}: cannot write '{fifo}' ({exc.strerror})") from None
+
+
+def release_outputs() -> None:
+    """Close the FIFO write ends :func:`output_file` held: their readers see the end of the
+    stream once the command's own writes are closed too (call it when the command ends)."""
+    while _HELD_WRITERS:
+        _, fd = _HELD_WRITERS.popitem()
+        with contextlib.suppress(OSError):
+            os.close(fd)
 
 
 @contextmanager

@@ -67,10 +67,24 @@ def add_arguments(serve: argparse.ArgumentParser) -> None:
     )
     rtu = serve.add_argument_group("Modbus RTU")
     rtu.add_argument(
-        "--serial", default=None, metavar="PATH|pty", help="also serve RTU on this line [off]"
+        "--serial",
+        default=None,
+        type=serial_line,
+        metavar="PATH|pty",
+        help="also serve RTU on this line [off]",
     )
     rtu.add_argument("--baud", type=int_in(50, 4_000_000), default=None, help="line speed [19200]")
     rtu.add_argument("--parity", default=None, type=str.upper, choices=PARITIES, help="parity [E]")
+
+
+def serial_line(text: str) -> str:
+    """An argparse ``type`` for ``--serial``: a device path or ``pty``, not empty (``--serial
+    ""`` said "--serial : No such file or directory": a stranger's probe)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(
+            "the device name is empty; give the line's device (/dev/ttyUSB0) or pty"
+        )
+    return text
 
 
 DEFAULT_BAUD = 19200

@@ -18,11 +18,15 @@ and events of the first plant by time alone).
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import logging
 import math
+import os
 from pathlib import Path
 from typing import Any, TextIO
+
+from rig_emulator.atomic import open_without_waiting
 
 log = logging.getLogger("rig_emulator.serve")
 
@@ -70,7 +74,13 @@ class FaultJournal:
         it too. An earlier journal there is set aside, not replaced (:func:`set_aside`): a
         server restarted with the same ``--fault-log`` under a run emptied the first
         server's, the faults of the plant the run's first rows came from (one journal is
-        one server's: the fault report compares each with its own plant's rows)."""
+        one server's: the fault report compares each with its own plant's rows).
+
+        A FIFO is opened without waiting for its reader (:func:`open_without_waiting`):
+        one no process reads costs the lines, not the server (the open waited in the
+        event loop, which no stop signal reached: a stranger's probe), and so does one
+        whose reader stops emptying it: the journal's writes never wait (a full pipe is a
+        failed write, its lines lost from then on, said once)."""
         if self._begun:
             return
         self._begun = True
@@ -80,10 +90,13 @@ class FaultJournal:
                 log.warning(
                     "fault journal %s: the earlier journal there kept as %s", self.path, kept
                 )
-            self._file = self.path.open("w", encoding="utf-8")
+            flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC
+            fd = open_without_waiting(self.path, flags, blocking=False)
+            self._file = os.fdopen(fd, "w", encoding="utf-8")
         except OSError as exc:
             self._failed = True
-            log.warning("fault journal %s: cannot write (%s)", self.path, exc.strerror or exc)
+            why = "no process reads the FIFO" if exc.errno == errno.ENXIO else exc.strerror
+            log.warning("fault journal %s: cannot write (%s)", self.path, why or exc)
 
     def write(self, event: dict[str, Any]) -> None:
         if self.epoch_id is not None:

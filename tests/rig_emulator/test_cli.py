@@ -29,6 +29,8 @@ def test_check_prints_parameters(capsys):
         (["map-doc", "--out", ""], "--out: empty"),
         (["certs", "--out", "x", "--server-name", "999.1.1.1"], "'999.1.1.1' is not a host"),
         (["certs", "--out", "x", "--server-name", "a b"], "'a b' is not a host"),
+        # (a probe: "--serial : No such file or directory")
+        (["serve", "--boiler", "windhager_6kw", "--serial", ""], "--serial: the device name is"),
     ],
 )
 def test_bad_input_exit_2(capsys, args, message):
@@ -439,3 +441,52 @@ def test_serve_stops_cleanly_on_a_hangup_unless_started_under_nohup(nohup):
             proc.wait(timeout=30)
     assert code == 0, err
     assert "stopping at simulated time" in err and "Traceback" not in err, err
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["steady", "--load", "-inf"], "--load: -inf is not a finite number (0..150 %)"),
+        (["steady", "--load=-inf"], "--load: -inf is not a finite number (0..150 %)"),
+        (["steady", "--load", "-1e400"], "--load: -1e400 is not a finite number"),
+        (["steady", "--load", "-5"], "--load: -5 is outside 0..150 %"),
+        (["steady", "--room-temp", "-NaN"], "--room-temp: -NaN is not a finite number"),
+        (["steady", "--room-temp", "-5e1"], "--room-temp: -5e1 is outside -30..50 C"),
+        (["serve", "--tick-hz", "-inf"], "--tick-hz: -inf is not a finite number"),
+        (["serve", "--seed", "-1e3"], "--seed: '-1e3' is not a whole number"),
+    ],
+)
+def test_a_negative_number_reaches_the_options_check(capsys, args, message):
+    """A stranger's probe: ``steady --load -inf`` said "argument --load: expected one
+    argument" (argparse took ``-inf``, as ``-1e400``, for an option) where ``inf`` was "not
+    a finite number"."""
+    assert main([args[0], "--boiler", "windhager_12kw", *args[1:]]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"argument {message}" in err, err
+
+
+def test_a_negative_number_in_exponent_form_is_a_value(capsys):
+    """``--room-temp -2e1`` is -20 C, within the range (it was "expected one argument")."""
+    args = ["steady", "--boiler", "windhager_12kw", "--room-temp", "-2e1"]
+    assert main(args) == 0
+    assert main([*args[:-1], "-20"]) == 0
+    first, second = capsys.readouterr().out.split("windhager_12kw at")[1:]
+    assert first == second  # the same steady state as at -20 C
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["run", "stationary", "--reply-timeout", "-inf"], "--reply-timeout: -inf is not a"),
+        (["run", "stationary", "--reconnect-timeout", "-1e400"], "--reconnect-timeout: -1e400"),
+        (["diagnose", "--ignition-charge-kg", "-inf"], "--ignition-charge-kg: -inf is not a"),
+        (["gap-benchmark", "--workers", "-1e3"], "--workers: '-1e3' is not a whole number"),
+    ],
+)
+def test_a_negative_number_reaches_the_check_of_hil_client_options_too(capsys, args, message):
+    """The same parser (:class:`rig_emulator.cli_support.Parser`) reads hil-client's options."""
+    from hil_client.cli import main as hil_client_main
+
+    assert hil_client_main(args) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"argument {message}" in err, err
