@@ -217,7 +217,7 @@ def read_log(
     odd: tuple[int, int] | None = None  # (line, fields) of a row of the wrong width
     try:
         for row in reader:
-            if not any(field.strip() for field in row):  # a blank line, or a spreadsheet's
+            if not "".join(row).strip():  # a blank line, or a spreadsheet's
                 continue  # row of empty fields (",,,,")
             first = row[0].strip()  # a comment: no time_s starts so but Excel's #N/A
             if first.startswith("#") and first.upper() not in _NO_READING:
@@ -413,8 +413,12 @@ class _Parsed:
 def _numbers(values: tuple[str, ...] | list[str]) -> np.ndarray | None:
     """Fields as numbers, an empty one or a spreadsheet's no-reading code NaN; None if one
     is not a number (float() reads '6_9' as 69: a probe)."""
-    if any("_" in v for v in values):
+    if "_" in "".join(values):
         return None
+    try:  # every field a number (most columns): read at once
+        return np.array(values, dtype=float)
+    except ValueError:
+        pass
     try:
         return np.array(
             [v if v.strip() and v.strip().upper() not in _NO_READING else "nan" for v in values],

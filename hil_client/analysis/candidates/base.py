@@ -35,6 +35,16 @@ ABS_MIN = {"water_out_temp_C": 0.5, "boiler_water_temp_C": 0.2, "flue_gas_temp_C
 NOISE_FLOOR = {"water_out_temp_C": 0.02, "boiler_water_temp_C": 0.02, "flue_gas_temp_C": 0.1}
 
 
+def straight_line(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """Least-squares slope and intercept of ``y`` on ``x`` (``np.polyfit(x, y, 1)`` in
+    closed form: the grid searches fit one per grid point and block, and polyfit's general
+    solver took a fifth of a diagnosis); ``x`` must not be constant."""
+    x_mean, y_mean = float(np.mean(x)), float(np.mean(y))
+    dx = x - x_mean
+    slope = float(np.dot(dx, y - y_mean) / np.dot(dx, dx))
+    return slope, y_mean - slope * x_mean
+
+
 #: Air's dry O2 [vol-%] and how close to it the analyser reads once combustion has ended.
 O2_AIR_PCT = 20.95
 
@@ -117,7 +127,7 @@ class CurveCandidate:
         ref = case.settled
         x = case.t - case.t[ref].mean()
         if self.nuisance_drift and np.ptp(case.t[ref]) >= 7200.0:
-            slope, intercept = np.polyfit(x[ref], r[ref], 1)
+            slope, intercept = straight_line(x[ref], r[ref])
             return r - (intercept + slope * x)
         return r - float(np.mean(r[ref]))
 

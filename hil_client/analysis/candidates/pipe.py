@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from hil_client.analysis.augment import first_order_lag, pipe_sensor
-from hil_client.analysis.candidates.base import CurveCandidate
+from hil_client.analysis.candidates.base import CurveCandidate, straight_line
 from hil_client.analysis.candidates.windows import low_flow_blocks
 from hil_client.analysis.replay import Case
 from rig_emulator.model.water_heat import heat_to_water_kW
@@ -55,7 +55,7 @@ class PipeCandidate(CurveCandidate):
             rows = np.concatenate(pieces)
             ok = rows[np.isfinite(r[rows])]
             if len(ok) >= 3 and np.ptp(case.t[ok]) > 0:
-                slope, intercept = np.polyfit(case.t[ok] - case.t[ok[0]], r[ok], 1)
+                slope, intercept = straight_line(case.t[ok] - case.t[ok[0]], r[ok])
                 r[rows] = r[rows] - (intercept + slope * (case.t[rows] - case.t[ok[0]]))
         return r
 
