@@ -218,11 +218,13 @@ def listen_host(text: str) -> str:
 
 def text_input(text: str) -> str:
     """An argparse ``type`` for NAME-or-PATH options: a PATH that exists must be a readable
-    UTF-8 text file (a NAME that is no path passes unchanged)."""
+    UTF-8 text file (a NAME that is no path passes unchanged, and so does a bare word
+    without a YAML suffix: a shipped NAME is the shipped file whatever the working
+    directory holds, :func:`rig_emulator.yamlio.resolve_named`)."""
     if not text.strip():
         raise argparse.ArgumentTypeError("empty (a NAME or a PATH)")
     path = Path(text)
-    if not path.exists():
+    if not path.exists() or ("/" not in text and path.suffix not in (".yaml", ".yml")):
         return text
     if path.is_dir():
         raise argparse.ArgumentTypeError(f"{text} is a directory, not a file")

@@ -30,12 +30,12 @@ from rig_emulator.modbus.roles import (
     RolesError,
     default_policy,
     load_policy,
-    shown,
 )
 from rig_emulator.modbus.rtu import SerialConfigError, check_line_options
 from rig_emulator.modbus.rtu_wire import PARITIES
 from rig_emulator.modbus.tls import DEFAULT_TLS_PORT, TlsConfigError, server_context
 from rig_emulator.modbus.transports import Transports
+from rig_emulator.names import shown
 
 PLAIN_PORT = 5020
 log = logging.getLogger("rig_emulator.serve")

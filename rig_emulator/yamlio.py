@@ -142,6 +142,9 @@ def read_yaml(path: Path, error: type[Exception]) -> Any:
     """The parsed content of ``path``; an unreadable file or bad YAML raises ``error`` with
     the file (and line) named."""
     try:
+        if path.exists() and not path.is_file():  # (a device would be read forever)
+            what = "a directory" if path.is_dir() else "not a regular file"
+            raise error(f"{path}: {what}, not a set-up file")
         if path.is_file() and path.stat().st_size > MAX_YAML_BYTES:
             raise error(
                 f"{path}: {path.stat().st_size / 1e6:.0f} MB, more than any set-up file of "
@@ -168,6 +171,9 @@ def read_yaml(path: Path, error: type[Exception]) -> Any:
         if problem and "nesting depth" in problem:  # libyaml's own bound on [[[[...
             raise error(f"{path}: not valid YAML (nested too deeply)") from None
         why = f" ({problem})" if problem and "twice" in problem else ""
+        if "single document" in (getattr(exc, "context", None) or ""):
+            # (it said only the line: a stranger's probe)
+            why = " (a second document starts there: a set-up file holds one; '---' begins another)"
         lines = text.splitlines()
         if mark is not None and mark.line < len(lines) and "\t" in lines[mark.line]:
             why = " (a tab: YAML indents with spaces)"  # (it said only the line: a probe)
@@ -182,11 +188,17 @@ def read_yaml(path: Path, error: type[Exception]) -> Any:
 
 def resolve_named(name_or_path: str, folder: Path, kind: str, error: type[Exception]) -> Path:
     """A shipped file ``folder/NAME.yaml`` given by NAME, or a PATH to a YAML file; an
-    unknown NAME raises ``error`` listing the known ones."""
+    unknown NAME raises ``error`` listing the known ones. A shipped NAME is the shipped
+    file whatever the working directory holds (a folder ``clean`` there made every run
+    fail with "clean: cannot read (Is a directory)", ``--profile`` given or not: a probe);
+    ``./NAME`` names a file of that name."""
     path = Path(name_or_path)
+    candidate = folder / f"{name_or_path}.yaml"
+    bare = path.suffix not in (".yaml", ".yml") and "/" not in name_or_path
+    if bare and name_or_path not in (".", "..") and candidate.is_file():
+        return candidate
     if path.suffix in (".yaml", ".yml") or path.exists():
         return path
-    candidate = folder / f"{name_or_path}.yaml"
     if not candidate.exists():
         known = ", ".join(sorted(p.stem for p in folder.glob("*.yaml")))
         raise error(f"unknown {kind} '{name_or_path}' (known: {known}, or a YAML path)")

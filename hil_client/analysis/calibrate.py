@@ -48,7 +48,13 @@ from hil_client.analysis.logio import (
 from hil_client.analysis.phases import Phases
 from rig_emulator.model import constants as k
 from rig_emulator.model.fuel import stoichiometry
-from rig_emulator.model.params import ORDERED_PAIRS, BoilerParams
+from rig_emulator.model.params import (
+    LAMBDA_MAX,
+    ORDERED_PAIRS,
+    BoilerParams,
+    ParameterError,
+    params_from_mapping,
+)
 
 #: The lab's instruments (Carlon et al. 2015, Section 2.2; typical classes where silent):
 #: (absolute, relative) half-width of the tolerance band.
@@ -227,17 +233,13 @@ class Calibration:
     flags: dict[str, str] = field(default_factory=dict)
 
 
-#: The most excess air a firing boiler runs at: O2 about 19 % of the dry gas, where the
-#: balance counts a row as firing no more (an analyser reading air fits lambda 16).
-LAMBDA_MAX = 10.0
-
-
 def _lambda_ok(params: BoilerParams) -> bool:
-    """Eq. 9 gives 1 < lambda <= :data:`LAMBDA_MAX` over the whole modulation range."""
+    """Eq. 9 gives 1 < lambda <= :data:`LAMBDA_MAX` over the whole firing range (the
+    start-up's Pstart too, as the parameter files' check asks)."""
     lhv = params.fuel.lhv_dry_kJ_kg
     return all(
         1.0 < params.fac_a_lambda + params.fac_b_lambda_h_kg * p * 3600.0 / lhv <= LAMBDA_MAX
-        for p in (params.p_min_kW, params.p_max_kW)
+        for _, p in params.firing_points()
     )
 
 
@@ -289,7 +291,30 @@ def _plausible(doc: BoilerParams, fitted: dict[str, Fitted]) -> tuple[BoilerPara
             said = f"the documentation value {getattr(doc, low):.4g} {above}"
             flags[low] = f"{flags[low]}; {said}" if low in flags else f"{low}: {said}"
         params = replace(params, **{low: min(getattr(doc, low), getattr(params, high))})
-    return params, flags
+    return _as_a_file_may_be(doc, params, values, flags), flags
+
+
+def _as_a_file_may_be(
+    doc: BoilerParams, params: BoilerParams, values: dict[str, float], flags: dict[str, str]
+) -> BoilerParams:
+    """``params`` as a parameter file may hold them (:func:`params_from_mapping`'s physics:
+    a flue gas hotter than its flame, a boiler that cannot heat its water): the fits the
+    check names go back to their documentation values, flagged with its reason, the
+    others kept (the set written was refused whole, exit 2, where one fit was wrong)."""
+    for _ in range(len(values) + 1):
+        try:
+            params_from_mapping(params.to_mapping(), "the calibrated set")
+            return params
+        except ParameterError as exc:
+            refused = str(exc).removeprefix("the calibrated set: ")
+        fitted = [key for key in values if getattr(params, key) != getattr(doc, key)]
+        named = [key for key in fitted if f"'{key}'" in refused] or fitted
+        if not named:
+            break
+        for key in named:
+            flags[key] = f"fitted {values[key]:.4g}: the set it gives is refused ({refused})"
+        params = replace(params, **{key: getattr(doc, key) for key in named})
+    return params
 
 
 #: What only the stationary intervals can give (Eq. 8, Eq. 9, electric power).

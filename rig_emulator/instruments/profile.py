@@ -25,7 +25,8 @@ Keys of an instrument (all optional, default 0 = ideal):
   near-still flue gas read 0 m/s, never -0.18 m/s (a stranger's probe of the ``lab``
   profile). A gas analyser's small negative reading, by contrast, is its zero drift and is
   real, so the shipped profiles give a floor to the vortex meter only. Any measured signal
-  may have one (the profile author's choice); it is 0 or more, in the signal's unit.
+  may have one (the profile author's choice), in the signal's unit, below zero too (the
+  lower end of a draught gauge's range); ``null`` is none.
 
 Signals not listed are ideal. ``clean`` lists none.
 
@@ -76,7 +77,7 @@ INSTRUMENT_KEYS = (*ERROR_KEYS, "reading_min")
 
 #: The largest value each key may take: a relative error of 100 %; a lag, dead time or
 #: update period of an hour (beyond that the reading is of another test); an absolute
-#: error or a lowest reading of 10,000 of the signal's units (the widest range of the
+#: error or a lowest reading of +-10,000 of the signal's units (the widest range of the
 #: bench's instruments: CO and OGC in ppm). Beyond these a profile describes no instrument
 #: (a noise of 1e300 K).
 INSTRUMENT_BOUNDS = {
@@ -160,12 +161,15 @@ def profile_from_mapping(data: Any, source: str = "<profile>") -> Profile:
             full = f"instruments.{signal}.{key}"
             if key not in INSTRUMENT_KEYS:
                 raise ProfileError(f"{source}: unknown key '{full}'")
+            if key == "reading_min" and value is None:  # (written out: none, its default)
+                continue
             if isinstance(value, bool) or not isinstance(value, int | float):
                 raise ProfileError(f"{source}: key '{full}' must be a number")
             high = INSTRUMENT_BOUNDS[key]
-            number = finite_number(value)
-            if number is None or not 0 <= number <= high:
-                raise ProfileError(f"{source}: key '{full}' must be finite, in 0..{high:g}")
+            low = -high if key == "reading_min" else 0.0  # (a draught gauge's range ends
+            number = finite_number(value)  # below zero: -12 Pa is a reading, a re-probe)
+            if number is None or not low <= number <= high:
+                raise ProfileError(f"{source}: key '{full}' must be finite, in {low:g}..{high:g}")
             values[key] = number
         instruments[signal] = InstrumentSpec(**values)
     try:

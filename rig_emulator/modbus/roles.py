@@ -40,10 +40,10 @@ need both. An FC23 by a role that writes a unit but may not read it used to writ
 return that unit's registers (a stranger's probe).
 
 Role names are text of any script, spaces of any kind included, without a character of
-:data:`HIDDEN_CATEGORIES` (a control or format character, a line or paragraph separator, a
-surrogate, a private-use or unassigned code point: they let a name display as another, or
-as nothing), and not in angle brackets: ``<...>`` is the form of the server's own
-stand-ins (:data:`INVALID_ROLE`, the role of a certificate whose role extension is
+:data:`rig_emulator.names.HIDDEN_CATEGORIES` (a control or format character, a line or
+paragraph separator, a surrogate, a private-use or unassigned code point: they let a name
+display as another, or as nothing), and not in angle brackets: ``<...>`` is the form of
+the server's own stand-ins (:data:`INVALID_ROLE`, the role of a certificate whose role extension is
 malformed, which may do nothing whatever a file says). Logs show a role by :func:`shown`,
 as written but for such characters, so a certificate's role cannot write lines of its own
 into the log.
@@ -52,13 +52,13 @@ into the log.
 from __future__ import annotations
 
 import time
-import unicodedata
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from rig_emulator.modbus.conformance import ENCAPSULATED_INTERFACE, MEI_READ_DEVICE_ID
+from rig_emulator.names import hidden_character, shown
 from rig_emulator.registers import RegisterMap, control_units, instrument_units
 from rig_emulator.yamlio import read_yaml
 
@@ -75,19 +75,6 @@ UNIT_IDS = range(1, 248)
 #: the role of a certificate whose role extension is malformed (not one UTF8String, given
 #: twice, not parsed): no ROLES.yaml can name it (its ``<``), and it may do nothing
 INVALID_ROLE = "<invalid role extension>"
-#: the Unicode categories (``unicodedata.category``) no role name holds and a log shows
-#: escaped: a control character writes lines of its own into a log, a format character
-#: (soft hyphen, zero-width space, a bidi override such as U+202E) makes a name display as
-#: another (but for :data:`SPELLING_FORMAT_CHARACTERS`); spaces of any kind (Zs) are text
-HIDDEN_CATEGORIES = {
-    "Cc": "a control character",
-    "Cf": "a format character, which makes a name display as another",
-    "Zl": "a line separator",
-    "Zp": "a paragraph separator",
-    "Cs": "a surrogate",
-    "Co": "a private-use character",
-    "Cn": "an unassigned code point",
-}
 #: The instruments and the simulation control of the shipped map (:data:`DEFAULT_POLICY`)
 INSTRUMENT_UNITS = frozenset(range(1, 8))
 SIM_CONTROL_UNIT = 100
@@ -159,28 +146,6 @@ class RolePolicy:
         )
 
 
-#: The format characters that are part of the spelling of names: the zero-width non-joiner
-#: and joiner (Persian, the Indic scripts, emoji sequences such as a scientist's; refusing
-#: them refused names that worked before: a re-probe)
-SPELLING_FORMAT_CHARACTERS = frozenset("\u200c\u200d")
-
-
-def _hidden(character: str) -> bool:
-    return (
-        unicodedata.category(character) in HIDDEN_CATEGORIES
-        and character not in SPELLING_FORMAT_CHARACTERS
-    )
-
-
-def shown(text: str) -> str:
-    """``text`` (a role, a certificate's subject) as a log shows it: as written, but each
-    character of :data:`HIDDEN_CATEGORIES` escaped as Python writes it (``\\n``,
-    ``\\u202e``), so a certificate cannot write lines of its own into the log. The same
-    everywhere: a role ``Ingenieur Ä`` read so in the start-up summary but ``Ingenieur
-    \\xc4`` in the connection and refusal lines (a stranger's probe)."""
-    return "".join(c.encode("unicode_escape").decode("ascii") if _hidden(c) else c for c in text)
-
-
 def _shown_units(units: frozenset[int]) -> str:
     if not units:
         return "no unit"
@@ -242,19 +207,15 @@ def _check_role_name(name: Any, source: str) -> None:
     """RolesError unless ``name`` is a role a certificate may name (module docstring): a
     name of the stand-ins' form ``<...>`` (a file defining ``<invalid role extension>`` gave
     its rights to every malformed role extension), or holding a character of
-    :data:`HIDDEN_CATEGORIES` (named by its code point), is refused; ``a->b``, ``op<1>`` and
-    ``lab tech`` with a no-break space are names (they were refused: a stranger's probe)."""
+    :data:`rig_emulator.names.HIDDEN_CATEGORIES` (named by its code point), is refused;
+    ``a->b``, ``op<1>`` and ``lab tech`` with a no-break space are names (they were
+    refused: a stranger's probe)."""
     if not isinstance(name, str) or not name.strip():
         shown_name = shown(name) if isinstance(name, str) else name
         raise RolesError(f"{source}: role name '{shown_name}' is not a non-empty text")
-    hidden = next((c for c in name if _hidden(c)), None)
+    hidden = hidden_character(name)
     if hidden is not None:
-        called = unicodedata.name(hidden, "")
-        raise RolesError(
-            f"{source}: role name '{shown(name)}' holds U+{ord(hidden):04X}"
-            f"{' ' + called if called else ''}: "
-            f"{HIDDEN_CATEGORIES[unicodedata.category(hidden)]}"
-        )
+        raise RolesError(f"{source}: role name '{shown(name)}' holds {hidden}")
     if name.startswith("<") and name.endswith(">"):
         raise RolesError(
             f"{source}: role name '{name}' is in angle brackets, the form of the server's own "

@@ -11,7 +11,7 @@ first in its ``gates``: a request the connection's role may not send is answered
 exception 01 (illegal function) before it reaches any datastore, so it changes nothing.
 Each refusal is logged with the client certificate's subject, once per connection and
 reason and at most :attr:`RefusalLog.burst` lines a minute (a flood does not flood the log);
-roles and subjects are shown as :func:`~rig_emulator.modbus.roles.shown` writes them.
+roles and subjects are shown as :func:`~rig_emulator.names.shown` writes them.
 
 Plain TCP and RTU requests carry no role (``RequestInfo.role`` is None) and pass this gate,
 unless ``plain_role`` names a role for them.
@@ -40,8 +40,8 @@ from rig_emulator.modbus.roles import (
     INVALID_ROLE,
     RefusalLog,
     RolePolicy,
-    shown,
 )
+from rig_emulator.names import shown
 
 log = logging.getLogger("rig_emulator.serve")
 

@@ -45,6 +45,7 @@ as plain Python.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
@@ -137,7 +138,9 @@ from rig_emulator.model.layout import (
     Y_T_FG,
     Y_T_OUT,
 )
-from rig_emulator.model.params import BoilerParams
+
+if TYPE_CHECKING:  # (params checks a parameter set against this model's steady state)
+    from rig_emulator.model.params import BoilerParams
 
 _CP_W_KWH = k.CP_WATER / 3600.0  # [kJ/(kg K)] per [h/s]: kg/h flow to kW/K
 _ASH = k.ASH_LOSS_FRACTION

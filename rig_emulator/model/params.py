@@ -2,6 +2,11 @@
 
 Pure: :func:`params_from_mapping` checks a mapping (as read from a YAML file by
 :mod:`rig_emulator.boilers`) and raises :class:`ParameterError` naming the key at fault.
+Beyond types and plausible ranges it refuses what physics does not allow, whatever the
+ranges: a fuel without net heat, lambda outside 1..:data:`LAMBDA_MAX` (Eq. 9), a flue gas
+colder than the water it heats or hotter than its flame (Eq. 8), a boiler that cannot heat
+its water at nominal load (the model's own steady state), controller temperatures outside
+liquid water.
 """
 
 from __future__ import annotations
@@ -12,7 +17,10 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 from rig_emulator.model import constants as k
+from rig_emulator.model.boiler import pack_constants
 from rig_emulator.model.fuel import Fuel
+from rig_emulator.model.steady_state import exchanger_heat, steady_state
+from rig_emulator.names import hidden_character, shown
 
 REQUIRED_KEYS: tuple[str, ...] = (
     "name",
@@ -49,6 +57,10 @@ OPTIONAL_DEFAULTS: dict[str, float] = {
     "co_stop_peak_ppm": 600.0,  # extra CO of the burn-out after a stop [ppm] (assumption)
     "co_transient_s": 240.0,  # decay time of the start/stop CO peaks [s] (assumption)
 }
+
+#: The water spread of nominal load [K]: outlet at the set temperature, return this much
+#: below it (Section 2.3; :attr:`BoilerParams.nominal_flow_kg_h`)
+NOMINAL_SPREAD_K = 15.0
 
 
 class ParameterError(ValueError):
@@ -118,7 +130,16 @@ class BoilerParams:
     @property
     def nominal_flow_kg_h(self) -> float:
         """Water flow of nominal load with a 15 K spread [kg/h] (Section 2.3)."""
-        return self.p_nom_kW * 3600.0 / (k.CP_WATER * 15.0)
+        return self.p_nom_kW * 3600.0 / (k.CP_WATER * NOMINAL_SPREAD_K)
+
+    def firing_points(self) -> tuple[tuple[str, float], ...]:
+        """The firing powers the burner runs at [kW, net], named: Pmax (nominal load), Pmin
+        and, where it differs from Pmax, Pstart (the start-up); Eq. 8 and 9 are linear in
+        the fuel flow between them."""
+        points = (("Pmax", self.p_max_kW), ("Pmin", self.p_min_kW))
+        if self.p_start_kW != self.p_max_kW:
+            points += (("Pstart", self.p_start_kW),)
+        return points
 
     def to_mapping(self) -> dict[str, Any]:
         """The parameter set as a plain mapping of CONTRACT section 2 form."""
@@ -160,16 +181,13 @@ def params_from_mapping(data: Any, source: str = "<parameters>") -> BoilerParams
         raise ParameterError(
             f"{source}: expected a mapping of parameters, got {type(data).__name__}"
         )
-    for key in REQUIRED_KEYS:
-        if key not in data:
-            raise ParameterError(f"{source}: missing required key '{key}'")
-    known = set(REQUIRED_KEYS) | set(OPTIONAL_DEFAULTS)
-    for key in data:
-        if key not in known:
-            raise ParameterError(f"{source}: unknown key '{key}'")
+    _check_keys(data, REQUIRED_KEYS, OPTIONAL_DEFAULTS, "", source)
     name = data["name"]
     if not isinstance(name, str) or not name:
         raise ParameterError(f"{source}: key 'name' must be a non-empty string")
+    hidden = hidden_character(name)
+    if hidden is not None:  # (U+202E and a line break were printed raw: a stranger's probe)
+        raise ParameterError(f"{source}: key 'name' '{shown(name)}' holds {hidden}")
     values: dict[str, Any] = {"name": name}
     for key in (*REQUIRED_KEYS, *OPTIONAL_DEFAULTS):
         if key in ("name", "fuel") or key not in data:
@@ -179,12 +197,7 @@ def params_from_mapping(data: Any, source: str = "<parameters>") -> BoilerParams
     fuel_data = data["fuel"]
     if not isinstance(fuel_data, Mapping):
         raise ParameterError(f"{source}: key 'fuel' must be a mapping")
-    for key in FUEL_KEYS:
-        if key not in fuel_data:
-            raise ParameterError(f"{source}: missing required key 'fuel.{key}'")
-    for key in fuel_data:
-        if key not in FUEL_KEYS:
-            raise ParameterError(f"{source}: unknown key 'fuel.{key}'")
+    _check_keys(fuel_data, FUEL_KEYS, {}, "fuel.", source)
     fuel_values = {key: _number(fuel_data[key], f"fuel.{key}", source) for key in FUEL_KEYS}
     for key in FUEL_KEYS[1:]:
         if not 0.0 <= fuel_values[key] < 1.0:
@@ -198,6 +211,7 @@ def params_from_mapping(data: Any, source: str = "<parameters>") -> BoilerParams
             f"{source}: key 'fuel' fractions c+h+o+n+s+ash sum to {total:.4f}, expected 1"
         )
     values["fuel"] = Fuel(**fuel_values)
+    _check_net_heat(values["fuel"], source)
 
     positive = (
         "p_nom_kW",
@@ -263,21 +277,14 @@ def params_from_mapping(data: Any, source: str = "<parameters>") -> BoilerParams
     if values["p_start_kW"] > values["p_max_kW"] * 1.5:
         raise ParameterError(f"{source}: key 'p_start_kW' is above 1.5 x p_max_kW")
     params = BoilerParams(**values)
+    for key in CONTROLLER_TEMPERATURES:
+        _check_liquid(getattr(params, key), key, source)
     if not params.restart_temp_C < params.set_temp_C < params.shutoff_temp_C:
         raise ParameterError(
             f"{source}: keys 'restart_temp_C' < 'set_temp_C' < 'shutoff_temp_C' must hold"
         )
-    lam_max = params.fac_a_lambda + params.fac_b_lambda_h_kg * _dry_fuel_kg_h(
-        params, params.p_max_kW
-    )
-    lam_min = params.fac_a_lambda + params.fac_b_lambda_h_kg * _dry_fuel_kg_h(
-        params, params.p_min_kW
-    )
-    if min(lam_max, lam_min) <= 1.0:
-        raise ParameterError(
-            f"{source}: keys 'fac_a_lambda'/'fac_b_lambda_h_kg' give lambda <= 1 in the "
-            "modulation range (incomplete combustion)"
-        )
+    _check_lambda(params, source)
+    _check_flue_gas(params, source)
     return params
 
 
@@ -341,3 +348,161 @@ def _check_unit(
 def _dry_fuel_kg_h(params: BoilerParams, firing_kW: float) -> float:
     """Dry fuel flow [kg/h] of a firing power on the net basis [kW]."""
     return firing_kW * 3600.0 / params.fuel.lhv_dry_kJ_kg
+
+
+def _check_keys(
+    section: Mapping[Any, Any],
+    required: tuple[str, ...],
+    optional: Mapping[str, Any],
+    prefix: str,
+    source: str,
+) -> None:
+    """Refuse a section (the file, or ``fuel``: ``prefix``) with an unknown or a missing
+    key. An unknown key is named first, with the required key it leaves missing: a typo
+    ``ashh`` was reported as only the missing ``fuel.ash`` (a stranger's probe)."""
+    unknown = [key for key in section if key not in required and key not in optional]
+    missing = [key for key in required if key not in section]
+    if unknown:
+        key = unknown[0]
+        text = shown(key) if isinstance(key, str) else repr(key)
+        also = f" (and required key '{prefix}{missing[0]}' is missing)" if missing else ""
+        raise ParameterError(f"{source}: unknown key '{prefix}{text}'{also}")
+    if missing:
+        raise ParameterError(f"{source}: missing required key '{prefix}{missing[0]}'")
+
+
+#: The controller's temperatures (set, shut-off, restart), which the boiler's water reaches
+CONTROLLER_TEMPERATURES = ("set_temp_C", "shutoff_temp_C", "restart_temp_C")
+#: The water of a hot-water boiler is liquid between these [C]: it freezes at 0 C (the one
+#: node holds liquid water of constant heat capacity: the model has no ice), and EN 303-5's
+#: boilers work at up to 110 C, above which the water of a heating system at its usual
+#: pressure boils
+LIQUID_WATER_C = (0.0, 110.0)
+#: Absolute zero [C]: no temperature lies below it
+ABSOLUTE_ZERO_C = -k.T_NORMAL_K
+
+
+def _check_liquid(value: float, key: str, source: str) -> None:
+    """Refuse a controller temperature the boiler's water cannot have (-300 C was
+    accepted: a stranger's probe)."""
+    low, high = LIQUID_WATER_C
+    if value < ABSOLUTE_ZERO_C:
+        why = f"below absolute zero ({ABSOLUTE_ZERO_C:g} C)"
+    elif value <= low:
+        why = f"at or below {low:g} C, where the boiler's water freezes"
+    elif value > high:
+        why = f"above {high:g} C, where the boiler's water boils (EN 303-5: up to {high:g} C)"
+    else:
+        return
+    raise ParameterError(f"{source}: key '{key}' ({value:g} C) is {why}")
+
+
+def _check_net_heat(fuel: Fuel, source: str) -> None:
+    """Refuse a fuel whose water (the moisture, and before it the water its hydrogen forms)
+    takes more heat to evaporate than the dry fuel gives: its net calorific value as
+    received, (1 - w) LHV_dry - w dH_vap, is not positive, so burning it cannot heat
+    anything (moisture 0.9 gave -4.8 kW to the water, 0.99 a boiler at -163 C: a stranger's
+    probe). That is the physical bound; pellets of EN ISO 17225-2 hold at most 10 % and
+    wood chips up to about 55 %, but wetter fuel is a real (modelled) effect, so the
+    standard's figure is no reason to refuse a file."""
+    if fuel.lhv_dry_kJ_kg <= 0.0:  # the water formed from the hydrogen alone
+        raise ParameterError(
+            f"{source}: keys 'fuel.h' ({fuel.h:g})/'fuel.hhv_dry_kJ_kg' "
+            f"({fuel.hhv_dry_kJ_kg:g}) leave the dry fuel no net heat: evaporating the water "
+            f"its hydrogen forms takes more than its gross heat (LHV {fuel.lhv_dry_kJ_kg:.0f} "
+            "kJ/kg)"
+        )
+    net = (1.0 - fuel.moisture) * fuel.lhv_dry_kJ_kg - fuel.moisture * k.DH_VAP_WATER
+    if net <= 0.0:
+        limit = fuel.lhv_dry_kJ_kg / (fuel.lhv_dry_kJ_kg + k.DH_VAP_WATER)
+        raise ParameterError(
+            f"{source}: key 'fuel.moisture' ({fuel.moisture:g}) leaves the fuel no net heat: "
+            f"evaporating its water takes more than the dry fuel gives ({net:.0f} kJ/kg as "
+            f"received); it must be below {limit:.3f}"
+        )
+
+
+#: The most excess air a firing boiler runs at: O2 about 19 % of the dry gas, where the
+#: balance counts a row as firing no more (an analyser reading air fits lambda 16). The
+#: parameter files and the calibration (:mod:`hil_client.analysis.calibrate`) share it.
+LAMBDA_MAX = 10.0
+
+
+def _check_lambda(params: BoilerParams, source: str) -> None:
+    """Refuse an Eq. 9 that gives lambda outside 1..:data:`LAMBDA_MAX` at a firing power
+    of :meth:`BoilerParams.firing_points` (linear in the fuel flow, so between them too):
+    at or below 1 the combustion is incomplete; far above, the flame is air (facA 100 and
+    facB 20 gave water at 3 C and -107 C while firing: a stranger's probe)."""
+    for label, firing_kW in params.firing_points():
+        lam = params.fac_a_lambda + params.fac_b_lambda_h_kg * _dry_fuel_kg_h(params, firing_kW)
+        if 1.0 < lam <= LAMBDA_MAX:
+            continue
+        why = (
+            "lambda <= 1 (incomplete combustion)"
+            if lam <= 1.0
+            else f"lambda above {LAMBDA_MAX:g} (O2 near air's: no flame)"
+        )
+        raise ParameterError(
+            f"{source}: keys 'fac_a_lambda'/'fac_b_lambda_h_kg' give {why} in the modulation "
+            f"range: {lam:.3g} at {label} ({firing_kW:g} kW, Eq. 9)"
+        )
+
+
+#: The room of the reference operating point [C] (a boiler room; the bench's lab)
+REFERENCE_ROOM_C = 20.0
+
+
+def _check_flue_gas(params: BoilerParams, source: str) -> None:
+    """Refuse a flue-gas temperature (Eq. 8) the exchanger cannot give, and a boiler that
+    cannot heat its water at nominal load.
+
+    At each firing power of :meth:`BoilerParams.firing_points`, with no flow and with the
+    nominal flow (Eq. 8 is linear in the flow between them), at the nominal operating point
+    (return :data:`NOMINAL_SPREAD_K` below the set temperature, room
+    :data:`REFERENCE_ROOM_C`): the flue gas leaves hotter than the return water it heats
+    (else the water would heat the gas), and colder than its flame, i.e. its losses (Eq.
+    4-6) stay below the fuel's heat (else the exchanger would take heat from the water:
+    dt_nom_K 2000 gave a flue gas of 2055 C and -1.3 kW to the water, a stranger's probe).
+    Then the model's own steady state at nominal load must deliver heat to the water."""
+    c = pack_constants(params)
+    t_in = params.set_temp_C - NOMINAL_SPREAD_K
+    nominal = params.nominal_flow_kg_h
+    for label, firing_kW in params.firing_points():
+        for flow, flow_label in ((nominal, "nominal flow"), (0.0, "no flow")):
+            q_hx, q_fuel, q_fg, t_fg = exchanger_heat(c, firing_kW, flow, t_in, REFERENCE_ROOM_C)
+            if t_fg > t_in and q_hx > 0.0:
+                continue
+            too_cold = t_fg <= t_in
+            # the keys whose terms of Eq. 8 push it that way, the largest first (m_fuel,nom
+            # is the fuel at Pmax: the fuel flows are as the firing powers)
+            terms = {
+                "dt_nom_K": params.dt_nom_K,
+                "dt_hx_fg_K": params.dt_hx_fg_K * (1.0 - firing_kW / params.p_max_kW),
+                "dt_hx_wat_K": params.dt_hx_wat_K * (1.0 - flow / nominal),
+            }
+            keys = sorted(
+                (key for key, term in terms.items() if term != 0.0 and (term < 0.0) == too_cold),
+                key=lambda key: abs(terms[key]),
+                reverse=True,
+            )
+            where = f"at {label} ({firing_kW:g} kW) and {flow_label}"
+            why = (
+                f"colder than the return water ({t_in:g} C) it heats"
+                if too_cold
+                else f"carrying off {q_fg:.3g} kW of the fuel's {q_fuel:.3g} kW: hotter than "
+                "its flame"
+            )
+            named = "/".join(f"'{key}'" for key in keys)
+            verb = "give" if len(keys) > 1 else "gives"
+            raise ParameterError(
+                f"{source}: key{'s' if len(keys) > 1 else ''} {named} {verb} a flue gas of "
+                f"{t_fg:.0f} C {where} (Eq. 8), {why}"
+            )
+    ss = steady_state(c, nominal, t_in, REFERENCE_ROOM_C)
+    if not ss.q_water_kW > 0.0:
+        raise ParameterError(
+            f"{source}: keys 'dt_nom_K'/'ua_amb_on_W_K': at nominal load ({nominal:.0f} kg/h, "
+            f"return {t_in:g} C, room {REFERENCE_ROOM_C:g} C) the boiler delivers "
+            f"{ss.q_water_kW:.3g} kW to the water: its exchanger's {ss.q_hx_kW:.3g} kW do not "
+            "cover its loss to the room"
+        )

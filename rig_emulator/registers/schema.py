@@ -34,11 +34,13 @@ refused with the file, device and point named.
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from rig_emulator.names import hidden_character, shown
 from rig_emulator.registers.datatypes import DATATYPES
 from rig_emulator.signals import PLANT_COMMANDS, SIGNALS
 from rig_emulator.yamlio import finite_number, read_yaml
@@ -54,6 +56,16 @@ BIT_TABLES = ("coil", "discrete")
 
 class MapError(ValueError):
     """A register map is malformed; the message names the file, device and point."""
+
+
+def _check_shown_name(name: Any, where: str) -> None:
+    """MapError if ``name`` holds a character that displays it as another or writes a line of
+    its own (:func:`~rig_emulator.yamlio.hidden_character`, the rule of boiler and role
+    names): the reference prints names as written (a point named with U+202E, a right-to-left
+    override, and one with a line break passed: a stranger's probe). ``where`` names it by
+    position, the name is shown escaped; a name that is no text is left to its own check."""
+    if isinstance(name, str) and (hidden := hidden_character(name)) is not None:
+        raise MapError(f"{where}: 'name' '{shown(name)}' holds {hidden}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -288,6 +300,7 @@ def map_from_mapping(data: Any, source: str = "<map>") -> RegisterMap:
         name = raw["name"]
         if not isinstance(name, str) or not name:  # (17 was "missing": a stranger's probe)
             raise MapError(f"{where}: 'name' must be a non-empty text, got {_kind(name)}")
+        _check_shown_name(name, where)
         where = f"{source}: device '{name}'"
         for key in raw:
             if key not in ("name", "unit_id", "instrument", "word_order", "points"):
@@ -311,11 +324,14 @@ def map_from_mapping(data: Any, source: str = "<map>") -> RegisterMap:
         points: list[Point] = []
         for j, praw in enumerate(points_raw):
             label = praw.get("name") if isinstance(praw, Mapping) else None
+            _check_shown_name(label, f"{where} points[{j}]")
             label = label if isinstance(label, str) else f"#{j}"
             points.append(_point(praw, f"{where} point '{label}'", order))
-        names = [p.name for p in points]
+        # counted once (a list's count per point took 108 s for a map of 32,000 points,
+        # within the size limit: a stranger's probe); the first point of a name used twice
+        uses = Counter(p.name for p in points)
         for point in points:
-            if names.count(point.name) > 1:
+            if uses[point.name] > 1:
                 raise MapError(f"{where} point '{point.name}': name used twice")
         for table in TABLES:
             used: dict[int, str] = {}

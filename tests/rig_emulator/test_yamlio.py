@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from rig_emulator.yamlio import read_yaml
@@ -131,3 +133,23 @@ def test_dates_are_text_and_what_is_written_reads_back(tmp_path):
     path = tmp_path / "round.yaml"
     path.write_text(dump_yaml(data))
     assert read_yaml(path, Bad) == data
+
+
+def test_a_folder_named_as_a_shipped_file_does_not_shadow_it(tmp_path, monkeypatch, capsys):
+    """A re-probe: in a directory holding a folder ``clean``, every ``hil-client run`` failed
+    with "--profile: clean: cannot read (Is a directory)", ``--profile`` given or not. A
+    shipped NAME is the shipped file; ``./clean`` still names the folder (and is refused)."""
+    from hil_client.cli import main as hil_client_main
+    from rig_emulator.cli import main as rig_emulator_main
+
+    (tmp_path / "clean").mkdir()
+    (tmp_path / "windhager_6kw").mkdir()
+    monkeypatch.chdir(tmp_path)
+    protocol = Path(__file__).parents[1] / "data" / "short_protocol.yaml"
+    argv = ["run", str(protocol), "--boiler", "windhager_6kw", "--rig", "local", "--quiet"]
+    assert hil_client_main([*argv, "--out", "a.csv"]) == 0
+    assert hil_client_main([*argv, "--profile", "clean", "--out", "b.csv"]) == 0
+    assert rig_emulator_main(["check", "--boiler", "windhager_6kw"]) == 0
+    capsys.readouterr()
+    assert hil_client_main([*argv, "--profile", "./clean", "--out", "c.csv"]) == 2
+    assert "clean" in capsys.readouterr().err

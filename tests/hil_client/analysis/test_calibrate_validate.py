@@ -565,3 +565,23 @@ def test_a_log_sampled_every_10_s_fits_pstart(round_trip, tmp_path):
         f = fitted[key]
         assert "why" not in f and not f["implausible"], f
         assert abs(f["value"] - TRUE[key]) <= f["expanded_uncertainty_k2"], f
+
+
+def test_a_fit_the_parameter_files_refuse_keeps_its_documentation_value_alone():
+    """The parameter files now refuse what physics does not allow (a flue gas hotter than
+    its flame): a calibration whose fit broke such a rule would have been refused whole
+    when written (exit 2, nothing kept). The fit the check names goes back to its
+    documentation value, flagged with the reason; the other fits stay, and the set loads."""
+    from hil_client.analysis.calibrate import Fitted, _plausible
+    from rig_emulator.model.params import params_from_mapping
+
+    doc = load_boiler("windhager_12kw")
+    fitted = {
+        "dt_nom_K": Fitted(2000.0, 1.0, "stationary intervals"),  # positive, but no flame
+        "ua_amb_off_W_K": Fitted(3.1, 0.1, "cooling"),
+    }
+    params, flags = _plausible(doc, fitted)
+    assert params.dt_nom_K == doc.dt_nom_K
+    assert "refused" in flags["dt_nom_K"] and "flame" in flags["dt_nom_K"]
+    assert params.ua_amb_off_W_K == 3.1 and "ua_amb_off_W_K" not in flags
+    assert params_from_mapping(params.to_mapping()) == params
