@@ -58,7 +58,7 @@ from hil_client.protocol.runner import RunResult, check_setpoints, run_protocol
 from hil_client.rigs.local import LocalRig, wire_only_faults
 from hil_client.rigs.modbus import WRITES, ModbusRig, check_map
 from hil_client.rigs.transports import RIG_TIMEOUT_S, connector, tls_files
-from hil_client.run_lock import RunBusy, run_lock
+from hil_client.run_lock import RunBusy, lock_path, run_lock
 from hil_client.summary import RunSummary
 from rig_emulator.atomic import write_atomically
 from rig_emulator.boilers import BOILER_DIR, dump_boiler, load_boiler
@@ -868,14 +868,17 @@ class _EarlierRun:
     says so (a stranger's probe: Ctrl-C 2 s into a re-run, or a full disk, deleted the
     complete 18-h log at its ``--out``; and the ``.previous`` a run killed with -9 left
     was overwritten by the next run's set-aside). The name is locked as a log is
-    (:mod:`hil_client.run_lock`), so no other run writes or sets aside there meanwhile."""
+    (:mod:`hil_client.run_lock`), so no other run writes or sets aside there meanwhile.
+    Logs kept so by earlier re-runs are said at the start and never touched (only this
+    run's own set-aside is deleted); their lock files, left by a run killed with -9, go."""
 
     def __init__(self, out: Path, held: contextlib.ExitStack) -> None:
         self.out = out
         self.moved: list[tuple[Path, Path]] = []  # (at --out, aside)
         self.told = False  # where they are, said on stderr
         self._held = held
-        self.aside = self._free_name() if self._present() else None
+        self.left: list[Path] = []  # names holding logs that earlier re-runs kept
+        self.aside = self._look_through(self._present())
 
     def __bool__(self) -> bool:
         return bool(self.moved)
@@ -883,64 +886,146 @@ class _EarlierRun:
     def _present(self) -> list[Path]:
         return [path for path in _log_files(self.out).values() if os.path.lexists(path)]
 
-    def _free_name(self) -> Path:
-        """The first free name for the earlier run's log, locked for this run (exit 2
-        where all are taken: the kept logs are the user's to look through)."""
+    def _aside_names(self) -> Iterator[Path]:
+        """``NAME.previous.csv``, ``NAME.previous2.csv``, ... (:data:`ASIDE_NAMES`)."""
         for number in range(1, ASIDE_NAMES + 1):
             tail = f"previous{number if number > 1 else ''}"
-            aside = self.out.with_name(f"{self.out.stem}.{tail}{self.out.suffix}")
+            yield self.out.with_name(f"{self.out.stem}.{tail}{self.out.suffix}")
+
+    def _look_through(self, present: list[Path]) -> Path | None:
+        """The first free name for the earlier run's ``present`` files, locked for this run
+        (None with none present; exit 2 where all are taken: the kept logs are the user's
+        to look through, or where its names are too long to be made). On the way, the
+        names holding kept logs are noted (:attr:`left`), and a lock file of such a name
+        that no live process holds is removed (a run killed with -9 left it behind)."""
+        free = None
+        for aside in self._aside_names():
             files = [*_log_files(aside).values(), *same_companions(aside)]
-            if any(os.path.lexists(path) for path in files):
+            taken = any(os.path.lexists(path) for path in files)
+            if taken or os.path.lexists(lock_path(aside)):
+                try:  # (taken and let go at once: the lock file goes with it)
+                    with run_lock(aside, "keeping", self.out):
+                        pass
+                except RunBusy:  # a live run writes or keeps there: not a kept log
+                    continue
+                if taken:
+                    self.left.append(aside)
+                    continue
+            if free is None and present:
+                self._refuse_too_long(present, aside)
+                try:
+                    self._held.enter_context(run_lock(aside, "keeping", self.out))
+                except RunBusy:
+                    continue
+                free = aside
+        if present and free is None:
+            raise UsageError(
+                f"--out: '{self.out}' holds an earlier run's log, and {ASIDE_NAMES} earlier "
+                f"runs are kept beside it already ({self.out.stem}.previous*"
+                f"{self.out.suffix}): move them away, or give another --out"
+            )
+        return free
+
+    def _refuse_too_long(self, present: list[Path], aside: Path) -> None:
+        """Exit 2 where a name ``present``'s files would take under ``aside`` is longer
+        than the file system allows (a stranger's probe: a 236-character stem, whose
+        ``.previous2.meta.json`` could not be made; the log was moved, its meta was not,
+        and every later run failed so). The later names are no shorter."""
+        for path, name in self._pairs(aside).items():
+            if path not in present:
                 continue
             try:
-                self._held.enter_context(run_lock(aside, "keeping", self.out))
-            except RunBusy:
-                continue
-            return aside
-        raise UsageError(
-            f"--out: '{self.out}' holds an earlier run's log, and {ASIDE_NAMES} earlier runs "
-            f"are kept beside it already ({self.out.stem}.previous*{self.out.suffix}): move "
-            "them away, or give another --out"
-        )
+                os.lstat(name)
+            except OSError as exc:  # (any other error: the rename says it, moving nothing)
+                if exc.errno == errno.ENAMETOOLONG:
+                    raise UsageError(
+                        f"--out: '{self.out}' holds an earlier run's files, and the name to "
+                        f"keep '{path.name}' under, '{name.name}', is too long for its file "
+                        f"system ({exc.strerror}): move the earlier run's files away, or give "
+                        "a shorter --out"
+                    ) from None
+
+    def _pairs(self, aside: Path) -> dict[Path, Path]:
+        """Each file of the log at ``--out`` and its name under ``aside``."""
+        return dict(zip(_log_files(self.out).values(), _log_files(aside).values(), strict=True))
 
     def set_aside(self) -> None:
-        """Move the earlier run's files to the free name, and say so on stderr."""
-        if self.aside is None:
-            return
-        names = dict(
-            zip(_log_files(self.out).values(), _log_files(self.aside).values(), strict=True)
-        )
+        """Say which logs earlier re-runs kept, then move the earlier run's files to the
+        free name, all or none: a rename that fails undoes those made (exit 2 naming the
+        file; a stranger's probe: an immutable meta file left the log moved and its meta
+        at ``--out``, which a later run took for an earlier run's and deleted), and a
+        Ctrl-C or SIGTERM waits for the last rename, then puts them back (the run has
+        written nothing yet)."""
+        try:
+            with _signals_held():  # (a signal that came is raised as the block ends)
+                failed = self._move(self._pairs(self.aside)) if self.aside else None
+                if self.left and not failed:  # (a refusal is one line)
+                    print(f"hil-client: {self._left_line()}", file=sys.stderr)
+                if self.moved:
+                    self._held.callback(self._tell_if_left)
+                    print(f"hil-client: {self._holds()}", file=sys.stderr)
+        except KeyboardInterrupt:
+            with _signals_held():
+                self.put_back()
+            raise
+        if failed:
+            raise UsageError(failed)
+
+    def _move(self, names: dict[Path, Path]) -> str | None:
+        """Rename the files at ``--out`` to ``names``, or none of them: at a rename that
+        fails, the ones made are renamed back; the line refusing the run then (None when
+        all moved)."""
         for path in self._present():
-            path.replace(names[path])
+            try:
+                path.replace(names[path])
+            except OSError as exc:
+                line = (
+                    f"--out: '{self.out}' holds an earlier run's files, and '{path}' cannot "
+                    f"be set aside as '{names[path].name}' ({exc.strerror or exc})"
+                )
+                stuck = self._undo()
+                if stuck:
+                    return f"{line}; {stuck}"
+                return f"{line}: nothing was moved; make it movable, or give another --out"
             self.moved.append((path, names[path]))
-        if self.moved:
-            self._held.callback(self._tell_if_left)
-            print(f"hil-client: {self._holds()}", file=sys.stderr)
+        return None
+
+    def _undo(self) -> str:
+        """Rename the files moved so far back; what could not be (empty if all were)."""
+        stuck = []
+        for path, aside in reversed(self.moved):
+            try:
+                aside.replace(path)
+            except OSError as exc:
+                stuck.append(f"'{aside}' could not be put back as '{path.name}' ({exc.strerror})")
+        self.moved = []
+        return ", and ".join(stuck)
+
+    def _left_line(self) -> str:
+        """A line on the logs earlier re-runs kept beside ``--out``, which this run leaves."""
+        kept = []
+        for aside in self.left:
+            files = _log_files(aside)
+            if os.path.lexists(aside):
+                facts = _log_facts(aside, files["the lab log's meta file"])
+                kept.append(f"{aside.name} ({facts})" if facts else aside.name)
+            else:
+                kept.extend(path.name for path in files.values() if os.path.lexists(path))
+        return (
+            f"kept beside {self.out} by earlier re-runs that did not complete: "
+            f"{', '.join(kept)}; this run leaves them as they are"
+        )
 
     def _holds(self) -> str:
         """A line on the earlier run's log at ``--out`` and where it waits."""
         aside = dict(self.moved)
-        what = "an earlier run's files"
-        if self.out in aside and aside[self.out].is_file():  # (a FIFO would be read forever)
-            try:
-                with aside[self.out].open("rb") as fh:
-                    rows = max(sum(1 for _ in fh) - 1, 0)
-                meta_aside = aside.get(meta_path(self.out))
-                meta = (
-                    json.loads(meta_aside.read_text())
-                    if meta_aside and meta_aside.is_file()
-                    else {}
-                )
-            except (OSError, ValueError):
-                rows, meta = None, {}
-            complete = meta.get("complete") if isinstance(meta, dict) else None
-            done = {True: "complete", False: "not complete"}.get(complete, "")
-            facts = ", ".join(x for x in (f"{rows} rows" if rows is not None else "", done) if x)
+        if self.out in aside:
+            facts = _log_facts(aside[self.out], aside.get(meta_path(self.out)))
             what = f"an earlier run's log ({facts})" if facts else "an earlier run's log"
-        return (
-            f"{self.out} holds {what}: this run replaces it once it completes; until then "
-            f"it is kept as {self._where()}"
-        )
+            them = "it once it completes; until then it is"
+        else:
+            what, them = "an earlier run's files", "them once it completes; until then they are"
+        return f"{self.out} holds {what}: this run replaces {them} kept as {self._where()}"
 
     def _where(self) -> str:
         """The name the earlier run's files wait under (its log's, or each file's)."""
@@ -953,13 +1038,15 @@ class _EarlierRun:
         """Where the earlier run's files stay after a run that stopped with rows (and, on
         a full disk, that they take part of it: the user decides, nothing is deleted)."""
         self.told = True
-        line = f"the earlier run's log is kept as {self._where()} (a run that did not complete"
-        line += " replaces nothing"
+        log = self.out in dict(self.moved)  # (else only its meta or events file was there)
+        line = f"the earlier run's {'log is' if log else 'files are'} kept as {self._where()}"
+        line += " (a run that did not complete replaces nothing"
         if disk_full:
             size = sum(path.stat().st_size for _, path in self.moved if path.is_file())
+            them = ("it takes", "it", "it is") if log else ("they take", "them", "they are")
             line += (
-                f"; it takes {size / 1e6:.1f} MB of the full disk: delete it only if it is not"
-                " needed"
+                f"; {them[0]} {size / 1e6:.1f} MB of the full disk: delete {them[1]} only if"
+                f" {them[2]} not needed"
             )
         return line + ")"
 
@@ -980,6 +1067,22 @@ class _EarlierRun:
         for _, aside in self.moved:
             aside.unlink(missing_ok=True)
         self.moved = []
+
+
+def _log_facts(log: Path, meta: Path | None) -> str:
+    """What a log says of itself, for a line on it: its rows and whether its meta file
+    says it is complete (empty where neither can be read)."""
+    if not log.is_file():  # (a FIFO would be read forever)
+        return ""
+    try:
+        with log.open("rb") as fh:
+            rows = max(sum(1 for _ in fh) - 1, 0)
+        loaded = json.loads(meta.read_text()) if meta and meta.is_file() else {}
+    except (OSError, ValueError):
+        rows, loaded = None, {}
+    complete = loaded.get("complete") if isinstance(loaded, dict) else None
+    done = {True: "complete", False: "not complete"}.get(complete, "")
+    return ", ".join(x for x in (f"{rows} rows" if rows is not None else "", done) if x)
 
 
 def _settle_previous(
@@ -1176,11 +1279,16 @@ def _run(args: argparse.Namespace, held: contextlib.ExitStack) -> int:
         meta["gaps"] = getattr(rig, "gaps", [])
         write_meta(out, meta)
 
-    previous.set_aside()  # said on stderr (a killed run's partial log went without a word)
     written = [0]  # rows of this run in the log
-    events = EventsWriter(out) if remote else None  # what faulty units did, beside the log
+    events = None  # what faulty units did, beside the log
     finished = False  # the protocol ran to its end
+    try:  # said on stderr (a killed run's partial log went without a word)
+        previous.set_aside()
+    except (UsageError, KeyboardInterrupt):  # (the earlier run's files are as they were)
+        rig.close()
+        raise
     try:
+        events = EventsWriter(out) if remote else None
         with LabLogWriter(out) as writer:
             write_meta(out, meta)
 
@@ -1315,8 +1423,17 @@ def _run(args: argparse.Namespace, held: contextlib.ExitStack) -> int:
     if coarse:
         result.notes.append(coarse)
         print(f"hil-client: warning: {coarse}", file=sys.stderr)
-    save_meta(result)
-    _settle_previous(out, previous, written[0], meta["gaps"], completed=True)
+    try:  # a signal after the meta says complete waits: the log replaces the earlier one
+        with _signals_held():  # (the earlier log was kept, the run said "interrupted")
+            save_meta(result)
+            _settle_previous(out, previous, written[0], meta["gaps"], completed=True)
+    except KeyboardInterrupt:
+        print(
+            f"hil-client: interrupted after the run completed; its log {out} and meta file "
+            "are complete",
+            file=sys.stderr,
+        )
+        return 1
     if args.fault_report is not None:
         with bad_input(ValueError, LogError, prefix="--fault-report: "):
             fault_rep = fault_report(out, args.fault_journal)

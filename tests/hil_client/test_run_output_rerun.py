@@ -4,15 +4,21 @@ it beside its own partial log, as ``NAME.previous.csv`` with its meta and events
 
 from __future__ import annotations
 
+import errno
 import json
+import os
+import shutil
 import signal
 import subprocess
 import sys
 import time
 from pathlib import Path
 
+import pytest
+
 from hil_client.cli import main
 from hil_client.demo import rig_emulator_serve
+from hil_client.run_lock import lock_path, run_lock
 from tests.hil_client.test_run_lock import SHORT, _rows
 from tests.hil_client.test_run_refusals import _with_file_size_limit
 
@@ -149,3 +155,201 @@ def test_the_name_an_earlier_log_is_kept_under_is_held_while_the_run_writes(tmp_
     assert f"it keeps the earlier run's files of its --out '{out}' there" in other.stderr
     assert other.stderr.count("\n") == 1, other.stderr
     assert kept.read_bytes() == earlier["r.csv"]
+
+
+def _hooked_run(hook: str, out: Path, *options: str) -> subprocess.CompletedProcess:
+    """``hil-client run`` to ``out`` in its own process, ``hook`` run first in it (it
+    sends that process a real SIGINT at a chosen moment, which no outside timing hits)."""
+    code = f"{hook}\nfrom hil_client.cli import main\nsys.exit(main(sys.argv[1:]))"
+    return subprocess.run(
+        [sys.executable, "-c", f"import os, signal, sys\n{code}", *_run_argv(out, *options)],
+        stderr=subprocess.PIPE, text=True, timeout=120,
+    )  # fmt: skip
+
+
+def _hil_client(out: Path, *options: str, **kwargs) -> subprocess.CompletedProcess:
+    """``hil-client run`` to ``out`` in its own process, its stderr captured."""
+    return subprocess.run(
+        [sys.executable, "-m", "hil_client.cli", *_run_argv(out, *options)],
+        stderr=subprocess.PIPE, text=True, timeout=120, **kwargs,
+    )  # fmt: skip
+
+
+def _snapshot(directory: Path) -> dict[str, bytes]:
+    """Every file in ``directory`` (lock files included), by name."""
+    return {p.name: p.read_bytes() for p in directory.iterdir() if p.is_file()}
+
+
+def test_an_earlier_log_whose_meta_cannot_be_moved_stays_whole_at_out(tmp_path):
+    """A stranger's probe: the earlier a.meta.json made immutable (chattr +i, as another
+    user's file in a sticky directory is), a re-run said only "a.meta.json: Operation not
+    permitted" (exit 2) and left a.previous.csv and a.meta.json, no a.csv; the next run
+    took the orphaned meta for an earlier run's, "kept as a.previous2.meta.json", and
+    deleted it on completing: the earlier log lost its meta for good. The set-aside is now
+    all or none: the log moved is moved back, and the run refused in one line naming the
+    file and the reason; a later run, the meta movable again, replaces both as one log."""
+    out = tmp_path / "a.csv"
+    earlier = _earlier_run(out)
+    meta = tmp_path / "a.meta.json"
+    chattr = shutil.which("chattr")
+    made = chattr and subprocess.run([chattr, "+i", str(meta)], capture_output=True, text=True)
+    if not made or made.returncode != 0:
+        pytest.skip(f"chattr +i {meta} failed: {made.stderr.strip() if made else 'no chattr'}")
+    try:
+        rerun = _hil_client(out)
+    finally:
+        subprocess.run([chattr, "-i", str(meta)], check=True)
+    assert rerun.returncode == 2, rerun.stderr
+    assert rerun.stderr.count("\n") == 1, rerun.stderr
+    assert f"'{meta}' cannot be set aside as 'a.previous.meta.json'" in rerun.stderr
+    assert f"({os.strerror(errno.EPERM)})" in rerun.stderr and "nothing was moved" in rerun.stderr
+    assert _snapshot(tmp_path) == earlier, rerun.stderr  # no a.previous*, no lock file
+
+    assert main(_run_argv(out)) == 0  # movable again: the earlier log and meta are replaced
+    assert json.loads(meta.read_text())["complete"] is True
+    assert sorted(_snapshot(tmp_path)) == ["a.csv", "a.meta.json"]
+
+
+def test_an_earlier_log_whose_aside_names_are_too_long_stays_whole_at_out(tmp_path):
+    """A stranger's probe: --out with a 236-character stem; a re-run that did not complete
+    kept the earlier log as N.previous.csv; the next re-run found N.previous2.meta.json
+    free (a name too long to exist), moved the log, failed on the meta with "N.meta.json:
+    File name too long" (the wrong file named) and every later run failed so. A name too
+    long to be made is now no name to keep files under: the run is refused in one line
+    before it moves anything."""
+    name_max = os.pathconf(tmp_path, "PC_NAME_MAX")
+    stem = "x" * (name_max - len(".previous.meta.json"))  # .previous fits, .previous2 not
+    out = tmp_path / f"{stem}.csv"
+    earlier = _earlier_run(out)
+    stopped = _hil_client(out, "--seed", "7", preexec_fn=_with_file_size_limit(FILE_SIZE_LIMIT))
+    assert stopped.returncode == 1, stopped.stderr  # its log kept the earlier one beside it
+    kept = [f"{stem}.previous.csv", f"{stem}.previous.meta.json"]
+    assert _files(tmp_path, kept) == dict(zip(kept, earlier.values(), strict=True))
+    before = _snapshot(tmp_path)
+
+    rerun = _hil_client(out)
+    assert rerun.returncode == 2, rerun.stderr
+    assert rerun.stderr.count("\n") == 1, rerun.stderr
+    assert f"'{stem}.previous2.meta.json', is too long" in rerun.stderr, rerun.stderr
+    assert _snapshot(tmp_path) == before  # nothing moved, nothing lost
+
+
+#: Run first in a re-run: a real SIGINT to itself just after its first rename of an
+#: earlier run's file to a kept name (between the log's rename and its meta's).
+SIGINT_AFTER_FIRST_SET_ASIDE = """
+_replace = os.replace
+def _then_sigint(src, dst, *args, **kwargs):
+    _replace(src, dst, *args, **kwargs)
+    if ".previous" in os.fsdecode(dst) and not _then_sigint.sent:
+        _then_sigint.sent = True
+        os.kill(os.getpid(), signal.SIGINT)
+_then_sigint.sent = False
+os.replace = _then_sigint
+"""
+
+
+def test_ctrl_c_between_the_renames_of_the_set_aside_leaves_no_half_moved_log(tmp_path):
+    """A stranger's probe: the set-aside is one rename per file, and a Ctrl-C between two
+    of them left the log moved and its meta at --out, which the next run took for an
+    earlier run's. The renames now hold the signal; as the run has written nothing, the
+    files go back, and it stops as interrupted."""
+    out = tmp_path / "a.csv"
+    earlier = _earlier_run(out)
+    rerun = _hooked_run(SIGINT_AFTER_FIRST_SET_ASIDE, out)
+    assert rerun.returncode == 1, rerun.stderr
+    assert "interrupted" in rerun.stderr, rerun.stderr
+    assert _snapshot(tmp_path) == earlier, rerun.stderr
+
+
+#: Run first in a re-run: a real SIGINT to itself just after it wrote its final meta
+#: file (complete: true), before the earlier log is settled.
+SIGINT_AFTER_COMPLETE_META = """
+import hil_client.cli as cli
+_write_meta = cli.write_meta
+def _then_sigint(path, meta):
+    written = _write_meta(path, meta)
+    if meta.get("complete"):
+        os.kill(os.getpid(), signal.SIGINT)
+    return written
+cli.write_meta = _then_sigint
+"""
+
+
+def test_ctrl_c_just_after_the_complete_meta_still_replaces_the_earlier_log(tmp_path):
+    """A stranger's probe: Ctrl-C just after a re-run wrote its final meta (complete:
+    true) kept the earlier log as a.previous.csv and said "a run that did not complete
+    replaces nothing", beside a log and meta saying complete. The signal now waits until
+    the earlier log is replaced, and the run says it completed."""
+    out = tmp_path / "a.csv"
+    earlier = _earlier_run(out)
+    rerun = _hooked_run(SIGINT_AFTER_COMPLETE_META, out)
+    assert rerun.returncode == 1, rerun.stderr
+    assert "interrupted after the run completed" in rerun.stderr, rerun.stderr
+    assert "replaces nothing" not in rerun.stderr, rerun.stderr
+    assert json.loads((tmp_path / "a.meta.json").read_text())["complete"] is True
+    assert _rows(out) == _rows_of(earlier["a.csv"])  # the same protocol, all its rows
+    assert sorted(_snapshot(tmp_path)) == ["a.csv", "a.meta.json"]  # no a.previous*
+
+
+def _rows_of(log: bytes) -> int:
+    return max(len(log.splitlines()) - 1, 0)
+
+
+def test_a_run_after_a_killed_rerun_says_which_kept_logs_it_leaves(tmp_path):
+    """A stranger's probe: after a re-run killed with -9, the next run never mentioned the
+    complete earlier log kept as r.previous.csv (it set the partial log aside as
+    r.previous2.csv and deleted that on completing, silently), and the killed run's
+    .r.previous.csv.lock stayed for good. The next run now says at its start which logs
+    are kept beside --out and that it leaves them, never touches them, and removes the
+    lock files no live process holds (one a live process holds stays, and is passed
+    over)."""
+    out = tmp_path / "r.csv"
+    earlier = _earlier_run(out)
+    with rig_emulator_serve("windhager_12kw") as (port, _server):  # real time: a row a second
+        rerun = subprocess.Popen(
+            [sys.executable, "-m", "hil_client.cli",
+             *_run_argv(out, "--rig", f"modbus://127.0.0.1:{port}")],
+            stderr=subprocess.DEVNULL,
+        )  # fmt: skip
+        try:
+            _wait_rerun_rows(out, 2, rerun)
+        finally:
+            rerun.kill()  # SIGKILL: nothing of the run's own goes
+            rerun.wait(timeout=30)
+    kept = ["r.previous.csv", "r.previous.meta.json"]
+    assert _files(tmp_path, kept) == dict(zip(kept, earlier.values(), strict=True))
+    stale = lock_path(tmp_path / "r.previous.csv")
+    assert stale.exists()  # the killed run's, no live holder
+    live = tmp_path / "r.previous2.csv"
+    with run_lock(live, "keeping", tmp_path / "elsewhere.csv"):  # this test's process holds it
+        after = _hil_client(out)
+        assert lock_path(live).exists()
+    assert after.returncode == 0, after.stderr
+    rows = _rows_of(earlier["r.csv"])
+    assert (
+        f"kept beside {out} by earlier re-runs that did not complete: r.previous.csv ({rows} "
+        "rows, complete); this run leaves them as they are"
+    ) in after.stderr, after.stderr
+    assert f"it is kept as {tmp_path / 'r.previous3.csv'}" in after.stderr, after.stderr
+    assert _files(tmp_path, kept) == dict(zip(kept, earlier.values(), strict=True))
+    assert not stale.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.csv", "r.meta.json", *kept]
+
+
+def test_an_earlier_run_with_only_a_meta_file_is_said_as_its_files(tmp_path):
+    """A stranger's probe: where only the earlier run's meta file was at --out, the run
+    said "the earlier run's log is kept as a.previous.meta.json". It now says the
+    earlier run's files, as they are no log."""
+    out = tmp_path / "a.csv"
+    earlier = _earlier_run(out)
+    out.unlink()
+    rerun = _hil_client(out, "--seed", "7", preexec_fn=_with_file_size_limit(FILE_SIZE_LIMIT))
+    assert rerun.returncode == 1, rerun.stderr
+    aside = tmp_path / "a.previous.meta.json"
+    assert (
+        f"{out} holds an earlier run's files: this run replaces them once it completes; until"
+        f" then they are kept as {aside}"
+    ) in rerun.stderr, rerun.stderr
+    assert f"the earlier run's files are kept as {aside} (a run" in rerun.stderr
+    assert "log is kept" not in rerun.stderr and "it is kept" not in rerun.stderr
+    assert aside.read_bytes() == earlier["a.meta.json"]
