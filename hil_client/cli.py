@@ -1166,9 +1166,12 @@ def _run(args: argparse.Namespace, held: contextlib.ExitStack) -> int:
         raise UsageError(f"--out: '{out}' must name a .csv file")
     if out.is_dir():
         raise UsageError(f"--out: '{out}' is a directory")
-    if out.exists() and not out.is_file():  # (a FIFO was set aside as an earlier run and
-        # replaced by a file, its reader getting nothing: a probe)
-        raise UsageError(f"--out: '{out}' is not a regular file; a lab log is a file")
+    for path in (out, meta_path(out), events_path(out)):  # (a FIFO was set aside as an
+        if path.exists() and not path.is_file():  # earlier run's and deleted, its reader
+            raise UsageError(  # getting nothing: a probe, and a re-probe at the meta file)
+                f"--out: '{path}' is not a regular file; a lab log and its meta and events "
+                "files are files"
+            )
     _check_out_parent(out)
     refuse_overwriting(  # (a protocol saved as .csv was replaced by the log: a probe)
         out,

@@ -7,6 +7,7 @@ reference in place of the old one, validate a 0-byte figure: a stranger's probe 
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import stat
 from collections.abc import Iterator
@@ -21,6 +22,13 @@ def replacing(path: Path) -> Iterator[Path]:
     and owner are kept. Written as it is instead: see :func:`_in_place`, and a directory
     that allows no new file."""
     if _in_place(path):
+        if path.is_fifo():  # (a FIFO nobody reads: the writer's open waited for good, the
+            reader = open_without_waiting(path)  # files beside an --out: a re-probe)
+            try:  # (held open: the writer's own open finds its reader still there)
+                yield path
+            finally:
+                os.close(reader)
+            return
         yield path
         return
     real = Path(os.path.realpath(path))  # through links: the file they name is replaced
@@ -79,6 +87,11 @@ def open_without_waiting(path: Path, flags: int = os.O_WRONLY, *, blocking: bool
     Once open it blocks as any other, unless ``blocking`` is False: a writer that must never
     wait (the server's fault journal, written from its event loop) then gets
     ``BlockingIOError`` from a pipe its reader stopped emptying."""
-    fd = os.open(path, flags | os.O_NONBLOCK, 0o666)
+    try:
+        fd = os.open(path, flags | os.O_NONBLOCK, 0o666)
+    except OSError as exc:
+        if exc.errno == errno.ENXIO:  # (its own words, "No such device or address", named
+            raise OSError(errno.ENXIO, "no process reads the FIFO", str(path)) from None
+        raise  # nothing a user could act on: a re-probe)
     os.set_blocking(fd, blocking)
     return fd

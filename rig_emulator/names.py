@@ -3,9 +3,10 @@ no name may hold, and how a message shows them. Pure text: every layer may use i
 
 A control character writes lines of its own into a log or a terminal; a format character
 (soft hyphen, zero-width space, a bidi override such as U+202E) makes a name display as
-another, but for the zero-width non-joiner and joiner, which are part of the spelling of
-names (Persian, the Indic scripts, emoji sequences such as a scientist's; refusing them
-refused role names that worked before: a re-probe); spaces of any kind (Zs) are text.
+another, but for those that are part of the spelling of names
+(:data:`SPELLING_FORMAT_CHARACTERS`: Persian, the Indic scripts, mixed-direction names,
+emoji sequences such as a scientist's; refusing them refused names that worked before:
+re-probes); spaces of any kind (Zs) are text.
 """
 
 from __future__ import annotations
@@ -24,14 +25,20 @@ HIDDEN_CATEGORIES = {
     "Cn": "an unassigned code point",
 }
 #: The format characters that are part of the spelling of names: the zero-width non-joiner
-#: and joiner
-SPELLING_FORMAT_CHARACTERS = frozenset("\u200c\u200d")
+#: and joiner, the left-to-right, right-to-left and Arabic letter marks (a Hebrew or Arabic
+#: name with a Latin "6kW" needs them to display in order), and the tag characters of emoji
+#: flag sequences (U+E0020..U+E007F); boiler names with them were refused (a re-probe).
+#: The embeddings, overrides and isolates (U+202A..U+202E, U+2066..U+2069) stay refused:
+#: they reorder what follows them, a name displaying as another.
+SPELLING_FORMAT_CHARACTERS = frozenset("\u200c\u200d\u200e\u200f\u061c")
+EMOJI_TAGS = range(0xE0020, 0xE0080)
 
 
 def _hidden(character: str) -> bool:
     return (
         unicodedata.category(character) in HIDDEN_CATEGORIES
         and character not in SPELLING_FORMAT_CHARACTERS
+        and ord(character) not in EMOJI_TAGS
     )
 
 

@@ -303,6 +303,8 @@ class FaultEngine:
     def apply(self, readings: MutableMapping[str, float], t_sim_s: float) -> None:
         """Start and end faults due at ``t_sim_s``, then change ``readings`` (instrument
         readings by signal) as the active instrument faults say."""
+        if self.journal is not None:  # (what a FIFO's reader was behind on, written now)
+            self.journal.drain()
         if t_sim_s < self.now_s - _EPS_S:  # the plant was reset: the schedule starts again
             self.clear("reset")
             self.now_s = t_sim_s

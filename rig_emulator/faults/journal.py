@@ -23,12 +23,20 @@ import json
 import logging
 import math
 import os
+import time
+from collections import deque
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any
 
 from rig_emulator.atomic import open_without_waiting
 
 log = logging.getLogger("rig_emulator.serve")
+
+#: Lines held back for a FIFO whose reader is behind, at most [bytes]: 30 bursts of the
+#: largest tick (400 lines of 300 bytes at x1000); beyond, lines are lost, not the server
+BACKLOG_BYTES = 4_000_000
+#: How long :meth:`FaultJournal.close` waits for a FIFO's reader to take the rest [s]
+CLOSE_WAIT_S = 2.0
 
 
 def _json_safe(value: Any) -> Any:
@@ -59,7 +67,10 @@ class FaultJournal:
         self.path = Path(path)
         self.epoch_id = epoch_id
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._file: TextIO | None = None
+        self._fd: int | None = None
+        self._backlog: deque[bytes] = deque()  # lines a FIFO's pipe did not take yet
+        self._backlog_bytes = 0
+        self._behind_said = False
         self._begun = False
         self._failed = False  # the file could not be written: its lines are lost
         self.lost = 0  # lines that could not be written (and not warned of yet)
@@ -78,9 +89,11 @@ class FaultJournal:
 
         A FIFO is opened without waiting for its reader (:func:`open_without_waiting`):
         one no process reads costs the lines, not the server (the open waited in the
-        event loop, which no stop signal reached: a stranger's probe), and so does one
-        whose reader stops emptying it: the journal's writes never wait (a full pipe is a
-        failed write, its lines lost from then on, said once)."""
+        event loop, which no stop signal reached: a stranger's probe). Its writes never
+        wait either: what a full pipe does not take is held back (at most
+        :data:`BACKLOG_BYTES`) and written as the reader takes it, at the next line or
+        :meth:`drain` (a burst of a tick at x1000 is twice a pipe's 64 kB: a re-probe lost
+        it, and every line after, when a full pipe was a failed write)."""
         if self._begun:
             return
         self._begun = True
@@ -91,8 +104,7 @@ class FaultJournal:
                     "fault journal %s: the earlier journal there kept as %s", self.path, kept
                 )
             flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC
-            fd = open_without_waiting(self.path, flags, blocking=False)
-            self._file = os.fdopen(fd, "w", encoding="utf-8")
+            self._fd = open_without_waiting(self.path, flags, blocking=False)
         except OSError as exc:
             self._failed = True
             why = "no process reads the FIFO" if exc.errno == errno.ENXIO else exc.strerror
@@ -103,40 +115,81 @@ class FaultJournal:
             event = {**event, "epoch_id": f"{self.epoch_id:08x}"}
         line = json.dumps(_json_safe(event), allow_nan=False) + "\n"
         self.begin()
-        if self._file is None:
+        if self._fd is None:
             if self._failed:  # dropped after a failed write (after close: nothing to count)
                 self.lost += 1
                 self.lines_lost += 1
             return
-        try:
-            self._file.write(line)
-            self._file.flush()
-        except OSError as exc:
-            self.lost += 1
+        data = line.encode("utf-8")
+        if self._backlog_bytes + len(data) > BACKLOG_BYTES:
+            self.lost += 1  # (the reader this far behind: this line, not the server)
             self.lines_lost += 1
-            self._failed = True
-            log.warning(
-                "fault journal %s: cannot write (%s): its lines are lost from now on; the "
-                "faults act as scheduled",
-                self.path,
-                exc.strerror or exc,
-            )
-            self._drop()
+            if not self._behind_said:
+                self._behind_said = True
+                log.warning(
+                    "fault journal %s: its reader is %d kB behind: lines lost until it "
+                    "catches up; the faults act as scheduled",
+                    self.path,
+                    BACKLOG_BYTES // 1000,
+                )
+        else:
+            self._backlog.append(data)
+            self._backlog_bytes += len(data)
+        self.drain()
+
+    def drain(self) -> None:
+        """Write what is held back, as far as the file takes it without waiting (all of it,
+        but for a FIFO whose reader is behind); a failed write costs the journal's lines
+        from then on, said once."""
+        while self._fd is not None and self._backlog:
+            try:
+                written = os.write(self._fd, self._backlog[0])
+            except BlockingIOError:
+                return
+            except OSError as exc:
+                self.lost += len(self._backlog)
+                self.lines_lost += len(self._backlog)
+                self._failed = True
+                log.warning(
+                    "fault journal %s: cannot write (%s): its lines are lost from now on; the "
+                    "faults act as scheduled",
+                    self.path,
+                    exc.strerror or exc,
+                )
+                self._drop()
+                return
+            self._backlog_bytes -= written
+            if written < len(self._backlog[0]):  # (a line's rest goes first, next time)
+                self._backlog[0] = self._backlog[0][written:]
+                return
+            self._backlog.popleft()
 
     def _drop(self) -> None:
-        """Stop writing (what was buffered is lost with the file's own error)."""
-        file, self._file = self._file, None
-        if file is not None:
+        """Stop writing: what is held back is lost (counted by the caller)."""
+        fd, self._fd = self._fd, None
+        self._backlog.clear()
+        self._backlog_bytes = 0
+        if fd is not None:
             with contextlib.suppress(OSError):
-                file.close()
+                os.close(fd)
 
     def close(self) -> None:
-        if self._file is not None:
-            try:
-                self._file.close()
-            except OSError as exc:
-                log.warning("fault journal %s: cannot finish writing (%s)", self.path, exc)
-            self._file = None
+        """Write what is held back, waiting up to :data:`CLOSE_WAIT_S` for a FIFO's reader
+        (a reader that stopped reading cannot hold the server's stop), then close."""
+        deadline = time.monotonic() + CLOSE_WAIT_S
+        while self._fd is not None and self._backlog and time.monotonic() < deadline:
+            self.drain()
+            if self._backlog:
+                time.sleep(0.01)
+        if self._backlog:
+            self.lost += len(self._backlog)
+            self.lines_lost += len(self._backlog)
+            log.warning(
+                "fault journal %s: its reader took no more within %g s of the stop",
+                self.path,
+                CLOSE_WAIT_S,
+            )
+        self._drop()
         if self.lost:
             log.warning("fault journal %s: %d line(s) lost", self.path, self.lost)
             self.lost = 0

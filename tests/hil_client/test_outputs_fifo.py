@@ -83,8 +83,35 @@ def test_run_out_to_a_fifo_is_refused_and_the_fifo_kept(tmp_path):
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, timeout=BALANCE_S,
     )  # fmt: skip
     assert proc.returncode == 2, proc.stderr
-    refused = f"--out: '{fifo}' is not a regular file; a lab log is a file"
-    assert proc.stderr == f"hil-client: error: {refused}\n"
+    refused = f"--out: '{fifo}' is not a regular file; a lab log and its meta and events files"
+    assert proc.stderr == f"hil-client: error: {refused} are files\n"
     assert fifo.is_fifo() and sorted(p.name for p in tmp_path.iterdir()) == ["log.csv"]
     reader.ended(1.0)  # (released: nothing was written to it)
     assert not reader.lines
+    # (a re-probe: a FIFO at the log's meta file was set aside as an earlier run's, deleted)
+    fifo.unlink()
+    os.mkfifo(tmp_path / "log.meta.json")
+    proc = subprocess.run(
+        [sys.executable, "-m", "hil_client.cli", "run", "stationary", "--boiler",
+         "windhager_12kw", "--rig", "local", "--quiet", "--out", str(fifo)],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, timeout=BALANCE_S,
+    )  # fmt: skip
+    assert proc.returncode == 2 and "log.meta.json' is not a regular file" in proc.stderr
+    assert (tmp_path / "log.meta.json").is_fifo() and not fifo.exists()
+
+
+def test_a_fifo_nobody_reads_beside_the_out_is_one_line_at_once(run_log, tmp_path):
+    """A re-probe: the FIFO refusal covered ``--out`` only, and calibrate still waited for
+    good on a FIFO at ``OUT.uncertainty.json``, validate on one at ``DIR/validation.json``.
+    Every file written goes through :func:`rig_emulator.atomic.replacing`: one line at once."""
+    log = run_log("stationary", "windhager_12kw").path
+    fifo = tmp_path / "cal.uncertainty.json"
+    os.mkfifo(fifo)
+    proc = subprocess.run(
+        [sys.executable, "-m", "hil_client.cli", "calibrate", str(log), "--boiler",
+         "windhager_12kw", "--out", str(tmp_path / "cal.yaml")],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, timeout=BALANCE_S,
+    )  # fmt: skip
+    assert proc.returncode == 1, proc.stderr
+    assert proc.stderr == f"hil-client: error: {fifo}: no process reads the FIFO\n"
+    assert fifo.is_fifo()

@@ -212,7 +212,18 @@ def test_a_name_with_control_or_format_characters_is_refused(tmp_path, capsys, n
     assert "\u202e" not in err
 
 
-def test_a_name_spelt_with_a_zero_width_joiner_loads(tmp_path, capsys):
-    """As for role names, the joiners that are part of a script's spelling are text."""
-    path = str(_variant(tmp_path, name="\u0645\u06cc\u200c\u062e\u0648\u0627\u0647\u0645"))
+@pytest.mark.parametrize(
+    "name",
+    [
+        "\u0645\u06cc\u200c\u062e\u0648\u0627\u0647\u0645",  # a zero-width non-joiner
+        "\u05d3\u05d5\u05d3 \u200e6kW",  # a left-to-right mark (a re-probe)
+        "\u0645\u0631\u062c\u0644 \u061c12kW",  # an Arabic letter mark (a re-probe)
+        "Kessel \U0001f3f4\U000e0067\U000e0062\U000e0065\U000e006e\U000e0067\U000e007f",
+    ],
+)
+def test_a_name_spelt_with_a_joiner_a_direction_mark_or_an_emoji_tag_loads(tmp_path, capsys, name):
+    """As for role names, the format characters that are part of a name's spelling are
+    text: the joiners, the direction marks of a mixed-direction name, an emoji flag's tags
+    (the last three were refused: a re-probe)."""
+    path = str(_variant(tmp_path, name=name))
     assert rig_emulator_main(["check", "--boiler", path]) == 0, capsys.readouterr().err
