@@ -14,6 +14,7 @@ import json
 import math
 import os
 import signal
+import stat
 import sys
 import threading
 import time
@@ -1023,8 +1024,11 @@ class _EarlierRun:
             facts = _log_facts(aside[self.out], aside.get(meta_path(self.out)))
             what = f"an earlier run's log ({facts})" if facts else "an earlier run's log"
             them = "it once it completes; until then it is"
-        else:
-            what, them = "an earlier run's files", "them once it completes; until then they are"
+        else:  # (no log to describe: kept, see :meth:`drop`)
+            return (
+                f"{self.out} holds an earlier run's files without their log: they are kept as "
+                f"{self._where()}"
+            )
         return f"{self.out} holds {what}: this run replaces {them} kept as {self._where()}"
 
     def _where(self) -> str:
@@ -1063,9 +1067,21 @@ class _EarlierRun:
         self.moved = []
 
     def drop(self) -> None:
-        """Delete the earlier run's files: this run completed, and replaces them."""
-        for _, aside in self.moved:
-            aside.unlink(missing_ok=True)
+        """Delete the earlier run's files: this run completed, and replaces them. A meta or
+        events file without its log is kept and said: a run killed with -9 between the
+        renames of its set-aside leaves the log kept and its meta at ``--out`` (a re-probe:
+        the next run deleted the meta of a complete 18-h log kept beside it)."""
+        if self.moved and not any(at == self.out for at, _ in self.moved):
+            kept = ", ".join(str(aside) for _, aside in self.moved)
+            print(
+                f"hil-client: the files without a log that were at {self.out} are kept as "
+                f"{kept} (a run killed while setting a log aside leaves its meta so: see the "
+                "logs kept beside it)",
+                file=sys.stderr,
+            )
+        else:
+            for _, aside in self.moved:
+                aside.unlink(missing_ok=True)
         self.moved = []
 
 
@@ -1118,6 +1134,15 @@ def _what_is_kept(rows: int, previous: _EarlierRun, gaps: list, disk_full: bool 
     return "no row was acquired; no log written"
 
 
+def _not_a_file(path: Path) -> bool:
+    """Whether ``path`` is there and no regular file (a name too long to exist is not
+    there: ``Path.exists`` raised for it, a test)."""
+    try:
+        return not stat.S_ISREG(path.stat().st_mode)
+    except OSError:
+        return False
+
+
 def _refuse_shared_companions(out: Path) -> None:
     """Refuse an ``--out`` beside a log of the same name but for the case of ``.csv``:
     both logs would have one meta and one events file (a stranger's probe: a run to
@@ -1167,7 +1192,7 @@ def _run(args: argparse.Namespace, held: contextlib.ExitStack) -> int:
     if out.is_dir():
         raise UsageError(f"--out: '{out}' is a directory")
     for path in (out, meta_path(out), events_path(out)):  # (a FIFO was set aside as an
-        if path.exists() and not path.is_file():  # earlier run's and deleted, its reader
+        if _not_a_file(path):  # earlier run's and deleted, its reader
             raise UsageError(  # getting nothing: a probe, and a re-probe at the meta file)
                 f"--out: '{path}' is not a regular file; a lab log and its meta and events "
                 "files are files"

@@ -347,9 +347,25 @@ def test_an_earlier_run_with_only_a_meta_file_is_said_as_its_files(tmp_path):
     assert rerun.returncode == 1, rerun.stderr
     aside = tmp_path / "a.previous.meta.json"
     assert (
-        f"{out} holds an earlier run's files: this run replaces them once it completes; until"
-        f" then they are kept as {aside}"
+        f"{out} holds an earlier run's files without their log: they are kept as {aside}"
     ) in rerun.stderr, rerun.stderr
     assert f"the earlier run's files are kept as {aside} (a run" in rerun.stderr
     assert "log is kept" not in rerun.stderr and "it is kept" not in rerun.stderr
     assert aside.read_bytes() == earlier["a.meta.json"]
+
+
+def test_a_meta_a_killed_set_aside_left_at_out_outlives_a_completing_run(tmp_path):
+    """A re-probe: a re-run killed with -9 between the renames of its set-aside left the
+    complete log kept as a.previous.csv and its meta at --out; the next run, completing,
+    took the meta for an earlier run's files and deleted it, and the kept 18-h log could
+    no longer be analysed without --boiler. Files without their log are kept, and said."""
+    out = tmp_path / "a.csv"
+    earlier = _earlier_run(out)
+    out.rename(tmp_path / "a.previous.csv")  # (what the kill left: the log moved, not its meta)
+    rerun = _hil_client(out, "--seed", "7")
+    assert rerun.returncode == 0, rerun.stderr
+    aside = tmp_path / "a.previous2.meta.json"
+    assert f"they are kept as {aside}" in rerun.stderr, rerun.stderr
+    assert f"the files without a log that were at {out} are kept as {aside}" in rerun.stderr
+    assert aside.read_bytes() == earlier["a.meta.json"]
+    assert (tmp_path / "a.previous.csv").read_bytes() == earlier["a.csv"]
