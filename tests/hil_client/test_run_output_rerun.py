@@ -35,6 +35,15 @@ def _earlier_run(out: Path) -> dict[str, bytes]:
     return {path.name: path.read_bytes() for path in (out, meta)}
 
 
+def _rerun_on(out: Path, port: int, **popen) -> subprocess.Popen:
+    """``hil-client run`` to ``out`` on the real-time server at ``port``, in its own
+    process (``popen``: how its stderr is taken)."""
+    argv = [sys.executable, "-m", "hil_client.cli"]
+    return subprocess.Popen(
+        [*argv, *_run_argv(out, "--rig", f"modbus://127.0.0.1:{port}")], **popen
+    )
+
+
 def _wait_rerun_rows(out: Path, rows: int, proc: subprocess.Popen) -> None:
     """Wait until the re-run ``proc`` wrote ``rows`` rows of its own at ``out`` (a new
     file there: the earlier log was set aside)."""
@@ -66,11 +75,7 @@ def test_a_rerun_stopped_with_ctrl_c_keeps_the_complete_earlier_log(tmp_path, ca
     earlier = _earlier_run(out)
     capsys.readouterr()
     with rig_emulator_serve("windhager_12kw") as (port, _server):  # real time: a row a second
-        rerun = subprocess.Popen(
-            [sys.executable, "-m", "hil_client.cli",
-             *_run_argv(out, "--rig", f"modbus://127.0.0.1:{port}")],
-            stderr=subprocess.PIPE, text=True,
-        )  # fmt: skip
+        rerun = _rerun_on(out, port, stderr=subprocess.PIPE, text=True)
         try:
             _wait_rerun_rows(out, 3, rerun)
             rerun.send_signal(signal.SIGINT)
@@ -135,11 +140,7 @@ def test_the_name_an_earlier_log_is_kept_under_is_held_while_the_run_writes(tmp_
     earlier = _earlier_run(out)
     kept = tmp_path / "r.previous.csv"
     with rig_emulator_serve("windhager_12kw") as (port, _server):  # real time: a row a second
-        rerun = subprocess.Popen(
-            [sys.executable, "-m", "hil_client.cli",
-             *_run_argv(out, "--rig", f"modbus://127.0.0.1:{port}")],
-            stderr=subprocess.PIPE,
-        )  # fmt: skip
+        rerun = _rerun_on(out, port, stderr=subprocess.PIPE)
         try:
             _wait_rerun_rows(out, 2, rerun)
             other = subprocess.run(
@@ -306,11 +307,7 @@ def test_a_run_after_a_killed_rerun_says_which_kept_logs_it_leaves(tmp_path):
     out = tmp_path / "r.csv"
     earlier = _earlier_run(out)
     with rig_emulator_serve("windhager_12kw") as (port, _server):  # real time: a row a second
-        rerun = subprocess.Popen(
-            [sys.executable, "-m", "hil_client.cli",
-             *_run_argv(out, "--rig", f"modbus://127.0.0.1:{port}")],
-            stderr=subprocess.DEVNULL,
-        )  # fmt: skip
+        rerun = _rerun_on(out, port, stderr=subprocess.DEVNULL)
         try:
             _wait_rerun_rows(out, 2, rerun)
         finally:
