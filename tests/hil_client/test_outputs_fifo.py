@@ -15,7 +15,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from tests.rig_emulator.test_cli_outputs import FifoReader
+from tests.fifo_helpers import FifoReader
 
 #: bound of a balance of the stationary log (about 3 s here) on a loaded machine
 BALANCE_S = 120.0

@@ -13,57 +13,17 @@ import signal
 import socket
 import subprocess
 import sys
-import threading
-import time
-from pathlib import Path
 
 import pytest
 
 from hil_client.wait_for_port import free_port, wait_for_port
 from rig_emulator.faults import read_journal
 from rig_emulator.registers import encode, load_map
+from tests.fifo_helpers import FifoReader
 from tests.modbus_helpers import client
 
 #: bound of a server's start-up or stop on a loaded machine (rig_emulator_serve waits 60 s)
 START_S = 60.0
-
-
-class FifoReader:
-    """A thread reading a FIFO from its first writer's open until the end of the stream
-    (every writer closed), the lines kept as they come."""
-
-    def __init__(self, fifo: Path) -> None:
-        self.fifo = fifo
-        self.lines: list[str] = []
-        # a read end open from now on, so a writer's open finds a reader before the
-        # thread's own open (which waits for a writer) is under way
-        self._early = os.open(fifo, os.O_RDONLY | os.O_NONBLOCK)
-        self.thread = threading.Thread(target=self._read, daemon=True)
-        self.thread.start()
-
-    def _read(self) -> None:
-        with self.fifo.open(encoding="utf-8") as stream:  # (waits for a writer)
-            os.close(self._early)
-            for line in stream:
-                self.lines.append(line)
-
-    def wait_for(self, count: int, timeout_s: float) -> bool:
-        """True once ``count`` lines came, False after ``timeout_s``."""
-        deadline = time.monotonic() + timeout_s
-        while len(self.lines) < count and time.monotonic() < deadline:
-            time.sleep(0.05)
-        return len(self.lines) >= count
-
-    def ended(self, timeout_s: float) -> bool:
-        """Whether the stream ended (the thread done) within ``timeout_s``; if not, a writer
-        opened and closed here releases the thread."""
-        self.thread.join(timeout_s)
-        if not self.thread.is_alive():
-            return True
-        with_reader_waiting = os.open(self.fifo, os.O_WRONLY | os.O_NONBLOCK)
-        os.close(with_reader_waiting)
-        self.thread.join(10.0)
-        return False
 
 
 def _serve(port: int, *options: str) -> subprocess.Popen:

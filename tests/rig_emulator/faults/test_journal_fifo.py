@@ -14,7 +14,7 @@ import os
 import threading
 
 from rig_emulator.faults import FaultJournal
-from tests.rig_emulator.test_cli_outputs import FifoReader
+from tests.fifo_helpers import FifoReader
 
 #: how long an open that does not wait may take on a loaded machine (it takes microseconds)
 OPEN_S = 10.0
