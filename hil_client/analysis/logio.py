@@ -24,6 +24,7 @@ The optional ``NAME.meta.json`` beside the log is read when present.
 
 from __future__ import annotations
 
+import bisect
 import csv
 import json
 import math
@@ -136,14 +137,30 @@ def flow_plateaus(log: LabLog, rows: np.ndarray) -> list[tuple[int, int, float]]
     if not len(idx):
         return out
     start = idx[0]
+    stretch = flow[idx[0] : idx[-1] + 1]
+    # the run's values kept sorted as it grows: its median at once, not a sort of the run
+    # at every row (np.median per row took seconds on a day at 1 s); a NaN (an all-NaN
+    # column) has no order: there np.median itself, which gives NaN as before
+    window: list[float] | None = None if np.isnan(stretch).any() else [float(flow[start])]
     for i in range(idx[0] + 1, idx[-1] + 2):
         end = i == idx[-1] + 1
-        level = float(np.median(flow[start:i]))
+        level = _median_of_sorted(window) if window is not None else float(np.median(flow[start:i]))
         if end or abs(flow[i] - level) > 0.02 * max(level, 1.0):
             if t[i - 1] - t[start] >= PLATEAU_MIN_S:
                 out.append((int(start), int(i), level))
             start = i
+            if window is not None:
+                window.clear()
+        if window is not None and not end:
+            bisect.insort(window, float(flow[i]))
     return out
+
+
+def _median_of_sorted(values: list[float]) -> float:
+    """The median of sorted ``values`` as :func:`numpy.median` gives it (the mean of the
+    two middle ones where their number is even)."""
+    k = len(values)
+    return values[k // 2] if k % 2 else (values[k // 2 - 1] + values[k // 2]) / 2.0
 
 
 class LogError(ValueError):
@@ -417,6 +434,10 @@ def _numbers(values: tuple[str, ...] | list[str]) -> np.ndarray | None:
         return None
     try:  # every field a number (most columns): read at once
         return np.array(values, dtype=float)
+    except ValueError:
+        pass
+    try:  # numbers and empty fields (a log's gaps): still at once
+        return np.array([v or "nan" for v in values], dtype=float)
     except ValueError:
         pass
     try:
