@@ -1,26 +1,80 @@
-"""Figures of a lab log (PNG, matplotlib without a display)."""
+"""Figures of a lab log (PNG, matplotlib without a display).
+
+matplotlib is imported on the first figure drawn, not with this module: ``hil-client``
+imports it for every command, and matplotlib's import took a third of a second of
+``hil-client --help`` and warned twice on stderr, before any one-line error, wherever the
+home directory could not be written (a stranger's probe).
+"""
 
 from __future__ import annotations
 
+import os
+import sys
+from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 
 from hil_client.analysis.candidates import full_prediction
 from hil_client.analysis.logio import LabLog, fill_gaps
 from hil_client.analysis.phases import Phases
+from rig_emulator import home_dir, private_temp_dir, writable_dir
 from rig_emulator.atomic import replacing
 from rig_emulator.model.water_heat import heat_to_water_kW
 
 if TYPE_CHECKING:
+    from types import ModuleType
+
     from hil_client.analysis.diagnose import Diagnosis
 
 PHASE_LABELS = ("t0", "t1", "t2", "t3")
+
+
+def _matplotlib_default_dirs() -> list[Path] | None:
+    """The configuration and cache directories matplotlib uses when MPLCONFIGDIR is not set
+    (its ``_get_config_or_cache_dir``), or None where they depend on a home directory that
+    cannot be named."""
+    home = home_dir()
+    if not sys.platform.startswith(("linux", "freebsd")):
+        return [home / ".matplotlib"] if home else None
+    dirs = []
+    for variable, under_home in (("XDG_CONFIG_HOME", ".config"), ("XDG_CACHE_HOME", ".cache")):
+        base = os.environ.get(variable) or (str(home / under_home) if home else "")
+        if not base:
+            return None
+        dirs.append(Path(base, "matplotlib"))
+    return dirs
+
+
+def _quiet_matplotlib_config_dir() -> None:
+    """Point matplotlib at a private writable directory (MPLCONFIGDIR) where it could not
+    write its own, as for numba's cache (:func:`rig_emulator.private_temp_dir`).
+
+    Left alone, matplotlib warns twice on stderr and builds its font cache anew in a
+    temporary directory on every run; an explicit MPLCONFIGDIR is respected (matplotlib
+    ignores an empty one, and so does this)."""
+    if os.environ.get("MPLCONFIGDIR"):
+        return
+    defaults = _matplotlib_default_dirs()
+    if defaults and all(writable_dir(d) for d in defaults):
+        return
+    private = private_temp_dir("matplotlib")
+    if private is not None:
+        os.environ["MPLCONFIGDIR"] = str(private)
+
+
+@cache
+def _pyplot() -> ModuleType:
+    """matplotlib's pyplot on the Agg backend (no display), imported once, on the first
+    figure drawn."""
+    _quiet_matplotlib_config_dir()
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
 
 
 def mark_phases(ax, phases: Phases) -> None:
@@ -46,7 +100,7 @@ def _save(fig, path: Path, dpi: int = 110) -> Path:
         with replacing(path) as tmp:
             fig.savefig(tmp, dpi=dpi)
     finally:
-        plt.close(fig)
+        _pyplot().close(fig)
     return path
 
 
@@ -69,7 +123,7 @@ def energy_and_temperatures(log: LabLog, phases: Phases, path: Path, title: str)
     q_water = heat_to_water_kW(f["water_flow_kg_h"], f["water_in_temp_C"], f["water_out_temp_C"])
     window = max(int(60 / max(np.median(np.diff(t)), 1e-9)), 1)
     smooth = np.convolve(q_water, np.ones(window) / window, mode="same")
-    fig, axes = plt.subplots(
+    fig, axes = _pyplot().subplots(
         3, 1, figsize=(11, 8.5), sharex=True, gridspec_kw={"height_ratios": [1.2, 1.2, 0.8]}
     )
     ax = axes[0]
@@ -132,7 +186,7 @@ def _fit_figure(
     title: str,
 ) -> Path:
     """Stationary-interval points and the fitted line a + b x from 0 to x_max."""
-    fig, ax = plt.subplots(figsize=(6, 4.2))
+    fig, ax = _pyplot().subplots(figsize=(6, 4.2))
     ax.plot(x, y, "o", color=color, label="stationary intervals")
     xs = np.linspace(0, x_max, 10)
     ax.plot(xs, a + b * xs, "k-", label=fit_label)
@@ -182,7 +236,7 @@ def validation_figures(comp, phases: Phases, stem: Path, title: str) -> list[Pat
     """Model against lab over time (cf. Figs. 6, 7) and as scatter with the identity line and
     a +-10 % band (cf. Figs. 8, 9)."""
     h = comp.t / 3600.0
-    fig, axes = plt.subplots(3, 1, figsize=(11, 8.5), sharex=True)
+    fig, axes = _pyplot().subplots(3, 1, figsize=(11, 8.5), sharex=True)
     labels = (
         ("boiler_water_temp_C", "water inside the boiler [C]"),
         ("heat_to_water_kW", "heat to water [kW]"),
@@ -197,7 +251,7 @@ def validation_figures(comp, phases: Phases, stem: Path, title: str) -> list[Pat
     axes[-1].set_xlabel("time [h]")
     fig.suptitle(title)
     paths = [_save(fig, stem.with_name(stem.name + "_timeseries.png"))]
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4.6))
+    fig, axes = _pyplot().subplots(1, 2, figsize=(10, 4.6))
     mask = comp.segments["start_up"] | comp.segments["test"]
     for ax, (name, label) in zip(axes, labels[:2], strict=True):
         lab, model = comp.lab[name][mask], comp.model[name][mask]
@@ -227,7 +281,7 @@ def diagnosis_figures(result: Diagnosis, out_dir: Path) -> list[Path]:
 
     val = result.validation
     base = val.base_prediction()
-    fig, axes = plt.subplots(len(SIGNALS), 1, figsize=(11, 10), sharex=True)
+    fig, axes = _pyplot().subplots(len(SIGNALS), 1, figsize=(11, 10), sharex=True)
     h = val.t / 3600.0
     for ax, s in zip(axes, SIGNALS, strict=True):
         ax.plot(h, val.lab[s] - base[s], color="tab:red", lw=0.6)
@@ -243,7 +297,7 @@ def diagnosis_figures(result: Diagnosis, out_dir: Path) -> list[Path]:
         s = shrink["signal"]
         params = next(c["params"] for c in result.candidates if c["effect"] == effect)
         after = full_prediction(val, effect, params)
-        fig, ax = plt.subplots(figsize=(11, 4.5))
+        fig, ax = _pyplot().subplots(figsize=(11, 4.5))
         ax.plot(h, val.lab[s], color="tab:red", lw=0.8, label="lab")
         ax.plot(h, base[s], color="k", lw=0.9, ls="--", label="model")
         ax.plot(h, after[s], color="tab:blue", lw=0.9, label=f"model + {effect}")
@@ -272,7 +326,9 @@ def benchmark_figure(scores: dict, path: Path) -> Path:
     answers = list(scores["confusion"])
     found = [*answers, "error"]
     matrix = np.array([[scores["confusion"][t][f] for f in found] for t in answers])
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.8), gridspec_kw={"width_ratios": [3, 2]})
+    fig, (ax1, ax2) = _pyplot().subplots(
+        1, 2, figsize=(12, 4.8), gridspec_kw={"width_ratios": [3, 2]}
+    )
     ax1.imshow(matrix, cmap="Blues")
     for i in range(len(answers)):
         for j in range(len(found)):
