@@ -1,6 +1,6 @@
 """The ``hil-client`` command. Its libraries take a second or two to load (numpy, scipy,
-matplotlib); Ctrl-C meanwhile ends it with one line once they are loaded, as Ctrl-C does
-later, instead of a traceback from the middle of an import
+numba; matplotlib only when a figure is drawn); Ctrl-C meanwhile ends it with one line once
+they are loaded, as Ctrl-C does later, instead of a traceback from the middle of an import
 (:func:`rig_emulator.launch.loaded_unless_stopped`)."""
 
 from __future__ import annotations

@@ -104,7 +104,7 @@ def test_a_modbus_option_given_to_a_local_run_is_named(tmp_path, capsys):
 @pytest.mark.parametrize("how", [signal.SIGINT, signal.SIGTERM])
 @pytest.mark.parametrize("command", ["hil-client", "rig-emulator"])
 def test_ctrl_c_while_the_libraries_load_is_one_line(command, how, tmp_path):
-    """Ctrl-C in the first second or two (the imports of numpy, scipy, matplotlib, numba)
+    """Ctrl-C in the first second or two (the imports of numpy, scipy, numba)
     gave a traceback from the middle of an import; now one line, as later. Sent at several
     moments: each lands in Python's start, the imports, or the command itself, and none
     may print a traceback."""
