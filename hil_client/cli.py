@@ -1242,15 +1242,18 @@ def _run(args: argparse.Namespace, held: contextlib.ExitStack) -> int:
     except RigError as exc:
         print(f"hil-client: error: {exc}", file=sys.stderr)
         return 1
+    remote = isinstance(rig, ModbusRig)
     try:
         if isinstance(rig, ModbusRig) and rig.lockstep and register_map is not None:
             _check_advance(register_map, protocol.acquisition_period_s)
-        output_file(out)
+        # the files the run writes, each judged before any row (a meta file's name too
+        # long was exit 1 after the run began: a stranger's probe)
+        for written_file in (out, meta_path(out), events_path(out))[: 3 if remote else 2]:
+            output_file(written_file)
     except UsageError:
         rig.close()
         raise
 
-    remote = isinstance(rig, ModbusRig)
     meta = {
         "boiler": params.name,
         "boiler_source": str(args.boiler),

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import errno
+import io
 import math
 import os
 import re
@@ -49,9 +50,15 @@ class Parser(argparse.ArgumentParser):
 
     def _print_message(self, message: str, file: IO[str] | None = None) -> None:
         """As argparse's, but the write's error is raised (``--help`` into a full
-        standard output exited 0 without a word: argparse drops it)."""
-        if message:
-            (file or sys.stderr).write(message)
+        standard output exited 0 without a word: argparse drops it), a standard output the
+        command was started without is one too (``--help >&-`` exited 0, its text lost or
+        written to standard error: a probe), and a character the stream cannot carry is
+        written readably (:func:`_write_readably`)."""
+        if not message:
+            return
+        if file is None or (file is sys.stdout and stdout_missing()):  # argparse passes
+            raise _closed_stdout()  # sys.stdout itself, None where it is missing
+        _write_readably(file, message)
 
 
 @contextmanager
@@ -69,6 +76,89 @@ def boiler_arg(name: str) -> BoilerParams:
         return load_boiler(name)
 
 
+def _write_readably(stream: IO[str], text: str) -> int:
+    """Write ``text`` to ``stream``, the characters its encoding cannot carry written
+    readably (:func:`_readable_pieces`), whatever the stream's error handler. A file name
+    with a byte that is no UTF-8 (``bad\\xff.csv``) under ``PYTHONIOENCODING=utf-8``
+    ended ``hil-client run`` in a traceback and exit 1 after its log was written, and the
+    rest of the line was lost (a stranger's probe)."""
+    encoding = getattr(stream, "encoding", None)
+    if not encoding or text.isascii():  # (a text stream in memory carries anything)
+        return stream.write(text)
+    try:
+        text.encode(encoding)
+    except UnicodeEncodeError:
+        pass
+    else:
+        return stream.write(text)
+    buffer = getattr(stream, "buffer", None)
+    for piece in _readable_pieces(text, encoding, buffer is not None):
+        if isinstance(piece, str):
+            stream.write(piece)
+        else:  # (after what the stream holds)
+            stream.flush()
+            buffer.write(piece)  # type: ignore[union-attr]
+    if getattr(stream, "line_buffering", False) or getattr(stream, "write_through", False):
+        stream.flush()
+    return len(text)
+
+
+def _readable_pieces(text: str, encoding: str, raw_bytes: bool) -> Iterator[str | bytes]:
+    """``text`` in pieces ``encoding`` carries: a byte a file name held that was no text
+    (decoded by ``surrogateescape``) as that byte (``raw_bytes``: the stream takes bytes)
+    where the encoding carries a lone byte, else as ``\\xff``; any other character the
+    encoding lacks as its backslash escape (``\\xe9`` for 'é' in ASCII). The text goes
+    through the stream itself, which keeps its state (UTF-16's byte-order mark)."""
+    lone_bytes = raw_bytes and _carries_lone_bytes(encoding)
+    kept: list[str] = []
+    for char in text:
+        try:
+            char.encode(encoding)
+        except UnicodeEncodeError:
+            pass
+        else:
+            kept.append(char)
+            continue
+        if not "\udc80" <= char <= "\udcff":
+            kept.append(char.encode("ascii", "backslashreplace").decode("ascii"))
+        elif lone_bytes:
+            yield "".join(kept)
+            kept.clear()
+            yield bytes([ord(char) - 0xDC00])
+        else:
+            kept.append(f"\\x{ord(char) - 0xDC00:02x}")
+    yield "".join(kept)
+
+
+def _carries_lone_bytes(encoding: str) -> bool:
+    """Whether a byte can stand alone among ``encoding``'s (not UTF-16 or -32)."""
+    try:
+        return "\udcff".encode(encoding, "surrogateescape") == b"\xff"
+    except UnicodeEncodeError:
+        return False
+
+
+def stdout_missing() -> bool:
+    """Whether the command was started without a standard output (``>&-``): Python then
+    sets ``sys.stdout`` and ``sys.__stdout__`` to None, and the launcher
+    (:func:`rig_emulator.launch.standard_streams`) points descriptor 1 at /dev/null for
+    ``sys.stdout`` alone."""
+    if sys.stdout is None:
+        return True
+    if sys.__stdout__ is not None:
+        return False
+    try:
+        return sys.stdout.fileno() == 1
+    except (OSError, ValueError):  # (io.UnsupportedOperation is both)
+        return False
+
+
+def _closed_stdout() -> OSError:
+    """The error of output written to a standard output the command was started without,
+    as ``cat >&-`` has it (Bad file descriptor)."""
+    return OSError(errno.EBADF, os.strerror(errno.EBADF), "standard output")
+
+
 class _GuardedStream:
     """A standard stream whose failures do not end the command's work.
 
@@ -79,16 +169,31 @@ class _GuardedStream:
     - On standard output another failure (a full disk) names it: it is no output file's
       fault (``balance --out x.json > /dev/full`` said "writing x.json: No space left on
       device" of a file written whole: a probe).
+    - A standard output the command was started without (``missing``) takes what is
+      written and drops it; :attr:`lost` says whether there was any, for the command to
+      fail as it ends, its files written (``map-doc >&-`` exited 0, the reference
+      written nowhere: a probe).
+    - A character the stream's encoding cannot carry is written readably
+      (:func:`_write_readably`).
 
     The descriptor of a stream given up on is pointed at /dev/null, so the interpreter's
     last flush at exit finds nothing to complain about."""
 
-    def __init__(self, stream: IO[str], name: str, fd: int, quiet_on_any: bool) -> None:
-        self._stream = stream
+    def __init__(
+        self,
+        stream: IO[str] | None,
+        name: str,
+        fd: int,
+        quiet_on_any: bool,
+        missing: bool = False,
+    ) -> None:
+        self._stream: IO[str] = io.StringIO() if stream is None else stream
         self._name = name
         self._fd = fd
         self._quiet_on_any = quiet_on_any
-        self._gone = False
+        self._missing = missing
+        self._gone = missing
+        self.lost = False
 
     def _failed(self, exc: OSError) -> None:
         if self._quiet_on_any or exc.errno == errno.EPIPE:
@@ -104,9 +209,10 @@ class _GuardedStream:
 
     def write(self, text: str) -> int:
         if self._gone:
+            self.lost = self.lost or (self._missing and bool(text))
             return len(text)
         try:
-            return self._stream.write(text)
+            return _write_readably(self._stream, text)
         except OSError as exc:
             self._failed(exc)
             return len(text)
@@ -127,22 +233,36 @@ class _GuardedStream:
 def guarded_streams() -> Iterator[None]:
     """In the block, standard output and error are guarded (:class:`_GuardedStream`): a
     reader gone ends the messages, not the work; another error writing standard output
-    names it. What is left in their buffers is written before the block ends, so an error
+    names it, and so does output written where the command was started without one (the
+    block ends with that error: a failure, as ``cat >&-`` has it, once every file is
+    written). What is left in their buffers is written before the block ends, so an error
     comes while the command can still say it in one line."""
     out, err = sys.stdout, sys.stderr
-    sys.stdout = _GuardedStream(out, "standard output", 1, False)  # type: ignore[assignment]
-    sys.stderr = _GuardedStream(err, "standard error", 2, True)  # type: ignore[assignment]
+    guarded_out = _GuardedStream(out, "standard output", 1, False, missing=stdout_missing())
+    guarded_err = _GuardedStream(err, "standard error", 2, True, missing=err is None)
+    sys.stdout, sys.stderr = guarded_out, guarded_err  # type: ignore[assignment]
     try:
         yield
         sys.stderr.flush()
         sys.stdout.flush()
+        if guarded_out.lost:
+            raise _closed_stdout()
     finally:
         sys.stdout, sys.stderr = out, err
 
 
+def _say(line: str) -> None:
+    """``line`` on standard error, readably (:func:`_write_readably`); nothing where the
+    command has none."""
+    if sys.stderr is not None:
+        with contextlib.suppress(OSError):
+            _write_readably(sys.stderr, line + "\n")
+            sys.stderr.flush()
+
+
 def report(exc: UsageError, default_prog: str) -> int:
     """Print ``PROG: error: MESSAGE`` on stderr and return exit code 2."""
-    print(f"{exc.prog or default_prog}: error: {exc}", file=sys.stderr)
+    _say(f"{exc.prog or default_prog}: error: {exc}")
     return 2
 
 
@@ -152,16 +272,40 @@ def report_os_error(exc: OSError, prog: str, unnamed: str | None = None) -> int:
     name where the error names no file), exit 1 (it ended in a traceback: a stranger's
     probe with a 64-kB tmpfs)."""
     where = f"{exc.filename or unnamed}: " if exc.filename or unnamed else ""
-    print(f"{prog}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+    _say(f"{prog}: error: {where}{exc.strerror or exc}")
     # a path too long or looping is the path given, bad input (exit 1 said otherwise: a probe)
     return 2 if exc.errno in (errno.ENAMETOOLONG, errno.ELOOP) else 1
 
 
+def working_directory_gone() -> bool:
+    """Whether the working directory has been deleted (a relative path then names
+    nothing)."""
+    try:
+        os.getcwd()
+    except FileNotFoundError:
+        return True
+    return False
+
+
+#: What a relative path is when :func:`working_directory_gone` (it said "None: No such
+#: file or directory", or "a loop of symbolic links": a stranger's probe)
+_NO_WORKING_DIRECTORY = "is relative, and the working directory no longer exists"
+
+
+def _refuse_relative_without_cwd(text: str) -> None:
+    """An argparse ``type``'s refusal of a relative path where the working directory has
+    been deleted."""
+    if not os.path.isabs(text) and working_directory_gone():
+        raise argparse.ArgumentTypeError(f"'{text}' {_NO_WORKING_DIRECTORY}; give an absolute path")
+
+
 def path_arg(text: str) -> Path:
     """An argparse ``type`` for a file or directory path: an empty one is refused (it was
-    taken as '.', and the error named '.')."""
+    taken as '.', and the error named '.'), and so is a relative one where the working
+    directory has been deleted."""
     if not text.strip():
         raise argparse.ArgumentTypeError("an empty path")
+    _refuse_relative_without_cwd(text)
     return Path(text)
 
 
@@ -223,6 +367,8 @@ def text_input(text: str) -> str:
     directory holds, :func:`rig_emulator.yamlio.resolve_named`)."""
     if not text.strip():
         raise argparse.ArgumentTypeError("empty (a NAME or a PATH)")
+    if "/" in text or text.endswith((".yaml", ".yml")):  # (a PATH, not a NAME)
+        _refuse_relative_without_cwd(text)
     path = Path(text)
     if not path.exists() or ("/" not in text and path.suffix not in (".yaml", ".yml")):
         return text
@@ -243,6 +389,7 @@ def text_input(text: str) -> str:
 
 def text_file(text: str) -> Path:
     """An argparse ``type`` for an input file that must exist and be UTF-8 text."""
+    _refuse_relative_without_cwd(text)
     if not Path(text).exists():
         raise argparse.ArgumentTypeError(f"{text}: no such file")
     return Path(text_input(text))
@@ -253,6 +400,7 @@ def data_file(text: str) -> Path:
     come from a spreadsheet in Windows-1252): it must exist and be a regular file."""
     if not text.strip():
         raise argparse.ArgumentTypeError("empty (a PATH)")
+    _refuse_relative_without_cwd(text)
     path = Path(text)
     if not path.exists():
         raise argparse.ArgumentTypeError(f"{text}: no such file")
@@ -299,11 +447,16 @@ def output_file(path: Path, option: str = "--out") -> Path:
     a parent that is a file, or a ``path`` that is a directory or a loop of symbolic links,
     is a :class:`UsageError` (``option``: the option its message names), and so is a
     ``path`` no output can go to (:func:`_check_destination`: a FIFO without a reader, a
-    socket)."""
+    socket; a name too long, :func:`_check_name_length`; a directory that takes no new
+    file, :func:`_check_writable`), and a relative ``path`` where the working directory
+    has been deleted."""
+    if not path.is_absolute() and working_directory_gone():
+        raise UsageError(f"{option}: '{path}' {_NO_WORKING_DIRECTORY}; give an absolute path")
     try:
         real = path.resolve()
     except (RuntimeError, OSError):  # (a traceback: a stranger's probe)
         raise UsageError(f"{option}: '{path}' is a loop of symbolic links") from None
+    _check_name_length(path, real, option)
     if any(real.is_relative_to(root) for root in _PACKAGE_ROOTS):  # (the shipped map or
         raise UsageError(  # boiler a NAME resolves to was replaced: a re-probe)
             f"{option}: '{path}' lies in the installed package (its shipped data); name another"
@@ -315,7 +468,51 @@ def output_file(path: Path, option: str = "--out") -> Path:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise UsageError(f"{option}: cannot create '{path.parent}' ({exc.strerror})") from None
+    _check_writable(path, real, option)
     return path
+
+
+def _check_name_length(path: Path, real: Path, option: str) -> None:
+    """Refuse a ``path`` (``real``: resolved, where a link's file is written) whose file
+    name is longer than the file system of its directory (or of the nearest one there)
+    allows. Found while writing, it was exit 1 after the work began ("cannot write
+    NAME.meta.json: File name too long" of a log whose own name fitted), where a name too
+    long for the log itself was exit 2 (a stranger's probe): a path given that cannot be
+    written is bad input, judged before any work."""
+    size = len(os.fsencode(real.name))
+    for directory in real.parents:
+        try:
+            longest = os.pathconf(directory, "PC_NAME_MAX")
+        except (OSError, ValueError):  # not there yet (created later), or no limit to tell
+            continue
+        if size > longest:
+            raise UsageError(
+                f"{option}: '{path}': the file name is too long ({size} bytes, at most {longest})"
+            )
+        return
+
+
+def _check_writable(path: Path, real: Path, option: str) -> None:
+    """Refuse a ``path`` (``real``: resolved, where a link's file is written) whose
+    directory takes no new file (read-only, no permission) where ``path`` is no file
+    already writable in place: before any work, as a missing directory that cannot be
+    created is (exit 2), not while writing after it ("cannot write x.csv: Permission
+    denied", exit 1: a stranger's probe)."""
+    directory = real.parent
+    if os.access(directory, os.W_OK | os.X_OK) or os.access(real, os.W_OK):
+        return
+    why = "read-only file system" if _read_only(directory) else "no permission"
+    raise UsageError(
+        f"{option}: cannot write '{path}': its directory '{directory}' takes no new file ({why})"
+    )
+
+
+def _read_only(directory: Path) -> bool:
+    """Whether ``directory`` lies on a file system mounted read-only."""
+    try:
+        return bool(os.statvfs(directory).f_flag & os.ST_RDONLY)
+    except OSError:
+        return False
 
 
 #: What an output that exists may be besides a regular file or a FIFO: a character device
@@ -383,5 +580,11 @@ def input_errors() -> Iterator[None]:
         raise UsageError(
             f"an input file is not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at {exc.start})"
         ) from None
-    except (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError) as exc:
+    except FileNotFoundError as exc:
+        if exc.filename is None and working_directory_gone():  # (os.getcwd's error: "None:
+            raise UsageError(  # No such file or directory", a stranger's probe)
+                "the working directory no longer exists; give every path absolute"
+            ) from None
+        raise UsageError(f"{exc.filename}: {exc.strerror}") from None
+    except (IsADirectoryError, NotADirectoryError, PermissionError) as exc:
         raise UsageError(f"{exc.filename}: {exc.strerror}") from None

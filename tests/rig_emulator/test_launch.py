@@ -22,7 +22,9 @@ def test_a_run_started_without_standard_streams_writes_its_log(tmp_path):
     could also have taken descriptor 1 or 2, where messages are written."""
     out = tmp_path / "log.csv"
     code = "from hil_client.launch import main; import sys; sys.exit(main())"
-    argv = ["run", "--boiler", "windhager_12kw", str(SHORT), "--out", str(out)]
+    # --quiet: it says nothing on standard output (output to a closed one is a failure,
+    # as for ``cat >&-``: test_cli_streams)
+    argv = ["run", "--boiler", "windhager_12kw", str(SHORT), "--out", str(out), "--quiet"]
     proc = subprocess.run(
         [sys.executable, "-c", code, *argv], preexec_fn=_closed_streams, timeout=300
     )
@@ -34,12 +36,14 @@ def test_a_run_started_without_standard_streams_writes_its_log(tmp_path):
 
 
 def test_a_check_started_without_standard_streams_exits_as_it_would():
+    """It checks the boiler without a traceback; its report had nowhere to go, which is a
+    failure (exit 1, as ``cat >&-``), not the 0 that would say the report was read."""
     code = "from rig_emulator.launch import main; import sys; sys.exit(main())"
     argv = ["check", "--boiler", "windhager_12kw"]
     proc = subprocess.run(
         [sys.executable, "-c", code, *argv], preexec_fn=_closed_streams, timeout=120
     )
-    assert proc.returncode == 0
+    assert proc.returncode == 1
 
 
 def test_a_run_whose_message_readers_go_away_goes_on_to_the_end(tmp_path):
