@@ -60,7 +60,10 @@ Each break or outage is an entry of :attr:`gaps` in the log's own time base
 (``start_time_s``: the last row before, ``end_time_s``: the first row after, None if none).
 The log time is the server's time plus an offset; across a break it jumps by the time the
 plant moved meanwhile (the server's time on the same plant, else the wall-clock outage at
-the server's speed in real time), never joining rows as if continuous.
+the server's speed in real time), never joining rows as if continuous. Each entry also says
+how long this client was held up since the row before it (``client_held_up_s``, measured by
+:mod:`hil_client.rigs.holdups`), and the reason of a lost connection names a hold-up of
+:data:`HELD_UP_S` or more: a server's idle timeout closes a client silent that long.
 """
 
 from __future__ import annotations
@@ -93,6 +96,7 @@ from hil_client.protocol.rig import (
     RigError,
     StepTiming,
 )
+from hil_client.rigs.holdups import held_up_s
 from hil_client.rigs.transports import RtuConnection, url_port
 from rig_emulator.emulator import check_command
 from rig_emulator.registers import (
@@ -141,6 +145,10 @@ NEEDED = (
 _REPLAY_SEGMENT_BYTES = 240
 _TIME_TOLERANCE_S = 1e-6  # the server's float64 time against the rig's sum of the same steps
 LATE_S = 0.25  # an instrument's reply this much after the one before it: a "late" event
+#: this client held up this long since its last row (:mod:`hil_client.rigs.holdups`) when it
+#: found its connection lost: a gap's reason names it (a server's idle timeout may be 1 s; a
+#: busy machine holds a process up for milliseconds)
+HELD_UP_S = 1.0
 
 
 class _Break(Exception):
@@ -410,6 +418,7 @@ class ModbusRig:
         self._offset = -status["sim_time_s"]
         self._row_server_time = status["sim_time_s"]
         self._row_wall = time.monotonic()
+        self._row_held_s = held_up_s()  # this process's hold-ups by the last row
         self._clock_read_at = self._row_wall  # when the server's clock was last read
         # the units that take commands but serve no reading: one written point read back
         plan = plan + self._read_backs(plan)
@@ -532,8 +541,9 @@ class ModbusRig:
         conn.send([(read.unit, read_pdu(read.function, read.start, read.count))] * count)
         conn.receive_all(count)
 
-    def _reconnect(self, reason: str) -> dict[str, float]:
-        """Connect again (with backoff); the server's status once back."""
+    def _reconnect(self, reason: str, lost: str) -> dict[str, float]:
+        """Connect again (with backoff); the server's status once back (``lost``: the
+        reason of the gap if it is not back in time, :meth:`_lost`)."""
         started = time.monotonic()
         delay = 0.1
         while True:
@@ -542,7 +552,7 @@ class ModbusRig:
                 return self._read_status()
             except ConnectionLost:
                 if time.monotonic() - started > self.reconnect_timeout_s:
-                    self._gap(f"connection lost ({reason})", "abort", {})
+                    self._gap(lost, "abort", {})
                     raise RigError(
                         f"{self.url}: connection lost ({reason}) and not back within "
                         f"{self.reconnect_timeout_s:g} s"
@@ -954,7 +964,8 @@ class ModbusRig:
         ``server_epoch_id``: the ``epoch_id`` of the server after it (8 hex digits, as its
         fault journal writes it; None if not read), which tells the fault report whose
         journal the rows after it compare with (a stranger's probe: a restarted server's
-        journal was matched with the first plant's rows)."""
+        journal was matched with the first plant's rows); ``client_held_up_s``: how long this
+        client was held up since the last row (paused, swapped out, overloaded)."""
         epoch = status.get("epoch_id")
         gap: dict[str, Any] = {
             # as the log writes time_s; None before the first row
@@ -966,6 +977,7 @@ class ModbusRig:
             "server_time_before_s": self._row_server_time,
             "server_time_after_s": status.get("sim_time_s"),
             "outage_wall_s": round(time.monotonic() - self._row_wall, 3),
+            "client_held_up_s": round(held_up_s() - self._row_held_s, 3),
             "server_epoch_id": (
                 f"{int(epoch):08x}" if epoch is not None and math.isfinite(epoch) else None
             ),
@@ -973,10 +985,25 @@ class ModbusRig:
         self.gaps.append(gap)
         return gap
 
+    def _lost(self, reason: str) -> str:
+        """The reason of a gap for a connection lost for ``reason``, saying so where this
+        client was held up :data:`HELD_UP_S` or more since its last row: a server closes a
+        client silent that long (its idle timeout), and the cause was this client's (one
+        SIGSTOPped 8 s under a server's ``--idle-timeout 3`` was recorded as "connection
+        closed by the server" alone, its hold-up nowhere: a stranger's probe)."""
+        held = held_up_s() - self._row_held_s
+        if held < HELD_UP_S:
+            return f"connection lost ({reason})"
+        return (
+            f"connection lost ({reason}) after this client was held up {held:.1f} s (paused, "
+            "swapped out or overloaded): a server's idle timeout closes a client silent that long"
+        )
+
     def _recover(self, reason: str) -> None:
         """After a lost connection: connect again and settle what the server holds."""
         self._event("disconnect", 0, 0, reason=reason)
-        status = self._reconnect(reason)
+        lost = self._lost(reason)  # (before reconnecting: a backoff is no hold-up)
+        status = self._reconnect(reason, lost)
         self._new_speed(status["speed_factor"])
         if status["epoch_id"] != self._epoch_id:
             self._check_identity(status)
@@ -1001,13 +1028,13 @@ class ModbusRig:
                     abs(status["sim_time_s"] - sim_time) <= _TIME_TOLERANCE_S
                 ):
                     self._applied = applied
-                    self._gap(f"connection lost ({reason})", "resumed", status)
+                    self._gap(lost, "resumed", status)
                     return
             self._stop_if_time_pinned(status)
             raise _Break(_foreign(status["sim_time_s"] - self._expected(self._applied)[1]), status)
         if status["sim_time_s"] < self._row_server_time - _TIME_TOLERANCE_S:
             raise _Break("the server was reset (its time went back)", status)
-        self._gap(f"connection lost ({reason})", "reconnected", status)
+        self._gap(lost, "reconnected", status)
 
     def _rebuild_under_step(self) -> bool:
         """A server restarted between two steps with no connection lost (a serial line: the
@@ -1126,6 +1153,7 @@ class ModbusRig:
                     f"{self.url}: {self._left_lockstep(exc) or exc}{_role_hint(self.url, exc)}"
                 ) from None
             self._row_wall = time.monotonic()
+            self._row_held_s = held_up_s()
             self._stepped = True
             for event in self._step_events:
                 self.comm_events.append(

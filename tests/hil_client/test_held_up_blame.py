@@ -1,0 +1,138 @@
+"""Whose a lost connection was, against real processes: a real ``rig-emulator serve`` with
+an idle timeout and a real ``hil-client run`` stopped with SIGSTOP and let go on with
+SIGCONT. A server's idle timeout closes a client held up that long; the gap says the client
+was held up, and a connection the server closed of its own keeps the server's cause."""
+
+from __future__ import annotations
+
+import json
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from hil_client.rigs.modbus import HELD_UP_S
+from hil_client.wait_for_port import free_port, wait_for_port
+from tests.hil_client.timed_protocol import timed_protocol
+
+BOILER = "windhager_12kw"
+SPEED = 100.0  # rows 10 s apart (the server's 10-Hz tick), the first cooling 6 s of wall
+# phases ended by time-outs; the first cooling (600 s, 60 rows) is where things happen
+RT = timed_protocol("rt", [("stationary_100", 100, 60)], cooling_1_s=600, cooling_2_after_t2_s=700)
+PAUSE_S = 3.0  # the client stopped this long: three times the server's idle timeout
+IDLE_TIMEOUT_S = 1.0
+RUN_TIMEOUT_S = 120.0  # the whole run: about 9 s of wall at x100, and the pause
+
+
+def _serve(tmp_path: Path, *args: str) -> tuple[subprocess.Popen, int, Path]:
+    """``rig-emulator serve`` at x100 in its own process on a free port; its log's path."""
+    port = free_port()
+    log = tmp_path / "serve.log"
+    with open(log, "w") as fh:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "rig_emulator.cli", "serve", "--boiler", BOILER,
+             "--port", str(port), "--speed", f"{SPEED:g}", *args],
+            stdout=fh, stderr=subprocess.STDOUT,
+        )  # fmt: skip
+    if not wait_for_port("127.0.0.1", port, 60.0):
+        proc.kill()
+        raise AssertionError(f"no server on port {port}")
+    return proc, port, log
+
+
+def _run(tmp_path: Path, port: int) -> tuple[subprocess.Popen, Path]:
+    """``hil-client run`` of :data:`RT` in its own process; the log's path."""
+    protocol = tmp_path / "rt.yaml"
+    protocol.write_text(RT)
+    out = tmp_path / "rt.csv"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hil_client.cli", "run", str(protocol), "--boiler", BOILER,
+         "--rig", f"modbus://127.0.0.1:{port}", "--quiet", "--out", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    return proc, out
+
+
+def _wait_for_cooling_rows(out: Path, proc: subprocess.Popen, rows: int) -> None:
+    """Until the log holds ``rows`` rows of the first cooling (the run well under way)."""
+    deadline = time.monotonic() + RUN_TIMEOUT_S
+    while time.monotonic() < deadline and proc.poll() is None:
+        lines = out.read_text().splitlines()[1:] if out.exists() else []
+        if sum(1 for line in lines if ",cooling_1," in line) >= rows:
+            return
+        time.sleep(0.01)
+    raise AssertionError(f"no {rows} rows of the first cooling in {out}")
+
+
+def _finish(proc: subprocess.Popen) -> tuple[int, str]:
+    """The run's exit code and its stderr, killed after :data:`RUN_TIMEOUT_S`."""
+    try:
+        _, err = proc.communicate(timeout=RUN_TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        _, err = proc.communicate()
+        raise AssertionError(f"the run did not end within {RUN_TIMEOUT_S:g} s: {err}") from None
+    return proc.returncode, err
+
+
+def _meta(out: Path) -> dict:
+    return json.loads(out.with_name(out.stem + ".meta.json").read_text())
+
+
+def test_a_client_paused_past_the_idle_timeout_is_named_held_up(tmp_path):
+    """A stranger's probe: ``hil-client run`` against ``serve --speed 500 --idle-timeout 3``,
+    SIGSTOPped for 8 s and let go on: the server closed its connection as idle, and the run
+    said "break after time_s = 11650 s, rows again from 15650 s: connection lost (connection
+    closed by the server); reconnected", the meta's gap the same: nothing said the client
+    was held up (without the idle close, the run's hole note named it). The gap's reason and
+    the line on stderr say it was, and how long; ``client_held_up_s`` gives the figure."""
+    server, port, server_log = _serve(tmp_path, "--idle-timeout", f"{IDLE_TIMEOUT_S:g}")
+    try:
+        client, out = _run(tmp_path, port)
+        try:
+            _wait_for_cooling_rows(out, client, 15)
+            client.send_signal(signal.SIGSTOP)
+            time.sleep(PAUSE_S)
+        finally:
+            client.send_signal(signal.SIGCONT)
+            code, err = _finish(client)
+    finally:
+        server.send_signal(signal.SIGTERM)
+        server.wait(timeout=30)
+    # the server closed it as idle (the stranger's precondition)
+    assert "--idle-timeout 1" in server_log.read_text(), server_log.read_text()
+    assert code == 0, err
+    (gap,) = _meta(out)["gaps"]
+    assert gap["action"] == "reconnected" and gap["rig_epoch"] == 0, gap  # the same plant
+    assert gap["reason"].startswith("connection lost ("), gap  # (as before: extended)
+    assert "after this client was held up" in gap["reason"], gap
+    # the heartbeat wakes every 50 ms (hil_client.rigs.holdups.PERIOD_S): the stop may
+    # begin anywhere in one sleep, so up to one period of it is not counted; and the time
+    # since the last row is the pause and a few milliseconds of steps
+    assert PAUSE_S - 0.1 <= gap["client_held_up_s"] <= gap["outage_wall_s"], gap
+    held = float(re.search(r"held up ([\d.]+) s", gap["reason"])[1])
+    assert abs(held - gap["client_held_up_s"]) < 0.1, gap  # (the reason's to 0.1 s)
+    told = [line for line in err.splitlines() if line.startswith("hil-client: break")]
+    assert len(told) == 1 and "after this client was held up" in told[0], err
+
+
+def test_a_connection_the_server_closed_keeps_the_server_s_cause(tmp_path):
+    """The other side of the probe above: a server that closes the connection of its own (a
+    ``disconnect`` fault), the client not held up, is recorded as before, with the
+    server's cause alone, and ``client_held_up_s`` under :data:`HELD_UP_S`."""
+    faults = tmp_path / "faults.yaml"  # (JSON is YAML)
+    faults.write_text(json.dumps({"faults": [{"kind": "disconnect", "at_s": 400}]}))
+    server, port, _ = _serve(tmp_path, "--faults", str(faults))
+    try:
+        client, out = _run(tmp_path, port)
+        code, err = _finish(client)
+    finally:
+        server.send_signal(signal.SIGTERM)
+        server.wait(timeout=30)
+    assert code == 0, err
+    (gap,) = _meta(out)["gaps"]
+    assert gap["action"] == "reconnected" and gap["rig_epoch"] == 0, gap
+    assert gap["reason"].startswith("connection lost ("), gap
+    assert "held up" not in gap["reason"] and gap["client_held_up_s"] < HELD_UP_S, gap
