@@ -214,10 +214,10 @@ def _hole(from_s: float, to_s: float, period_s: float, timing: StepTiming | None
     head = f"no row from time_s = {from_s:g} to {to_s:g} s ({missed} acquisitions missed): "
     tail = ", and the rows between were not acquired"
     client_s = timing.client_s if timing is not None else math.inf
-    units_s = sum(timing.units_s.values()) if timing is not None else 0.0
-    server_s = timing.server_s if timing is not None else 0.0
+    server_s, unit_waits = timing.waits_s if timing is not None else (0.0, {})
+    units_s = sum(unit_waits.values())
     if units_s > max(server_s, client_s):
-        slow = sorted(timing.units_s.items(), key=itemgetter(1), reverse=True)  # type: ignore[union-attr]
+        slow = sorted(unit_waits.items(), key=itemgetter(1), reverse=True)
         late = [(unit, waited) for unit, waited in slow if waited >= UNIT_LATE_S] or slow[:1]
         if len(late) == 1:
             who = f"unit {late[0][0]} (a slow unit, or a delay fault on it)"

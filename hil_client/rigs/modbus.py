@@ -420,6 +420,7 @@ class ModbusRig:
         self._row_wall = time.monotonic()
         self._row_held_s = held_up_s()  # this process's hold-ups by the last row
         self._clock_read_at = self._row_wall  # when the server's clock was last read
+        self._clock_read_held = self._row_held_s  # and this process's hold-ups by then
         # the units that take commands but serve no reading: one written point read back
         plan = plan + self._read_backs(plan)
         # the simulation control first: a slow instrument never holds up the step's checks
@@ -627,10 +628,15 @@ class ModbusRig:
             else:
                 self._unit_waits[unit] = self._unit_waits.get(unit, 0.0) + wait
             if i == clock_read:
+                held = held_up_s()
                 self.step_timing = StepTiming(
-                    at - self._clock_read_at, self._paced_s, self._server_wait_s, self._unit_waits
+                    at - self._clock_read_at,
+                    self._paced_s,
+                    self._server_wait_s,
+                    self._unit_waits,
+                    held - self._clock_read_held,
                 )
-                self._clock_read_at = at
+                self._clock_read_at, self._clock_read_held = at, held
                 self._paced_s = self._server_wait_s = 0.0
                 self._unit_waits = {}
 

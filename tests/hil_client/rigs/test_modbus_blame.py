@@ -8,6 +8,8 @@ from __future__ import annotations
 import json
 import os
 import signal
+import subprocess
+import sys
 import threading
 import time
 from pathlib import Path
@@ -180,3 +182,45 @@ def test_a_lockstep_server_switched_to_real_time_is_named(serve_process, tmp_pat
     assert err.count("\n") == 0 and "the server's clock left lockstep" in err, err
     (gap,) = _meta(out)["gaps"]
     assert "left lockstep" in gap["reason"] and gap["action"] == "abort", gap
+
+
+def test_a_client_stopped_while_it_waited_on_a_late_unit_is_named_held_up(serve_process, tmp_path):
+    """A re-probe of the hold-up heartbeat: a client stopped while it waits on a reply finds
+    the reply there when it goes on, so the stop looked like that wait, and a client
+    SIGSTOPped 4 s while a 1500-ms delay fault held unit 1's replies was noted as "the
+    client waited ... on late replies of unit 1". Its heartbeat saw it stand still: the
+    hole is the client's, held up the 4 s."""
+    srv = serve_process("--speed", f"{SPEED:g}", "--allow-control")
+    out = tmp_path / "stopped.csv"
+    protocol = tmp_path / "rt.yaml"
+    protocol.write_text(RT)
+    argv = ["run", str(protocol), "--boiler", BOILER, "--quiet", "--out", str(out),
+            "--rig", f"modbus://127.0.0.1:{srv.port}"]  # fmt: skip
+    client = subprocess.Popen([sys.executable, "-m", "hil_client.cli", *argv])
+    fault = (
+        ("fault_kind", KIND_CODES["delay"]),
+        ("fault_target", 1),
+        ("fault_parameter", 1500.0),
+        ("fault_duration_s", 1000.0),  # 10 s of wall at x100: every step waits on unit 1
+        ("fault_at_s", 0.0),  # now
+        ("fault_command", 1),
+    )
+
+    def stop_in_a_wait() -> None:
+        _write_block(srv.port, *fault)
+        time.sleep(2.0)  # the client now spends 1.5 s of each step in that wait
+        os.kill(client.pid, signal.SIGSTOP)
+        time.sleep(4.0)
+        os.kill(client.pid, signal.SIGCONT)
+
+    watcher = _when_cooling(out, 15, stop_in_a_wait)
+    try:
+        assert client.wait(timeout=180) == 0
+    finally:
+        client.kill()
+        watcher.join(timeout=10)
+    holes = [n for n in _meta(out)["notes"] if n.startswith("no row from time_s")]
+    held = [n for n in holes if CLIENT_BLAMED in n]
+    assert held, holes
+    # the 4-s stop, less a heartbeat period's lateness (0.05 s) and scheduling
+    assert float(held[0].split("held up ")[1].split(" s")[0]) >= 3.5, held
