@@ -45,10 +45,12 @@ from rig_emulator.cli_support import (
 from rig_emulator.dashboard import Dashboard
 from rig_emulator.emulator import CommandError, Emulator, check_command
 from rig_emulator.faults import FaultError, check_spikes, check_units, load_faults
+from rig_emulator.faults.journal import check_writable as check_journal_writable
 from rig_emulator.instruments import ProfileError, load_profile
 from rig_emulator.instruments.profile import PROFILE_DIR
 from rig_emulator.modbus import BenchServer
 from rig_emulator.modbus.fault_control import reading_ranges
+from rig_emulator.modbus.transports import Transports
 from rig_emulator.model import pack_constants, steady_state
 from rig_emulator.registers import MapError, RegisterMap, emulator_units, load_map
 from rig_emulator.registers.codec import carries_between
@@ -365,6 +367,11 @@ def _cmd_serve(args: argparse.Namespace) -> int:
             {what: Path(v) for what, v in named.items() if v is not None},
             "--fault-log",
         )
+        try:  # (it was a warning, and a whole session served without a journal: a probe)
+            check_journal_writable(args.fault_log)
+        except OSError as exc:
+            why = exc.strerror or str(exc)
+            raise UsageError(f"--fault-log: cannot write '{args.fault_log}' ({why})") from None
     advances = [
         p for d in register_map.devices for p in d.points if p.signal == "lockstep_advance_s"
     ]
@@ -435,17 +442,46 @@ def _stop_signals() -> list[int]:
     return stopping
 
 
+async def _start_listeners(
+    server: BenchServer, args: argparse.Namespace
+) -> tuple[Transports, Dashboard | None]:
+    """Open the listeners beside the started ``server``'s own port: the plain TCP port and
+    serial line of the transport options, then the dashboard's HTTP port. All of them are up
+    before the "serving" line, the one readiness signal scripts and the pytest plugin have
+    (and the port ``--port 0`` chose): it was logged before the HTTP port was tried, so a
+    busy ``--http`` port said "serving", then exited 2 (a stranger's probe). One that cannot
+    open closes those already open and the server; its error is serve's one line, exit 2."""
+    transports = None
+    try:
+        transports = await transport_options.start(server, args.transport_plan)
+        if args.http is None:
+            return transports, None
+        dashboard = Dashboard(server, server.host, args.http, control=args.http_control)
+        await dashboard.start()
+    except (UsageError, OSError):
+        if transports is not None:
+            await transports.stop()
+        await server.stop()
+        raise
+    return transports, dashboard
+
+
 async def _serve(server: BenchServer, args: argparse.Namespace) -> None:
     stop = asyncio.Event()
     loop = asyncio.get_running_loop()
     for sig in _stop_signals():
         loop.add_signal_handler(sig, stop.set)
     await server.start(begin_journal=False)  # (begun once every port is open: a re-probe)
-    try:
-        transports = await transport_options.start(server, args.transport_plan)
-    except UsageError:
-        await server.stop()
-        raise
+    transports, dashboard = await _start_listeners(server, args)
+    # every listener is up: what each serves, then "serving", the line scripts wait for
+    transport_options.announce(server, args.transport_plan, transports)
+    if dashboard is not None:
+        logging.getLogger("rig_emulator.serve").info(
+            "dashboard on http://%s:%d/ (controls %s)",
+            server.host,
+            dashboard.port,
+            "on" if args.http_control else "off",
+        )
     pace = "lockstep" if args.lockstep else f"real time x{args.speed:g}"
     units = ", ".join(f"{d.unit_id}={d.name}" for d in server.map.devices)
     logging.getLogger("rig_emulator.serve").info(
@@ -458,20 +494,6 @@ async def _serve(server: BenchServer, args: argparse.Namespace) -> None:
         args.seed,
         units,
     )
-    dashboard = None
-    if args.http is not None:
-        dashboard = Dashboard(server, server.host, args.http, control=args.http_control)
-        try:
-            await dashboard.start()
-        except OSError:
-            await server.stop()
-            raise
-        logging.getLogger("rig_emulator.serve").info(
-            "dashboard on http://%s:%d/ (controls %s)",
-            server.host,
-            dashboard.port,
-            "on" if args.http_control else "off",
-        )
     server.faults.begin_journal()
     await stop.wait()
     # the stop is under way: a second Ctrl-C or SIGTERM (GNU timeout signals the group

@@ -183,16 +183,47 @@ def who_has_which_role(transport_plan: TransportPlan, default_role: str) -> str:
 async def start(server: BenchServer, transport_plan: TransportPlan) -> Transports:
     """Add the planned listeners, role gate and lines to the started ``server``; without a
     ROLES.yaml, the roles are the defaults of the map it serves (they were those of the
-    shipped map's unit IDs, whatever devices a ``--map`` put there: a stranger's probe)."""
+    shipped map's unit IDs, whatever devices a ``--map`` put there: a stranger's probe).
+    What they are is said by :func:`announce`, once every listener of the server is up; a
+    listener that cannot start closes those this opened and is one :class:`UsageError`."""
     modbus = server.modbus_server
     assert modbus is not None
     transports = Transports(modbus)
     p = transport_plan
-    policy = p.policy if p.policy is not None else default_policy(server.map)
     for warning in p.certificate_warnings:  # as serve warns of an expired one
         log.warning("%s", warning)
     if p.ssl_context is not None or p.plain_role is not None:
-        transports.authorise(policy, p.plain_role)
+        transports.authorise(_policy(server, p), p.plain_role)
+    try:
+        if p.tcp_port is not None:
+            await transports.add_tcp(server.host, p.tcp_port)
+    except OSError as exc:  # (asyncio's strerror names the address again: its end is why)
+        await transports.stop()
+        why = exc.strerror.split(": ")[-1] if exc.strerror else str(exc)
+        raise UsageError(
+            f"--tcp-port: cannot serve plain TCP on {server.host}:{p.tcp_port}: {why}"
+        ) from None
+    try:
+        if p.serial is not None:
+            await transports.add_rtu(p.serial, p.baud, p.parity)
+    except SerialConfigError as exc:
+        await transports.stop()
+        raise UsageError(str(exc)) from None
+    except OSError as exc:  # (no pty left, say: the line's, not the TCP port's)
+        await transports.stop()
+        raise UsageError(f"--serial {p.serial}: {exc.strerror or exc}") from None
+    return transports
+
+
+def announce(server: BenchServer, transport_plan: TransportPlan, transports: Transports) -> None:
+    """Say what :func:`start` opened: the roles and whom they judge, the TLS port, the plain
+    TCP port, and the serial line (``serial: PATH`` on stdout, the line a client of
+    ``--serial pty`` waits for). Called with the "serving" line, once every listener of
+    the server is up: said as each opened, they announced a server that a later listener's
+    failure (a busy ``--http`` port) then ended with exit 2 (a stranger's probe)."""
+    p = transport_plan
+    if transports.authorisation is not None:
+        policy = transports.authorisation.policy
         log.info(
             "roles%s: %s; %s",
             "" if p.policy is not None else " (defaults of the map's devices)",
@@ -205,25 +236,21 @@ async def start(server: BenchServer, transport_plan: TransportPlan) -> Transport
             server.host,
             server.port,
         )
-    try:
-        if p.tcp_port is not None:
-            host, port = await transports.add_tcp(server.host, p.tcp_port)
-            log.info("plain Modbus TCP also on %s:%d", host, port)
-        if p.serial is not None:
-            line = await transports.add_rtu(p.serial, p.baud, p.parity)
-            print(f"serial: {line.path}", flush=True)
-            log.info(
-                "Modbus RTU on %s (%s; units %s)",
-                line.path,
-                line.settings,
-                ", ".join(str(u) for u in sorted(modbus.units)),
-            )
-    except SerialConfigError as exc:
-        await transports.stop()
-        raise UsageError(str(exc)) from None
-    except OSError as exc:
-        await transports.stop()
-        raise UsageError(
-            f"cannot serve plain TCP on {server.host}:{p.tcp_port}: {exc.strerror or exc}"
-        ) from None
-    return transports
+    for listener in transports.listeners:
+        host, port = listener.sockets[0].getsockname()[:2]
+        log.info("plain Modbus TCP also on %s:%d", host, port)
+    for line in transports.lines:
+        print(f"serial: {line.path}", flush=True)
+        log.info(
+            "Modbus RTU on %s (%s; units %s)",
+            line.path,
+            line.settings,
+            ", ".join(str(u) for u in sorted(transports.server.units)),
+        )
+
+
+def _policy(server: BenchServer, transport_plan: TransportPlan) -> RolePolicy:
+    """The roles of ``--roles``, else the defaults of the map ``server`` serves."""
+    if transport_plan.policy is not None:
+        return transport_plan.policy
+    return default_policy(server.map)

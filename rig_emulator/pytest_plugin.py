@@ -53,6 +53,9 @@ REPLY_TIMEOUT_S = 5.0
 #: How long an advance may take to answer [s]: a day of the lab profile takes seconds on a
 #: loaded machine.
 ADVANCE_TIMEOUT_S = 300.0
+#: How long :meth:`RigEmulator.stop` waits for the last lines of a stopped server's
+#: standard error [s]: they are in the pipe when it exits, so this is a bound, not a wait.
+STDERR_DRAIN_S = 10.0
 _LISTENING = re.compile(r"serving .* on ([^\s:]+):(\d+) ")
 
 
@@ -177,21 +180,30 @@ class RigEmulator:
             command += ["--faults", str(faults)]
         self.stderr_lines: list[str] = []
         self._client = None
-        self.process = subprocess.Popen(
-            command,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.PIPE,
-            text=True,
-            preexec_fn=_stop_with_parent if sys.platform == "linux" else None,
-        )
+        self._drain: threading.Thread | None = None
+        try:
+            self.process = subprocess.Popen(
+                command,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.PIPE,
+                text=True,
+                preexec_fn=_stop_with_parent if sys.platform == "linux" else None,
+            )
+        except BaseException:
+            self._remove_workdir()
+            raise
         _LIVE.add(self.process)
         _watch_controller()
-        self.host, self.port = self._wait_listening()
-        self._drain = threading.Thread(target=self._read_stderr, daemon=True)
-        self._drain.start()
-        from rig_emulator.registers import load_map
+        try:  # a start that fails (or is interrupted) leaves no process, pipe or folder
+            self.host, self.port = self._wait_listening()
+            self._drain = threading.Thread(target=self._read_stderr, daemon=True)
+            self._drain.start()
+            from rig_emulator.registers import load_map
 
-        self.map = load_map()
+            self.map = load_map()
+        except BaseException:
+            self.stop()
+            raise
 
     def __repr__(self) -> str:
         return (
@@ -211,7 +223,6 @@ class RigEmulator:
             match = _LISTENING.search(line)
             if match:
                 return match.group(1), int(match.group(2))
-        self.stop()
         raise RigEmulatorError(
             "rig-emulator serve did not start: " + " | ".join(self.stderr_lines[-5:])
         )
@@ -222,11 +233,14 @@ class RigEmulator:
             self.stderr_lines.append(line.rstrip("\n"))
 
     def stop(self) -> None:
-        """Stop the server (SIGTERM, then SIGKILL after 10 s)."""
-        if self._client is not None:
-            with contextlib.suppress(Exception):
-                self._client.close()
-            self._client = None
+        """Stop the server (SIGTERM, then SIGKILL after 10 s) and close what talked to it.
+
+        Its standard error is read to the end and closed: left open, the pipe was an
+        "unclosed file" ResourceWarning in the user's test, which a suite run with
+        ``filterwarnings = error`` (or ``-W error``) reported as an error of the next test,
+        and ``PYTHONDEVMODE=1`` showed for every test, a server that failed to start too
+        (a stranger's probe). Stopping twice does nothing more."""
+        self._reconnect()
         if self.process.poll() is None:
             self.process.send_signal(signal.SIGTERM)
             try:
@@ -235,6 +249,24 @@ class RigEmulator:
                 self.process.kill()
                 self.process.wait(timeout=10)
         _LIVE.discard(self.process)
+        self._close_stderr()
+        self._remove_workdir()
+
+    def _close_stderr(self) -> None:
+        """Close the server's standard error once the reader thread has taken its last
+        lines (the end of the pipe comes with the server's exit). A pipe another process
+        still holds open (nothing the server starts does) keeps its thread and stays open:
+        closing a file that a thread is reading waits for that read."""
+        stderr = self.process.stderr
+        if stderr is None or stderr.closed:
+            return
+        if self._drain is not None:
+            self._drain.join(timeout=STDERR_DRAIN_S)
+            if self._drain.is_alive():
+                return
+        stderr.close()
+
+    def _remove_workdir(self) -> None:
         if self._tmp is not None:
             self._tmp.cleanup()
             self._tmp = None

@@ -23,6 +23,7 @@ import json
 import logging
 import math
 import os
+import stat
 import time
 from collections import deque
 from pathlib import Path
@@ -52,9 +53,12 @@ def _json_safe(value: Any) -> Any:
 class FaultJournal:
     """Appends fault events to a JSONL file, one flushed line each.
 
-    A journal that cannot be written (a full disk, ``/dev/full``, a file system gone
-    read-only) costs its lines, not the faults or the simulation: one warning says so and
-    how many lines were lost, and the server serves on. Before, the error reached the
+    A journal path that cannot be opened for writing at all (a directory the server's user
+    may not write, a read-only file system) is refused by ``serve`` before any port opens
+    (:func:`check_writable`). One that opens but cannot be written later (a full disk,
+    ``/dev/full``, which opens as any device, a file system gone read-only) costs its
+    lines, not the faults or the simulation: one warning says so and how many lines were
+    lost, and the server serves on. Before, the error reached the
     lockstep advance that started the fault, which answered exception 04 although it had
     advanced (the client's next step went two), with a traceback in the log and a false
     "cannot serve" at the stop (a stranger's probe). :attr:`lines_lost` keeps the count
@@ -193,6 +197,40 @@ class FaultJournal:
         if self.lost:
             log.warning("fault journal %s: %d line(s) lost", self.path, self.lost)
             self.lost = 0
+
+
+def check_writable(path: str | Path) -> None:
+    """Raise the ``OSError`` :meth:`FaultJournal.begin` would meet at ``path``, found
+    without changing anything there, so ``serve`` refuses a journal it cannot open before
+    it opens a port: one that could not be opened (a directory of another user, its
+    server run as nobody) was a warning, and the server served a whole session without a
+    journal (a stranger's probe).
+
+    A path not there is created and removed again; an existing file or device is opened
+    for writing without truncating it and closed; a non-empty file, which the journal sets
+    aside (:func:`set_aside`), also needs its directory writable. A FIFO is left alone: its
+    reader is checked and held by the command line (closing a write end here would end
+    the reader's stream)."""
+    path = Path(path)
+    target = Path(os.path.realpath(path))  # (a dangling link: the file it names is created)
+    try:
+        status = target.stat()
+    except FileNotFoundError:
+        fd = os.open(target, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NONBLOCK, 0o666)
+        os.close(fd)
+        target.unlink()
+        return
+    if stat.S_ISFIFO(status.st_mode):
+        return
+    os.close(os.open(target, os.O_WRONLY | os.O_NONBLOCK | os.O_NOCTTY))  # (EROFS named)
+    folder = path.absolute().parent
+    if stat.S_ISREG(status.st_mode) and status.st_size > 0 and not os.access(folder, os.W_OK):
+        raise OSError(
+            errno.EACCES,
+            f"{os.strerror(errno.EACCES)}: the earlier journal there cannot be set aside "
+            f"in {folder}",
+            str(path),
+        )
 
 
 def set_aside(path: Path) -> Path | None:

@@ -380,3 +380,60 @@ def test_bad_marker_options_fail_in_one_line_each(tmp_path):
     assert "unknown boiler 'no_such_boiler'" in out
     assert "_wait_listening" not in out and "Traceback" not in out
     assert "During handling of the above exception" not in out  # the server's line, once
+
+
+STRICT_SUITE = """
+import pytest
+
+
+def test_normal_end(rig_emulator):
+    rig_emulator.advance(1)
+
+
+def test_failing_test(rig_emulator):
+    assert rig_emulator.read("sim_time_s") == 12345.0  # fails on purpose
+
+
+@pytest.mark.rig_emulator(seed="abc")
+def test_bad_marker(rig_emulator):
+    pass
+
+
+@pytest.mark.rig_emulator(boiler="no_such_boiler")
+def test_server_that_fails_to_start(rig_emulator):
+    pass
+
+
+def test_after_them(rig_emulator):
+    rig_emulator.advance(1)
+"""
+
+
+@pytest.mark.parametrize("strict", ["ini", "-W"])
+def test_the_fixture_closes_what_it_opens_under_filterwarnings_error(tmp_path, strict):
+    """A stranger's probe: the fixture left its server's standard-error pipe open, so a
+    suite with ``filterwarnings = error`` got "1 passed, 1 error": "ResourceWarning:
+    unclosed file <_io.TextIOWrapper name=13 ...>" raised in the next test's set-up, then
+    PytestUnraisableExceptionWarning; with PYTHONDEVMODE=1 every test using the fixture
+    warned, a server that failed to start (an unknown boiler) too. On every path (a test
+    that passes, one that fails, a bad marker, a server that does not start) nothing is
+    left open: only the failures the suite asks for."""
+    (tmp_path / "test_strict.py").write_text(STRICT_SUITE)
+    ini = "[pytest]\nfilterwarnings =\n    error\n" if strict == "ini" else "[pytest]\n"
+    (tmp_path / "pytest.ini").write_text(ini)
+    options = ["-W", "error"] if strict == "-W" else []
+    proc = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-p", "no:randomly",
+         *options, "test_strict.py"],
+        cwd=tmp_path,
+        env={**_env_with_entry_point(tmp_path), "PYTHONDEVMODE": "1"},
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )  # fmt: skip
+    out = proc.stdout + proc.stderr
+    assert "1 failed, 2 passed, 2 errors" in proc.stdout, out
+    for sign in ("ResourceWarning", "Unraisable", "unclosed", "INTERNALERROR"):
+        assert sign not in out, out
+    assert "seed='abc' is not an integer" in out and "unknown boiler 'no_such_boiler'" in out
+    assert "12345" in out  # the failure is the test's own assertion
