@@ -194,10 +194,12 @@ class RigEmulator:
             raise
         _LIVE.add(self.process)
         _watch_controller()
+        self._listening: tuple[str, int] | None = None
+        self._started = threading.Event()  # listening, or its standard error ended
         try:  # a start that fails (or is interrupted) leaves no process, pipe or folder
-            self.host, self.port = self._wait_listening()
             self._drain = threading.Thread(target=self._read_stderr, daemon=True)
             self._drain.start()
+            self.host, self.port = self._wait_listening()
             from rig_emulator.registers import load_map
 
             self.map = load_map()
@@ -213,24 +215,31 @@ class RigEmulator:
 
     # ------------------------------------------------------------------ lifecycle
     def _wait_listening(self) -> tuple[str, int]:
-        assert self.process.stderr is not None
-        deadline = time.monotonic() + START_TIMEOUT_S
-        while time.monotonic() < deadline:
-            line = self.process.stderr.readline()
-            if not line:
-                break
-            self.stderr_lines.append(line.rstrip("\n"))
-            match = _LISTENING.search(line)
-            if match:
-                return match.group(1), int(match.group(2))
-        raise RigEmulatorError(
-            "rig-emulator serve did not start: " + " | ".join(self.stderr_lines[-5:])
-        )
+        """The server's host and port once it says it serves, at most
+        :data:`START_TIMEOUT_S` later: a server that hung without a word hung the fixture,
+        the bound never applied while a read of its standard error waited (a review)."""
+        self._started.wait(START_TIMEOUT_S)
+        if self._listening is not None:
+            return self._listening
+        if self._started.is_set():  # (its standard error ended: it stopped)
+            why = "did not start"
+        else:
+            why = f"said nothing of serving in {START_TIMEOUT_S:g} s"
+        raise RigEmulatorError(f"rig-emulator serve {why}: " + " | ".join(self.stderr_lines[-5:]))
 
     def _read_stderr(self) -> None:
+        """Keep the server's standard error (:attr:`stderr_lines`) to its end, noting the
+        line that says where it serves."""
         assert self.process.stderr is not None
-        for line in self.process.stderr:
-            self.stderr_lines.append(line.rstrip("\n"))
+        try:
+            for line in self.process.stderr:
+                self.stderr_lines.append(line.rstrip("\n"))
+                match = _LISTENING.search(line) if self._listening is None else None
+                if match:
+                    self._listening = (match.group(1), int(match.group(2)))
+                    self._started.set()
+        finally:
+            self._started.set()
 
     def stop(self) -> None:
         """Stop the server (SIGTERM, then SIGKILL after 10 s) and close what talked to it.

@@ -4,6 +4,7 @@ distribution's metadata on its path, since the shared venv is not reinstalled he
 
 from __future__ import annotations
 
+import contextlib
 import os
 import socket
 import subprocess
@@ -135,6 +136,33 @@ def test_a_server_that_does_not_start_says_why(tmp_path):
 
     with pytest.raises(RigEmulatorError, match=r"did not start.*no_such_boiler"):
         RigEmulator(boiler="no_such_boiler", workdir=tmp_path)
+
+
+def test_a_server_that_hangs_without_a_word_is_given_up_after_the_start_timeout(
+    tmp_path, monkeypatch
+):
+    """A review: the start's bound never applied while the fixture waited on a line of
+    the server's standard error, so a server hung before its first line hung the test.
+    Here its interpreter sleeps before it runs (a ``sitecustomize`` on its path): the
+    fixture gives up after START_TIMEOUT_S, saying so, and the process is gone."""
+    from rig_emulator import pytest_plugin
+    from rig_emulator.pytest_plugin import RigEmulator, RigEmulatorError
+
+    hang = tmp_path / "hang"
+    hang.mkdir()
+    (hang / "sitecustomize.py").write_text("import time\ntime.sleep(600)\n")
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(hang), *sys.path]))
+    monkeypatch.setattr(pytest_plugin, "START_TIMEOUT_S", 2.0)
+    workdir = tmp_path / "w"
+    with pytest.raises(RigEmulatorError, match=r"said nothing of serving in 2 s"):
+        RigEmulator(workdir=workdir)
+    # no process left whose command line names its folder (stopped: SIGTERM, else KILL)
+    left = []
+    for cmdline in Path("/proc").glob("[0-9]*/cmdline"):
+        with contextlib.suppress(OSError):
+            if str(workdir).encode() in cmdline.read_bytes():
+                left.append(cmdline.parent.name)
+    assert left == []
 
 
 SLOW_SUITE = """
