@@ -155,7 +155,8 @@ def _build_parser() -> argparse.ArgumentParser:
         default=100,
         metavar="N",
         help="client connections open at once; a new one beyond closes the oldest unused "
-        "one (all busy: the new one), logged [100]",
+        "one (all busy: the new one), logged; at most what the process's open-file limit "
+        "holds (said at start) [100]",
     )
     certs = sub.add_parser(
         "certs",

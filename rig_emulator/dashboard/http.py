@@ -27,6 +27,13 @@ Every request is bounded (4 kB of request target, else 414; 8 kB of headers, 4 k
 10 s to arrive); a malformed one gets 400 and the connection closes. The work per push is
 one snapshot shared by all streams; a stream that cannot keep up skips samples instead of
 queueing them (the page fetches the history again now and then).
+
+Connections are bounded too: at most :data:`~rig_emulator.modbus.connections.DASHBOARD_CONNECTIONS`
+open (fewer where the process's open-file limit holds fewer), a new one beyond closes the
+one that has waited longest for its request (none waits: the new one is closed), and so
+does a process out of file descriptors; each logged, a line a minute at most, with a count
+(a stranger's probe: 1100 idle connections under ``ulimit -n 1024`` took every descriptor,
+and asyncio logged a traceback per failed accept, 2958 of them).
 """
 
 from __future__ import annotations
@@ -40,6 +47,7 @@ import logging
 import math
 import socket
 import time
+from dataclasses import dataclass
 from importlib import resources
 from urllib.parse import parse_qs, urlsplit
 
@@ -54,6 +62,13 @@ from rig_emulator.dashboard.state import (
     units,
 )
 from rig_emulator.faults import FaultError
+from rig_emulator.modbus.connections import (
+    DASHBOARD_CONNECTIONS,
+    EventLog,
+    Listener,
+    descriptor_shares,
+    listen,
+)
 from rig_emulator.modbus.fault_control import FAULT_COMMANDS
 from rig_emulator.modbus.server import BenchServer, carried_range
 from rig_emulator.registers import Point, precision
@@ -88,6 +103,15 @@ ROUTES = {
     "/api/control": ("POST",),
     "/api/faults": ("POST",),
 }
+
+
+@dataclass
+class _Connection:
+    """An HTTP connection being served."""
+
+    writer: asyncio.StreamWriter
+    since_s: float  # when it came (monotonic) [s]
+    reading: bool = True  # its request has not all come yet
 
 
 class BadRequest(Exception):
@@ -132,15 +156,23 @@ def _own_name(name: str) -> bool:
 
 
 class Dashboard:
-    """Serve the page and the state of ``server`` on ``host:port`` (port 0: any free)."""
+    """Serve the page and the state of ``server`` on ``host:port`` (port 0: any free), at
+    most ``max_connections`` HTTP connections at once (fewer where the process's open-file
+    limit holds fewer: see :meth:`start`)."""
 
     def __init__(
-        self, server: BenchServer, host: str = "127.0.0.1", port: int = 8080, control=False
+        self,
+        server: BenchServer,
+        host: str = "127.0.0.1",
+        port: int = 8080,
+        control=False,
+        max_connections: int = DASHBOARD_CONNECTIONS,
     ) -> None:
         self.server = server
         self.host = host
         self.port = port
         self.control = control
+        self.max_connections = max_connections
         self.trend = Trend()
         self._trend_points = trend_points(server.map)
         #: the controls: each writable signal's finest point (the one write_signal takes)
@@ -149,7 +181,7 @@ class Dashboard:
         self._page = resources.files("rig_emulator.dashboard").joinpath("static/index.html")
         #: the live streams, oldest first: each one's queue of events and its connection
         self._streams: dict[asyncio.Queue, asyncio.StreamWriter] = {}
-        self._srv: asyncio.AbstractServer | None = None
+        self._srv: Listener | None = None
         self._task: asyncio.Task | None = None
         self._last: dict = {}
         self._evicted = 0  # streams closed for new ones since the last line said so
@@ -157,11 +189,34 @@ class Dashboard:
         #: the connections being served: ended before the loop stops (cancelled by the
         #: loop's shutdown, one with a request half sent logged a CancelledError traceback
         #: from asyncio's own callback: a probe)
-        self._handlers: dict[asyncio.Task, asyncio.StreamWriter] = {}
+        self._handlers: dict[asyncio.Task, _Connection] = {}
+        #: connections closed (or refused) at the limit, and for want of a descriptor
+        self._at_limit = EventLog(
+            "HTTP connections closed at the dashboard's limit",
+            1,
+            EVICTION_LOG_S,
+            logging.WARNING,
+            log,
+        )
+        self._out_of_descriptors = EventLog(
+            "HTTP connections closed for a file descriptor", 1, EVICTION_LOG_S, logging.WARNING, log
+        )
 
     # ------------------------------------------------------------------ lifecycle
     async def start(self) -> None:
-        self._srv = await asyncio.start_server(self._handle, self.host, self.port)
+        """Listen, the connection limit fitted to the process's open-file limit first:
+        at most its share of the descriptors (:func:`descriptor_shares`), silently (the
+        limit is the dashboard's own, not an option)."""
+        self.max_connections = min(
+            self.max_connections, descriptor_shares(0, self.max_connections).dashboard
+        )
+        self._srv = await listen(
+            self.host,
+            self.port,
+            lambda: asyncio.StreamReaderProtocol(asyncio.StreamReader(), self._handle),
+            lambda: self.max_connections - len(self._handlers),
+            self._make_room_for_descriptor,
+        )
         self.port = self._srv.sockets[0].getsockname()[1]
         self._sample()
         self.server.on_advance_sample = self._sample_advance
@@ -178,6 +233,8 @@ class Dashboard:
                 self._evicted,
             )
             self._evicted = 0
+        self._at_limit.flush()
+        self._out_of_descriptors.flush()
         if self._task is not None:
             self._task.cancel()
             with contextlib.suppress(asyncio.CancelledError):
@@ -187,8 +244,8 @@ class Dashboard:
             _end(queue)
         if self._srv is not None:
             self._srv.close()
-        for writer in list(self._handlers.values()):
-            writer.transport.abort()
+        for connection in list(self._handlers.values()):
+            connection.writer.transport.abort()
         if self._handlers:  # each ends on its aborted connection
             await asyncio.wait(list(self._handlers), timeout=2.0)
         if self._srv is not None:
@@ -311,14 +368,58 @@ class Dashboard:
                 queue.put_nowait(event)
 
     # ------------------------------------------------------------------ HTTP
+    def _shed(self, keep: _Connection | None = None) -> str | None:
+        """Close the connection that has waited longest for its request (a connection left
+        idle, a slowloris), other than ``keep``; its peer, or None when none waits."""
+        waiting = [c for c in self._handlers.values() if c.reading and c is not keep]
+        oldest = min(waiting, key=lambda c: c.since_s, default=None)
+        if oldest is None:
+            return None
+        oldest.reading = False
+        oldest.writer.transport.abort()  # its descriptor now: its task ends on it
+        return _peer(oldest.writer)
+
+    def _make_room_for_descriptor(self) -> bool:
+        """The process has no file descriptor for a new connection: close the one that has
+        waited longest for its request (False: none waits)."""
+        shed = self._shed()
+        self._out_of_descriptors(
+            "dashboard: no file descriptor left for a new HTTP connection (the process's "
+            "open-file limit): %s",
+            f"closed the one waiting longest for its request ({shed})"
+            if shed
+            else "none waits for its request",
+        )
+        return shed is not None
+
+    def _admit(self, connection: _Connection) -> bool:
+        """Whether a new connection is served: beyond the limit it closes the one that has
+        waited longest for its request, or, none waiting, is closed itself."""
+        if len(self._handlers) <= self.max_connections:
+            return True
+        shed = self._shed(keep=connection)
+        self._at_limit(
+            "dashboard: %d HTTP connections open (its limit): %s",
+            len(self._handlers) - 1,
+            f"closed the one waiting longest for its request ({shed}) for a new one"
+            if shed
+            else f"none waits for its request: closed the new one ({_peer(connection.writer)})",
+        )
+        return shed is not None
+
     async def _handle(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         task = asyncio.current_task()
+        connection = _Connection(writer, time.monotonic())
         if task is not None:
-            self._handlers[task] = writer
+            self._handlers[task] = connection
         try:
+            if not self._admit(connection):
+                writer.transport.abort()
+                return
             method, target, headers, body = await asyncio.wait_for(
                 _read_request(reader), REQUEST_TIMEOUT_S
             )
+            connection.reading = False
             await self._route(method, target, headers, body, writer)
         except BadRequest as exc:
             await _respond(writer, 400, {"error": str(exc)})
@@ -524,6 +625,12 @@ def _path_and_query(target: str) -> tuple[str, str]:
         return url.path or "/", url.query
     path, _, query = target.partition("#")[0].partition("?")
     return path, query
+
+
+def _peer(writer: asyncio.StreamWriter) -> str:
+    """A connection's peer as "host:port" ("?" where it has none)."""
+    peer = writer.get_extra_info("peername")
+    return f"{peer[0]}:{peer[1]}" if peer else "?"
 
 
 def _end(queue: asyncio.Queue) -> None:

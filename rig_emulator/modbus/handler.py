@@ -21,7 +21,12 @@ is here, written from the Modbus specs rather than from pymodbus's server:
   control, nothing dropped; a connection answers at most :data:`MAX_ANSWERS_PER_TURN`
   requests per turn of the event loop; connections idle for ``idle_timeout_s`` are closed,
   and at most ``max_connections`` are open (a new one closes the oldest unused, as the
-  guide says); each logged.
+  guide says), fewer where the process's open-file limit holds fewer
+  (:func:`rig_emulator.modbus.connections.descriptor_shares`); a process out of
+  descriptors closes the oldest unused too (:class:`~rig_emulator.modbus.connections.Listener`);
+  each logged, a line per kind at most every :data:`_LIMIT_LOG_INTERVAL_S`, with a count;
+- a client's connect and disconnect are logged, the first :data:`CONNECTION_LOG_BURST` of
+  each a :data:`CONNECTION_LOG_INTERVAL_S`, then one line with the count.
 """
 
 from __future__ import annotations
@@ -52,6 +57,7 @@ from rig_emulator.modbus.conformance import (
     process,
     process_failing,
 )
+from rig_emulator.modbus.connections import EventLog, Listener, descriptor_shares, listen
 from rig_emulator.modbus.framing import (
     MAX_DISCARDED_IN_ROW,
     MbapFrame,
@@ -76,6 +82,10 @@ HANDSHAKE_TIMEOUT_S = 60.0
 #: freed (asyncio's own: 30 s, a file descriptor a silent peer holds that long) [s]
 TLS_SHUTDOWN_TIMEOUT_S = 2.0
 HANDSHAKE_LOG_BURST = 20  # failed TLS handshakes logged a minute, the rest counted
+#: client connects (and as many disconnects, TLS identities) logged an interval, the rest
+#: counted: a client reconnecting for every read at 10/s wrote 140 MB of them a day
+CONNECTION_LOG_BURST = 20
+CONNECTION_LOG_INTERVAL_S = 60.0
 
 
 @dataclass(frozen=True)
@@ -287,14 +297,8 @@ class RequestHandler(asyncio.Protocol):
         if not registered:
             return
         reason = f" ({exc})" if exc and not _ordinary_close(exc) else ""
-        level = logging.INFO if self._spoke else logging.DEBUG
-        log.log(
-            level,
-            "client %s disconnected%s (%d open)",
-            self.peer,
-            reason,
-            len(self.server.handlers),
-        )
+        say = self.server.log_disconnected if self._spoke else log.debug
+        say("client %s disconnected%s (%d open)", self.peer, reason, len(self.server.handlers))
 
     def eof_received(self) -> bool:
         """The client sent all it will send: answer what it asked, then close."""
@@ -325,14 +329,19 @@ class RequestHandler(asyncio.Protocol):
         self.server.log_close(kind, self.peer, reason)
         self.transport.close()
 
-    def close_quietly(self) -> None:
-        """Close the connection now and free its place (the caller logs why)."""
+    def close_quietly(self, *, at_once: bool = False) -> None:
+        """Close the connection and free its place (the caller logs why); ``at_once``: its
+        descriptor too, without waiting for what it still has to send or a TLS close (the
+        process needs that descriptor for a new connection)."""
         if self._registered:
             self._registered = False
             self.server.handlers.discard(self)
         self._closed = True
         if self.transport is not None:
-            self.transport.close()
+            if at_once:
+                self.transport.abort()
+            else:
+                self.transport.close()
 
     def _arm_idle_timer(self, delay_s: float) -> None:
         if self.server.idle_timeout_s > 0 and hasattr(self.transport, "get_extra_info"):
@@ -398,7 +407,9 @@ class RequestHandler(asyncio.Protocol):
             self._last_activity = time.monotonic()
             if not self._spoke:
                 self._spoke = True
-                log.info("client %s connected (%d open)", self.peer, len(self.server.handlers))
+                self.server.log_connected(
+                    "client %s connected (%d open)", self.peer, len(self.server.handlers)
+                )
         return len(discarded)
 
     def _log_discard(self, why: str) -> None:
@@ -562,13 +573,26 @@ class BenchModbusServer:
         #: called with each new connection (a TLS transport sets ``handler.role`` here)
         self.connection_hooks: list[Callable[[RequestHandler], None]] = []
         self.handlers: set[RequestHandler] = set()
-        self.transport: asyncio.Server | None = None
-        self._limit_events = 0
-        self._limit_logged_s = -_LIMIT_LOG_INTERVAL_S
+        self.transport: Listener | None = None
+        #: per limit (--max-connections, the open-file limit): its line a
+        #: :data:`_LIMIT_LOG_INTERVAL_S` at most, and what it did so far
+        self._limit_logs: dict[str, EventLog] = {}
+        self._limit_events: dict[str, int] = {}
         #: per kind of close: (when last logged, closes since then not logged)
         self._closes: dict[str, tuple[float, int]] = {}
-        self._handshake_log_since = -60.0
-        self._handshakes_logged = self._handshakes_unlogged = 0
+        #: connection events, each kind logged the first few times an interval, then counted
+        self.log_connected = EventLog(
+            "client connections", CONNECTION_LOG_BURST, CONNECTION_LOG_INTERVAL_S
+        )
+        self.log_disconnected = EventLog(
+            "client disconnections", CONNECTION_LOG_BURST, CONNECTION_LOG_INTERVAL_S
+        )
+        self.log_identity = EventLog(
+            "TLS client identities", CONNECTION_LOG_BURST, CONNECTION_LOG_INTERVAL_S
+        )
+        self._log_handshake = EventLog(
+            "failed TLS handshakes", HANDSHAKE_LOG_BURST, 60.0, logging.WARNING
+        )
 
     @property
     def connections(self) -> int:
@@ -579,8 +603,10 @@ class BenchModbusServer:
         return RequestHandler(self, self.ssl)
 
     async def serve_forever(self, *, background: bool = True) -> None:
-        """Listen (raises ``RuntimeError`` when it cannot); with ``background=False`` also
-        wait until :meth:`shutdown`."""
+        """Listen (raises ``RuntimeError`` when it cannot), the connection limit fitted to
+        the process's descriptors first (:meth:`fit_descriptors`); with
+        ``background=False`` also wait until :meth:`shutdown`."""
+        self.fit_descriptors()
         host, port = self.address
         try:
             self.transport = await self.listen(host, port, self.ssl)
@@ -589,34 +615,50 @@ class BenchModbusServer:
         if not background:
             await self.transport.serve_forever()
 
-    async def listen(self, host: str, port: int, ssl_context: Any = None) -> asyncio.Server:
+    def fit_descriptors(self) -> None:
+        """Make ``max_connections`` fit the process's open-file limit (RLIMIT_NOFILE): the
+        soft limit is raised as far as the hard one allows where the connections need it,
+        and a limit that still does not fit, beside the dashboard's connections and the
+        files, is lowered to what does, in one line (a stranger's probe: --max-connections
+        2000 under ``ulimit -n 1024`` ran out of descriptors at about 1020 connections, so
+        the limit's relief, the oldest unused connection closed, never came). Lowered, not
+        refused: the same command serves on any machine, as many clients as that one can
+        hold."""
+        shares = descriptor_shares(self.max_connections)
+        if shares.modbus < self.max_connections:
+            log.warning(
+                "--max-connections %d does not fit the process's %s (with room for the "
+                "dashboard's %d connections and %d files): serving at most %d connections",
+                self.max_connections,
+                shares.said,
+                shares.dashboard,
+                shares.files,
+                shares.modbus,
+            )
+            self.max_connections = shares.modbus
+        elif shares.limit != shares.was:
+            log.info("%s, for --max-connections %d", shares.said, self.max_connections)
+
+    async def listen(self, host: str, port: int, ssl_context: Any = None) -> Listener:
         """A listener for this server's connections on ``host:port``, TLS with
         ``ssl_context``. A TLS connection counts from its first byte, not from the end of
         its handshake (which the idle timeout bounds as any silence, else
         :data:`HANDSHAKE_TIMEOUT_S`): a client that opens the port and stalls its handshake
         holds one place of ``max_connections``, and not for long; a failed handshake is
-        logged with its reason."""
-        return await asyncio.get_running_loop().create_server(
-            lambda: RequestHandler(self, ssl_context), host, port, reuse_address=True
+        logged with its reason. Out of descriptors, it closes the oldest unused connection
+        (:meth:`make_room_for_descriptor`)."""
+        return await listen(
+            host,
+            port,
+            lambda: RequestHandler(self, ssl_context),
+            lambda: self.max_connections - len(self.handlers),
+            self.make_room_for_descriptor,
         )
 
     def handshake_failed(self, peer: str, exc: BaseException) -> None:
         """Log a failed TLS handshake (a wrong certificate, an old TLS version, plain bytes
         on the TLS port, a stall): one line each, at most :data:`HANDSHAKE_LOG_BURST` a
         minute, the rest counted."""
-        now = time.monotonic()
-        if now - self._handshake_log_since >= 60.0:
-            if self._handshakes_unlogged:
-                log.warning(
-                    "%d more failed TLS handshakes in the last minute not logged",
-                    self._handshakes_unlogged,
-                )
-            self._handshake_log_since, self._handshakes_logged = now, 0
-            self._handshakes_unlogged = 0
-        if self._handshakes_logged >= HANDSHAKE_LOG_BURST:
-            self._handshakes_unlogged += 1
-            return
-        self._handshakes_logged += 1
         reason = getattr(exc, "reason", None) or str(exc) or type(exc).__name__
         verify = getattr(exc, "verify_message", None)  # why a certificate was refused
         if verify:
@@ -626,12 +668,15 @@ class BenchModbusServer:
                 " (a Modbus role extension marked critical is one: Python's ssl cannot accept it,"
                 " issue it non-critical; see the README)"
             )
-        log.warning("client %s: TLS handshake failed (%s); connection closed", peer, reason)
+        self._log_handshake("client %s: TLS handshake failed (%s); connection closed", peer, reason)
 
     async def shutdown(self) -> None:
-        """Stop listening and close every connection."""
+        """Stop listening and close every connection; say the connection events not logged."""
         if self.transport is not None:
             self.transport.close()
+        logs = (self.log_connected, self.log_disconnected, self.log_identity, self._log_handshake)
+        for events in (*logs, *self._limit_logs.values()):
+            events.flush()
         for handler in list(self.handlers):
             handler.cancel()
             if handler.transport is not None:
@@ -656,14 +701,37 @@ class BenchModbusServer:
         second, whose last answer was older than their connects); among the used ones, the
         one that sent or was answered longest ago. With every connection busy the new one
         is refused. Either is logged, at most once per interval, with a count."""
-        unused = [h for h in self.handlers if h.unused_since is not None]
-        if not unused:
+        oldest = self._oldest_unused()
+        if oldest is None:
             self._log_limit(f"refused the connection of {peer}")
             return False
-        oldest = min(unused, key=lambda h: (h.spoke, h.unused_since or 0.0))
         self._log_limit(f"closed the oldest unused connection ({oldest.peer}) for {peer}")
         oldest.close_quietly()
         return True
+
+    def make_room_for_descriptor(self) -> bool:
+        """The process has no file descriptor left for a new connection (files, other
+        listeners' connections took them): close the oldest unused connection, as at the
+        connection limit (:meth:`make_room`), at once, so the next one is served; False
+        when every connection has a request waiting (the new ones wait in the backlog).
+        Logged as the limit is, a line per interval at most, with a count."""
+        cause = "the process's open-file limit"
+        oldest = self._oldest_unused()
+        if oldest is None:
+            self._log_limit("no file descriptor left for a new connection, none unused", cause)
+            return False
+        self._log_limit(
+            f"no file descriptor left for a new connection: closed the oldest unused"
+            f" connection ({oldest.peer})",
+            cause,
+        )
+        oldest.close_quietly(at_once=True)
+        return True
+
+    def _oldest_unused(self) -> RequestHandler | None:
+        """The connection the limit closes first (:meth:`make_room`), or None."""
+        unused = [h for h in self.handlers if h.unused_since is not None]
+        return min(unused, key=lambda h: (h.spoke, h.unused_since or 0.0), default=None)
 
     def log_close(self, kind: str, peer: str, reason: str) -> None:
         """Log a connection closed for ``reason``: at most one line of each ``kind`` a
@@ -695,18 +763,20 @@ class BenchModbusServer:
             )
             self._closes[kind] = (logged_s, 0)
 
-    def _log_limit(self, what: str) -> None:
-        """Log what the connection limit did: one line per interval, with a count."""
-        self._limit_events += 1
-        now = time.monotonic()
-        if now - self._limit_logged_s >= _LIMIT_LOG_INTERVAL_S:
-            log.warning(
-                "%s: %d connections open (--max-connections); %d so far",
-                what,
-                len(self.handlers),
-                self._limit_events,
+    def _log_limit(self, what: str, cause: str = "--max-connections") -> None:
+        """Log what a limit (``cause``) did: one line per interval, with a count (and the
+        count of those the interval did not log as it ends)."""
+        events = self._limit_events[cause] = self._limit_events.get(cause, 0) + 1
+        if cause not in self._limit_logs:
+            self._limit_logs[cause] = EventLog(
+                f"connections closed or refused for {cause}",
+                1,
+                _LIMIT_LOG_INTERVAL_S,
+                logging.WARNING,
             )
-            self._limit_logged_s = now
+        self._limit_logs[cause](
+            "%s: %d connections open (%s); %d so far", what, len(self.handlers), cause, events
+        )
 
     # ------------------------------------------------------------------ requests
     def decide(self, info: RequestInfo, gates: Iterable[Gate] | None = None) -> GateDecision:

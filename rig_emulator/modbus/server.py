@@ -242,7 +242,8 @@ class BenchServer:
         faults: faults to schedule (``FAULTS.yaml`` entries; the profile's come too).
         fault_log: the JSONL journal of fault starts and ends (None: none).
         idle_timeout_s: close client connections that sent no whole request this long (0: never).
-        max_connections: client connections open at once (the next ones are closed).
+        max_connections: client connections open at once (the next ones are closed); at
+            most what the process's open-file limit holds, from :meth:`start` on.
         ssl_context: serve Modbus/TCP Security (TLS) on ``host:port`` instead of plain TCP
             (:mod:`rig_emulator.modbus.transports` adds more listeners and lines).
     """
@@ -367,6 +368,7 @@ class BenchServer:
             raise OSError(
                 f"cannot listen on {self.host}:{self.port}: {_listen_error(self.host, self.port)}"
             ) from None
+        self.max_connections = self._server.max_connections  # fitted to the descriptors
         self._server.write_check = self.check_write  # a unit failing (04) checks writes
         self.faults.attach(self._server)
         if begin_journal:

@@ -203,7 +203,7 @@ class Authorisation:
         handler.role = peer.role
         self._forget_closed()
         self._subjects[handler.peer] = peer.subject
-        log.info(
+        handler.server.log_identity(  # rate-limited as the connects are
             "client %s: TLS, subject %s, role %s", handler.peer, peer.subject, shown(peer.role)
         )
 
