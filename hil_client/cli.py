@@ -884,6 +884,12 @@ class _EarlierRun:
     def __bool__(self) -> bool:
         return bool(self.moved)
 
+    @property
+    def log_moved(self) -> bool:
+        """Whether the earlier run's log itself was set aside (else only its meta or
+        events file was at ``--out``)."""
+        return any(at == self.out for at, _ in self.moved)
+
     def _present(self) -> list[Path]:
         return [path for path in _log_files(self.out).values() if os.path.lexists(path)]
 
@@ -1019,8 +1025,8 @@ class _EarlierRun:
 
     def _holds(self) -> str:
         """A line on the earlier run's log at ``--out`` and where it waits."""
-        aside = dict(self.moved)
-        if self.out in aside:
+        if self.log_moved:
+            aside = dict(self.moved)
             facts = _log_facts(aside[self.out], aside.get(meta_path(self.out)))
             what = f"an earlier run's log ({facts})" if facts else "an earlier run's log"
             them = "it once it completes; until then it is"
@@ -1033,16 +1039,15 @@ class _EarlierRun:
 
     def _where(self) -> str:
         """The name the earlier run's files wait under (its log's, or each file's)."""
-        aside = dict(self.moved)
-        if self.out in aside:
-            return str(aside[self.out])
+        if self.log_moved:
+            return str(dict(self.moved)[self.out])
         return ", ".join(str(path) for _, path in self.moved)
 
     def kept(self, disk_full: bool = False) -> str:
         """Where the earlier run's files stay after a run that stopped with rows (and, on
         a full disk, that they take part of it: the user decides, nothing is deleted)."""
         self.told = True
-        log = self.out in dict(self.moved)  # (else only its meta or events file was there)
+        log = self.log_moved
         line = f"the earlier run's {'log is' if log else 'files are'} kept as {self._where()}"
         line += " (a run that did not complete replaces nothing"
         if disk_full:
@@ -1071,7 +1076,7 @@ class _EarlierRun:
         events file without its log is kept and said: a run killed with -9 between the
         renames of its set-aside leaves the log kept and its meta at ``--out`` (a re-probe:
         the next run deleted the meta of a complete 18-h log kept beside it)."""
-        if self.moved and not any(at == self.out for at, _ in self.moved):
+        if self.moved and not self.log_moved:
             kept = ", ".join(str(aside) for _, aside in self.moved)
             print(
                 f"hil-client: the files without a log that were at {self.out} are kept as "
