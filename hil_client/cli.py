@@ -1255,6 +1255,8 @@ def _run(args: argparse.Namespace, held: contextlib.ExitStack) -> int:
         # long was exit 1 after the run began: a stranger's probe)
         for written_file in (out, meta_path(out), events_path(out))[: 3 if remote else 2]:
             output_file(written_file)
+        if args.fault_report is not None:  # (judged after the run: a re-probe)
+            output_file(args.fault_report, "--fault-report")
     except UsageError:
         rig.close()
         raise

@@ -42,7 +42,13 @@ from typing import NamedTuple
 
 
 class ConnectionLost(ConnectionError):
-    """The connection to a unit failed (refused, reset, closed or timed out)."""
+    """The connection to a unit failed (refused, reset, closed or timed out);
+    ``by_server``: the server closed (or reset) it, rather than a send, a connect or a
+    timeout of this client failing."""
+
+    def __init__(self, message: str, by_server: bool = False) -> None:
+        super().__init__(message)
+        self.by_server = by_server
 
 
 class ModbusExceptionResponse(RuntimeError):
@@ -464,9 +470,10 @@ class Connection:
             except TimeoutError:
                 raise ReplyTimeout("no reply within the timeout") from None
             except OSError as exc:
-                raise ConnectionLost(f"receive failed ({exc})") from None
+                reset = isinstance(exc, ConnectionResetError)
+                raise ConnectionLost(f"receive failed ({exc})", by_server=reset) from None
             if not chunk:
-                raise ConnectionLost("connection closed by the server")
+                raise ConnectionLost("connection closed by the server", by_server=True)
             self._buffer += chunk
         return self._buffer[:n]
 

@@ -582,8 +582,10 @@ def input_errors() -> Iterator[None]:
         ) from None
     except FileNotFoundError as exc:
         if exc.filename is None and working_directory_gone():  # (os.getcwd's error: "None:
-            raise UsageError(  # No such file or directory", a stranger's probe)
-                "the working directory no longer exists; give every path absolute"
+            raise UsageError(  # No such file or directory", a stranger's probe; absolute
+                # paths do not help where a library asks for it, numba's compiler: a re-probe)
+                "the working directory no longer exists, and this command needs one: run it "
+                "from a directory that exists"
             ) from None
         raise UsageError(f"{exc.filename}: {exc.strerror}") from None
     except (IsADirectoryError, NotADirectoryError, PermissionError) as exc:

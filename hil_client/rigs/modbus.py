@@ -145,10 +145,11 @@ NEEDED = (
 _REPLAY_SEGMENT_BYTES = 240
 _TIME_TOLERANCE_S = 1e-6  # the server's float64 time against the rig's sum of the same steps
 LATE_S = 0.25  # an instrument's reply this much after the one before it: a "late" event
-#: this client held up this long since its last row (:mod:`hil_client.rigs.holdups`) when it
-#: found its connection lost: a gap's reason names it (a server's idle timeout may be 1 s; a
-#: busy machine holds a process up for milliseconds)
-HELD_UP_S = 1.0
+#: this client held up this long since its last row (:mod:`hil_client.rigs.holdups`) when the
+#: server closed its connection: a gap's reason names it (``serve --idle-timeout`` takes
+#: fractions of a second: a 0.9-s hold-up under 0.5 s went unnamed, a re-probe; a busy
+#: machine holds a process up for milliseconds)
+HELD_UP_S = 0.5
 
 
 class _Break(Exception):
@@ -991,24 +992,30 @@ class ModbusRig:
         self.gaps.append(gap)
         return gap
 
-    def _lost(self, reason: str) -> str:
-        """The reason of a gap for a connection lost for ``reason``, saying so where this
-        client was held up :data:`HELD_UP_S` or more since its last row: a server closes a
-        client silent that long (its idle timeout), and the cause was this client's (one
-        SIGSTOPped 8 s under a server's ``--idle-timeout 3`` was recorded as "connection
-        closed by the server" alone, its hold-up nowhere: a stranger's probe)."""
+    def _lost(self, reason: str, by_server: bool) -> str:
+        """The reason of a gap for a connection lost for ``reason``, saying where this
+        client was held up (:data:`HELD_UP_S` or more, most of the silence since its last
+        row) when the server closed it (``by_server``): a server may close a client silent
+        that long as idle (one SIGSTOPped 8 s under a server's ``--idle-timeout 3`` was
+        recorded as "connection closed by the server" alone, its hold-up nowhere: a
+        stranger's probe). What closed it the client cannot know (a ``disconnect`` fault
+        may have, in the same seconds), so the idle close is a "may"; a connection this
+        client's own timeout gave up keeps its reason (the figure is in
+        ``client_held_up_s``: a re-probe, a server stalled past it was "closed as idle")."""
         held = held_up_s() - self._row_held_s
-        if held < HELD_UP_S:
+        silent = time.monotonic() - self._row_wall
+        if not by_server or held < max(HELD_UP_S, 0.5 * silent):
             return f"connection lost ({reason})"
         return (
             f"connection lost ({reason}) after this client was held up {held:.1f} s (paused, "
-            "swapped out or overloaded): a server's idle timeout closes a client silent that long"
+            "swapped out or overloaded): the server may have closed it as idle"
         )
 
-    def _recover(self, reason: str) -> None:
-        """After a lost connection: connect again and settle what the server holds."""
+    def _recover(self, reason: str, by_server: bool = False) -> None:
+        """After a lost connection (``by_server``: the server closed it): connect again and
+        settle what the server holds."""
         self._event("disconnect", 0, 0, reason=reason)
-        lost = self._lost(reason)  # (before reconnecting: a backoff is no hold-up)
+        lost = self._lost(reason, by_server)  # (before reconnecting: a backoff is no hold-up)
         status = self._reconnect(reason, lost)
         self._new_speed(status["speed_factor"])
         if status["epoch_id"] != self._epoch_id:
@@ -1145,7 +1152,7 @@ class ModbusRig:
                 passed = step(dt_s)
             except (ConnectionLost, OSError) as exc:
                 try:
-                    self._recover(str(exc))
+                    self._recover(str(exc), getattr(exc, "by_server", False))
                 except _Break as brk:
                     self._on_break(brk)
                 except (ConnectionLost, OSError):

@@ -206,31 +206,38 @@ def check_writable(path: str | Path) -> None:
     server run as nobody) was a warning, and the server served a whole session without a
     journal (a stranger's probe).
 
-    A path not there is created and removed again; an existing file or device is opened
-    for writing without truncating it and closed; a non-empty file, which the journal sets
-    aside (:func:`set_aside`), also needs its directory writable. A FIFO is left alone: its
-    reader is checked and held by the command line (closing a write end here would end
-    the reader's stream)."""
+    - Nothing there: the file is created and removed again (through a dangling link: the
+      file it names).
+    - A non-empty regular file: the journal sets it aside (:func:`set_aside`) and makes a
+      new one beside it, so it must be readable and its directory writable; the file
+      itself need not be (a read-only earlier journal was refused: a re-probe).
+    - An empty regular file or a device is opened for writing, not truncated, and closed.
+    - A pipe or a FIFO is left alone: the command line checks and holds a FIFO's reader
+      (closing a write end here would end its stream), and ``/dev/stdout`` piped, or a
+      shell's ``>(...)``, names a pipe its holder reads (refused as "no such file" through
+      the pipe's /proc name: a re-probe); a socket is refused by the command line.
+    """
     path = Path(path)
-    target = Path(os.path.realpath(path))  # (a dangling link: the file it names is created)
     try:
-        status = target.stat()
+        status = os.stat(path)  # (through links: /dev/stdout names the pipe itself)
     except FileNotFoundError:
+        target = os.path.realpath(path)
         fd = os.open(target, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NONBLOCK, 0o666)
         os.close(fd)
-        target.unlink()
+        os.unlink(target)
         return
-    if stat.S_ISFIFO(status.st_mode):
+    if stat.S_ISFIFO(status.st_mode) or stat.S_ISSOCK(status.st_mode):
         return
-    os.close(os.open(target, os.O_WRONLY | os.O_NONBLOCK | os.O_NOCTTY))  # (EROFS named)
-    folder = path.absolute().parent
-    if stat.S_ISREG(status.st_mode) and status.st_size > 0 and not os.access(folder, os.W_OK):
-        raise OSError(
-            errno.EACCES,
-            f"{os.strerror(errno.EACCES)}: the earlier journal there cannot be set aside "
-            f"in {folder}",
-            str(path),
-        )
+    if stat.S_ISREG(status.st_mode) and status.st_size > 0:
+        folder = path.absolute().parent
+        if not os.access(path, os.R_OK):
+            why = "the earlier journal there cannot be read to set it aside"
+        elif not os.access(folder, os.W_OK | os.X_OK):
+            why = f"the earlier journal there cannot be set aside in {folder}"
+        else:
+            return
+        raise OSError(errno.EACCES, f"{os.strerror(errno.EACCES)}: {why}", str(path))
+    os.close(os.open(path, os.O_WRONLY | os.O_NONBLOCK | os.O_NOCTTY))  # (EROFS named)
 
 
 def set_aside(path: Path) -> Path | None:

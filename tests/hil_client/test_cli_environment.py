@@ -177,3 +177,40 @@ def test_a_log_in_a_read_only_directory_is_bad_input(tmp_path):
         err = proc.stderr.decode()
         assert err.count("\n") == 1 and said in err, err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_fault_report_that_cannot_be_written_is_refused_before_any_row(tmp_path, serve_process):
+    """A re-probe: ``run ... --fault-report <305-byte name>`` (or one in a directory that
+    takes no file) was judged after the whole run: its log complete, then exit 2 and no
+    report. Judged with --out and its meta, before any row: one line, no log."""
+    journal = tmp_path / "j.jsonl"
+    journal.touch()  # (the server's journal, begun as it serves)
+    srv = serve_process("--lockstep", "--fault-log", str(journal))
+    out = tmp_path / "x.csv"
+    report = tmp_path / ("r" * 300 + ".json")
+    proc = short_run(out, "--quiet", "--rig", f"modbus://127.0.0.1:{srv.port}",
+                     "--fault-journal", str(journal),
+                     "--fault-report", str(report))  # fmt: skip
+    assert proc.returncode == 2, proc.stderr
+    err = proc.stderr.decode()
+    assert err.count("\n") == 1 and "--fault-report" in err and "too long" in err, err
+    assert not out.exists()
+
+
+def test_a_command_that_needs_a_working_directory_says_so_where_it_was_deleted(tmp_path):
+    """A re-probe: ``validate`` with every path absolute, from a deleted working directory,
+    said "give every path absolute" (numba's compiler asks for the working directory, not
+    the user's paths). It works, or says in one line to run it from a directory that
+    exists (exit 2)."""
+    log = tmp_path / "log.csv"
+    assert short_run(log, "--quiet").returncode == 0
+    gone = tmp_path / "gone"
+    gone.mkdir()
+    proc = hil_client("validate", "--boiler", "windhager_12kw", "--out", str(tmp_path / "v"),
+                      str(log), cwd=gone, preexec_fn=lambda: os.rmdir(gone))  # fmt: skip
+    err = proc.stderr.decode()
+    if proc.returncode == 0:
+        assert (tmp_path / "v").is_dir()
+    else:
+        assert proc.returncode == 2 and err.count("\n") == 1, err
+        assert "run it from a directory that exists" in err and "absolute" not in err, err

@@ -276,3 +276,35 @@ def test_a_fault_log_that_opens_but_cannot_be_written_still_serves():
     said, and exit 1, after the stop: test_serve_journal_lost.py)."""
     with _started("--lockstep", "--port", "0", "--fault-log", "/dev/full") as started:
         assert started.serving, started.lines
+
+
+def test_a_fault_log_to_a_pipe_still_serves():
+    """A re-probe: ``--fault-log /dev/stdout`` with standard output a pipe (docker's logs, a
+    shell's ``>(...)``) served before the start-up check, then was refused as "No such file
+    or directory": the check followed the link to the pipe's /proc name and tried to
+    create it. A pipe is opened as it is; its lines come through."""
+    with _started("--lockstep", "--port", "0", "--fault-log", "/dev/stdout") as started:
+        assert started.serving, started.lines
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="setpriv and the permissions are Linux's")
+def test_a_read_only_earlier_journal_is_set_aside_as_before(unprivileged):
+    """A re-probe: a non-empty earlier journal the server's user may read but not write, in
+    a directory it may write, was set aside before the start-up check and then refused
+    ("Permission denied"): the journal renames it and writes a new file, it never writes
+    into it. It is kept, and the server serves."""
+    user, as_root = unprivileged
+    folder = Path(tempfile.mkdtemp(prefix="rig_journal_", dir="/tmp" if as_root else None))
+    try:
+        folder.chmod(0o777 if as_root else 0o755)
+        journal = folder / "j.jsonl"
+        journal.write_text('{"event": "start", "epoch_id": "0000abcd"}\n')
+        journal.chmod(0o444)  # (root's, read-only, when the server runs as nobody)
+        with _started("--lockstep", "--port", "0", "--fault-log", str(journal),
+                      user=user) as started:  # fmt: skip
+            assert started.serving, started.lines
+        # (set aside as the journal begins, right after "serving"; the server stopped since)
+        assert (folder / "j.0000abcd.jsonl").read_text().startswith('{"event": "start"')
+    finally:
+        folder.chmod(0o755)
+        shutil.rmtree(folder)
