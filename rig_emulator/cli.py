@@ -415,6 +415,7 @@ def _cmd_serve(args: argparse.Namespace) -> int:
         idle_timeout_s=args.idle_timeout,
         max_connections=args.max_connections,
         ssl_context=args.transport_plan.ssl_context,
+        dashboard=args.http is not None,  # (its connections' share of the descriptors)
     )
     try:
         asyncio.run(_serve(server, args))

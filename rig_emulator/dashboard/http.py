@@ -29,11 +29,13 @@ one snapshot shared by all streams; a stream that cannot keep up skips samples i
 queueing them (the page fetches the history again now and then).
 
 Connections are bounded too: at most :data:`~rig_emulator.modbus.connections.DASHBOARD_CONNECTIONS`
-open (fewer where the process's open-file limit holds fewer), a new one beyond closes the
-one that has waited longest for its request (none waits: the new one is closed), and so
-does a process out of file descriptors; each logged, a line a minute at most, with a count
-(a stranger's probe: 1100 idle connections under ``ulimit -n 1024`` took every descriptor,
-and asyncio logged a traceback per failed accept, 2958 of them).
+open (fewer where the process's open-file limit holds fewer: the share the Modbus server's
+start gave it, the one its line names), a new one beyond closes the one that has waited
+longest for its request (none waits: the new one is closed), and so does a process out of
+file descriptors; each logged, a line a minute at most, with a count of the connections
+closed (a shortage with none to close, once) (a stranger's probe: 1100 idle connections
+under ``ulimit -n 1024`` took every descriptor, and asyncio logged a traceback per failed
+accept, 2958 of them).
 """
 
 from __future__ import annotations
@@ -201,15 +203,30 @@ class Dashboard:
         self._out_of_descriptors = EventLog(
             "HTTP connections closed for a file descriptor", 1, EVICTION_LOG_S, logging.WARNING, log
         )
+        #: out of descriptors with none to close: once per shortage, not per try
+        self._descriptor_wait = EventLog(
+            "shortages of file descriptors with no HTTP connection waiting for its request",
+            1,
+            EVICTION_LOG_S,
+            logging.WARNING,
+            log,
+        )
 
     # ------------------------------------------------------------------ lifecycle
     async def start(self) -> None:
         """Listen, the connection limit fitted to the process's open-file limit first:
-        at most its share of the descriptors (:func:`descriptor_shares`), silently (the
-        limit is the dashboard's own, not an option)."""
-        self.max_connections = min(
-            self.max_connections, descriptor_shares(0, self.max_connections).dashboard
-        )
+        at most its share of the descriptors, silently (the limit is the dashboard's own,
+        not an option). The share is the one the Modbus server made at its start, for a
+        server told of its dashboard (``BenchServer(dashboard=True)``, ``serve --http``):
+        made again here, with the descriptors open then, it differed from the one the
+        start's line named (6 there, 4 here: a re-probe); else the dashboard's part of the
+        descriptors free now, beside the Modbus connections to come."""
+        modbus = self.server.modbus_server
+        shares = modbus.shares if modbus is not None else None
+        if shares is None or not shares.dashboard:
+            connections = modbus.max_connections if modbus is not None else 0
+            shares = descriptor_shares(connections, self.max_connections)
+        self.max_connections = min(self.max_connections, shares.dashboard)
         self._srv = await listen(
             self.host,
             self.port,
@@ -235,6 +252,7 @@ class Dashboard:
             self._evicted = 0
         self._at_limit.flush()
         self._out_of_descriptors.flush()
+        self._descriptor_wait.flush()
         if self._task is not None:
             self._task.cancel()
             with contextlib.suppress(asyncio.CancelledError):
@@ -379,17 +397,26 @@ class Dashboard:
         oldest.writer.transport.abort()  # its descriptor now: its task ends on it
         return _peer(oldest.writer)
 
-    def _make_room_for_descriptor(self) -> bool:
+    def _make_room_for_descriptor(self, first: bool = True) -> bool:
         """The process has no file descriptor for a new connection: close the one that has
-        waited longest for its request (False: none waits)."""
+        waited longest for its request (False: none waits). Counted are the connections
+        closed; a shortage with none to close is said on its ``first`` try only (its
+        retries were counted as connections closed, 25 in 20 s, none was: a re-probe)."""
         shed = self._shed()
-        self._out_of_descriptors(
-            "dashboard: no file descriptor left for a new HTTP connection (the process's "
-            "open-file limit): %s",
-            f"closed the one waiting longest for its request ({shed})"
-            if shed
-            else "none waits for its request",
-        )
+        if shed is not None:
+            self._out_of_descriptors(
+                "dashboard: no file descriptor left for a new HTTP connection (the process's "
+                "open-file limit): closed the one waiting longest for its request (%s)",
+                shed,
+            )
+        elif first:
+            self._descriptor_wait(
+                "dashboard: no file descriptor left for a new HTTP connection (the process's "
+                "open-file limit) and none waits for its request: new connections wait "
+                "until one is freed; %d of %d open",
+                len(self._handlers),
+                self.max_connections,
+            )
         return shed is not None
 
     def _admit(self, connection: _Connection) -> bool:

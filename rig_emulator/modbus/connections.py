@@ -14,7 +14,8 @@ again once that descriptor is free; with nothing to close, later and later, up t
 :data:`RETRY_MAX_S` apart.
 
 The descriptors rarely run out that way: at start a server's connection limit is fitted to
-the process's open-file limit (:func:`descriptor_shares`).
+the process's open-file limit (:func:`descriptor_shares`), once, for the Modbus server and
+its dashboard alike.
 """
 
 from __future__ import annotations
@@ -40,9 +41,12 @@ BACKLOG = 100  # connections the kernel holds for accept (asyncio's default), an
 #: event loop's next turn, the accept tries again this much later [s]
 RETRY_MIN_S = 0.01
 RETRY_MAX_S = 1.0  # nothing could be closed: the retries double up to this far apart [s]
-#: descriptors kept aside from the connection limits: the listeners, the fault journal, a
-#: pty, files read at start, numba's cache, TLS (a server has about 12 open when it listens)
+#: descriptors kept aside from the connection limits for files opened now and then (numba's
+#: cache as the kernels load, the dashboard's page, a certificate), where the connections
+#: leave room for them: else a sixteenth of what is free (:func:`descriptor_shares`)
 RESERVED_DESCRIPTORS = 32
+FILES_SHARE = 16  # the files' share of the free descriptors at least, where few are: 1/16
+DASHBOARD_SHARE = 4  # the dashboard's share of them at least, where few are: 1/4
 #: the dashboard's HTTP connections open at once (streams included), its own limit
 DASHBOARD_CONNECTIONS = 256
 
@@ -82,34 +86,57 @@ class DescriptorShares:
 
     was: int  # the soft open-file limit before
     limit: int  # the soft open-file limit now
-    open_now: int  # descriptors open when the shares were made
+    own: int  # descriptors the server holds itself: open then, and to be opened
     files: int  # descriptors kept aside for files
     modbus: int  # Modbus connections that fit
-    dashboard: int  # dashboard HTTP connections that fit
+    dashboard: int  # dashboard HTTP connections that fit (0: no dashboard)
 
     @property
     def said(self) -> str:
-        """The limit and the descriptors open, as a log line names them."""
+        """The limit and the server's own descriptors, as a log line names them."""
         raised = f", raised from {self.was}" if self.limit != self.was else ""
-        return f"open-file limit (RLIMIT_NOFILE) {self.limit}{raised}, {self.open_now} open"
+        return (
+            f"open-file limit (RLIMIT_NOFILE) {self.limit}{raised}, {self.own} for the"
+            " server's own listeners and files"
+        )
+
+    @property
+    def room(self) -> str:
+        """What the descriptors are kept for besides Modbus connections, as a log line
+        names it."""
+        dashboard = f"the dashboard's {self.dashboard} connections and " if self.dashboard else ""
+        return f"with room for {dashboard}{self.files} more files"
 
 
 def descriptor_shares(
-    modbus_wanted: int = 0, dashboard_wanted: int = DASHBOARD_CONNECTIONS
+    modbus_wanted: int = 0, dashboard_wanted: int = 0, own_to_come: int = 0
 ) -> DescriptorShares:
-    """The connections each server may hold without the process running out of descriptors:
-    of those not open now, :data:`RESERVED_DESCRIPTORS` stay aside for files (at most a
-    quarter of them), the dashboard's connections take at most another quarter, Modbus the
-    rest; at least one each. The soft open-file limit is raised first where what is wanted
-    needs it (:func:`open_file_limit`)."""
-    open_now = open_descriptors()
-    needed = open_now + RESERVED_DESCRIPTORS + dashboard_wanted + modbus_wanted
+    """The connections each server may hold without the process running out of descriptors.
+
+    The server's own descriptors come first: those open now and ``own_to_come``, those it
+    opens after this (listeners, a pty, the fault journal; counted before, not as they
+    opened: shares made with the few open at the first listener overcommitted a small
+    limit, and a client of a dashboard holding 1 of its 4 connections waited for a
+    descriptor for ever, a re-probe). Of the rest, where everything wanted fits, each gets
+    it and the files :data:`RESERVED_DESCRIPTORS`; else the files keep at least a
+    sixteenth (at most :data:`RESERVED_DESCRIPTORS`), the dashboard at least a quarter (at
+    most what it wants; nothing without a dashboard: a share kept for a dashboard not
+    running cost a server without ``--http`` 169 of its 900 clients, a re-probe), Modbus
+    the rest; at least one each wanted. The soft open-file limit is raised first where
+    what is wanted needs it (:func:`open_file_limit`)."""
+    own = open_descriptors() + own_to_come
+    needed = own + RESERVED_DESCRIPTORS + dashboard_wanted + modbus_wanted
     was, limit = open_file_limit(needed)
-    spare = max(limit - open_now, 0)
-    reserve = min(RESERVED_DESCRIPTORS, spare // 4)
-    dashboard = max(min(dashboard_wanted, spare // 4), 1)
-    modbus = max(spare - reserve - dashboard, 1)
-    return DescriptorShares(was, limit, open_now, reserve, modbus, dashboard)
+    spare = max(limit - own, 0)
+    files = min(
+        RESERVED_DESCRIPTORS,
+        max(spare - dashboard_wanted - modbus_wanted, spare // FILES_SHARE, 1),
+    )
+    dashboard = min(
+        dashboard_wanted, max(spare - files - modbus_wanted, spare // DASHBOARD_SHARE, 1)
+    )
+    modbus = max(spare - files - dashboard, 1)
+    return DescriptorShares(was, limit, own, files, modbus, dashboard)
 
 
 # ---------------------------------------------------------------------- listening
@@ -126,7 +153,10 @@ class Listener:
             A connection counts once its protocol has it, on the loop's next turn: a burst
             accepted whole (asyncio's 100 a turn) overran the limit's descriptors.
         make_room: called when the process has no descriptor for the next connection:
-            closes a connection (True) or finds none to close (False).
+            closes a connection (True) or finds none to close (False). Its argument says
+            whether this is the shortage's first try (False: the last try found none to
+            close and no connection came since): tries are not connections (a re-probe:
+            25 tries in 20 s were logged as 25 connections closed, none was).
     """
 
     def __init__(
@@ -134,7 +164,7 @@ class Listener:
         sockets: list[socket.socket],
         protocol_factory: Callable[[], asyncio.BaseProtocol],
         places: Callable[[], int],
-        make_room: Callable[[], bool],
+        make_room: Callable[[bool], bool],
     ) -> None:
         self.sockets = sockets
         self._factory = protocol_factory
@@ -144,6 +174,7 @@ class Listener:
         self._closed: asyncio.Future[None] = self._loop.create_future()
         self._retry: asyncio.TimerHandle | None = None
         self._retry_s = RETRY_MIN_S  # the next wait when nothing could be closed
+        self._stalled = False  # out of descriptors, nothing closed, nothing accepted since
         self._connecting: set[asyncio.Task] = set()  # strong references
         self._accepting(True)
 
@@ -171,7 +202,7 @@ class Listener:
                 log.debug("accept on %s failed: %s", sock.getsockname(), exc)
                 continue
             conn.setblocking(False)
-            self._retry_s = RETRY_MIN_S
+            self._retry_s, self._stalled = RETRY_MIN_S, False
             task = self._loop.create_task(self._connect(conn))
             self._connecting.add(task)
             task.add_done_callback(self._connecting.discard)
@@ -188,10 +219,11 @@ class Listener:
         connections of this turn not yet handed to the server, first wait for them: the
         server chooses the one to close among those too."""
         self._accepting(False)
-        if self._connecting or self._make_room():
-            delay_s, self._retry_s = RETRY_MIN_S, RETRY_MIN_S
+        if self._connecting or self._make_room(not self._stalled):
+            delay_s, self._retry_s, self._stalled = RETRY_MIN_S, RETRY_MIN_S, False
         else:
             delay_s, self._retry_s = self._retry_s, min(2 * self._retry_s, RETRY_MAX_S)
+            self._stalled = True
         self._retry = self._loop.call_later(delay_s, self._resume)
 
     def _resume(self) -> None:
@@ -224,7 +256,7 @@ async def listen(
     port: int,
     protocol_factory: Callable[[], asyncio.BaseProtocol],
     places: Callable[[], int],
-    make_room: Callable[[], bool],
+    make_room: Callable[[bool], bool],
 ) -> Listener:
     """A :class:`Listener` on every address ``host`` names (None or "": all), as
     ``loop.create_server`` binds them (SO_REUSEADDR; an IPv6 socket IPv6 only); an address

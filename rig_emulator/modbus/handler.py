@@ -26,7 +26,8 @@ is here, written from the Modbus specs rather than from pymodbus's server:
   descriptors closes the oldest unused too (:class:`~rig_emulator.modbus.connections.Listener`);
   each logged, a line per kind at most every :data:`_LIMIT_LOG_INTERVAL_S`, with a count;
 - a client's connect and disconnect are logged, the first :data:`CONNECTION_LOG_BURST` of
-  each a :data:`CONNECTION_LOG_INTERVAL_S`, then one line with the count.
+  each a :data:`CONNECTION_LOG_INTERVAL_S`, then one line with the count (at the latest
+  when the server stops, the disconnections of its stop among them).
 """
 
 from __future__ import annotations
@@ -57,7 +58,13 @@ from rig_emulator.modbus.conformance import (
     process,
     process_failing,
 )
-from rig_emulator.modbus.connections import EventLog, Listener, descriptor_shares, listen
+from rig_emulator.modbus.connections import (
+    DescriptorShares,
+    EventLog,
+    Listener,
+    descriptor_shares,
+    listen,
+)
 from rig_emulator.modbus.framing import (
     MAX_DISCARDED_IN_ROW,
     MbapFrame,
@@ -86,6 +93,10 @@ HANDSHAKE_LOG_BURST = 20  # failed TLS handshakes logged a minute, the rest coun
 #: counted: a client reconnecting for every read at 10/s wrote 140 MB of them a day
 CONNECTION_LOG_BURST = 20
 CONNECTION_LOG_INTERVAL_S = 60.0
+#: descriptors a server may open after its connection limit is fitted, besides a second TCP
+#: listener and the dashboard's (as many as its own listener has): a serial line's four (a
+#: pty's two ends, the pipe that stops its reader) and the fault journal
+LATER_DESCRIPTORS = 5
 
 
 @dataclass(frozen=True)
@@ -279,7 +290,7 @@ class RequestHandler(asyncio.Protocol):
         self.transport = secure
         self._securing = False
         self._greet()
-        if self._buffer:
+        if self._buffer or self._eof:  # (the requests, or a close, that came with its end)
             self._drain()
 
     def _forget(self) -> None:
@@ -296,28 +307,27 @@ class RequestHandler(asyncio.Protocol):
         self._forget()
         if not registered:
             return
-        reason = f" ({exc})" if exc and not _ordinary_close(exc) else ""
+        self._log_disconnected(f" ({exc})" if exc and not _ordinary_close(exc) else "")
+
+    def _log_disconnected(self, reason: str) -> None:
+        """Log the disconnection (rate-limited with a count; a client that never sent a
+        request at debug level)."""
         say = self.server.log_disconnected if self._spoke else log.debug
         say("client %s disconnected%s (%d open)", self.peer, reason, len(self.server.handlers))
 
     def eof_received(self) -> bool:
-        """The client sent all it will send: answer what it asked, then close."""
+        """The client sent all it will send: answer what it asked, then close. Over TLS
+        the transport closes itself whatever this returns (a close_notify closes both
+        ways), and asyncio warns when it is True: TLS is the handler's own knowledge, not
+        the transport's, which during the handshake's end is still the plain one (the
+        close_notify read with the client's Finished, as ``echo | openssl s_client`` sends
+        it, came before the TLS transport was handed over: asyncio's warning in 13 of 15
+        runs, a stranger's probe). A handshake under way closes at its end."""
         self._eof = True
-        # whether TLS, asked before any close: a closed TLS transport has no extra info to
-        # give (its _ssl_protocol gone), and asking it raised inside asyncio, one traceback
-        # per connection the server had closed (a re-probe)
-        tls = self._tls_transport()
-        if not self.waiting and not self._closed:
+        if not self._securing and not self.waiting and not self._closed:
             self.transport.close()
-        # keep the transport open for the answers still to come; TLS cannot (a close_notify
-        # closes both ways: asyncio closes it whatever this says, and warns if it is True)
-        return not tls and not self._closed
-
-    def _tls_transport(self) -> bool:
-        try:
-            return self.transport.get_extra_info("sslcontext") is not None
-        except AttributeError:  # a TLS transport already closed
-            return True
+        # plain TCP: kept open for the answers still to come
+        return self._tls is None and not self._closed
 
     def close(self, reason: str, kind: str) -> None:
         """Close the connection with a log line naming ``reason``: for each ``kind`` of
@@ -453,6 +463,16 @@ class RequestHandler(asyncio.Protocol):
         if self._task is not None:
             self._task.cancel()
 
+    def stop(self) -> None:
+        """The server stops: abandon the requests, close the connection and log its
+        disconnection now, before the server says its counts (from ``connection_lost``
+        it came after them, uncounted, or never: the loop ends first)."""
+        registered = self._registered
+        self.cancel()
+        self.close_quietly()
+        if registered:
+            self._log_disconnected(" (the server stops)")
+
     def datagram_received(self, data: bytes, _addr: tuple | None = None) -> None:
         """The same as :meth:`data_received` (kept for the benchmarks' in-process driver)."""
         self.data_received(data)
@@ -536,6 +556,8 @@ class BenchModbusServer:
         max_connections: connections open at once; a new one beyond closes the oldest
             unused one (none unused: the new one is closed).
         ssl: an ``ssl.SSLContext`` for Modbus/TCP Security, or None.
+        dashboard_connections: the HTTP connections of a dashboard serving beside it, whose
+            descriptors the connection limit leaves (0: no dashboard, none left for it).
         bits: per unit, the bit addresses it has per read function (1: coils, 2: discrete
             inputs); a read of others gets 02 (:class:`DocumentedBits`).
         own_units: the emulator's own units, never reached by a broadcast.
@@ -552,6 +574,7 @@ class BenchModbusServer:
         ssl: Any = None,
         bits: Mapping[int, Mapping[int, frozenset[int]]] | None = None,
         own_units: frozenset[int] = frozenset((100, 101)),
+        dashboard_connections: int = 0,
     ) -> None:
         self.context = SimCore(devices)
         #: the emulator's own units (simulation control, truth), which a broadcast leaves
@@ -565,6 +588,10 @@ class BenchModbusServer:
         self.idle_timeout_s = idle_timeout_s
         self.max_connections = max_connections
         self.ssl = ssl
+        self.dashboard_connections = dashboard_connections
+        #: the process's descriptors shared out once this listens: the Modbus connection
+        #: limit and the dashboard's both come from it (:meth:`fit_descriptors`)
+        self.shares: DescriptorShares | None = None
         #: consulted in order for every decoded request; the first non-None decision wins
         self.gates: list[Gate] = []
         #: the datastore's write rules, asked without writing for a unit whose operation
@@ -593,6 +620,13 @@ class BenchModbusServer:
         self._log_handshake = EventLog(
             "failed TLS handshakes", HANDSHAKE_LOG_BURST, 60.0, logging.WARNING
         )
+        #: out of descriptors with no connection to close: once per shortage, not per try
+        self._log_descriptor_wait = EventLog(
+            "shortages of file descriptors with no connection unused",
+            1,
+            _LIMIT_LOG_INTERVAL_S,
+            logging.WARNING,
+        )
 
     @property
     def connections(self) -> int:
@@ -604,35 +638,41 @@ class BenchModbusServer:
 
     async def serve_forever(self, *, background: bool = True) -> None:
         """Listen (raises ``RuntimeError`` when it cannot), the connection limit fitted to
-        the process's descriptors first (:meth:`fit_descriptors`); with
-        ``background=False`` also wait until :meth:`shutdown`."""
-        self.fit_descriptors()
+        the process's descriptors as it does (:meth:`fit_descriptors`: no connection is
+        accepted before); with ``background=False`` also wait until :meth:`shutdown`."""
         host, port = self.address
         try:
             self.transport = await self.listen(host, port, self.ssl)
         except OSError as exc:
             raise RuntimeError(f"cannot listen on {host}:{port}: {exc}") from exc
+        self.fit_descriptors(len(self.transport.sockets))
         if not background:
             await self.transport.serve_forever()
 
-    def fit_descriptors(self) -> None:
+    def fit_descriptors(self, listener_sockets: int = 1) -> None:
         """Make ``max_connections`` fit the process's open-file limit (RLIMIT_NOFILE): the
         soft limit is raised as far as the hard one allows where the connections need it,
-        and a limit that still does not fit, beside the dashboard's connections and the
-        files, is lowered to what does, in one line (a stranger's probe: --max-connections
-        2000 under ``ulimit -n 1024`` ran out of descriptors at about 1020 connections, so
-        the limit's relief, the oldest unused connection closed, never came). Lowered, not
-        refused: the same command serves on any machine, as many clients as that one can
-        hold."""
-        shares = descriptor_shares(self.max_connections)
+        and a limit that still does not fit, beside the server's own descriptors (those
+        open, its listener's ``listener_sockets`` among them, and those it opens later: as
+        many for a second TCP listener and for the dashboard's, :data:`LATER_DESCRIPTORS`),
+        the dashboard's connections (only where there is one) and the files, is lowered to
+        what does, in one line (a stranger's probe: --max-connections 2000 under ``ulimit
+        -n 1024`` ran out of descriptors at about 1020 connections, so the limit's relief,
+        the oldest unused connection closed, never came). Lowered, not refused: the same
+        command serves on any machine, as many clients as that one can hold. The shares
+        are kept (:attr:`shares`): the dashboard's limit is the one this line names."""
+        dashboards = 1 if self.dashboard_connections else 0
+        later = listener_sockets * (1 + dashboards) + LATER_DESCRIPTORS
+        shares = self.shares = descriptor_shares(
+            self.max_connections, self.dashboard_connections, later
+        )
         if shares.modbus < self.max_connections:
             log.warning(
-                "--max-connections %d does not fit the process's %s (with room for the "
-                "dashboard's %d connections and %d files): serving at most %d connections",
+                "--max-connections %d does not fit the process's %s (%s): serving at most "
+                "%d connections",
                 self.max_connections,
                 shares.said,
-                shares.dashboard,
-                shares.files,
+                shares.room,
                 shares.modbus,
             )
             self.max_connections = shares.modbus
@@ -671,17 +711,26 @@ class BenchModbusServer:
         self._log_handshake("client %s: TLS handshake failed (%s); connection closed", peer, reason)
 
     async def shutdown(self) -> None:
-        """Stop listening and close every connection; say the connection events not logged."""
+        """Stop listening and close every connection, then say the connection events of
+        each kind not logged, the disconnections of this stop among them (said before
+        the connections were closed, the stop's went uncounted: 30 clients, 10 of their
+        disconnections never said; a re-probe)."""
         if self.transport is not None:
             self.transport.close()
-        logs = (self.log_connected, self.log_disconnected, self.log_identity, self._log_handshake)
+        for handler in list(self.handlers):
+            handler.stop()
+        self.handlers.clear()
+        logs = (
+            self.log_connected,
+            self.log_disconnected,
+            self.log_identity,
+            self._log_handshake,
+            self._log_descriptor_wait,
+        )
         for events in (*logs, *self._limit_logs.values()):
             events.flush()
-        for handler in list(self.handlers):
-            handler.cancel()
-            if handler.transport is not None:
-                handler.transport.close()
-        self.handlers.clear()
+        for kind in list(self._closes):
+            self._log_closes_left(kind)
 
     def close_all_connections(self, reason: str) -> int:
         """Close every open connection (logged as :meth:`log_close` does); how many."""
@@ -709,16 +758,24 @@ class BenchModbusServer:
         oldest.close_quietly()
         return True
 
-    def make_room_for_descriptor(self) -> bool:
+    def make_room_for_descriptor(self, first: bool = True) -> bool:
         """The process has no file descriptor left for a new connection (files, other
         listeners' connections took them): close the oldest unused connection, as at the
         connection limit (:meth:`make_room`), at once, so the next one is served; False
         when every connection has a request waiting (the new ones wait in the backlog).
-        Logged as the limit is, a line per interval at most, with a count."""
+        Logged as the limit is, a line per interval at most, with a count of the
+        connections closed; a shortage with none to close is said on its ``first`` try
+        only (the retries counted as connections closed, none was: a re-probe)."""
         cause = "the process's open-file limit"
         oldest = self._oldest_unused()
         if oldest is None:
-            self._log_limit("no file descriptor left for a new connection, none unused", cause)
+            if first:
+                self._log_descriptor_wait(
+                    "no file descriptor left for a new connection (%s) and none unused: new "
+                    "connections wait in the backlog until one is freed; %d connections open",
+                    cause,
+                    len(self.handlers),
+                )
             return False
         self._log_limit(
             f"no file descriptor left for a new connection: closed the oldest unused"

@@ -46,6 +46,7 @@ from rig_emulator.clock import LOCKSTEP, REALTIME, LatenessStats, RealTimeTicks,
 from rig_emulator.emulator import CommandError, Emulator, check_command
 from rig_emulator.faults import Entry
 from rig_emulator.modbus.conformance import DeviceIdentity
+from rig_emulator.modbus.connections import DASHBOARD_CONNECTIONS
 from rig_emulator.modbus.fault_control import FAULT_COMMANDS, ServerFaults
 from rig_emulator.modbus.handler import (
     DEFAULT_IDLE_TIMEOUT_S,
@@ -246,6 +247,8 @@ class BenchServer:
             most what the process's open-file limit holds, from :meth:`start` on.
         ssl_context: serve Modbus/TCP Security (TLS) on ``host:port`` instead of plain TCP
             (:mod:`rig_emulator.modbus.transports` adds more listeners and lines).
+        dashboard: a dashboard will serve beside it (``serve --http``): its connections
+            get their share of the process's descriptors (without one, none is kept for it).
     """
 
     def __init__(
@@ -263,11 +266,13 @@ class BenchServer:
         idle_timeout_s: float = DEFAULT_IDLE_TIMEOUT_S,
         max_connections: int = DEFAULT_MAX_CONNECTIONS,
         ssl_context: ssl.SSLContext | None = None,
+        dashboard: bool = False,
     ) -> None:
         check_command("speed_factor", speed)
         self.idle_timeout_s = idle_timeout_s
         self.max_connections = max_connections
         self.ssl_context = ssl_context
+        self.dashboard = dashboard
         self.emulator = emulator
         self.map = register_map
         self.map_id = float(map_identity(register_map))
@@ -354,6 +359,7 @@ class BenchServer:
             idle_timeout_s=self.idle_timeout_s,
             max_connections=self.max_connections,
             ssl=self.ssl_context,
+            dashboard_connections=DASHBOARD_CONNECTIONS if self.dashboard else 0,
             own_units=emulator_units(self.map),
             bits={
                 dev.unit_id: {

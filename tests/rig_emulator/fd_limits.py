@@ -4,6 +4,7 @@ and the idle connections and fresh clients the descriptor tests make against it.
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import signal
 import socket
@@ -13,8 +14,11 @@ import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from types import SimpleNamespace
 
 from hil_client.wait_for_port import free_port, wait_for_port
+from rig_emulator.registers import load_map
+from tests.modbus_helpers import ADVANCE, client, write
 from tests.rig_emulator.transports.served import REPO
 
 #: the open-file limit the servers run under: a server has about 12 descriptors open once
@@ -50,7 +54,7 @@ sys.exit(main(sys.argv[2:]))
 
 @dataclass
 class Limited:
-    """A running server under :data:`NOFILE`: its process, Modbus port and log file."""
+    """A running server under an open-file limit: its process, Modbus port and log file."""
 
     process: subprocess.Popen
     port: int
@@ -60,18 +64,22 @@ class Limited:
         return self.log.read_text(errors="replace").splitlines()
 
 
-def _limit_descriptors() -> None:
+def _limit_descriptors(nofile: int) -> None:
     import resource
 
-    resource.setrlimit(resource.RLIMIT_NOFILE, (NOFILE, NOFILE))
+    resource.setrlimit(resource.RLIMIT_NOFILE, (nofile, nofile))
 
 
 @contextlib.contextmanager
 def serving_limited(
-    log: Path, *options: str, take_all_but: int | None = None, http: int | None = None
+    log: Path,
+    *options: str,
+    take_all_but: int | None = None,
+    http: int | None = None,
+    nofile: int = NOFILE,
 ) -> Iterator[Limited]:
     """``rig-emulator serve --lockstep --port FREE OPTIONS`` under an open-file limit of
-    :data:`NOFILE` (soft and hard), its stderr to ``log`` (a file: a flood of lines would
+    ``nofile`` (soft and hard), its stderr to ``log`` (a file: a flood of lines would
     fill a pipe and stop the server); with ``take_all_but``, in a process that takes every
     descriptor but that many when asked (:data:`SERVE_THEN_TAKE_DESCRIPTORS`); with
     ``http``, the dashboard's port is waited for too. SIGTERM at the end."""
@@ -88,7 +96,7 @@ def serving_limited(
             stdout=subprocess.PIPE,
             stderr=err,
             text=True,
-            preexec_fn=_limit_descriptors,
+            preexec_fn=functools.partial(_limit_descriptors, nofile),
             env={**os.environ, "PYTHONPATH": str(REPO)},
         )
     try:
@@ -104,6 +112,17 @@ def serving_limited(
         except subprocess.TimeoutExpired:
             process.kill()
             process.communicate(timeout=10)
+
+
+def kernels_loaded(port: int) -> None:
+    """Advance the lockstep server on ``port`` by 1 s: answered once its kernels are loaded
+    (the load holds the event loop's thread back, and the accepts with it, for a few
+    seconds; and it opens files: load them before the descriptors are taken)."""
+    c = client(port)
+    try:
+        assert not write(c, SimpleNamespace(map=load_map()), *ADVANCE, 1).isError()
+    finally:
+        c.close()
 
 
 def take_descriptors(served: Limited) -> int:

@@ -66,3 +66,29 @@ def test_the_count_is_said_as_the_interval_ends_and_the_next_interval_logs_again
     time.sleep(0.2)
     assert said(f"client 127.0.0.1:{port} connected") == 1  # a new interval: logged again
     assert said(f"client 127.0.0.1:{port} disconnected") == 1
+
+
+def test_the_disconnections_of_a_stop_are_logged_or_counted():
+    """A re-probe: 30 clients that each sent one request, then SIGTERM: 20 connect lines,
+    20 disconnect lines, "10 more client connections not logged", and nothing of the other
+    10 disconnections (the counts were said before the stop closed the connections; the
+    build before logged all 30). Now the stop's disconnections are logged or counted
+    before the counts are said."""
+    clients: list[socket.socket] = []
+    try:
+        with serving() as served:
+            for _ in range(30):
+                clients.append(socket.create_connection(("127.0.0.1", served.port), timeout=10))
+                clients[-1].sendall(READ)
+                Replies(clients[-1]).next()
+            time.sleep(0.3)  # (every request answered: the clients stay connected)
+    finally:
+        for sock in clients:
+            sock.close()
+    err = served.stderr
+    assert sum(" connected (" in line for line in err) == 20, err
+    assert sum("10 more client connections not logged" in line for line in err) == 1, err
+    disconnected = [line for line in err if " disconnected (" in line]
+    assert len(disconnected) == 20, err
+    assert sum("10 more client disconnections not logged" in line for line in err) == 1, err
+    assert all("(the server stops)" in line for line in disconnected), disconnected[:2]

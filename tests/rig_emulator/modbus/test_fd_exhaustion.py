@@ -5,14 +5,12 @@ open-file limit holds, and a process whose descriptors run out, each against a r
 from __future__ import annotations
 
 import time
-from types import SimpleNamespace
 
-from rig_emulator.registers import load_map
-from tests.modbus_helpers import ADVANCE, client, write
 from tests.rig_emulator.fd_limits import (
     NOFILE,
     close_all,
     idle_connections,
+    kernels_loaded,
     modbus_read,
     serving_limited,
     take_descriptors,
@@ -23,16 +21,6 @@ from tests.rig_emulator.fd_limits import (
 #: machine 20: two), the fresh client's connect and disconnect, "stopping", the counts
 #: said at the stop. The flood this replaced: thousands of lines a second
 MAX_LOG_LINES = 16
-
-
-def _kernels_loaded(port: int) -> None:
-    """Advance the lockstep server by 1 s: answered once its kernels are loaded (the load
-    holds the event loop's thread back, and the accepts with it, for a few seconds)."""
-    c = client(port)
-    try:
-        assert not write(c, SimpleNamespace(map=load_map()), *ADVANCE, 1).isError()
-    finally:
-        c.close()
 
 
 def _describes_the_rig(reply: bytes) -> bool:
@@ -51,7 +39,7 @@ def test_max_connections_above_the_open_file_limit_is_lowered_and_a_new_client_s
     (1.28 M lines and 22 s of CPU in 45 s). Now the limit is lowered to what the
     descriptors hold, in one line at start, and the oldest unused connection makes room."""
     with serving_limited(tmp_path / "serve.log", "--max-connections", "1000") as served:
-        _kernels_loaded(served.port)
+        kernels_loaded(served.port)
         idle = idle_connections(served.port, 3 * NOFILE)
         try:
             started = time.monotonic()
@@ -77,7 +65,7 @@ def test_descriptors_taken_by_others_close_the_oldest_unused_connection_for_a_ne
     accept that finds no descriptor closes the oldest unused connection, as the
     connection limit does, and a new client is served; one line says so, with a count."""
     with serving_limited(tmp_path / "serve.log", take_all_but=3) as served:
-        _kernels_loaded(served.port)  # (before the descriptors go: they load files)
+        kernels_loaded(served.port)  # (before the descriptors go: they load files)
         assert take_descriptors(served) > 0
         idle = idle_connections(served.port, NOFILE)
         try:
