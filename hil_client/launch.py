@@ -8,7 +8,12 @@ from __future__ import annotations
 import sys
 from collections.abc import Callable, Sequence
 
-from rig_emulator.launch import loaded_unless_stopped, standard_streams, stopping_from_here
+from rig_emulator.launch import (
+    interrupts_not_swallowed,
+    loaded_unless_stopped,
+    standard_streams,
+    stopping_from_here,
+)
 
 
 def _cli() -> Callable[[Sequence[str] | None], int]:
@@ -19,6 +24,7 @@ def _cli() -> Callable[[Sequence[str] | None], int]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     standard_streams()
+    interrupts_not_swallowed()
     cli_main = loaded_unless_stopped(_cli)
     if cli_main is None:
         print("hil-client: interrupted", file=sys.stderr)

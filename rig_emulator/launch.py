@@ -4,12 +4,13 @@ traceback from the middle of an import."""
 
 from __future__ import annotations
 
+import _thread
 import os
 import signal
 import sys
 import threading
 from collections.abc import Callable, Sequence
-from typing import TypeVar
+from typing import Any, TypeVar
 
 T = TypeVar("T")
 
@@ -29,6 +30,33 @@ def standard_streams() -> None:
                 os.close(null)
             if getattr(sys, name) is None:
                 setattr(sys, name, open(fd, mode, closefd=False))  # noqa: SIM115
+
+
+#: an interrupt a C callback swallowed is raised again this much later, in the main thread,
+#: through its SIGINT handler [s] (one landing in a callback again is raised again)
+RAISED_AGAIN_AFTER_S = 0.01
+
+
+def interrupts_not_swallowed() -> None:
+    """Ctrl-C (or SIGTERM, taken as Ctrl-C) that lands in Python code C called back (numba's
+    compiler calls back through ctypes, many times a compilation) cannot leave the callback:
+    Python printed "Exception ignored on calling ctypes callback function" with a
+    traceback, and the command went on as if it had never come (a CI run with a cold numba
+    cache, ``hil-client run`` interrupted 0.9 s in). Such an interrupt is raised again in
+    the main thread, where it lands once the callback has returned, and nothing is printed
+    of it; any other exception a callback could not raise is printed as before."""
+    previous = sys.unraisablehook
+
+    def hook(unraisable: Any) -> None:
+        if unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
+            # from another thread, a moment on: raised here, in the hook, it was swallowed too
+            timer = threading.Timer(RAISED_AGAIN_AFTER_S, _thread.interrupt_main)
+            timer.daemon = True
+            timer.start()
+            return
+        previous(unraisable)
+
+    sys.unraisablehook = hook
 
 
 def stopping_from_here() -> None:
@@ -73,6 +101,7 @@ def _cli() -> Callable[[Sequence[str] | None], int]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     standard_streams()
+    interrupts_not_swallowed()
     cli_main = loaded_unless_stopped(_cli)
     if cli_main is None:
         print("rig-emulator: interrupted", file=sys.stderr)

@@ -120,8 +120,8 @@ def test_ctrl_c_while_the_libraries_load_is_one_line(command, how, tmp_path):
         exe = Path(shutil.which(command) or command)
     argv = {
         "hil-client": ["run", "stationary", "--out", str(tmp_path / "x.csv"), "--quiet"],
-        # (not `steady`: Ctrl-C inside numba's first compilation lands in an llvmlite
-        # ctypes callback, which prints the interrupt and goes on: a known, left-alone case)
+        # (Ctrl-C inside numba's first compilation lands in an llvmlite ctypes callback,
+        # which swallowed it: raised again after it, test_launch's C-callback test)
         "rig-emulator": ["check", "--boiler", "windhager_12kw"],
     }[command]
     if command == "hil-client":

@@ -100,3 +100,32 @@ def test_a_second_stop_signal_leaves_the_exit_code_of_the_first(serve, tmp_path)
         if proc.poll() is None:
             proc.kill()
             proc.wait(timeout=30)
+
+
+def test_ctrl_c_inside_a_c_callback_interrupts_the_command_without_a_traceback():
+    """A CI run with a cold numba cache: Ctrl-C 0.9 s into ``hil-client run`` landed in
+    numba's compiler, inside a callback llvmlite's C code made through ctypes, where an
+    exception cannot go on: Python printed "Exception ignored on calling ctypes callback
+    function" with a traceback, and the command went on as if Ctrl-C had never come. Such
+    an interrupt is raised again once the callback has returned (here a ctypes callback
+    that raises KeyboardInterrupt, as a signal handler would inside it)."""
+    code = (
+        "import ctypes\n"
+        "from rig_emulator.launch import interrupts_not_swallowed\n"
+        "interrupts_not_swallowed()\n"
+        "def callback():\n"
+        "    raise KeyboardInterrupt\n"
+        "c_callback = ctypes.CFUNCTYPE(None)(callback)\n"
+        "import time\n"
+        "try:\n"
+        "    c_callback()\n"
+        "    deadline = time.monotonic() + 10\n"
+        "    while time.monotonic() < deadline:\n"
+        "        pass\n"
+        "    print('went on')\n"
+        "except KeyboardInterrupt:\n"
+        "    print('interrupted')\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert proc.stdout == "interrupted\n", (proc.stdout, proc.stderr)
+    assert proc.stderr == ""
