@@ -23,6 +23,7 @@ import json
 import logging
 import math
 import os
+import re
 import stat
 import time
 from collections import deque
@@ -108,6 +109,8 @@ class FaultJournal:
                     "fault journal %s: the earlier journal there kept as %s", self.path, kept
                 )
             flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC
+            if names_a_descriptor(self.path):  # (a stream, e.g. `>> out.txt`: added to)
+                flags = os.O_WRONLY | os.O_APPEND
             self._fd = open_without_waiting(self.path, flags, blocking=False)
         except OSError as exc:
             self._failed = True
@@ -228,7 +231,7 @@ def check_writable(path: str | Path) -> None:
         return
     if stat.S_ISFIFO(status.st_mode) or stat.S_ISSOCK(status.st_mode):
         return
-    if stat.S_ISREG(status.st_mode) and status.st_size > 0:
+    if stat.S_ISREG(status.st_mode) and status.st_size > 0 and not names_a_descriptor(path):
         folder = path.absolute().parent
         if not os.access(path, os.R_OK):
             why = "the earlier journal there cannot be read to set it aside"
@@ -240,11 +243,33 @@ def check_writable(path: str | Path) -> None:
     os.close(os.open(path, os.O_WRONLY | os.O_NONBLOCK | os.O_NOCTTY))  # (EROFS named)
 
 
+#: a link that names an open descriptor of a process (``/dev/stdout`` is one to
+#: ``/proc/self/fd/1``)
+_DESCRIPTOR_LINK = re.compile(r"^/(proc/[^/]+|dev)/fd/\d+$")
+
+
+def names_a_descriptor(path: str | Path) -> bool:
+    """Whether ``path`` reaches its file through a link to an open descriptor
+    (``/dev/stdout``, ``/dev/fd/N``, ``/proc/self/fd/N``): a stream the process was given,
+    which is written to as it is, never set aside and replaced (``--fault-log /dev/stdout``
+    with standard output appended to a file renamed the link and wrote a new file in its
+    place: a re-probe)."""
+    current = os.path.abspath(path)
+    for _ in range(40):  # (the kernel's own bound on links followed)
+        if _DESCRIPTOR_LINK.match(current):
+            return True
+        if not os.path.islink(current):
+            return False
+        current = os.path.normpath(os.path.join(os.path.dirname(current), os.readlink(current)))
+    return False
+
+
 def set_aside(path: Path) -> Path | None:
     """Rename a non-empty regular file at ``path`` to ``STEM.EPOCH.jsonl`` (the epoch id of
     its first line, else ``previous``; ``.2``, ``.3`` ... where taken) and return the new
-    path; None where there is nothing to keep (no file, an empty one, a device)."""
-    if not path.is_file() or path.stat().st_size == 0:
+    path; None where there is nothing to keep (no file, an empty one, a device, a stream
+    the process was given: :func:`names_a_descriptor`)."""
+    if not path.is_file() or path.stat().st_size == 0 or names_a_descriptor(path):
         return None
     with path.open("rb") as file:
         first = file.readline(4096)

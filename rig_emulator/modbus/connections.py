@@ -45,8 +45,12 @@ RETRY_MAX_S = 1.0  # nothing could be closed: the retries double up to this far 
 #: cache as the kernels load, the dashboard's page, a certificate), where the connections
 #: leave room for them: else a sixteenth of what is free (:func:`descriptor_shares`)
 RESERVED_DESCRIPTORS = 32
-FILES_SHARE = 16  # the files' share of the free descriptors at least, where few are: 1/16
-DASHBOARD_SHARE = 4  # the dashboard's share of them at least, where few are: 1/4
+FILES_SHARE = 16  # the files' share of the free descriptors at most, where few are: 1/16
+DASHBOARD_SHARE = 4  # the dashboard's share of them at most, where few are: 1/4
+#: where not everything wanted fits, the descriptors the files and the dashboard keep (a
+#: browser's few connections), within their shares above
+FILES_MIN = 4
+DASHBOARD_MIN = 4
 #: the dashboard's HTTP connections open at once (streams included), its own limit
 DASHBOARD_CONNECTIONS = 256
 
@@ -118,23 +122,24 @@ def descriptor_shares(
     opened: shares made with the few open at the first listener overcommitted a small
     limit, and a client of a dashboard holding 1 of its 4 connections waited for a
     descriptor for ever, a re-probe). Of the rest, where everything wanted fits, each gets
-    it and the files :data:`RESERVED_DESCRIPTORS`; else the files keep at least a
-    sixteenth (at most :data:`RESERVED_DESCRIPTORS`), the dashboard at least a quarter (at
-    most what it wants; nothing without a dashboard: a share kept for a dashboard not
-    running cost a server without ``--http`` 169 of its 900 clients, a re-probe), Modbus
-    the rest; at least one each wanted. The soft open-file limit is raised first where
-    what is wanted needs it (:func:`open_file_limit`)."""
+    it and the files :data:`RESERVED_DESCRIPTORS`; else the files keep :data:`FILES_MIN`
+    and the dashboard :data:`DASHBOARD_MIN` (within a sixteenth and a quarter of what is
+    free; nothing without a dashboard: a share kept for a dashboard not running cost a
+    server without ``--http`` 169 of its 900 clients, a re-probe), Modbus the rest; at
+    least one each wanted. The soft open-file limit is raised first where what is wanted
+    needs it (:func:`open_file_limit`)."""
     own = open_descriptors() + own_to_come
     needed = own + RESERVED_DESCRIPTORS + dashboard_wanted + modbus_wanted
     was, limit = open_file_limit(needed)
     spare = max(limit - own, 0)
-    files = min(
-        RESERVED_DESCRIPTORS,
-        max(spare - dashboard_wanted - modbus_wanted, spare // FILES_SHARE, 1),
-    )
-    dashboard = min(
-        dashboard_wanted, max(spare - files - modbus_wanted, spare // DASHBOARD_SHARE, 1)
-    )
+    # where not everything fits, the files and the dashboard keep a few each (at most a
+    # sixteenth and a quarter of what is free), Modbus the rest: a quarter kept for a
+    # dashboard nobody used cost 275 of 1000 clients a limit of 1024 held before, and
+    # descriptors short at a connection are met by closing the oldest unused (a re-probe)
+    files_floor = min(FILES_MIN, max(spare // FILES_SHARE, 1))
+    files = min(RESERVED_DESCRIPTORS, max(spare - dashboard_wanted - modbus_wanted, files_floor))
+    dashboard_floor = min(DASHBOARD_MIN, max(spare // DASHBOARD_SHARE, 1))
+    dashboard = min(dashboard_wanted, max(spare - files - modbus_wanted, dashboard_floor))
     modbus = max(spare - files - dashboard, 1)
     return DescriptorShares(was, limit, own, files, modbus, dashboard)
 

@@ -12,6 +12,7 @@ warning: the server served a whole session without a journal.
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import re
 import shutil
@@ -21,6 +22,7 @@ import subprocess
 import sys
 import tempfile
 import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -308,3 +310,32 @@ def test_a_read_only_earlier_journal_is_set_aside_as_before(unprivileged):
     finally:
         folder.chmod(0o755)
         shutil.rmtree(folder)
+
+
+def test_a_fault_log_to_standard_output_appended_to_a_file_is_added_to(tmp_path):
+    """A re-probe: ``--fault-log /dev/stdout`` with standard output appended to a file
+    that holds lines (``>> out.txt``) was taken for an earlier journal: the link was set
+    aside (as root, /dev/stdout itself renamed) and a new file written in its place, the
+    stream never reached. The stream is written to as it is, after what it holds."""
+    out = tmp_path / "out.txt"
+    out.write_text("earlier line\n")
+    faults = tmp_path / "faults.yaml"  # a fault a second in: its start and end journalled
+    faults.write_text("faults:\n  - {kind: spike, signal: flue_gas_O2_pct, value: 25, at_s: 1}\n")
+    with out.open("a") as stdout:
+        server = subprocess.Popen(
+            [sys.executable, "-m", "rig_emulator.cli", "serve", "--boiler", "windhager_12kw",
+             "--speed", "100", "--port", "0", "--faults", str(faults),
+             "--fault-log", "/dev/stdout"],
+            stdout=stdout, stderr=subprocess.PIPE, text=True,
+        )  # fmt: skip
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and out.read_text().count("\n") < 2:
+            time.sleep(0.1)
+    finally:
+        server.send_signal(signal.SIGTERM)
+        _, err = server.communicate(timeout=30)
+    lines = out.read_text().splitlines()
+    assert lines[0] == "earlier line" and len(lines) >= 2, (lines, err)
+    assert json.loads(lines[1])["kind"] == "spike", lines
+    assert "kept as" not in err, err
