@@ -316,7 +316,12 @@ def test_a_fault_log_to_standard_output_appended_to_a_file_is_added_to(tmp_path)
     """A re-probe: ``--fault-log /dev/stdout`` with standard output appended to a file
     that holds lines (``>> out.txt``) was taken for an earlier journal: the link was set
     aside (as root, /dev/stdout itself renamed) and a new file written in its place, the
-    stream never reached. The stream is written to as it is, after what it holds."""
+    stream never reached. The stream is written to as it is, after what it holds. (The
+    test names standard output through a link of its own, to /proc/self/fd/1 as
+    /dev/stdout is: a build with the defect, run as root, renamed the machine's
+    /dev/stdout.)"""
+    stdout_link = tmp_path / "stdout"
+    stdout_link.symlink_to("/proc/self/fd/1")
     out = tmp_path / "out.txt"
     out.write_text("earlier line\n")
     faults = tmp_path / "faults.yaml"  # a fault a second in: its start and end journalled
@@ -325,7 +330,7 @@ def test_a_fault_log_to_standard_output_appended_to_a_file_is_added_to(tmp_path)
         server = subprocess.Popen(
             [sys.executable, "-m", "rig_emulator.cli", "serve", "--boiler", "windhager_12kw",
              "--speed", "100", "--port", "0", "--faults", str(faults),
-             "--fault-log", "/dev/stdout"],
+             "--fault-log", str(stdout_link)],
             stdout=stdout, stderr=subprocess.PIPE, text=True,
         )  # fmt: skip
     try:
