@@ -31,6 +31,21 @@ def _answered(sock: socket.socket) -> bool:
         return False
 
 
+def _clients_still_answered(port: int, count: int) -> int:
+    """How many of ``count`` clients, each of which read once (used, so counted in the
+    limit), are answered a read again once all are connected."""
+    clients: list[socket.socket] = []
+    try:
+        for _ in range(count):
+            clients.append(connect(port))
+            clients[-1].sendall(READ_TIME)
+            Replies(clients[-1]).next()
+        time.sleep(0.5)  # (a connection the limit closed is closed by now)
+        return sum(_answered(sock) for sock in clients)
+    finally:
+        close_all(clients)
+
+
 def test_without_http_no_descriptors_are_kept_for_a_dashboard(tmp_path):
     """A re-probe: under an open-file limit of 128 (soft and hard), ``serve`` without
     ``--http`` and the default 100 connections served 61 of 100 clients at once, "with
@@ -40,16 +55,7 @@ def test_without_http_no_descriptors_are_kept_for_a_dashboard(tmp_path):
     descriptors, and nothing is lowered."""
     with serving_limited(tmp_path / "serve.log", nofile=128) as served:
         kernels_loaded(served.port)
-        clients: list[socket.socket] = []
-        try:
-            for _ in range(100):  # each reads once: used, and counted in the limit
-                clients.append(connect(served.port))
-                clients[-1].sendall(READ_TIME)
-                Replies(clients[-1]).next()
-            time.sleep(0.5)  # (a connection the limit closed is closed by now)
-            answered = sum(_answered(sock) for sock in clients)
-        finally:
-            close_all(clients)
+        answered = _clients_still_answered(served.port, 100)
     lines = served.lines()
     assert answered == 100, [line for line in lines if "connection" in line][-5:]
     assert not any("does not fit" in line or "dashboard" in line for line in lines), lines[:3]
@@ -95,17 +101,8 @@ def test_a_dashboard_beside_keeps_a_few_descriptors_not_a_quarter(tmp_path):
     with serving_limited(tmp_path / "serve.log", "--http", str(http), http=http,
                          nofile=128) as served:  # fmt: skip
         kernels_loaded(served.port)
-        clients: list[socket.socket] = []
-        try:
-            for _ in range(100):  # each reads once: used, and counted in the limit
-                clients.append(connect(served.port))
-                clients[-1].sendall(READ_TIME)
-                Replies(clients[-1]).next()
-            time.sleep(0.5)  # (a connection the limit closed is closed by now)
-            answered = sum(_answered(sock) for sock in clients)
-            page = http_get(http, "/api/state")
-        finally:
-            close_all(clients)
+        answered = _clients_still_answered(served.port, 100)
+        page = http_get(http, "/api/state")
     lines = served.lines()
     assert answered == 100, [line for line in lines if "connection" in line][-5:]
     assert not any("does not fit" in line for line in lines), lines[:3]
