@@ -15,7 +15,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq
 
 from rig_emulator.model import constants as k
 from rig_emulator.model.boiler import (
@@ -72,6 +71,10 @@ def steady_state(c: np.ndarray, flow_kg_h: float, t_in_C: float, room_C: float) 
     elif hx(p_max) <= q_set:
         power = p_max
     else:
+        # imported here: scipy.optimize takes a quarter of a second to load, and every
+        # command that never asks for a steady state (serve, run, --help) paid it at start
+        from scipy.optimize import brentq
+
         power = brentq(lambda w: hx(w) - q_set, p_min, p_max, xtol=1e-12)
     q_hx, q_fuel, q_fg, t_fg = exchanger_heat(c, power, flow_kg_h, t_in_C, room_C)
     t = (q_hx + m_cp * t_in_C + ua * room_C) / (m_cp + ua)
