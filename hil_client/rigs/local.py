@@ -51,6 +51,9 @@ class LocalRig:
         if profile.faults:
             self.faults = FaultEngine([])
             self.faults.add_initial(profile.faults, "profile")
+            # floored as a server's faults are: no offset reads below what the instrument
+            # can show (the profile's reading_min)
+            self.faults.reading_floors = profile.reading_floors
 
     def apply(self, command: RigCommand) -> None:
         key = (

@@ -14,9 +14,14 @@ window's own times. A fault set once its ``at_s`` has passed starts when it is s
 - Communication faults are decided per request by :meth:`decide` (unit ID in, delay / drop
   / exception out); a ``disconnect`` calls :attr:`on_disconnect` once. A request a delay
   holds is let go when its delay faults end (cleared, ``for_s`` elapsed, a reset): a server
-  that waits out the delay inside :func:`holding` gets a :class:`DelayHold` for it.
+  that waits out the delay inside :func:`holding` gets a :class:`DelayHold` for it. A
+  request counts (``requests``, journalled at a fault's end) only for the faults whose
+  effect it got (:func:`_combine`), and not for an exception-04 fault whose request the
+  spec's checks refused first (:func:`refused_by_checks`).
 - Instrument faults change only the readings handed to :meth:`apply` (a dict the emulator
   publishes); the plant, its state and the instruments' own random draws are never touched.
+  What they serve is floored where the instrument can show nothing lower
+  (:attr:`FaultEngine.reading_floors`).
 
 Journal events (:mod:`rig_emulator.faults.journal`) go to :attr:`journal` when set.
 """
@@ -57,6 +62,11 @@ class CommDecision:
     delay_s: float = 0.0
     drop: bool = False
     exception_code: int | None = None
+
+
+#: the exception code that comes at the operation, after the spec's checks (SERVER DEVICE
+#: FAILURE): a request those checks refuse never meets the fault
+SERVER_DEVICE_FAILURE = 4
 
 
 @dataclass(slots=True)
@@ -125,6 +135,20 @@ class DelayHold:
 
 #: the holds of the request being decided, while a server collects them (:func:`holding`)
 _HOLDS: ContextVar[list[DelayHold] | None] = ContextVar("fault_delay_holds", default=None)
+#: the exception-04 fault that counted the request decided last in this context (a
+#: server's task), until :func:`refused_by_checks` takes the count back
+_FAILING: ContextVar[ActiveFault | None] = ContextVar("fault_failing", default=None)
+
+
+def refused_by_checks() -> None:
+    """The request decided last in this context got the spec's 01, 02 or 03 (an illegal
+    function, address or value), checked before its unit's exception-04 fault acts: that
+    fault did not answer it and takes back its count (a stranger's probe: four requests,
+    three of them illegal, were journalled as four answered by the fault; one got its 04)."""
+    fault = _FAILING.get()
+    if fault is not None:
+        fault.requests -= 1
+        _FAILING.set(None)
 
 
 @contextlib.contextmanager
@@ -222,12 +246,20 @@ class FaultEngine:
         self._random: list[_RandomState] = []
         self.active: dict[int, ActiveFault] = {}
         self._by_unit: dict[int, list[ActiveFault]] = {}
-        self._decisions: dict[int, CommDecision] = {}
+        #: per unit (0: every instrument unit without faults of its own), the decision and
+        #: the faults whose effect it serves (:func:`_combine`)
+        self._decisions: dict[int, tuple[CommDecision, tuple[ActiveFault, ...]]] = {}
         self._instrument: list[ActiveFault] = []
         self._last_instrument: dict[str, float] = {}
         #: per signal, the (lowest, highest) reading its register serves (an integer one
         #: clips there): the journal writes readings as served (set by the server)
         self.reading_ranges: Mapping[str, ReadingRange] = {}
+        #: per signal, the lowest value its instrument can show (the profile's
+        #: ``reading_min``; set by the server): a fault's reading is floored there as the
+        #: instrument's own is, and the journal's start line says what the fault asked for
+        self.reading_floors: Mapping[str, float] = {}
+        #: per signal, what the faults asked of a reading its floor raised (last evaluation)
+        self._asked: dict[str, float] = {}
         self._arm(self._initial)
 
     # ------------------------------------------------------------------ setting faults
@@ -276,20 +308,25 @@ class FaultEngine:
 
     # ------------------------------------------------------------------ per request
     def decide(self, unit_id: int) -> CommDecision | None:
-        """What a request to ``unit_id`` gets now (None: a normal answer)."""
+        """What a request to ``unit_id`` gets now (None: a normal answer). The request
+        counts once for each fault whose effect it gets (:func:`_combine`): two faults of a
+        unit that overlap no longer both counted it (a stranger's probe: ten requests to
+        two faulty units were journalled as 25)."""
         if not self._decisions:
             return None
-        decision = self._decisions.get(unit_id)
-        if decision is None and unit_id not in self.never_faulted:
-            decision = self._decisions.get(0)
-        if decision is not None:
-            for fault in self._by_unit.get(unit_id, ()):
-                fault.requests += 1
-            if unit_id not in self.never_faulted:
-                for fault in self._by_unit.get(0, ()):
-                    fault.requests += 1
-            if decision.delay_s > 0 and (held := _HOLDS.get()) is not None:
-                held.append(DelayHold(self._delays_on(unit_id)))
+        key = unit_id if unit_id in self._decisions else 0
+        if key == 0 and unit_id in self.never_faulted:
+            return None
+        combined = self._decisions.get(key)
+        if combined is None:
+            return None
+        decision, effective = combined
+        for fault in effective:
+            fault.requests += 1
+        if decision.exception_code == SERVER_DEVICE_FAILURE:
+            _FAILING.set(next(f for f in effective if f.spec.kind == "exception"))
+        if decision.delay_s > 0 and (held := _HOLDS.get()) is not None:
+            held.append(DelayHold(self._delays_on(unit_id)))
         return decision
 
     def _delays_on(self, unit_id: int) -> list[ActiveFault]:
@@ -402,7 +439,7 @@ class FaultEngine:
                 by_unit.setdefault(int(fault.spec.unit or 0), []).append(fault)
             else:
                 instrument.append(fault)
-        decisions: dict[int, CommDecision] = {}
+        decisions: dict[int, tuple[CommDecision, tuple[ActiveFault, ...]]] = {}
         for unit, faults in by_unit.items():
             if unit != 0 and 0 in by_unit:
                 faults = by_unit[0] + faults
@@ -412,6 +449,12 @@ class FaultEngine:
         self._instrument = instrument
 
     def _transform(self, readings: MutableMapping[str, float], t_sim_s: float) -> None:
+        """The active instrument faults' readings, in the order they started, each on what
+        the ones before it served; then each faulted signal's floor (the instrument's
+        ``reading_min``), as the instrument applies it to its own reading: an offset of
+        -1 m/s on the ``lab`` profile's vortex meter, which reads no velocity below 0,
+        served -0.99 m/s (a stranger's probe). A NaN (a dropout) stays NaN."""
+        self._asked = {}
         for fault in self._instrument:
             spec = fault.spec
             signal = str(spec.signal)
@@ -431,6 +474,11 @@ class FaultEngine:
                 value += float(spec.parameter or 0.0)
             readings[signal] = value
             fault.served = value
+        for signal in {str(fault.spec.signal) for fault in self._instrument}:
+            floor = self.reading_floors.get(signal)
+            if floor is not None and readings[signal] < floor:  # (NaN: False)
+                self._asked[signal] = readings[signal]
+                readings[signal] = floor
 
     # ------------------------------------------------------------------ journal
     def _journal(
@@ -493,7 +541,10 @@ class FaultEngine:
         served = self.reading_ranges.get(signal)
         if served is not None:  # as served: a spike of 9999 on 327.67 at most, on its steps
             reading, instrument = served.served(reading), served.served(instrument)
-        return {"reading": reading, "instrument": instrument, "truth": truth}
+        out = {"reading": reading, "instrument": instrument, "truth": truth}
+        if event == "start" and readings is not None and signal in self._asked:
+            out["asked"] = self._asked[signal]  # (below the instrument's floor: not served)
+        return out
 
 
 _UNSEEN = {"seen": False, "why": "its whole window fell between two evaluations"}
@@ -522,18 +573,31 @@ def _end_s(fault: ActiveFault, t_sim_s: float) -> float:
     return t_sim_s if fault.end_s is None else min(fault.end_s, t_sim_s)
 
 
-def _combine(faults: list[ActiveFault]) -> CommDecision:
-    """One decision from several communication faults on a unit: no reply wins, then the
-    newest exception; delays take the longest."""
-    delay_s = 0.0
-    drop = False
-    code: int | None = None
+def _combine(faults: list[ActiveFault]) -> tuple[CommDecision, tuple[ActiveFault, ...]]:
+    """One decision from several communication faults on a unit (oldest first), and the
+    faults whose effect it serves, which alone count its requests: no reply wins (the
+    newest such fault; nothing else reaches the client), else the newest exception and the
+    longest delay (the newest of equal ones), each fault overridden by another of its kind
+    serving nothing."""
+    dropping: ActiveFault | None = None
+    excepting: ActiveFault | None = None
+    delaying: ActiveFault | None = None
     for fault in faults:
         kind = fault.spec.kind
         if kind == "no_reply":
-            drop = True
+            dropping = fault
         elif kind == "exception":
-            code = int(fault.spec.parameter or 0)
-        elif kind == "delay":
-            delay_s = max(delay_s, float(fault.spec.parameter or 0.0) / 1000.0)
-    return CommDecision(delay_s, drop, None if drop else code)
+            excepting = fault
+        elif kind == "delay" and (delaying is None or _delay_s(fault) >= _delay_s(delaying)):
+            delaying = fault
+    delay_s = 0.0 if delaying is None else _delay_s(delaying)
+    if dropping is not None:
+        return CommDecision(delay_s, True, None), (dropping,)
+    code = None if excepting is None else int(excepting.spec.parameter or 0)
+    effective = tuple(f for f in (excepting, delaying) if f is not None)
+    return CommDecision(delay_s, False, code), effective
+
+
+def _delay_s(fault: ActiveFault) -> float:
+    """A delay fault's delay [s]."""
+    return float(fault.spec.parameter or 0.0) / 1000.0

@@ -133,6 +133,16 @@ class Profile:
     def spec(self, signal: str) -> InstrumentSpec:
         return self.instruments.get(signal, InstrumentSpec())
 
+    @property
+    def reading_floors(self) -> dict[str, float]:
+        """Per signal with one, the lowest value its instrument can show (``reading_min``):
+        what an instrument fault serves is floored there too (the fault engine)."""
+        return {
+            signal: spec.reading_min
+            for signal, spec in self.instruments.items()
+            if spec.reading_min is not None
+        }
+
 
 def profile_from_mapping(data: Any, source: str = "<profile>") -> Profile:
     """Validate ``data`` and build a :class:`Profile`."""

@@ -116,6 +116,7 @@ class ServerFaults:
         self._fields_written: set[str] = set()
         self._ranges = reading_ranges(register_map)
         self.engine.reading_ranges = self._ranges
+        self.engine.reading_floors = emulator.profile.reading_floors
         #: the units a communication fault may name (the bench's; 0: all of them)
         self.units = frozenset(d.unit_id for d in register_map.devices)
 

@@ -46,7 +46,7 @@ from typing import Any
 from pymodbus.simulator import SimDevice
 from pymodbus.simulator.simcore import SimCore
 
-from rig_emulator.faults.engine import DelayHold, holding
+from rig_emulator.faults.engine import DelayHold, holding, refused_by_checks
 from rig_emulator.modbus.conformance import (
     ENCAPSULATED_INTERFACE,
     GATEWAY_TARGET_FAILED,
@@ -883,9 +883,12 @@ class BenchModbusServer:
             return exception_pdu(info.function_code, GATEWAY_TARGET_FAILED)
         try:
             if failing:
-                return await process_failing(
+                response = await process_failing(
                     self.requests_store, info.unit_id, pdu, self.identity, self.write_check
                 )
+                if response[1] != SERVER_DEVICE_FAILURE:  # the fault's count: not its request
+                    refused_by_checks()
+                return response
             return await process(self.requests_store, info.unit_id, pdu, self.identity)
         except Exception:  # a datastore fault: the spec's 04, and the server goes on
             log.exception("request %s of %s failed", pdu[:8].hex(), info.peer)

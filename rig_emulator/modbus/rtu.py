@@ -31,7 +31,9 @@ The same units and map as TCP: every request goes through
   at most that many characters and a t3.5 later (0.15 s at 19,200 baud, 2.4 s at 1,200);
 - a unit under a ``delay`` fault answers that much after its reply would have come, unless
   the master speaks again first (it timed out): then the unit keeps its reply, which would
-  collide with the master's request on a line, and the new request is answered.
+  collide with the master's request on a line, and the new request is answered. A delay
+  fault that ends meanwhile (cleared, its ``for_s`` elapsed, a reset) lets the reply go
+  at once, as on TCP (:class:`~rig_emulator.faults.engine.DelayHold`).
 
 The line is served by one thread with blocking I/O and ``select`` timeouts (microseconds,
 where the event loop's timers are good to about a millisecond); the requests run in the
@@ -54,6 +56,7 @@ import tty
 from concurrent.futures import Future
 from typing import Any
 
+from rig_emulator.faults.engine import DelayHold, holding
 from rig_emulator.modbus.handler import BenchModbusServer, RequestInfo
 from rig_emulator.modbus.rtu_wire import (
     BROADCAST_UNIT,
@@ -177,6 +180,18 @@ def _configure(fd: int, baud: int, parity: str) -> bool:
     return (held[2] & mask) == (cflag & mask) and held[4] == attrs[4] and held[5] == attrs[5]
 
 
+def _abandon(answer: Future) -> None:
+    """A read answered ahead whose frame went on (more bytes came): once answered, the
+    delay faults that held it forget it (:meth:`RtuLine._answer`)."""
+
+    def close(done: Future) -> None:
+        if not done.cancelled() and done.exception() is None:
+            for hold in done.result()[2]:
+                hold.close()
+
+    answer.add_done_callback(close)
+
+
 class RtuLine:
     """Serves the units of ``server`` on a serial line (see the module docstring).
 
@@ -214,6 +229,10 @@ class RtuLine:
         self._discards_unlogged = 0
         self._discard_logged_at = -float("inf")
         self._stop_r, self._stop_w = os.pipe()
+        #: a byte here: a delay fault holding the reply waited for ended (:meth:`_wake`)
+        self._wake_r, self._wake_w = os.pipe()
+        os.set_blocking(self._wake_r, False)
+        os.set_blocking(self._wake_w, False)
         self._thread: threading.Thread | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
 
@@ -227,7 +246,7 @@ class RtuLine:
         os.write(self._stop_w, b"x")
         if self._thread is not None:
             await asyncio.to_thread(self._thread.join, 5.0)
-        for fd in (self._fd, self._keep_fd, self._stop_r, self._stop_w):
+        for fd in (self._fd, self._keep_fd, self._stop_r, self._stop_w, self._wake_r, self._wake_w):
             if fd is not None:
                 with contextlib.suppress(OSError):
                     os.close(fd)
@@ -264,11 +283,15 @@ class RtuLine:
                     buffer += data[: MAX_FRAME_BYTES + 1 - len(buffer)]
                 wire_end = frame_start + received * self.character_s
                 deadline = max(wire_end, now) + self.silence_s
+                if early is not None:  # more bytes: that frame was not the request
+                    _abandon(early[1])
                 early = self._read_ahead(bytes(buffer)) if received <= MAX_FRAME_BYTES else None
                 continue
             if received and now >= deadline:
                 request, buffer, received = bytes(buffer), bytearray(), 0
                 answer = early[1] if early is not None and early[0] == len(request) else None
+                if early is not None and answer is None:
+                    _abandon(early[1])
                 early = None
                 line_free = self._transaction(request, deadline, answer)
 
@@ -311,9 +334,23 @@ class RtuLine:
         if unit_id not in self.server.units or self._loop is None:
             return None
         info = RequestInfo.of(unit_id, pdu, self.path, None)
-        return len(request), asyncio.run_coroutine_threadsafe(
-            self.server.answer(info, pdu), self._loop
-        )
+        return len(request), asyncio.run_coroutine_threadsafe(self._answer(info, pdu), self._loop)
+
+    async def _answer(
+        self, info: RequestInfo, pdu: bytes
+    ) -> tuple[float, bytes | None, list[DelayHold]]:
+        """The server's answer to ``pdu`` (a delay fault's delay, the reply) and the holds of
+        the delay faults that asked the delay: the line waits no longer than they last."""
+        with holding() as holds:
+            delay_s, reply = await self.server.answer(info, pdu)
+        for hold in holds:
+            hold.on_change = self._wake
+        return delay_s, reply, holds
+
+    def _wake(self) -> None:
+        """A delay fault holding the awaited reply ended (from any thread): look again."""
+        with contextlib.suppress(OSError):  # (full: a wake is pending; closed: stopped)
+            os.write(self._wake_w, b"w")
 
     def _transaction(self, request: bytes, ended: float, answer: Future | None = None) -> float:
         """Answer one frame that ended (silence included) at ``ended`` (``answer``: its reply,
@@ -337,15 +374,46 @@ class RtuLine:
             return ended  # nobody on the line has that address: silence, as on a line
         if answer is None:
             info = RequestInfo.of(unit_id, pdu, self.path, None)
-            answer = asyncio.run_coroutine_threadsafe(self.server.answer(info, pdu), self._loop)
-        delay_s, reply = self._result(answer) or (0.0, None)
-        if reply is None:
-            return ended
-        if delay_s > 0 and not self._quiet_until(ended + delay_s):
-            # the master spoke again before the late reply (it timed out): the reply would
-            # collide with its request on a line, so the unit keeps it to itself
-            log.debug("RTU %s: unit %d's late reply dropped, the master spoke", self.path, unit_id)
-            return ended
+            answer = asyncio.run_coroutine_threadsafe(self._answer(info, pdu), self._loop)
+        delay_s, reply, holds = self._result(answer) or (0.0, None, [])
+        try:
+            if reply is None:
+                return ended
+            if delay_s > 0:
+                delay_s = self._held(ended, delay_s, holds)
+                if delay_s is None:
+                    # the master spoke again before the late reply (it timed out): the reply
+                    # would collide with its request on a line, so the unit keeps it
+                    log.debug(
+                        "RTU %s: unit %d's late reply dropped, the master spoke", self.path, unit_id
+                    )
+                    return ended
+            return self._reply(unit_id, reply, ended, delay_s)
+        finally:
+            for hold in holds:
+                hold.close()
+
+    def _held(self, ended: float, delay_s: float, holds: list[DelayHold]) -> float | None:
+        """Wait out a delay fault's ``delay_s`` after the request ``ended``, no longer than
+        its faults (``holds``) last: a stranger's probe cleared a 6-s delay a second into a
+        request and its RTU reply still came after 6 s (TCP's came at the clear). The delay
+        waited [s]; None if the line stopped or the master spoke meanwhile."""
+        while True:
+            waited_s = min(delay_s, max((h.delay_s for h in holds), default=delay_s))
+            left = max(ended + waited_s - time.monotonic(), 0.0)
+            ready = select.select([self._stop_r, self._fd, self._wake_r], [], [], left)[0]
+            if self._stop_r in ready or self._fd in ready:
+                return None
+            if self._wake_r in ready:
+                with contextlib.suppress(BlockingIOError):
+                    os.read(self._wake_r, 64)
+                continue
+            if time.monotonic() >= ended + waited_s:
+                return waited_s
+
+    def _reply(self, unit_id: int, reply: bytes, ended: float, delay_s: float) -> float:
+        """Put ``reply`` on the line ``delay_s`` after the request ``ended``; when the line
+        is free again."""
         out = frame(unit_id, reply)
         wire_s = len(out) * self.character_s
         if self.paced:
@@ -373,15 +441,6 @@ class RtuLine:
         while True:
             left = max(when - time.monotonic(), 0.0)
             if select.select([self._stop_r], [], [], left)[0]:
-                return False
-            if time.monotonic() >= when:
-                return True
-
-    def _quiet_until(self, when: float) -> bool:
-        """Wait until ``when`` unless the line is stopped or a byte comes on it (False)."""
-        while True:
-            left = max(when - time.monotonic(), 0.0)
-            if select.select([self._stop_r, self._fd], [], [], left)[0]:
                 return False
             if time.monotonic() >= when:
                 return True
