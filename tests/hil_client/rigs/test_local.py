@@ -128,3 +128,25 @@ def test_a_run_of_six_days_has_its_hopper_topped_up(tmp_path, capsys):
     assert mass.min() >= empty_kg + cfg.refill_below_kg - 0.1
     refills = np.flatnonzero(np.diff(mass) > 1.0)
     assert len(refills) >= 2  # about 1.7 kg/h over six days: some 250 kg fed
+
+
+def test_a_profiles_offset_fault_on_the_local_rig_reads_no_lower_than_the_floor():
+    """The local rig's faults are floored as a server's are: a -1 m/s offset on the ``lab``
+    profile's vortex meter, which reads no velocity below 0 (``reading_min``), reads 0 m/s
+    (on a server it served -0.99 m/s before: a stranger's probe,
+    tests/rig_emulator/instruments/test_fault_floor.py)."""
+    import dataclasses
+
+    from hil_client.rigs.local import LocalRig
+    from rig_emulator.boilers import load_boiler
+    from rig_emulator.faults import faults_from_list
+    from rig_emulator.instruments import load_profile
+
+    velocity = "flue_gas_velocity_m_s"
+    lab = load_profile("lab")
+    assert lab.reading_floors[velocity] == 0.0
+    fault = {"kind": "offset", "signal": velocity, "value": -1.0, "at_s": 0, "for_s": 60}
+    faulty = dataclasses.replace(lab, faults=tuple(faults_from_list([fault])))
+    rig = LocalRig(load_boiler("windhager_12kw"), faulty, 145)  # the server test's seed
+    rig.advance(2.0)
+    assert rig.read()[velocity] == 0.0
