@@ -801,14 +801,16 @@ _FAILED_EVENTS = ("exception", "timeout", "no_reply")
 def _refused_commands(events: list[dict]) -> str | None:
     """One line on the setpoint and switch writes the server refused or left unanswered
     (a TLS role that may not write, a faulty unit), or None."""
-    failed = [
+    failed = [  # (one refused with a transient code and asked again is no failure)
         e
         for e in events
-        if e.get("function") in WRITE_FUNCTIONS and e.get("event") in _FAILED_EVENTS
+        if e.get("function") in WRITE_FUNCTIONS
+        and e.get("event") in _FAILED_EVENTS
+        and not e.get("retried")
     ]
     if not failed:
         return None
-    codes = sorted({f"exception {e['code']:02d}" for e in failed if "code" in e})
+    codes = sorted({f"exception {e['code']:02X}" for e in failed if "code" in e})
     unanswered = sorted({e["event"].replace("_", " ") for e in failed if "code" not in e})
     how = ", ".join(codes + unanswered)
     # a refused write changed nothing; one never answered may have been carried out
@@ -819,20 +821,12 @@ def _refused_commands(events: list[dict]) -> str | None:
     )
 
 
-def _pinned(rig: object) -> str | None:
-    """One line on the readings the rig logged empty for standing at their register's
-    limit (the map's type and scale carry no more), or None."""
-    pinned = getattr(rig, "pinned", {})
-    if not pinned:
-        return None
-    each = "; ".join(
-        f"{signal} (unit {unit} point '{point}' at {limit:g}, {rows} rows)"
-        for signal, (unit, point, limit, rows) in pinned.items()
-    )
-    return (
-        f"readings at their register's limit, logged empty: {each}: the map's type and scale "
-        "carry no more (a wider type or a coarser scale in the map does)"
-    )
+def _end_notes(rig: object) -> list[str]:
+    """The rig's lines for a run's end (:meth:`hil_client.rigs.modbus.ModbusRig.end_notes`:
+    units that refused every read, readings at their register's limit); none for a rig
+    without them."""
+    end_notes = getattr(rig, "end_notes", None)
+    return end_notes() if end_notes is not None else []
 
 
 #: Breaks said on stderr as they happen; the rest are in the meta file.
@@ -1331,6 +1325,7 @@ def _run(args: argparse.Namespace, held: contextlib.ExitStack) -> int:
             write_meta(out, meta)
 
             told = [0]  # breaks told on stderr
+            notes_told = [0]  # the rig's notes (a unit read in pieces...) told on stderr
             switched_told = [False]  # the boiler switched against the run, told
             switch_seen = [0]  # the rig's events looked through for that
 
@@ -1349,6 +1344,10 @@ def _run(args: argparse.Namespace, held: contextlib.ExitStack) -> int:
                             file=sys.stderr,
                         )
                     told[0] = len(gaps)
+                rig_notes = getattr(rig, "notes", ())
+                for note in rig_notes[notes_told[0] :]:  # said once, as it happens
+                    print(f"hil-client: warning: {note}", file=sys.stderr)
+                notes_told[0] = len(rig_notes)
                 comm = getattr(rig, "comm_events", [])
                 fresh, switch_seen[0] = comm[switch_seen[0] :], len(comm)
                 if not switched_told[0] and any(  # said as it happens, once (two clients
@@ -1400,13 +1399,14 @@ def _run(args: argparse.Namespace, held: contextlib.ExitStack) -> int:
             progress.done()
         kept = _what_is_kept(written[0], previous, getattr(rig, "gaps", []))
         overridden = _overridden(getattr(rig, "comm_events", []))
-        pinned = _pinned(rig)
-        for warning in filter(None, (overridden, pinned)):  # (they came only at a run's end)
+        ended = [*filter(None, (overridden,)), *_end_notes(rig)]
+        for warning in ended:  # (they came only at a run's end)
             print(f"hil-client: warning: {warning}", file=sys.stderr)
         if written[0]:  # the meta says why the run is not complete (it said nothing)
             meta["notes"] = [
                 *meta["notes"],
-                *filter(None, (overridden, pinned)),
+                *getattr(rig, "notes", ()),
+                *ended,
                 f"interrupted (Ctrl-C, SIGTERM or SIGHUP) after {written[0]} rows",
             ]
             meta["interrupted"] = True
@@ -1440,10 +1440,10 @@ def _run(args: argparse.Namespace, held: contextlib.ExitStack) -> int:
         if overridden:
             result.notes.append(overridden)
             print(f"hil-client: warning: {overridden}", file=sys.stderr)
-        pinned = _pinned(rig)
-        if pinned:  # (the readings are no value: the rows stand, their fields empty)
-            result.notes.append(pinned)
-            print(f"hil-client: warning: {pinned}", file=sys.stderr)
+        result.notes.extend(rig.notes)  # (told on stderr as they came)
+        for note in _end_notes(rig):  # (pinned readings are no value: their fields empty)
+            result.notes.append(note)
+            print(f"hil-client: warning: {note}", file=sys.stderr)
         absent = getattr(rig, "absent", ())
         if absent:  # a bench without that instrument (a run without an FID was refused)
             result.notes.append(f"the map has no point for {', '.join(absent)}: empty columns")
@@ -1457,7 +1457,8 @@ def _run(args: argparse.Namespace, held: contextlib.ExitStack) -> int:
         print(f"hil-client: warning: {empty}", file=sys.stderr)
     median = summary.median_interval_s
     meta["sampling_median_s"] = None if median is None else round(median, DECIMALS["time_s"])
-    coarse = _coarse_sampling(median, protocol.acquisition_period_s, meta)
+    slow = _slow_units(rig, len(summary.intervals_s), median) if remote else None
+    coarse = _coarse_sampling(median, protocol.acquisition_period_s, meta, slow)
     if coarse:
         result.notes.append(coarse)
         print(f"hil-client: warning: {coarse}", file=sys.stderr)
@@ -1539,19 +1540,53 @@ def _gap_line(gap: dict[str, Any]) -> str:
 COARSE_SAMPLING = 1.2
 
 
-def _coarse_sampling(median_s: float | None, period_s: float, meta: dict) -> str | None:
+def _coarse_sampling(
+    median_s: float | None, period_s: float, meta: dict, slow: str | None = None
+) -> str | None:
     """A note when the rows came much further apart in simulated time than the protocol's
     period: a real-time server running faster than the client reads (x1000: one row per
-    100 s), so the log and its phase marks are that coarse, whatever the meta's period."""
+    100 s), so the log and its phase marks are that coarse, whatever the meta's period;
+    ``slow`` (:func:`_slow_units`): the units whose timeouts made the rows that slow."""
     if median_s is None or median_s <= COARSE_SAMPLING * period_s:
         return None
     speeds = meta.get("clock_speeds")  # (x20, then x40 by another client: not "x20")
     clock = f"real time {', then '.join(f'x{s:g}' for s in speeds)}" if speeds else meta["clock"]
+    head = f"rows came {median_s:g} s apart (median, simulated), not every {period_s:g} s: "
+    if slow is not None:
+        return (
+            f"{head}each row waited for {slow}, while the server's clock ({clock}) ran on; "
+            "the log and its phase marks are that coarse (a map without the unit (--map), "
+            "a shorter --reply-timeout, a slower --speed or --lockstep keeps the period)"
+        )
     return (
-        f"rows came {median_s:g} s apart (median, simulated), not every {period_s:g} s: "
-        f"the server's clock ({clock}) ran faster than the client could read, or "
+        f"{head}the server's clock ({clock}) ran faster than the client could read, or "
         "than its own tick (serve --tick-hz); the log and its phase marks are that coarse "
         "(a slower --speed, a faster tick or --lockstep keeps the period)"
+    )
+
+
+def _slow_units(rig: ModbusRig, rows: int, median_s: float | None) -> str | None:
+    """The units that timed out on most of the ``rows`` (the events file's ``timeout``),
+    named with their signals and how often, where their timeouts were at least half the
+    wall time between rows (``median_s`` of simulated time at the server's speed): then
+    they, not the server's clock, made the rows slow (a stranger's probe: an FID that never
+    answered cost every row the 5-s reply timeout, rows came 50 s apart at x10, and the
+    warning blamed the server's clock). None if no unit did."""
+    if median_s is None or not rows or rig.lockstep:
+        return None
+    timed_out: dict[int, set[float]] = {}
+    signals: dict[int, list[str]] = {}
+    for event in rig.comm_events:
+        if event.get("event") == "timeout":
+            timed_out.setdefault(event["unit"], set()).add(event["time_s"])
+            signals.setdefault(event["unit"], event.get("signals", []))
+    slow = sorted(unit for unit, times in timed_out.items() if 2 * len(times) > rows)
+    if not slow or len(slow) * rig.timeout_s < 0.5 * median_s / rig.speed:
+        return None
+    return " and ".join(
+        f"unit {unit} ({', '.join(signals[unit])}: no reply within the reply timeout, "
+        f"{rig.timeout_s:g} s, on {len(timed_out[unit])} of {rows} rows)"
+        for unit in slow
     )
 
 

@@ -10,6 +10,23 @@ could not even start a run). The rig sends all requests of one acquisition step 
 writes, the lockstep advance, one read per instrument) in one segment and then collects the
 replies, so a step costs one round trip, not one per request.
 
+A server may take fewer transactions at once than are sent (the TCP guide, 4.2.1.1, leaves
+the number a server handles at once to the device). :attr:`Connection.window` is how many
+requests are in flight at most (None: no limit, the rest wait and go as replies come): a
+server that answers a pipelined request with exception 06 (server busy) while it answers
+the earlier ones has it set to the number that were in flight, and the request is sent
+again once nothing sent before it waits (once, alone; 06 again then is the unit's own busy,
+its exception given and the window as it was); a server that answered a request sent alone
+but none sent behind another, the timeout passing, drops pipelined requests: the window
+becomes 1 and those requests go again, one at a time (a stranger's bench device that took 4
+transactions at a time stopped the run before the first row, "refused with exception 06";
+one that read one request per segment, "cannot reach ...: no reply within the timeout").
+A server that pipelines keeps the window open: nothing is held back.
+
+Replies that name no request sent (a server that answers every request with transaction
+ID 0) are counted, and a timeout then names them ("replies came with transaction id 0, not
+the requests' ...", not "no reply within the timeout": the server did answer).
+
 Errors: :class:`ModbusExceptionResponse` for an exception reply (with its code),
 :class:`ConnectionLost` for a closed, reset or timed-out connection, :class:`BadReply` (one)
 for a reply that does not answer its request.
@@ -36,7 +53,7 @@ import itertools
 import socket
 import struct
 import time
-from collections import deque
+from collections import Counter, deque
 from collections.abc import Callable, Collection, Sequence
 from typing import NamedTuple
 
@@ -63,6 +80,11 @@ class ModbusExceptionResponse(RuntimeError):
 
 class ReplyTimeout(ConnectionLost):
     """No reply within the connection's timeout."""
+
+
+class UnpairedReplies(ReplyTimeout):
+    """No reply within the timeout, though frames came that name no request sent: the
+    server was reached, and its replies cannot be paired with their requests."""
 
 
 class BadReply(ConnectionLost):
@@ -157,6 +179,8 @@ class _Came(NamedTuple):
 #: re-probe); the first step of ``hil-client run`` on a connection (13 requests pipelined)
 #: gives them
 IN_ORDER_EVIDENCE = 10
+#: the most stray transaction IDs a timeout's message names
+STRAYS_NAMED = 3
 
 
 class Connection:
@@ -180,6 +204,18 @@ class Connection:
         self.reorders = False
         self._buffer = b""
         self._corrupt = ""  # why what the server sends is no longer read (a bad frame)
+        #: the most requests in flight at once (None: no limit); see the module docstring
+        self.window: int | None = None
+        self._window_shown: int | None = None  # the window before a 06 not yet confirmed
+        self._unsent: deque[int] = deque()  # waiting requests not sent yet, in order sent
+        self._in_flight: set[int] = set()  # sent and waiting
+        self._ahead: dict[int, int] = {}  # how many were in flight when each went out
+        self._busy_retried: set[int] = set()  # sent again after a pipelined 06
+        self._busy_alone: set[int] = set()  # units that answered 06 to a request alone
+        self._pipelined_answered = False  # a request sent behind another was answered
+        self._alone_answered = False  # a request sent with none in flight was answered
+        #: transaction IDs of frames that named no request sent, since the last reply paired
+        self._strays: Counter[int] = Counter()
         try:
             self.sock = socket.create_connection((host, port), timeout=timeout_s)
         except OSError as exc:
@@ -204,25 +240,92 @@ class Connection:
         if isinstance(earlier, Connection):
             self.reorders = self.reorders or earlier.reorders
             self._in_turn = max(self._in_turn, earlier._in_turn)
+            self.window = self._window_shown = earlier._window_shown
+            self._busy_alone |= earlier._busy_alone
+            self._pipelined_answered |= earlier._pipelined_answered
+            self._alone_answered |= earlier._alone_answered
 
     def send(self, requests: Sequence[tuple[int, bytes]]) -> None:
-        """Send ``(unit, pdu)`` requests in one segment; :meth:`receive` and
-        :meth:`receive_all` give their outcomes in the same order."""
+        """Send ``(unit, pdu)`` requests in one segment (those beyond the :attr:`window`
+        as replies come); :meth:`receive` and :meth:`receive_all` give their outcomes in
+        the same order."""
         if self._corrupt:
             raise BadReply(self._corrupt)
-        frames = []
         for unit, pdu in requests:
             self._tid = (self._tid + 1) & 0xFFFF
             self._given_up.pop(self._tid, None)  # (an ID used again: no late reply of that one)
             self._spoilt.pop(self._tid, None)
             self._order.append(self._tid)
             self._sent[self._tid] = self._waiting[self._tid] = _Sent(self._seq, unit, pdu)
+            self._unsent.append(self._tid)
             self._seq += 1
-            frames.append(_HEADER.pack(self._tid, 0, len(pdu) + 1, unit) + pdu)
+        self._transmit()
+
+    def _transmit(self) -> None:
+        """Send the waiting requests the :attr:`window` has room for, in one segment; a
+        request sent again after a 06 goes only alone (nothing in flight)."""
+        frames = []
+        while self._unsent and (self.window is None or len(self._in_flight) < self.window):
+            tid = self._unsent[0]
+            if tid in self._busy_retried and self._in_flight:
+                break
+            self._unsent.popleft()
+            sent = self._sent[tid]
+            self._ahead[tid] = len(self._in_flight)
+            self._in_flight.add(tid)
+            frames.append(_HEADER.pack(tid, 0, len(sent.pdu) + 1, sent.unit) + sent.pdu)
+        if not frames:
+            return
         try:
             self.sock.sendall(b"".join(frames))
         except OSError as exc:
             raise ConnectionLost(f"send failed ({exc})") from None
+
+    def _send_again(self, tid: int) -> None:
+        """Put the waiting request ``tid`` back among those to send, in its order."""
+        self._in_flight.discard(tid)
+        seq = self._sent[tid].seq
+        place = next((i for i, t in enumerate(self._unsent) if self._sent[t].seq > seq), None)
+        self._unsent.insert(len(self._unsent) if place is None else place, tid)
+
+    def _fall_back(self) -> bool:
+        """At a timeout, whether the server drops pipelined requests (it answered a request
+        sent alone, never one sent behind another, and every request silent now went behind
+        another): then the :attr:`window` becomes 1 and those requests go again, one at a
+        time (True). Once per server: a server seen answering pipelined requests never."""
+        silent = self._in_flight
+        if (
+            self.window == 1
+            or not silent
+            or self._pipelined_answered
+            or not self._alone_answered
+            or any(self._ahead[tid] == 0 for tid in silent)
+        ):
+            return False
+        self.window = self._window_shown = 1
+        for tid in list(silent):
+            self._send_again(tid)
+        self._transmit()
+        return True
+
+    def _strays_named(self, tids: Collection[int]) -> str:
+        """What a timeout of the requests ``tids`` says of the frames that came naming no
+        request sent ("" if none came: no reply at all)."""
+        if not self._strays:
+            return ""
+        named = sorted(self._strays)
+        ids = ", ".join(str(t) for t in named[:STRAYS_NAMED])
+        more = f" and {len(named) - STRAYS_NAMED} more" if len(named) > STRAYS_NAMED else ""
+        ours = sorted(tids)
+        span = f"{ours[0]}" if len(ours) == 1 else f"{ours[0]} to {ours[-1]}"
+        if len(ours) > 1 and ours[-1] - ours[0] != len(ours) - 1:
+            span = ", ".join(str(t) for t in ours)
+        return (
+            f"replies came with transaction id{'s' if len(named) > 1 else ''} {ids}{more}, "
+            f"not the requests' {span} ({self._strays.total()} replies that name no request "
+            "sent: a server that does not send back its request's transaction ID, whose "
+            "replies cannot be paired with their requests)"
+        )
 
     def receive(self) -> bytes:
         """The reply PDU (function code first) of the oldest outstanding request, waited for
@@ -232,10 +335,15 @@ class Connection:
         while tid not in self._outcome:
             try:
                 self._take(*self._frame(), late=False)
-            except ReplyTimeout:
+            except ReplyTimeout as exc:
+                if self._fall_back():
+                    continue
+                strays = self._strays_named([tid])
                 self._give_up(tid, "timeout")
                 self._collect(tid)
-                raise
+                if strays:
+                    raise UnpairedReplies(strays) from None
+                raise exc from None
         try:
             reply, _ = self._reply(tid, own=True)
         finally:
@@ -299,6 +407,9 @@ class Connection:
             try:
                 frame = self._frame()
             except ReplyTimeout:
+                if self._fall_back():
+                    settled = []
+                    continue
                 head = self._sent[left[0]]
                 if mine.intersection(left) and time.monotonic() < deadline and last_look != left[0]:
                     if still_coming is not None and not still_coming(head.unit, head.pdu[0]):
@@ -311,7 +422,7 @@ class Connection:
                     late = True
                     settled = []
                     continue
-                self._abandon(left, mine, out, times, place, "")
+                self._abandon(left, mine, out, times, place, self._strays_named(left))
                 break
             except BadReply as exc:  # no frame a server sends: the rest cannot be read
                 if mine.intersection(left):
@@ -330,12 +441,14 @@ class Connection:
         timeout) under its request; the transaction IDs that got an outcome by it. A reply to
         a request given up on is passed over; so is a frame that does not answer the request
         it names while an older one waits (it may be that one's, under a wrong ID)."""
-        sent = self._waiting.get(tid)
+        sent = self._waiting.get(tid) if tid in self._in_flight else None
         if sent is None:
             gone = self._given_up.get(tid)
-            if (
-                gone is not None
-                and gone.seq < self._answered_seq
+            if gone is None:
+                self._strays[tid] += 1  # (a request not sent, or no longer known)
+            elif (
+                gone.seq < self._answered_seq
+                and tid not in self._busy_retried
                 and reply_problem(gone.unit, gone.pdu, got_unit, body) is None
             ):
                 self.reorders = True  # it came after a later request's: it was not dropped
@@ -345,20 +458,60 @@ class Connection:
         if problem is not None and tid != oldest:
             self._spoilt[tid] = problem
             return []
+        if problem is None and self._busy(tid, sent, body):
+            self._transmit()
+            return []
+        retried = tid in self._busy_retried
+        self._in_flight.discard(tid)
+        ahead = self._ahead.pop(tid, 0)
+        if problem is None:
+            self._strays.clear()
+            if ahead:
+                self._pipelined_answered = True
+            else:
+                self._alone_answered = True
         # in turn: the first request sent after the last one answered, another after it
         after = [s.seq for s in self._waiting.values() if s.seq > self._answered_seq]
         in_turn = len(after) >= 2 and sent.seq == after[0]
         del self._waiting[tid]
         now = time.monotonic()
         self._outcome[tid] = (_Came(got_unit, body, problem, late), now)
+        self._transmit()
         if problem is not None:
             return [tid]
-        if sent.seq < self._answered_seq:
+        if retried:  # (sent again, alone: its reply comes after later requests' by design)
+            self._busy_retried.discard(tid)
+        elif sent.seq < self._answered_seq:
             self.reorders = True
         elif in_turn:
             self._in_turn += 1
         self._answered_seq = max(self._answered_seq, sent.seq)
         return [tid]
+
+    def _busy(self, tid: int, sent: _Sent, body: bytes) -> bool:
+        """Whether ``body``, the reply to the request ``tid``, is a server busy (exception
+        06) to be sent again: the request went behind others (the :attr:`window` becomes
+        the number in flight then) and was not sent again yet, and its unit has not shown
+        a busy of its own. A request sent again that gets 06 once more (alone) shows the
+        unit's own busy: its exception is given, and the window is as it was."""
+        busy = body == bytes([sent.pdu[0] | 0x80, 6])
+        if tid in self._busy_retried:
+            if busy:
+                self._busy_alone.add(sent.unit)
+                self.window = self._window_shown
+            else:
+                self._window_shown = self.window  # confirmed: fewer in flight are served
+            return False
+        if not busy:
+            self._busy_alone.discard(sent.unit)
+            return False
+        ahead = self._ahead.get(tid, 0)
+        if not ahead or sent.unit in self._busy_alone:
+            return False
+        self.window = ahead if self.window is None else min(self.window, ahead)
+        self._busy_retried.add(tid)
+        self._send_again(tid)
+        return True
 
     def _dropped(self, droppable: Collection[int]) -> list[int]:
         """On a connection :attr:`in_order`, with no whole frame left to read, the requests
@@ -373,9 +526,11 @@ class Connection:
         for tid, request in list(self._waiting.items()):
             if request.seq > self._answered_seq:
                 break
-            if tid in droppable:
+            if tid in droppable and tid in self._in_flight and tid not in self._busy_retried:
                 self._outcome[tid] = (self._give_up(tid, "no reply"), now)
                 dropped.append(tid)
+        if dropped:
+            self._transmit()
         return dropped
 
     def _reply(self, tid: int, own: bool) -> tuple[Reply, float]:
@@ -427,6 +582,11 @@ class Connection:
         """Stop waiting for the request ``tid`` (a reply that still comes is passed over)."""
         sent = self._waiting.pop(tid)
         self._given_up[tid] = sent
+        self._in_flight.discard(tid)
+        self._ahead.pop(tid, None)
+        self._busy_retried.discard(tid)
+        if tid in self._unsent:
+            self._unsent.remove(tid)
         return NoReply(sent.unit, sent.pdu[0], reason, detail)
 
     def _collect(self, tid: int) -> None:
@@ -435,6 +595,7 @@ class Connection:
         self._order.popleft()
         del self._sent[tid]
         self._spoilt.pop(tid, None)
+        self._busy_retried.discard(tid)
 
     def _frame_at_hand(self) -> bool:
         """Whether a whole frame (or a header no frame has) is read and not taken yet."""

@@ -1,7 +1,17 @@
-"""Running per-phase totals of a lab log while it is acquired (for the run summary)."""
+"""Running per-phase totals of a lab log while it is acquired (for the run summary).
+
+A missing reading (an empty field: NaN; an infinite one alike) is skipped, as ``hil-client
+balance`` does, never summed: one missing forward temperature made a phase's heat to water
+``nan kWh`` (a stranger's probe); the table says how many rows a phase's heat left out.
+A balance reading below 0 kg is the pellet store run empty only when the next reading stays
+at or below 0; one glitch between plausible readings (0xFFFFFFFF of an int32 x0.001, -0.001
+kg, between 180-kg readings) is no reading (it was "the pellet store ran empty", and the
+rise back to 180 kg a refill).
+"""
 
 from __future__ import annotations
 
+import math
 import statistics
 from dataclasses import dataclass, field
 
@@ -26,6 +36,10 @@ class PhaseTotal:
     t_boiler_end_C: float = float("nan")
     #: rows of the phase with a balance reading
     mass_readings: int = 0
+    #: rows of the phase, and those of them without the flow, return or forward reading
+    #: (their heat to water left out of the sum)
+    rows: int = 0
+    heat_missing: int = 0
     #: the plants (``rig_epoch``) its rows came from: more than one, a break within it
     epochs: set[int] = field(default_factory=set)
 
@@ -50,18 +64,19 @@ class RunSummary:
     #: refills so far (rises of the balance between two readings), taken out of the mass
     _refilled_kg: float = 0.0
     _reading_prev: float | None = None
-    #: the first time the balance read below 0 kg (the pellet store empty), None: never
+    #: the first time the balance read below 0 kg and stayed at or below 0 (the pellet
+    #: store empty), None: never
     empty_at_s: float | None = None
+    #: when a reading below 0 kg came that the next reading has yet to confirm, None: none
+    _below_at_s: float | None = None
 
     def __call__(self, row: Row) -> None:
         t: float = row[_T]  # type: ignore[assignment]
         dt = t - self._t_prev
         self._t_prev = t
         self.intervals_s.append(dt)
-        reading: float = row[_MASS]  # type: ignore[assignment]
+        reading = self._balance(t, row[_MASS])  # type: ignore[arg-type]
         if reading == reading:  # a reading (NaN: none this row)
-            if reading < 0.0 and self.empty_at_s is None:
-                self.empty_at_s = t
             if self._reading_prev is not None and reading - self._reading_prev > REFILL_STEP_KG:
                 self._refilled_kg += reading - self._reading_prev
             self._reading_prev = reading
@@ -74,13 +89,36 @@ class RunSummary:
             total = self.phases[phase] = PhaseTotal()
             total.mass_start_kg = self._mass_prev if self._mass_prev is not None else mass
         total.duration_s += dt
+        total.rows += 1
         q_water = heat_to_water_kW(row[_FLOW], row[_T_IN], row[_T_OUT])  # type: ignore[arg-type]
-        total.heat_to_water_kWh += q_water * dt / 3600.0
+        if math.isfinite(q_water):
+            total.heat_to_water_kWh += q_water * dt / 3600.0
+        else:
+            total.heat_missing += 1
         total.mass_end_kg = mass
         total.mass_readings += reading == reading
-        total.t_boiler_end_C = row[_T_BOILER]  # type: ignore[assignment]
+        t_boiler: float = row[_T_BOILER]  # type: ignore[assignment]
+        if math.isfinite(t_boiler):  # (the last reading of the phase)
+            total.t_boiler_end_C = t_boiler
         total.epochs.add(int(row[_EPOCH]))  # type: ignore[call-overload]
         self._mass_prev = mass
+
+    def _balance(self, t: float, reading: float) -> float:
+        """The balance's reading of the row at ``t`` as the totals take it: NaN for none
+        (an infinite one; one below 0 kg until the next reading stays at or below 0, which
+        makes :attr:`empty_at_s` the time of the first; a glitch if it does not)."""
+        if not math.isfinite(reading):
+            return math.nan
+        below_at, self._below_at_s = self._below_at_s, None
+        if reading > 0.0 or self.empty_at_s is not None:
+            return reading
+        if below_at is not None:  # the second reading at or below 0 in a row: empty
+            self.empty_at_s = below_at
+            return reading
+        if reading < 0.0:  # to be confirmed by the next reading
+            self._below_at_s = t
+            return math.nan
+        return reading
 
     @property
     def median_interval_s(self) -> float | None:
@@ -95,11 +133,18 @@ class RunSummary:
         ]
         for name, p in self.phases.items():
             h, rem = divmod(round(p.duration_s), 3600)
-            fuel = f"{p.fuel_kg:>12.2f} kg" if p.fuel_kg == p.fuel_kg else f"{'-':>12}   "
+            heat = p.heat_to_water_kWh if p.heat_missing < p.rows else math.nan
             lines.append(
                 f"{name:<10} {h:>3d}:{rem // 60:02d}:{rem % 60:02d} "
-                f"{p.heat_to_water_kWh:>10.2f} kWh {fuel} {p.t_boiler_end_C:>11.2f} C"
+                f"{_cell(heat, 10, 'kWh')} {_cell(p.fuel_kg, 12, 'kg')} "
+                f"{_cell(p.t_boiler_end_C, 11, 'C')}"
             )
+        for name, p in self.phases.items():  # (the sum is short of what they held)
+            if p.heat_missing:
+                lines.append(
+                    f"note: {name}: heat to water leaves out {p.heat_missing} of its {p.rows} "
+                    "rows (no flow, return or forward reading)"
+                )
         for name, p in self.phases.items():  # (summed across the break without a word)
             if len(p.epochs) > 1:
                 lines.append(
@@ -108,3 +153,11 @@ class RunSummary:
                     "hil-client balance reads one"
                 )
         return "\n".join(lines)
+
+
+def _cell(value: float, width: int, unit: str) -> str:
+    """``value`` with two decimals and its unit, or "-" where it is unknown (NaN, or not
+    finite): the table never prints nan or inf."""
+    if not math.isfinite(value):
+        return f"{'-':>{width}} {' ' * len(unit)}"
+    return f"{value:>{width}.2f} {unit}"

@@ -38,7 +38,18 @@ a failed setpoint write is sent again next step. Each is an entry of :attr:`comm
 another client's doing, written again; ``unit``, ``function`` and ``signals``). After a
 timeout the rig reconnects, so later steps do not queue behind a slow unit (on an RTU
 line a silent unit costs one timeout per request, one transaction at a time). The
-simulation control (unit 100) must answer.
+simulation control (unit 100) must answer: its transient exceptions (06 busy, a gateway's
+0A and 0B) are asked again after a short pause, within the reply timeout, each an
+``exception`` event with ``retried``; one that persists stops the run.
+
+What the Modbus specification leaves to a device is learned once and kept: a block of
+readings a unit refuses as too long (02 or 03: it may take fewer than 125 registers a read)
+is read in halves, down to a point at a time (:meth:`ModbusRig._in_pieces`); coils a unit
+refuses to write with FC15 (01) go as FC5, one each, and a unit that refuses both is a
+:attr:`refusal`. :attr:`ModbusRig.notes` are the lines a run tells once as they arise (a
+unit that refuses its reads even in pieces, one whose coils take FC5 only);
+:meth:`ModbusRig.end_notes` those of its end (a unit that refused every read, the readings
+at their register's limit, each limit with its rows).
 
 Plant commands refused as an illegal value (exception 03: the server's map does not take
 that value, for the whole run) are no fault: a unit that answers its reads in the same step
@@ -68,9 +79,11 @@ how long this client was held up since the row before it (``client_held_up_s``, 
 
 from __future__ import annotations
 
+import contextlib
 import math
+import struct
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 from urllib.parse import urlparse
@@ -83,6 +96,7 @@ from hil_client.modbus_client import (
     ModbusExceptionResponse,
     NoReply,
     Reply,
+    UnpairedReplies,
     bits_of,
     read_pdu,
     registers_of,
@@ -111,9 +125,21 @@ from rig_emulator.registers import (
     run_decoder,
     written_value,
 )
-from rig_emulator.registers.codec import accepted_range
+from rig_emulator.registers.codec import accepted_range, encodable_range
+from rig_emulator.registers.datatypes import DATATYPES
 
 _READ_FUNCTION = {"coil": 1, "discrete": 2, "holding": 3, "input": 4}
+_TABLE_OF_FUNCTION = {function: table for table, function in _READ_FUNCTION.items()}
+#: what a unit may answer a read longer than it takes at once (the specification lets a
+#: device allow fewer than 125 registers a read): 03 (illegal data value: the quantity) or
+#: 02 (illegal data address: the range); the read is asked again in pieces
+_TOO_LONG = {2: "02 (illegal data address)", 3: "03 (illegal data value)"}
+#: what the simulation control may answer for a moment (06: busy, "retransmit the request
+#: later", the specification says; 0A: a gateway found no path; 0B: the gateway's target did
+#: not answer): asked again after a pause, within the reply timeout (one 0B ended a run)
+TRANSIENT_CODES = frozenset({0x06, 0x0A, 0x0B})
+_TRANSIENT_PAUSE_S = 0.05  # the first pause before asking again, doubled each time,
+_TRANSIENT_MAX_PAUSE_S = 1.0  # up to this; all of it within --reply-timeout
 
 #: What ``on_restart`` may say (see the module docstring).
 ON_RESTART = ("abort", "restart-phase", "continue")
@@ -246,6 +272,33 @@ def _make_read(unit: int, table: str, run: list[Point]) -> _Read:
     return _Read(unit, _READ_FUNCTION[table], start, count, tuple(run), run_decoder(run))
 
 
+def _halves(read: _Read) -> list[_Read]:
+    """``read`` (of two points or more) as two reads of about half its registers each."""
+    middle = read.start + read.count / 2
+    first = [p for p in read.points if p.address + p.width <= middle] or [read.points[0]]
+    first = first[: len(read.points) - 1]
+    table = _TABLE_OF_FUNCTION[read.function]
+    return [
+        _make_read(read.unit, table, first),
+        _make_read(read.unit, table, list(read.points[len(first) :])),
+    ]
+
+
+def _register_limits(point: Point) -> tuple[float, ...]:
+    """The ends of what ``point``'s register serves as a reading, a zero and infinities
+    aside (a uint's 0 is a reading): an integer's type range, scaled; a float's largest
+    finite value either side (a float32 at 3.4028235e38 was logged as a forward
+    temperature, the summary said "inf kWh": a stranger's probe)."""
+    is_float = DATATYPES[point.datatype].is_float
+    ends = encodable_range(point) if is_float else reading_range(point)
+    return tuple(x for x in ends if math.isfinite(x) and x != 0.0)
+
+
+def _write_coil_pdu(address: int, on: bool) -> bytes:
+    """FC5 (write single coil) request: 0xFF00 on, 0x0000 off."""
+    return struct.pack(">BHH", 5, address, 0xFF00 if on else 0x0000)
+
+
 def _role_hint(url: str, exc: ModbusExceptionResponse) -> str:
     """Why a Modbus/TCP Security server may answer 01 (its log names the role and the
     request); "" where that is not the case (a stranger's probe: a certificate of an
@@ -333,12 +386,20 @@ class ModbusRig:
         self.absent = tuple(s for s in OPTIONAL_READINGS if s not in self._served)
         for signal in self._served:
             device, point = register_map.point(signal)
-            ends = tuple(x for x in reading_range(point) if math.isfinite(x) and x != 0.0)
+            ends = _register_limits(point)
             if ends:
                 self._limits[signal] = (device.unit_id, point.name, ends)
         #: readings logged empty for standing at their register's limit: signal ->
-        #: [unit, point, limit, rows]
-        self.pinned: dict[str, list[Any]] = {}
+        #: (unit, point, {limit: rows}) (:meth:`limit_note`)
+        self.pinned: dict[str, tuple[int, str, dict[float, int]]] = {}
+        #: lines the run tells once, as they arise (a warning each, and a note of the meta
+        #: file): a unit that refuses its reads even in pieces, one whose coils take FC5 only
+        self.notes: list[str] = []
+        self._split_tried: set[tuple[int, int, int]] = set()  # reads asked in pieces once
+        self._single_coil_units: set[int] = set()  # units that refused FC15: FC5 instead
+        self._single_coils_said: set[int] = set()  # ... whose FC5 answered, said in notes
+        self._answered_units: set[int] = set()  # units that answered a read with data
+        self._refusing_units: dict[int, set[int]] = {}  # ... that refused one: their codes
         #: the ``rig_epoch`` column: 0, one higher after each break the rig went on from
         self.epoch = 0
         plan = _read_plan(register_map, self._served)  # a required reading missing fails
@@ -365,7 +426,9 @@ class ModbusRig:
         self.written_flow_setpoint_kg_h = math.nan
         self._flow_carried = math.nan  # ... that the step being sent carries
         self._command_labels: list[str] = []  # what each command request of the step sets
-        self._refused: list[tuple[int, str]] = []  # writes refused with 03 this step
+        #: writes refused this step as no fault would (03; 01 to FC15 and FC5): (unit,
+        #: what was refused and how, why the method cannot be carried out: "" the 03's)
+        self._refused: list[tuple[int, str, str]] = []
         self._faulty: set[int] = set()  # units a read of which got no data, last step
         #: a plant command refused as an illegal value (see the module docstring), or None
         self.refusal: str | None = None
@@ -391,7 +454,8 @@ class ModbusRig:
                     " (a Modbus/TCP Security server closes the connection of a client "
                     "certificate it refuses: expired, not signed by its CA; its log says why)"
                 )
-            raise RigError(f"cannot reach {url}: {exc}{hint}") from None
+            reached = isinstance(exc, UnpairedReplies)  # (it answered: no "cannot reach")
+            raise RigError(f"{'' if reached else 'cannot reach '}{url}: {exc}{hint}") from None
         except ModbusExceptionResponse as exc:
             why = _role_hint(url, exc) or " (not a rig-emulator with this map?)"
             raise RigError(f"{url}: {exc}{why}") from None
@@ -425,19 +489,22 @@ class ModbusRig:
         # the units that take commands but serve no reading: one written point read back
         plan = plan + self._read_backs(plan)
         # the simulation control first: a slow instrument never holds up the step's checks
-        self._reads = self._check_plan + plan if checks else plan
+        reads = self._check_plan + plan if checks else plan
         if checks and not self.lockstep:  # the speed too: another client may change it
-            self._reads = self._check_plan + self._clock_plan + plan
+            reads = self._check_plan + self._clock_plan + plan
         if not checks and not self.lockstep:
-            self._reads = plan + _read_plan(register_map, ("sim_time_s",))
-        self._read_requests = [
-            (r.unit, read_pdu(r.function, r.start, r.count)) for r in self._reads
-        ]
-        self._n_reads = len(self._reads)
+            reads = plan + _read_plan(register_map, ("sim_time_s",))
+        self._set_reads(reads)
+
+    def _set_reads(self, reads: list[_Read]) -> None:
+        """The step's reads (as first planned, or with a block a unit refused in pieces)."""
+        self._reads = reads
+        self._read_requests = [_request(r) for r in reads]
+        self._n_reads = len(reads)
         #: the read of the server's clock among the step's reads (None: none, lockstep
         #: without checks)
         self._clock_index = next(
-            (i for i, r in enumerate(self._reads) if self._time_point in r.points), None
+            (i for i, r in enumerate(reads) if self._time_point in r.points), None
         )
 
     def _read_backs(self, plan: list[_Read]) -> list[_Read]:
@@ -489,12 +556,10 @@ class ModbusRig:
             return None
         if (self._read_optional(register_map, "active_fault_count") or 0.0) > 0:
             return None
-        for read in plan:
-            try:
-                self._exchange([_request(read)])
-            except ModbusExceptionResponse as exc:
-                if exc.code not in (1, 2):
-                    continue  # busy, failed: an instrument's state, not the map
+        for block in plan:
+            unserved = self._unserved(block)
+            if unserved is not None:
+                read, exc = unserved
                 names = ", ".join(p.signal for p in read.points)
                 return (
                     f"unit {read.unit} answers exception {exc.code:02X} to the read of "
@@ -502,6 +567,25 @@ class ModbusRig:
                     f"registers of {register_map.source}): the server runs another register "
                     "map; give the client the server's (--map)"
                 )
+        return None
+
+    def _unserved(self, read: _Read) -> tuple[_Read, ModbusExceptionResponse] | None:
+        """The first piece of ``read`` the server refuses with 01 or 02 (no such function,
+        no such register) and its refusal; a block refused with 02 is asked again in halves
+        (a device may take fewer registers a read than the block has: 02 for the range, a
+        stranger's probe), a point refused alone is the map's. None if none is refused so
+        (busy, failed, 03: an instrument's state, not the map)."""
+        try:
+            self._exchange([_request(read)])
+        except ModbusExceptionResponse as exc:
+            if exc.code not in (1, 2):
+                return None
+            if exc.code == 1 or len(read.points) == 1:
+                return read, exc
+            for half in _halves(read):
+                unserved = self._unserved(half)
+                if unserved is not None:
+                    return unserved
         return None
 
     @property
@@ -578,7 +662,49 @@ class ModbusRig:
     def _exchange(self, requests: list[tuple[int, bytes]], patient: bool = False) -> list[bytes]:
         """Send ``(unit, pdu)`` requests pipelined; their replies, in order (``patient``:
         each waited for up to ``reconnect_timeout_s`` in all, as a replay's requests must
-        be carried out whatever a fault holds up: ConnectionLost after that)."""
+        be carried out whatever a fault holds up: ConnectionLost after that). Reads the
+        simulation control answered with a transient exception (:data:`TRANSIENT_CODES`)
+        are asked again (:meth:`_transient_pauses`); one that persists is raised."""
+        pauses = self._transient_pauses()
+        while True:
+            try:
+                return self._exchange_once(requests, patient)
+            except ModbusExceptionResponse as exc:
+                if not self._transient(exc, requests):
+                    raise
+                self._event("exception", exc.unit, exc.function, code=exc.code, retried=True)
+                if not next(pauses):
+                    raise
+
+    def _transient(self, exc: ModbusExceptionResponse, requests: list[tuple[int, bytes]]) -> bool:
+        """Whether ``exc``, to one of ``requests``, is the simulation control's transient
+        refusal of reads alone (asked again as they are: a write is not)."""
+        return (
+            exc.unit in self._own_units
+            and exc.code in TRANSIENT_CODES
+            and all(pdu[0] in READ_FUNCTIONS for _, pdu in requests)
+        )
+
+    def _transient_pauses(self) -> Iterator[bool]:
+        """The pauses before asking the simulation control again after a transient
+        exception: each sleeps (doubling from :data:`_TRANSIENT_PAUSE_S` up to
+        :data:`_TRANSIENT_MAX_PAUSE_S`) and gives True, until the next would end more than
+        the reply timeout after the first began: then False (the exception persists)."""
+        deadline = time.monotonic() + self.timeout_s
+        pause = _TRANSIENT_PAUSE_S
+        while time.monotonic() + pause <= deadline:
+            time.sleep(pause)
+            self._server_wait_s += pause
+            pause = min(2 * pause, _TRANSIENT_MAX_PAUSE_S)
+            yield True
+        while True:
+            yield False
+
+    def _exchange_once(
+        self, requests: list[tuple[int, bytes]], patient: bool = False
+    ) -> list[bytes]:
+        """:meth:`_exchange`, once: its first exception reply raised (after the replies
+        behind it, where it is asked again)."""
         assert self._conn is not None
         if not requests:
             return []
@@ -588,8 +714,15 @@ class ModbusRig:
         try:
             self._conn.send(requests)
             if not patient:
-                for _ in requests:
-                    replies.append(self._conn.receive())
+                for i in range(len(requests)):
+                    try:
+                        replies.append(self._conn.receive())
+                    except ModbusExceptionResponse as exc:
+                        if self._transient(exc, requests):  # (the replies behind it taken:
+                            for _ in range(len(requests) - i - 1):  # they are not this
+                                with contextlib.suppress(ModbusExceptionResponse):  # time's)
+                                    self._conn.receive()
+                        raise
                     times.append(time.monotonic())
                 return replies  # type: ignore[return-value]
             everything = range(len(requests))
@@ -645,6 +778,46 @@ class ModbusRig:
         self._step_events.append({"event": event, "unit": unit, "function": function, **extra})
 
     def _exchange_tolerant(
+        self,
+        requests: list[tuple[int, bytes]],
+        own: range = range(0),
+        patient: bool = False,
+        clock_read: int | None = None,
+    ) -> list[Reply]:
+        """:meth:`_exchange_tolerant_once`; the simulation control's transient exceptions
+        (:data:`TRANSIENT_CODES`) in its replies asked again after a pause
+        (:meth:`_transient_pauses`) until answered or the reply timeout has passed (then
+        they stand, and stop the run as before: one 0B on unit 100 ended a 6-h run, a
+        stranger's probe), each an ``exception`` event. Its reads are asked again alone; a
+        write of its refused (the lockstep advance, not carried out) the whole batch, whose
+        reads after it saw the plant before it (the step's setpoints and switches go again
+        as they were: the same values)."""
+        replies = self._exchange_tolerant_once(requests, own, patient, clock_read)
+        pauses = self._transient_pauses()
+        while again := [
+            i
+            for i, ((unit, _), reply) in enumerate(zip(requests, replies, strict=True))
+            if unit in self._own_units
+            and isinstance(reply, ModbusExceptionResponse)
+            and reply.code in TRANSIENT_CODES
+        ]:
+            for i in again:
+                refused = replies[i]
+                assert isinstance(refused, ModbusExceptionResponse)
+                self._event("exception", refused.unit, refused.function, code=refused.code,
+                            retried=True)  # fmt: skip
+            if not next(pauses):
+                break
+            if any(requests[i][1][0] not in READ_FUNCTIONS for i in again):
+                replies = self._exchange_tolerant_once(requests, own, patient, clock_read)
+                continue
+            asked = self._exchange_tolerant_once([requests[i] for i in again])
+            replies = list(replies)
+            for i, reply in zip(again, asked, strict=True):
+                replies[i] = reply
+        return replies
+
+    def _exchange_tolerant_once(
         self,
         requests: list[tuple[int, bytes]],
         own: range = range(0),
@@ -714,6 +887,89 @@ class ModbusRig:
         if any(isinstance(r, NoReply) and r.reason == "timeout" for r in second):
             self._connect(abort=True)
 
+    def _in_pieces(self, replies: list[Reply]) -> list[Reply]:
+        """The step's read ``replies`` (of :attr:`_reads`), each block an instrument refused
+        as too long (:data:`_TOO_LONG`: the specification lets a device take fewer than 125
+        registers a read) asked again in halves, and the halves it refuses in halves again,
+        down to a point at a time (a device that took 8 registers a read gave a run of 206
+        rows without a flow, a temperature or an O2, exit 0: a stranger's probe). Learned
+        once per read and kept: the pieces that answered replace it in :attr:`_reads` (the
+        pieces it refuses too stay, their fields empty); where no piece answers, it stays
+        whole and :attr:`notes` says so once. Returns the replies of the new :attr:`_reads`."""
+        refused = [
+            i
+            for i, (read, reply) in enumerate(zip(self._reads, replies, strict=True))
+            if self._too_long(read, reply)
+        ]
+        if not refused:
+            return replies
+        reads, replies = list(self._reads), list(replies)
+        for i in reversed(refused):  # (from the end: the indices before stay)
+            read = reads[i]
+            self._split_tried.add((read.unit, read.function, read.start))
+            pieces, answers = self._pieces(read, replies[i])
+            if any(isinstance(answer, bytes) for answer in answers):
+                self._refused_event(read, replies[i])
+                reads[i : i + 1], replies[i : i + 1] = pieces, answers
+                continue
+            code = replies[i].code  # type: ignore[union-attr]
+            self.notes.append(
+                f"unit {read.unit} refused the read of {', '.join(p.signal for p in read.points)}"
+                f" (function {read.function}, address {read.start}, {read.count} registers) "
+                f"with exception {_TOO_LONG[code]}, and in pieces down to "
+                "one point at a time too: those fields are empty while it does"
+            )
+        self._set_reads(reads)
+        return replies
+
+    def _too_long(self, read: _Read, reply: Reply) -> bool:
+        """Whether ``reply`` refuses ``read``, an instrument's of two points or more not yet
+        asked in pieces, as a read its unit may take only in pieces."""
+        return (
+            isinstance(reply, ModbusExceptionResponse)
+            and reply.code in _TOO_LONG
+            and read.unit not in self._own_units
+            and len(read.points) > 1
+            and (read.unit, read.function, read.start) not in self._split_tried
+        )
+
+    def _refused_event(self, read: _Read, reply: Reply) -> None:
+        """The ``exception`` event of a read refused on the way to its pieces."""
+        code = reply.code  # type: ignore[union-attr]
+        self._event("exception", read.unit, read.function, code=code,
+                    signals=[p.signal for p in read.points])  # fmt: skip
+
+    def _pieces(self, read: _Read, reply: Reply) -> tuple[list[_Read], list[Reply]]:
+        """``read``, refused with ``reply``, asked in halves, those refused in halves again
+        down to single points: the pieces and their replies (each refusal on the way an
+        ``exception`` event)."""
+        pieces, answers = [read], [reply]
+        while halve := {
+            k
+            for k, (piece, answer) in enumerate(zip(pieces, answers, strict=True))
+            if isinstance(answer, ModbusExceptionResponse)
+            and answer.code in _TOO_LONG
+            and len(piece.points) > 1
+        }:
+            split: list[_Read] = []
+            kept: list[Reply | None] = []
+            for k, (piece, answer) in enumerate(zip(pieces, answers, strict=True)):
+                if k not in halve:
+                    split.append(piece)
+                    kept.append(answer)
+                    continue
+                if piece is not read:  # (the read's own refusal: :meth:`_in_pieces`)
+                    self._refused_event(piece, answer)
+                halves = _halves(piece)
+                split += halves
+                kept += [None] * len(halves)
+            asked = [k for k, answer in enumerate(kept) if answer is None]
+            got = self._exchange_tolerant([_request(split[k]) for k in asked])
+            for k, answer in zip(asked, got, strict=True):
+                kept[k] = answer
+            pieces, answers = split, kept  # type: ignore[assignment]
+        return pieces, answers
+
     def _still_coming(self, unit: int, function: int) -> bool:
         """Whether a reply the connection has been silent on is only slow rather than lost
         with a connection that died on the way (a NAT or proxy that dropped it without a
@@ -769,9 +1025,12 @@ class ModbusRig:
         for read, reply in zip(reads, replies, strict=True):
             if not isinstance(reply, bytes):
                 self._failed(read.unit, read.function, reply, [p.signal for p in read.points])
+                if isinstance(reply, ModbusExceptionResponse):
+                    self._refusing_units.setdefault(read.unit, set()).add(reply.code)
                 for p in read.points:
                     into[p.signal] = math.nan
                 continue
+            self._answered_units.add(read.unit)
             self._decode([read], [reply], into)
             invalid = [
                 p.signal
@@ -786,8 +1045,8 @@ class ModbusRig:
             for p in read.points:
                 limit = self._limits.get(p.signal)
                 if limit is not None and into[p.signal] in limit[2]:
-                    seen = self.pinned.setdefault(p.signal, [*limit[:2], into[p.signal], 0])
-                    seen[3] += 1
+                    at = self.pinned.setdefault(p.signal, (*limit[:2], {}))[2]
+                    at[into[p.signal]] = at.get(into[p.signal], 0) + 1
                     into[p.signal] = math.nan
 
     def _check_boiler_switch(self, values: dict[str, float]) -> None:
@@ -810,6 +1069,7 @@ class ModbusRig:
         refused as an illegal value (03) is a candidate refusal (:meth:`_settle_refusals`).
         The flow setpoint (the step's first request) taken: what the server now holds."""
         self._refused.clear()
+        replies = self._single_coils(requests, replies)
         for i, ((unit, pdu), reply) in enumerate(zip(requests, replies, strict=True)):
             if isinstance(reply, bytes):
                 if i == 0 and self._command_labels:
@@ -817,9 +1077,51 @@ class ModbusRig:
                 continue
             self._failed(unit, pdu[0], reply, [])
             self._written_switches = None
+            label = self._command_labels[i] if i < len(self._command_labels) else "a write"
             if isinstance(reply, ModbusExceptionResponse) and reply.code == 3:
-                label = self._command_labels[i] if i < len(self._command_labels) else "a write"
-                self._refused.append((unit, label))
+                self._refused.append((unit, f"{label} with exception 03 (illegal data value)", ""))
+            tls = self.url.startswith("modbus+tls://")
+            if isinstance(reply, ModbusExceptionResponse) and reply.code == 1 and pdu[0] == 5:
+                if tls:  # (01 there may be the role's: the run's warning says so)
+                    continue
+                how = (
+                    f"{label} with exception 01 (illegal function) both as FC15 (write multiple "
+                    "coils) and as FC5 (write single coil)"
+                )
+                self._refused.append((unit, how, "the device cannot be switched by Modbus"))
+
+    def _single_coils(self, requests: list[tuple[int, bytes]], replies: list[Reply]) -> list[Reply]:
+        """``replies``, the coil writes a unit refused with 01 (illegal function) as FC15
+        written again as FC5, one coil each (a device need not take FC15: the map gives FC5
+        or FC15 for coils; one without it ran a whole protocol with the burner off, exit 0:
+        a stranger's probe); learned: that unit's coils go as FC5 from then on, said once in
+        :attr:`notes`. ``requests`` takes the FC5 requests in their places (a lockstep step's
+        journal is that list: a replay sends what the unit takes)."""
+        refused = [
+            i
+            for i, ((unit, pdu), reply) in enumerate(zip(requests, replies, strict=True))
+            if pdu[0] == 15 and isinstance(reply, ModbusExceptionResponse) and reply.code == 1
+        ]
+        if not refused:
+            return replies
+        self._single_coil_units |= {requests[i][0] for i in refused}
+        for i in refused:
+            unit, pdu = requests[i]
+            address = int.from_bytes(pdu[1:3], "big")
+            requests[i] = (unit, _write_coil_pdu(address, bool(pdu[6] & 1)))
+        replies = list(replies)
+        again = self._exchange_tolerant([requests[i] for i in refused])
+        for i, reply in zip(refused, again, strict=True):
+            replies[i] = reply
+        # said once FC5 worked (a unit refusing both stops the run: no word of FC5 before)
+        took = sorted({requests[i][0] for i in refused if isinstance(replies[i], bytes)})
+        for unit in (u for u in took if u not in self._single_coils_said):
+            self._single_coils_said.add(unit)
+            self.notes.append(
+                f"unit {unit} refused FC15 (write multiple coils) with exception 01 (illegal "
+                "function): its coils are written with FC5 (write single coil)"
+            )
+        return replies
 
     def _settle_refusals(self, read_replies: list[Reply]) -> None:
         """The step's writes refused with 03 by a unit that answered its reads before the
@@ -840,13 +1142,15 @@ class ModbusRig:
         if self.refusal is not None:
             return
         read_units = {read.unit for read in self._reads}  # (a unit never read: never seen
-        for unit, label in refused:  # to answer; :meth:`_read_backs` reads one)
+        for unit, how, why in refused:  # to answer; :meth:`_read_backs` reads one)
             if unit in read_units and unit not in faulty and unit not in before:
+                why = why or (
+                    "the server does not accept that value (its register map's range is "
+                    "narrower than this client's?)"
+                )
                 self.refusal = (
-                    f"{self.url}: unit {unit} refused {label} with exception 03 (illegal data "
-                    "value) while it answered its reads: the server does not accept that value "
-                    "(its register map's range is narrower than this client's?), so the test "
-                    "method cannot be carried out"
+                    f"{self.url}: unit {unit} refused {how} while it answered its reads: "
+                    f"{why}, so the test method cannot be carried out"
                 )
                 return
 
@@ -866,6 +1170,8 @@ class ModbusRig:
 
     def _write_request(self, signal: str, value: float) -> tuple[int, bytes]:
         device, point = self._points[signal]
+        if point.table == "coil" and device.unit_id in self._single_coil_units:
+            return device.unit_id, _write_coil_pdu(point.address, value >= 0.5)
         if point.table == "coil":
             return device.unit_id, write_coils_pdu(point.address, [value >= 0.5])
         return device.unit_id, write_registers_pdu(point.address, encode(point, value))
@@ -1261,7 +1567,7 @@ class ModbusRig:
         self._commands_tolerant(requests, replies[: len(requests)])
         self._applied = len(journal)
         values = self.values
-        reads = replies[len(replies) - self._n_reads :]
+        reads = self._in_pieces(replies[len(replies) - self._n_reads :])
         self._decode_tolerant(self._reads, reads, values)
         self._settle_refusals(reads)
         if self.checks:
@@ -1272,9 +1578,7 @@ class ModbusRig:
                 raise _Break(reason, dict(values))
             # (a serial line loses no connection: a server restarted under the step; over
             # TCP a restart loses it, and a unit that timed out is a fault, not asked about)
-            timed_out = isinstance(self._conn, RtuConnection) and self._timed_out(
-                replies[len(replies) - self._n_reads :]
-            )
+            timed_out = isinstance(self._conn, RtuConnection) and self._timed_out(reads)
             if timed_out and self._rebuilt_under_timeouts():
                 return self._step_lockstep(dt_s)  # the journal replayed, this step too
         self._check_boiler_switch(values)
@@ -1298,7 +1602,9 @@ class ModbusRig:
         elif commands:
             self._commands_tolerant(commands, self._exchange_tolerant(commands))
         self._wait_until(self.log_time_s + dt_s - self._offset)
-        replies = self._exchange_tolerant(self._read_requests, clock_read=self._clock_index)
+        replies = self._in_pieces(
+            self._exchange_tolerant(self._read_requests, clock_read=self._clock_index)
+        )
         values = self.values
         self._decode_tolerant(self._reads, replies, values)
         self._settle_refusals(replies)
@@ -1348,6 +1654,39 @@ class ModbusRig:
     def read(self) -> dict[str, float]:
         values = self.values
         return {key: values.get(key, math.nan) for key in READING_KEYS}
+
+    def limit_note(self) -> str | None:
+        """One line on the readings logged empty for standing at their register's limit,
+        each limit named with its rows (+327.67 in 18 rows and -327.67 in 21 were told as
+        "at -327.67, 39 rows": a stranger's probe), or None."""
+        if not self.pinned:
+            return None
+        each = []
+        for signal, (unit, point, rows) in self.pinned.items():
+            at = ", and at ".join(f"{limit:g}, {n} rows" for limit, n in sorted(rows.items()))
+            each.append(f"{signal} (unit {unit} point '{point}' at {at})")
+        return (
+            f"readings at their register's limit, logged empty: {'; '.join(each)}: the map's "
+            "type and scale carry no more (a wider type or a coarser scale in the map does)"
+        )
+
+    def end_notes(self) -> list[str]:
+        """The lines a run's end tells (a warning each, and a note of the meta file), beside
+        :attr:`notes`: each unit that refused every read of the run, with the readings it
+        never gave (a device whose every read of units 1 and 2 was refused left a run that
+        looked clean, exit 0: a stranger's probe), and :meth:`limit_note`."""
+        lines = []
+        for unit, codes in self._refusing_units.items():
+            if unit in self._answered_units:
+                continue
+            signals = [p.signal for r in self._reads if r.unit == unit for p in r.points]
+            how = ", ".join(f"{code:02X}" for code in sorted(codes))
+            lines.append(
+                f"unit {unit} refused every read of this run (exception {how}): "
+                f"{', '.join(dict.fromkeys(signals))} never read, empty in every row"
+            )
+        limits = self.limit_note()
+        return [*lines, limits] if limits else lines
 
 
 def _foreign(time_moved_s: float) -> str:

@@ -1,0 +1,161 @@
+"""A stranger's own Modbus/TCP bench device, written from the docs: one that takes fewer
+transactions at once than the client pipelines, one that reads a request per segment, one
+that answers with transaction ID 0, one with an absent instrument at real time. Over real
+sockets: the quirk in a relay (:mod:`tests.hil_client.rigs.plc_h`) in front of a real
+``rig-emulator serve``, and the real ``hil-client run``."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from hil_client.analysis.logio import read_log
+from hil_client.cli import main
+from hil_client.modbus_client import Connection, ModbusExceptionResponse, read_pdu
+from tests.hil_client.rigs.plc_h import QuirkyDevice
+
+#: the stranger's short protocol (/tmp quick.yaml): about 250 simulated seconds
+PROTOCOL = """\
+name: quick
+test: stationary
+description: short protocol for device probing
+acquisition_period_s: 1
+flow_spread_K: 15
+preheat: {temperature_C: 30, tolerance_K: 3, hold_s: 5, load_pct: 100, max_duration_s: 60}
+start_up:
+  return_setpoint_C: 35
+  t1_window_s: 20
+  t1_max_rise_K_min: 50
+  min_duration_s: 20
+  max_duration_s: 60
+test_sequence:
+  return_setpoint_C: 35
+  sequences:
+    - {name: s100, load_pct: 100, duration: "00:00:40"}
+cooling_1: {load_pct: 20, return_setpoint_C: 35, until_forward_C: 90, max_duration_s: 30}
+cooling_2: {until_after_t2_s: 60}
+"""
+#: the requests of one step against the shipped map: well over four (the stranger's limit)
+STEP_REQUESTS = 20
+
+
+@pytest.fixture
+def device():
+    """``device(upstream_port, quirk, limit)``: a :class:`QuirkyDevice`, closed after."""
+    started: list[QuirkyDevice] = []
+
+    def start(port: int, quirk: str, limit: int = 1) -> QuirkyDevice:
+        started.append(QuirkyDevice(port, quirk, limit))
+        return started[-1]
+
+    yield start
+    for relay in started:
+        relay.close()
+
+
+def _run(tmp_path: Path, port: int, *extra: str) -> tuple[int, Path]:
+    protocol = tmp_path / "quick.yaml"
+    protocol.write_text(PROTOCOL)
+    out = tmp_path / "log.csv"
+    argv = ["run", str(protocol), "--boiler", "windhager_12kw"]
+    argv += ["--rig", f"modbus://127.0.0.1:{port}", "--out", str(out), *extra]
+    return main(argv), out
+
+
+def _events(out: Path) -> list[dict]:
+    path = out.with_name(out.stem + ".modbus_events.jsonl")
+    return [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
+
+
+def test_a_device_taking_four_transactions_at_a_time_gets_a_whole_run(
+    serve_process, device, tmp_path, capsys
+):
+    """A stranger's probe: a device that takes 4 outstanding transactions and answers 06
+    (server busy) to the rest, as the TCP guide allows, stopped the run before its first
+    row ("unit 100: function 4 refused with exception 06; no row was acquired")."""
+    server = serve_process("--boiler", "windhager_12kw", "--lockstep")
+    relay = device(server.port, "busy", 4)
+    code, out = _run(tmp_path, relay.port)
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert "exception 06" not in err
+    log = read_log(out)
+    assert len(log) > 100  # (about 250 rows of 1 s: the protocol ran)
+    assert not any(e["event"] == "exception" for e in _events(out))
+    # the busy answers came while the client learnt the limit, not every step: fewer than
+    # one step's requests (it was 06 to 9 of the first 13, then the run stopped)
+    assert 0 < relay.busy_answers < STEP_REQUESTS
+
+
+def test_a_device_that_drops_pipelined_requests_is_read_one_at_a_time(
+    serve_process, device, tmp_path, capsys
+):
+    """A stranger's probe: a device that serves one request per segment and drops the rest
+    gave "cannot reach modbus://...: no reply within the timeout", though it was reached."""
+    server = serve_process("--boiler", "windhager_12kw", "--lockstep")
+    relay = device(server.port, "one_at_a_time")
+    code, out = _run(tmp_path, relay.port, "--reply-timeout", "1")
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert "cannot reach" not in err
+    assert len(read_log(out)) > 100
+    assert not _events(out)  # no unit went unread: the fallback is the connection's
+    # dropped only in the first pipelined burst (13 requests at most), never again
+    assert 0 < relay.dropped < STEP_REQUESTS
+
+
+def test_replies_with_transaction_id_0_are_named_not_a_timeout(
+    serve_process, device, tmp_path, capsys
+):
+    """A stranger's probe: a device answering every request with transaction ID 0 gave
+    "cannot reach ...: no reply within the timeout", though it answered every request."""
+    server = serve_process("--boiler", "windhager_12kw", "--lockstep")
+    relay = device(server.port, "tid0")
+    code, _ = _run(tmp_path, relay.port, "--reply-timeout", "1")
+    err = capsys.readouterr().err
+    assert code == 1
+    assert "replies came with transaction id 0, not the requests' " in err, err
+    assert "no reply within the timeout" not in err and "cannot reach" not in err
+
+
+def test_a_pipelining_server_keeps_the_window_open_and_a_units_own_busy_is_its_exception(
+    serve_process, tmp_path
+):
+    """The pipelined path stays one segment for a server that pipelines (the emulator), and
+    a unit under an ``exception`` fault with code 06 (busy of its own, CONTRACT section 5)
+    is its exception, not a limit of the server: the window stays open."""
+    faults = tmp_path / "faults.yaml"
+    faults.write_text("faults:\n  - {kind: exception, unit: 3, code: 6, at_s: 0}\n")
+    server = serve_process("--boiler", "windhager_12kw", "--lockstep", "--faults", str(faults))
+    conn = Connection("127.0.0.1", server.port, 3.0)
+    try:
+        for _ in range(2):
+            requests = [(100, read_pdu(4, 0, 4))] * 6 + [(3, read_pdu(4, 0, 1))]
+            requests += [(1, read_pdu(4, 0, 2))] * 6
+            conn.send(requests)
+            replies, _ = conn.receive_all(len(requests))
+            assert isinstance(replies[6], ModbusExceptionResponse) and replies[6].code == 6
+            assert all(isinstance(r, bytes) for i, r in enumerate(replies) if i != 6), replies
+            assert conn.window is None
+    finally:
+        conn.close()
+
+
+def test_slow_rows_name_the_unit_that_timed_out_not_the_servers_clock(
+    serve_process, device, tmp_path, capsys
+):
+    """A stranger's probe: with an FID that never answered, every row waited the reply
+    timeout, rows came 50 s apart at x10, and the warning blamed the server's clock; the
+    unit timing out on every row was only in the events file."""
+    server = serve_process("--boiler", "windhager_12kw", "--speed", "20")
+    relay = device(server.port, "silent_unit", 3)
+    code, out = _run(tmp_path, relay.port, "--reply-timeout", "1")
+    err = capsys.readouterr().err
+    assert code == 0, err
+    warning = next(line for line in err.splitlines() if "rows came" in line)
+    assert "each row waited for unit 3 (flue_gas_OGC_ppm: no reply within the reply " in warning
+    assert "ran faster than the client could read" not in warning
+    meta = json.loads(out.with_name(out.stem + ".meta.json").read_text())
+    assert any("each row waited for unit 3" in note for note in meta["notes"])
