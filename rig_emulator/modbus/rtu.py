@@ -27,13 +27,23 @@ The same units and map as TCP: every request goes through
   19,200 baud, and 20 MB for 50 hours at 1,200 (a stranger's probe). The line owes at most
   :data:`OWED_CHARACTERS` characters of line time ahead of the present (more than a frame
   is long, so only noise reaches the bound); bytes beyond it are discarded with a log line
-  (at most one a minute). A burst that stops leaves the line silent and answering again
-  at most that many characters and a t3.5 later (0.15 s at 19,200 baud, 2.4 s at 1,200);
+  (at most one a minute; the bytes discarded after it are counted and said when its minute
+  ends, or at the stop: a 64 KiB burst's log said its first 3838 bytes, and the rest only
+  with another burst, a stranger's probe). A burst that stops leaves the line silent and
+  answering again at most that many characters and a t3.5 later (0.15 s at 19,200 baud,
+  2.4 s at 1,200);
 - a unit under a ``delay`` fault answers that much after its reply would have come, unless
   the master speaks again first (it timed out): then the unit keeps its reply, which would
   collide with the master's request on a line, and the new request is answered. A delay
   fault that ends meanwhile (cleared, its ``for_s`` elapsed, a reset) lets the reply go
-  at once, as on TCP (:class:`~rig_emulator.faults.engine.DelayHold`).
+  at once, as on TCP (:class:`~rig_emulator.faults.engine.DelayHold`);
+- a line can go away: a socat peer that ends hangs up its pty, an unplugged USB-RS485
+  adapter's device reports EIO. The line then read end-of-file for ever, and the thread
+  read it in a loop (half a core, no log line, RTU dead while TCP answered: a stranger's
+  probe). It says so in one line, closes the line and opens its path again, backing off
+  (:data:`REOPEN_FIRST_S` to :data:`REOPEN_MAX_S`), until a line is there again (a new pty
+  or device at that path), saying so in one line. The emulator's own pty (``pty``) never
+  goes away: the server holds both its sides.
 
 The line is served by one thread with blocking I/O and ``select`` timeouts (microseconds,
 where the event loop's timers are good to about a millisecond); the requests run in the
@@ -46,6 +56,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import errno
 import logging
 import os
 import select
@@ -77,6 +88,11 @@ MAX_FRAME_BYTES = 256  # the longest RTU frame (section 2.5.1.1); longer runs ar
 #: hold the line for its whole wire time
 OWED_CHARACTERS = MAX_FRAME_BYTES + 1
 DISCARD_LOG_INTERVAL_S = 60.0  # bytes discarded for coming too fast: a log line at most
+#: a line that went away is looked for at its path again this long after [s], the wait
+#: doubling on each try that finds none, up to REOPEN_MAX_S: an adapter plugged back in
+#: is served within two seconds, and a path that stays empty costs a try every two
+REOPEN_FIRST_S = 0.1
+REOPEN_MAX_S = 2.0
 EXECUTE_TIMEOUT_S = 30.0
 _BAUD_CONSTANTS = {
     int(name[1:]): getattr(termios, name)
@@ -98,10 +114,13 @@ def check_line_options(baud: int, parity: str) -> None:
         raise SerialConfigError(f"--baud: {baud} is not a serial line speed ({known})")
 
 
-def open_line(path: str, baud: int, parity: str) -> tuple[int, int | None, str, bool]:
+def open_line(
+    path: str, baud: int, parity: str, *, warn: bool = True
+) -> tuple[int, int | None, str, bool]:
     """(fd the server uses, fd to keep open or None, path clients use, whether the line took
     ``baud`` and ``parity``) of ``path`` or, for ``pty``, of a new pseudo-terminal; raw
-    mode, 8 data bits, ``baud``, ``parity``."""
+    mode, 8 data bits, ``baud``, ``parity``. ``warn``: log a line that refused them (a
+    line opened again says so in its own line)."""
     check_line_options(baud, parity)
     if path == "pty":
         server_fd, client_fd = os.openpty()
@@ -113,7 +132,9 @@ def open_line(path: str, baud: int, parity: str) -> tuple[int, int | None, str, 
     if is_pty_multiplexer(path):  # before opening: that would make a pty of its own
         raise SerialConfigError(f"--serial {path}: {PTY_MULTIPLEXER}; use --serial pty")
     try:
-        fd = os.open(path, os.O_RDWR | os.O_NOCTTY)
+        # non-blocking: a device without carrier (no CLOCAL yet) would hold the open, and
+        # a line opened again must not keep the serving thread from its stop
+        fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
     except OSError as exc:
         raise SerialConfigError(f"--serial {path}: {exc.strerror}") from None
     try:
@@ -123,7 +144,8 @@ def open_line(path: str, baud: int, parity: str) -> tuple[int, int | None, str, 
         raise SerialConfigError(
             f"--serial {path}: is not a terminal (a serial line or pty)"
         ) from None
-    if not configured:
+    os.set_blocking(fd, True)
+    if not configured and warn:
         log.warning("RTU %s: the line refused %d baud, parity %s; served raw", path, baud, parity)
     return fd, None, path, configured
 
@@ -154,6 +176,14 @@ def is_pty(fd: int) -> bool:
         return os.major(os.fstat(fd).st_rdev) in range(136, 144)
     except OSError:
         return False
+
+
+def hung_up(fd: int) -> bool:
+    """Whether the line on ``fd`` is hung up or in error (its reads end at once: a pty whose
+    other side closed, a device unplugged)."""
+    poller = select.poll()
+    poller.register(fd, select.POLLIN)
+    return any(events & (select.POLLHUP | select.POLLERR) for _, events in poller.poll(0))
 
 
 def _configure(fd: int, baud: int, parity: str) -> bool:
@@ -210,6 +240,7 @@ class RtuLine:
         self.parity = parity
         self.character_s = character_s(baud)
         self.silence_s = silence_s(baud)
+        self._fd: int | None
         self._fd, self._keep_fd, self.path, applied = open_line(path, baud, parity)
         #: keep the reply's on-wire time (a pty); a device's UART takes it itself
         self.paced = path == "pty" or is_pty(self._fd)
@@ -228,6 +259,10 @@ class RtuLine:
         self.discarded = 0
         self._discards_unlogged = 0
         self._discard_logged_at = -float("inf")
+        #: how long a line that goes away is waited for before its path is tried again:
+        #: back to REOPEN_FIRST_S once the line carries bytes, so one that comes and goes
+        #: without a byte is tried ever less often
+        self._reopen_wait_s = REOPEN_FIRST_S
         self._stop_r, self._stop_w = os.pipe()
         #: a byte here: a delay fault holding the reply waited for ended (:meth:`_wake`)
         self._wake_r, self._wake_w = os.pipe()
@@ -246,6 +281,7 @@ class RtuLine:
         os.write(self._stop_w, b"x")
         if self._thread is not None:
             await asyncio.to_thread(self._thread.join, 5.0)
+        self._log_discards_left()
         for fd in (self._fd, self._keep_fd, self._stop_r, self._stop_w, self._wake_r, self._wake_w):
             if fd is not None:
                 with contextlib.suppress(OSError):
@@ -261,16 +297,30 @@ class RtuLine:
         early: tuple[int, Future] | None = None  # a read answered ahead: (length, answer)
         while True:
             timeout = max(deadline - time.monotonic(), 0.0) if received else None
+            if self._discards_unlogged:  # their count is said when the minute ends
+                said_at = self._discard_logged_at + DISCARD_LOG_INTERVAL_S
+                said_in = max(said_at - time.monotonic(), 0.0)
+                timeout = said_in if timeout is None else min(timeout, said_in)
             ready, _, _ = select.select([self._fd, self._stop_r], [], [], timeout)
             if self._stop_r in ready:
                 return
             now = time.monotonic()
+            if now - self._discard_logged_at >= DISCARD_LOG_INTERVAL_S:
+                self._log_discards_left()
             if self._fd in ready:
                 try:
                     data = os.read(self._fd, 4096)
-                except OSError:  # the line went away (EIO): wait a moment and go on
-                    time.sleep(0.01)
+                    gone = "" if data else "hang-up"  # a terminal's end-of-file
+                except OSError as exc:  # EIO: a device unplugged
+                    data, gone = b"", f"{errno.errorcode.get(exc.errno, exc.errno)}: {exc.strerror}"
+                if gone:
+                    if early is not None:
+                        _abandon(early[1])
+                    buffer, received, early = bytearray(), 0, None
+                    if not self._line_back(gone):
+                        return
                     continue
+                self._reopen_wait_s = REOPEN_FIRST_S
                 if not received:
                     frame_start = max(now, line_free)
                 carried = self._carried(
@@ -294,6 +344,53 @@ class RtuLine:
                     _abandon(early[1])
                 early = None
                 line_free = self._transaction(request, deadline, answer)
+
+    def _line_back(self, why: str) -> bool:
+        """The line went away (``why``): say so, close it and open its path again, the wait
+        between tries growing (:attr:`_reopen_wait_s`), until a line that is not hung up is
+        there (a new pty or device), and say so; False if the line is stopped meanwhile.
+        The emulator's own pty is not opened again (its path would change): it is read
+        again once it no longer reads as hung up."""
+        self._log_discards_left()  # the noise the line carried before it went
+        log.warning(
+            "RTU %s: the line went away (%s); served again once a line is back at that path",
+            self.path,
+            why,
+        )
+        own = self._keep_fd is not None
+        if not own and self._fd is not None:
+            with contextlib.suppress(OSError):
+                os.close(self._fd)
+            self._fd = None
+        while not select.select([self._stop_r], [], [], self._reopen_wait_s)[0]:
+            self._reopen_wait_s = min(2.0 * self._reopen_wait_s, REOPEN_MAX_S)
+            if own:
+                if self._fd is not None and not hung_up(self._fd):
+                    log.info("RTU %s: the line is back, served again", self.path)
+                    return True
+                continue
+            try:
+                fd, _, _, applied = open_line(self.path, self.baud, self.parity, warn=False)
+            except SerialConfigError:
+                continue  # nothing there yet (or not a terminal): try again later
+            if hung_up(fd):
+                os.close(fd)
+                continue
+            self._fd = fd
+            self.paced = is_pty(fd)
+            refused = (
+                ""
+                if applied or self.paced
+                else f"; it refused {self.baud} baud, parity {self.parity}: served raw"
+            )
+            log.info(
+                "RTU %s: the line is back (%s), served again%s",
+                self.path,
+                os.path.realpath(self.path),
+                refused,
+            )
+            return True
+        return False
 
     def _carried(self, count: int, wire_end: float, present: float) -> int:
         """How many of ``count`` bytes, arriving when the line's characters so far end at
@@ -321,6 +418,18 @@ class RtuLine:
         )
         self._discards_unlogged = 0
         self._discard_logged_at = now
+
+    def _log_discards_left(self) -> None:
+        """Say the bytes discarded since the last line that did, if any (when its minute
+        ends, the line goes away, the line stops): the rest of a 64 KiB burst was said only
+        in the line of the next burst, a minute later or never (a stranger's probe)."""
+        if self._discards_unlogged:
+            log.warning(
+                "RTU %s: %d more bytes discarded as noise since the last such line",
+                self.path,
+                self._discards_unlogged,
+            )
+            self._discards_unlogged = 0
 
     def _read_ahead(self, request: bytes) -> tuple[int, Future] | None:
         """Start answering ``request`` before its silence has passed if it is already a whole
