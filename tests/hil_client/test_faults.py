@@ -134,7 +134,7 @@ def test_a_delay_ahead_of_the_lockstep_advance_loses_no_step_and_adds_none(serve
     assert {e["server_time_s"] for e in late if e["function"] != 4} == {5.0, 6.0}
 
 
-def _run_with_report(serve, tmp_path, faults: list[dict]):
+def _run_with_report(serve, tmp_path, faults: list[dict], *extra: str):
     journal = tmp_path / "journal.jsonl"
     srv = serve(faults=faults_from_list(faults), fault_log=journal, profile="lab", seed=1)
     protocol = tmp_path / "short.yaml"
@@ -156,6 +156,7 @@ def _run_with_report(serve, tmp_path, faults: list[dict]):
             "--fault-report",
             str(report),
             "--quiet",
+            *extra,
         ]
     )
     assert code == 0
@@ -201,7 +202,9 @@ def test_fault_report_detects_communication_faults(serve, tmp_path):
         {"kind": "delay", "unit": 5, "delay_ms": 500, "at_s": 70, "for_s": 2},
         {"kind": "disconnect", "at_s": 90},
     ]
-    _, report, _ = _run_with_report(serve, tmp_path, faults)
+    # a reply timeout of 1 s (5 s by default): the no_reply window costs 5 s of waiting in
+    # lockstep, not 25; the 0.5-s delay still comes within it, late
+    _, report, _ = _run_with_report(serve, tmp_path, faults, "--reply-timeout", "1")
     assert {f["kind"]: f["detected"] for f in report["faults"]} == {
         "no_reply": True,
         "exception": True,
