@@ -16,8 +16,11 @@ window's own times. A fault set once its ``at_s`` has passed starts when it is s
   holds is let go when its delay faults end (cleared, ``for_s`` elapsed, a reset): a server
   that waits out the delay inside :func:`holding` gets a :class:`DelayHold` for it. A
   request counts (``requests``, journalled at a fault's end) only for the faults whose
-  effect it got (:func:`_combine`), and not for an exception-04 fault whose request the
-  spec's checks refused first (:func:`refused_by_checks`).
+  effect it got (:func:`_combine`): a held request for the delay fault that held it when
+  it went (:class:`DelayHold`), not for an exception-04 fault whose request the spec's
+  checks refused first (:func:`refused_by_checks`), not at all if it was no request after
+  all (:meth:`Tally.withdraw`), and not for a delay where it gets no reply (an RTU
+  broadcast: :func:`tallying`).
 - Instrument faults change only the readings handed to :meth:`apply` (a dict the emulator
   publishes); the plant, its state and the instruments' own random draws are never touched.
   What they serve is floored where the instrument can show nothing lower
@@ -32,8 +35,9 @@ import contextlib
 import logging
 import math
 import random
+import threading
 import time
-from collections.abc import Callable, Iterable, Iterator, Mapping, MutableMapping
+from collections.abc import Callable, Collection, Iterable, Iterator, Mapping, MutableMapping
 from contextvars import ContextVar
 from dataclasses import dataclass, field
 from typing import Any
@@ -94,19 +98,42 @@ class ActiveFault:
         return out
 
 
+#: guards the faults' ``requests``: a count may change in the server's event loop (a
+#: request decided), an RTU line's thread (a request withdrawn) and wherever a fault ends
+#: (a held request's count passed on)
+_COUNTS = threading.Lock()
+
+
+def _count(fault: ActiveFault, change: int) -> None:
+    """Add ``change`` to the requests ``fault`` counts (from any thread)."""
+    with _COUNTS:
+        fault.requests += change
+
+
 class DelayHold:
     """A request held by delay faults (a stranger's probe: a cleared 20 s delay still held
     the read it had taken, answered 19 s after the clear, though the journal said delay 0).
 
     The delay it still asks is the longest of its faults still active, from when it was
     taken: each fault that ends (cleared, ``for_s`` elapsed, a reset) drops out and calls
-    :attr:`on_change`, from whichever thread ended it; :meth:`close` once it is answered."""
+    :attr:`on_change`, from whichever thread ended it; :meth:`close` once it is answered.
 
-    __slots__ = ("_delays", "_faults", "on_change")
+    The request counts for the fault that holds it (``counted``, the longest delay, counted
+    when decided); one that ends while another still holds the request (that one's delay
+    not yet passed) passes the count on, before its end line is written: a 6000-ms delay of
+    1 s and a 3000-ms delay on every unit held a read 3 s, and the journal credited the
+    6000-ms fault with it, the 3000-ms one with nothing (a re-probe). A delay that ends
+    with the request still waiting on it alone keeps the count: the reply went at its end.
+    """
 
-    def __init__(self, faults: list[ActiveFault]) -> None:
+    __slots__ = ("_counted", "_delays", "_faults", "_taken", "on_change")
+
+    def __init__(self, faults: list[ActiveFault], counted: ActiveFault | None = None) -> None:
         self._faults = faults
-        self._delays = {f.id: float(f.spec.parameter or 0.0) / 1000.0 for f in faults}
+        self._delays = {f.id: _delay_s(f) for f in faults}
+        #: the fault the request counts for (None: another fault's effect won, no reply)
+        self._counted = counted
+        self._taken = time.monotonic()
         #: called when one of its faults ends (the server wakes the request to look again)
         self.on_change: Callable[[], None] | None = None
         for fault in faults:
@@ -117,24 +144,88 @@ class DelayHold:
         """The delay its faults still active ask (0: none is, let it go) [s]."""
         return max(self._delays.values(), default=0.0)
 
-    def ended(self, fault_id: int) -> None:
-        """Fault ``fault_id`` ended: it holds the request no longer."""
-        if fault_id not in self._delays:
+    def ended(self, fault_ids: Collection[int]) -> None:
+        """Faults ``fault_ids`` ended (at once: a clear, one evaluation): they hold the
+        request no longer, and pass its count to none of them."""
+        if not any(i in self._delays for i in fault_ids):
             return
         # a new dict, not a pop: the server may be reading it in its own thread
-        self._delays = {i: d for i, d in self._delays.items() if i != fault_id}
+        self._delays = {i: d for i, d in self._delays.items() if i not in fault_ids}
+        with _COUNTS:  # (not while the request is withdrawn in another thread)
+            counted = self._counted
+            if counted is not None and counted.id in fault_ids:
+                heir = self._holder()
+                if heir is not None:
+                    counted.requests -= 1
+                    heir.requests += 1
+                    self._counted = heir
         if self.on_change is not None:
             self.on_change()
 
+    def _holder(self) -> ActiveFault | None:
+        """The fault that holds the request now: the longest delay still active (the
+        newest of equal ones, as :func:`_combine` picks) if it has not passed yet."""
+        holder: ActiveFault | None = None
+        for fault in self._faults:
+            if fault.id in self._delays and (
+                holder is None or self._delays[fault.id] >= self._delays[holder.id]
+            ):
+                holder = fault
+        if holder is None or self._delays[holder.id] <= time.monotonic() - self._taken:
+            return None
+        return holder
+
     def close(self) -> None:
-        """The request is answered (or abandoned): its faults forget it."""
+        """The request is answered (or given up, the client gone): its faults forget it;
+        it keeps its count."""
         for fault in self._faults:
             fault.holds.discard(self)
         self._faults = []
 
+    def withdraw(self) -> None:
+        """The request was none after all (:meth:`Tally.withdraw`): its count is taken
+        back, and its faults forget it."""
+        self.close()
+        with _COUNTS:
+            if self._counted is not None:
+                self._counted.requests -= 1
+                self._counted = None
+
+
+class Tally:
+    """The faults one request counted for, decided inside :func:`tallying` (for one unit,
+    or for each unit an RTU broadcast reaches: each fault counts it once), so they can be
+    taken back (:meth:`withdraw`).
+
+    ``replies``: False for a request that gets no reply whatever the faults do (an RTU
+    broadcast): a delay fault has nothing to delay and does not count it (three broadcasts
+    and a read were journalled as four requests of a delay on unit 1: a re-probe); a
+    ``no_reply`` or exception fault does, once, for the units it kept from carrying the
+    write out."""
+
+    __slots__ = ("counted", "holds", "replies")
+
+    def __init__(self, replies: bool = True) -> None:
+        self.replies = replies
+        self.counted: list[ActiveFault] = []
+        self.holds: list[DelayHold] = []
+
+    def withdraw(self) -> None:
+        """The request was none (an RTU read answered ahead whose frame went on: three reads
+        each followed by a stray byte, no reply to any, were journalled as three requests
+        answered by the unit's fault; a re-probe): every fault takes back its count."""
+        counted, self.counted = self.counted, []
+        for fault in counted:
+            _count(fault, -1)
+        holds, self.holds = self.holds, []
+        for hold in holds:
+            hold.withdraw()
+
 
 #: the holds of the request being decided, while a server collects them (:func:`holding`)
 _HOLDS: ContextVar[list[DelayHold] | None] = ContextVar("fault_delay_holds", default=None)
+#: the faults the request being decided counted for, while a server keeps them (:func:`tallying`)
+_TALLY: ContextVar[Tally | None] = ContextVar("fault_tally", default=None)
 #: the exception-04 fault that counted the request decided last in this context (a
 #: server's task), until :func:`refused_by_checks` takes the count back
 _FAILING: ContextVar[ActiveFault | None] = ContextVar("fault_failing", default=None)
@@ -147,8 +238,11 @@ def refused_by_checks() -> None:
     three of them illegal, were journalled as four answered by the fault; one got its 04)."""
     fault = _FAILING.get()
     if fault is not None:
-        fault.requests -= 1
+        _count(fault, -1)
         _FAILING.set(None)
+        tally = _TALLY.get()
+        if tally is not None:
+            tally.counted = [f for f in tally.counted if f is not fault]
 
 
 @contextlib.contextmanager
@@ -162,6 +256,19 @@ def holding() -> Iterator[list[DelayHold]]:
         yield held
     finally:
         _HOLDS.reset(token)
+
+
+@contextlib.contextmanager
+def tallying(replies: bool = True) -> Iterator[Tally]:
+    """Decide one request inside this (for one unit, or for every unit a broadcast reaches):
+    the :class:`Tally` it gives keeps the faults it counted for, to take them back should
+    it turn out to be no request (``replies``: see :class:`Tally`)."""
+    tally = Tally(replies)
+    token = _TALLY.set(tally)
+    try:
+        yield tally
+    finally:
+        _TALLY.reset(token)
 
 
 @dataclass(slots=True)
@@ -287,7 +394,9 @@ class FaultEngine:
         The journal has lines only for faults that started, so what is dropped unstarted is
         named in the server's log."""
         n = len(self.active)
-        for fault in list(self.active.values()):
+        ending = list(self.active.values())
+        _let_go(ending)
+        for fault in ending:
             self._end(fault, reason)
         dropped = [f"{spec.kind} at {spec.at_s or 0:g} s ({src})" for spec, src, _ in self._pending]
         dropped += ["a random fault generator"] * len(self._random)
@@ -311,7 +420,9 @@ class FaultEngine:
         """What a request to ``unit_id`` gets now (None: a normal answer). The request
         counts once for each fault whose effect it gets (:func:`_combine`): two faults of a
         unit that overlap no longer both counted it (a stranger's probe: ten requests to
-        two faulty units were journalled as 25)."""
+        two faulty units were journalled as 25). Decided inside :func:`holding`, a delayed
+        one counts for the delay it waits out (:class:`DelayHold`); inside
+        :func:`tallying`, its counts can be taken back (:class:`Tally`)."""
         if not self._decisions:
             return None
         key = unit_id if unit_id in self._decisions else 0
@@ -321,12 +432,29 @@ class FaultEngine:
         if combined is None:
             return None
         decision, effective = combined
+        tally = _TALLY.get()
+        if tally is not None:  # no reply to delay; a broadcast's units: each fault once
+            effective = tuple(
+                f
+                for f in effective
+                if (tally.replies or f.spec.kind != "delay")
+                and all(f is not counted for counted in tally.counted)
+            )
         for fault in effective:
-            fault.requests += 1
+            _count(fault, 1)
+        failing = None
         if decision.exception_code == SERVER_DEVICE_FAILURE:
-            _FAILING.set(next(f for f in effective if f.spec.kind == "exception"))
+            failing = next((f for f in effective if f.spec.kind == "exception"), None)
+        _FAILING.set(failing)
+        hold = None
         if decision.delay_s > 0 and (held := _HOLDS.get()) is not None:
-            held.append(DelayHold(self._delays_on(unit_id)))
+            delaying = next((f for f in effective if f.spec.kind == "delay"), None)
+            hold = DelayHold(self._delays_on(unit_id), delaying)
+            held.append(hold)
+        if tally is not None:
+            tally.counted += [f for f in effective if hold is None or f.spec.kind != "delay"]
+            if hold is not None:
+                tally.holds.append(hold)
         return decision
 
     def _delays_on(self, unit_id: int) -> list[ActiveFault]:
@@ -366,7 +494,7 @@ class FaultEngine:
             ]
         for fault in ended:
             del self.active[fault.id]
-            _let_go(fault)
+        _let_go(ended)
         started: list[ActiveFault] = []
         unseen: list[ActiveFault] = []  # windows wholly between two evaluations: act not
         for spec, src, set_s in due:
@@ -425,8 +553,8 @@ class FaultEngine:
         return fault
 
     def _end(self, fault: ActiveFault, reason: str) -> None:
+        """End ``fault`` for ``reason`` (the requests it held let go by the caller)."""
         self.active.pop(fault.id, None)
-        _let_go(fault)
         self._rebuild()
         self._journal("end", fault, self.now_s, None, reason=reason)
 
@@ -543,7 +671,8 @@ class FaultEngine:
             reading, instrument = served.served(reading), served.served(instrument)
         out = {"reading": reading, "instrument": instrument, "truth": truth}
         if event == "start" and readings is not None and signal in self._asked:
-            out["asked"] = self._asked[signal]  # (below the instrument's floor: not served)
+            asked = self._asked[signal]  # (below the instrument's floor: not served)
+            out["asked"] = asked if served is None else _on_steps(served, asked)
         return out
 
 
@@ -557,11 +686,26 @@ def _start_s(spec: FaultSpec, set_s: float, t_sim_s: float) -> float:
     return t_sim_s
 
 
-def _let_go(fault: ActiveFault) -> None:
-    """``fault`` ended: the requests it held wait for it no longer."""
-    for hold in list(fault.holds):
-        hold.ended(fault.id)
-    fault.holds.clear()
+def _on_steps(served: ReadingRange, value: float) -> float:
+    """``value`` on the steps of the register that serves its signal, as its readings are
+    journalled, but not clipped to the register's range: what the faults asked for (a stuck
+    fault holding an offset's -0.93 m/s was journalled as asking -0.9299999999999999, a
+    re-probe)."""
+    if served.step <= 0 or not math.isfinite(value):
+        return value
+    return round(served.lo + round((value - served.lo) / served.step) * served.step, 9)
+
+
+def _let_go(faults: list[ActiveFault]) -> None:
+    """``faults`` ended together: the requests they held wait for them no longer (one that
+    another of them held too is told once, so its count goes to none of them)."""
+    holds: set[DelayHold] = set()
+    for fault in faults:
+        holds.update(fault.holds)
+        fault.holds.clear()
+    ended = {fault.id for fault in faults}
+    for hold in holds:
+        hold.ended(ended)
 
 
 def _over(fault: ActiveFault, t_sim_s: float) -> bool:

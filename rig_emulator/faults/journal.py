@@ -8,11 +8,16 @@ Each line: ``event`` (``start`` | ``end``), ``id`` (the same for a fault's start
 ``connections_closed``) or the reading it published next to the instrument's own reading
 without the fault and the plant's true value (``reading``, ``instrument``, ``truth``; a
 dropout's reading is null; a start line adds ``asked`` where the fault asked for a reading
-below what the instrument can show, its ``reading_min``, and the floor was served). End
+below what the instrument can show, its ``reading_min``, and the floor was served: on the
+register's steps, as ``reading``). End
 lines add ``requests`` (communication: how many requests got the fault's effect, each
 counted by the faults whose effect it got, never by one another fault of the unit
-overrode, nor by an exception-04 fault for a request the spec's checks refused first) and
-``reason`` (``for_s elapsed``, ``cleared``, ``reset``, ``once``).
+overrode, nor by an exception-04 fault for a request the spec's checks refused first; a
+request delay faults held, by the one whose delay it waited out: a delay that ended while
+a shorter one still held the request passes it on; an RTU broadcast, which gets no reply,
+by no delay fault and by another fault once, whatever the units it reaches; an RTU read
+answered ahead whose frame went on, by none) and ``reason`` (``for_s elapsed``,
+``cleared``, ``reset``, ``once``).
 A server's journal adds ``epoch_id`` to every line: the ``epoch_id`` it publishes (8 hex
 digits), which tells its plant from a restarted server's (a stranger's probe: a server
 killed and restarted under a run, the report matched the second journal with the rows

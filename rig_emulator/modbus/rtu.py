@@ -48,8 +48,9 @@ The same units and map as TCP: every request goes through
 The line is served by one thread with blocking I/O and ``select`` timeouts (microseconds,
 where the event loop's timers are good to about a millisecond); the requests run in the
 server's event loop. A read whose frame is complete (CRC valid) is started at once, while
-its silence passes, and its answer dropped if more bytes follow; writes run only once their
-frame has ended.
+its silence passes, and its answer dropped if more bytes follow (the faults take back the
+request they counted: :meth:`~rig_emulator.faults.engine.Tally.withdraw`); writes run only
+once their frame has ended.
 """
 
 from __future__ import annotations
@@ -67,7 +68,7 @@ import tty
 from concurrent.futures import Future
 from typing import Any
 
-from rig_emulator.faults.engine import DelayHold, holding
+from rig_emulator.faults.engine import DelayHold, Tally, holding, tallying
 from rig_emulator.modbus.handler import BenchModbusServer, RequestInfo
 from rig_emulator.modbus.rtu_wire import (
     BROADCAST_UNIT,
@@ -211,15 +212,17 @@ def _configure(fd: int, baud: int, parity: str) -> bool:
 
 
 def _abandon(answer: Future) -> None:
-    """A read answered ahead whose frame went on (more bytes came): once answered, the
-    delay faults that held it forget it (:meth:`RtuLine._answer`)."""
+    """A read answered ahead whose frame went on (more bytes came): it was no request, so
+    once answered, the faults that counted it take their counts back and the delay faults
+    that held it forget it (:meth:`RtuLine._answer`; three reads each followed by a byte
+    whose frame had a bad CRC were journalled as three requests, none answered: a
+    re-probe)."""
 
-    def close(done: Future) -> None:
+    def withdraw(done: Future) -> None:
         if not done.cancelled() and done.exception() is None:
-            for hold in done.result()[2]:
-                hold.close()
+            done.result()[3].withdraw()
 
-    answer.add_done_callback(close)
+    answer.add_done_callback(withdraw)
 
 
 class RtuLine:
@@ -447,14 +450,15 @@ class RtuLine:
 
     async def _answer(
         self, info: RequestInfo, pdu: bytes
-    ) -> tuple[float, bytes | None, list[DelayHold]]:
-        """The server's answer to ``pdu`` (a delay fault's delay, the reply) and the holds of
-        the delay faults that asked the delay: the line waits no longer than they last."""
-        with holding() as holds:
+    ) -> tuple[float, bytes | None, list[DelayHold], Tally]:
+        """The server's answer to ``pdu`` (a delay fault's delay, the reply), the holds of
+        the delay faults that asked the delay (the line waits no longer than they last) and
+        the faults that counted the request (taken back if it was none: :func:`_abandon`)."""
+        with holding() as holds, tallying() as tally:
             delay_s, reply = await self.server.answer(info, pdu)
         for hold in holds:
             hold.on_change = self._wake
-        return delay_s, reply, holds
+        return delay_s, reply, holds, tally
 
     def _wake(self) -> None:
         """A delay fault holding the awaited reply ended (from any thread): look again."""
@@ -484,7 +488,7 @@ class RtuLine:
         if answer is None:
             info = RequestInfo.of(unit_id, pdu, self.path, None)
             answer = asyncio.run_coroutine_threadsafe(self._answer(info, pdu), self._loop)
-        delay_s, reply, holds = self._result(answer) or (0.0, None, [])
+        delay_s, reply, holds, _ = self._result(answer) or (0.0, None, [], None)
         try:
             if reply is None:
                 return ended
@@ -555,8 +559,13 @@ class RtuLine:
                 return True
 
     async def _broadcast(self, pdu: bytes) -> None:
-        for unit_id in sorted(self.server.units - self.server.own_units):
-            await self.server.answer(RequestInfo.of(unit_id, pdu, self.path, None), pdu)
+        """Carry out a broadcast write on every instrument unit: one request, with no reply,
+        so a delay fault does not count it and another fault counts it once (three
+        broadcasts and a read were journalled as four requests of a delay on unit 1: a
+        re-probe)."""
+        with tallying(replies=False):
+            for unit_id in sorted(self.server.units - self.server.own_units):
+                await self.server.answer(RequestInfo.of(unit_id, pdu, self.path, None), pdu)
 
     def _run(self, coro) -> None:
         assert self._loop is not None
