@@ -12,7 +12,8 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e ".[test]"
 	@touch $(STAMP)
 
-# make demo DEMO_ARGS=--dashboard: real time with the live dashboard in a browser
+# make demo DEMO_ARGS=--dashboard: real time (x60: the load cycle takes about 16.5 min) with the
+# live dashboard in a browser
 demo: $(STAMP)
 	$(BIN)/python -m hil_client.demo $(DEMO_ARGS)
 

@@ -7,6 +7,7 @@ no physics, no tick, no action callback. Usage: python bench/bare_server.py PORT
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import sys
 
@@ -25,4 +26,5 @@ async def serve(port: int) -> None:
 
 if __name__ == "__main__":
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
-    asyncio.run(serve(int(sys.argv[1])))
+    with contextlib.suppress(KeyboardInterrupt):  # the terminal's Ctrl-C: the bench says it
+        asyncio.run(serve(int(sys.argv[1])))

@@ -16,6 +16,7 @@ import multiprocessing as mp
 import time
 
 from bench_modbus import DEVICE_BLOCKS, _connection, _fc4, _request
+from stopping import bench_main, quiet_child, result_of
 
 POLLERS = 16
 
@@ -69,7 +70,7 @@ def _server(speed: float, lockstep: bool):
 def _pollers(port: int, seconds: float):
     ctx = mp.get_context("spawn")
     queue = ctx.Queue()
-    proc = ctx.Process(target=_poll_process, args=(port, seconds, queue))
+    proc = ctx.Process(target=quiet_child, args=(_poll_process, port, seconds, queue), daemon=True)
     proc.start()
     return proc, queue
 
@@ -85,7 +86,7 @@ async def bench_fast_lab() -> None:
     while proc.is_alive():
         await asyncio.sleep(0.2)
     speed = (server.emulator.sim_time_s - sim0) / (time.monotonic() - wall0)
-    done, worst_s = queue.get()
+    done, worst_s = result_of(proc, queue)
     await server.stop()
     s = server.lateness.summary_ms()
     print(
@@ -106,7 +107,7 @@ async def bench_one_day_advance() -> None:
     took_s = time.monotonic() - begin
     while proc.is_alive():
         await asyncio.sleep(0.2)
-    done, worst_s = queue.get()
+    done, worst_s = result_of(proc, queue)
     await server.stop()
     print(
         f"one-day lockstep advance, lab profile: {took_s:.2f} s while {POLLERS} pollers read "
@@ -121,4 +122,4 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    bench_main(main)

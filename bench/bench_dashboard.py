@@ -17,6 +17,8 @@ import threading
 import time
 import urllib.request
 
+from stopping import bench_main
+
 from hil_client.demo import rig_emulator_serve
 from hil_client.wait_for_port import free_port, wait_for_port
 
@@ -85,4 +87,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    bench_main(main)

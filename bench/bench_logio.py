@@ -15,6 +15,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from stopping import bench_main, require_exit_zero
+
 from hil_client.cli import main as hil_client_main
 
 ROWS = 300_000
@@ -39,8 +41,7 @@ def _long_log(folder: Path) -> Path:
     code = hil_client_main(
         ["run", "load_cycle", "--boiler", "windhager_12kw", "--out", str(one), "--quiet"]
     )
-    if code != 0:
-        raise SystemExit(f"hil-client run exited {code}")
+    require_exit_zero("hil-client run load_cycle", code)
     header, *rows = one.read_text().splitlines()
     at = header.split(",").index("time_s")
     span = float(rows[-1].split(",")[at]) + 1.0
@@ -65,13 +66,14 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         log = _long_log(Path(tmp))
         size = log.stat().st_size
-        out = subprocess.run(
+        measured = subprocess.run(
             [sys.executable, "-c", MEASURE, str(log)],
             capture_output=True,
             text=True,
-            check=True,
             timeout=600,
-        ).stdout.split()
+        )
+        require_exit_zero("the read_log measurement", measured.returncode)
+        out = measured.stdout.split()
         rows, wall, added = int(out[0]), float(out[1]), float(out[2])
     print(
         f"read_log, {rows:,} rows, {size / 1e6:.0f} MB: {wall:.1f} s "
@@ -82,4 +84,4 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    bench_main(main)

@@ -30,6 +30,8 @@ import tty
 from contextlib import contextmanager
 from pathlib import Path
 
+from stopping import bench_main, quiet_child, result_of
+
 from hil_client.wait_for_port import free_port, wait_for_port
 from rig_emulator.certs import make_lab_certificates
 from rig_emulator.modbus.rtu_wire import frame, transaction_s
@@ -106,9 +108,11 @@ def _hammer_process(port: int, connections: int, certs: str | None, out) -> None
 def _rps(port: int, connections: int, certs: str | None) -> float:
     ctx = mp.get_context("spawn")
     queue = ctx.Queue()
-    proc = ctx.Process(target=_hammer_process, args=(port, connections, certs, queue))
+    proc = ctx.Process(
+        target=quiet_child, args=(_hammer_process, port, connections, certs, queue), daemon=True
+    )
     proc.start()
-    done = queue.get(timeout=120)
+    done = result_of(proc, queue)
     proc.join()
     return done / ROUND_S
 
@@ -184,4 +188,4 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    bench_main(main)

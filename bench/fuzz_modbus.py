@@ -6,8 +6,12 @@ fuzz sends batches of 1,000 frames until 200,000 frames or 60 s, whichever comes
 
 - framed batches, on one long-lived connection: valid MBAP headers around random, mutated
   and truncated PDUs (any function code, any unit). Each frame must get exactly one reply,
-  in order, whose function byte is the request's (or it with the top bit set and one of
-  the spec's exception codes);
+  in order, and the right one (:func:`_answered_correctly`): the exception code the spec
+  requires where the request is illegal in a way the fuzz can tell (a unit the map lacks
+  0B, a function not implemented 01, a quantity or structure wrong 03), else the reply of
+  its function with the spec's length and shape (a read's byte count and data for the
+  quantity asked, a write's echo) or a refusal it can get (02; 03 from a write's rules;
+  01 for a clock command on a real-time server);
 - garbage batches, on throwaway connections: random bytes, bad MBAP headers, frames cut
   short; the client then half-closes, and the server must close the connection too (a
   connection still open 5 s later counts as left hanging).
@@ -33,11 +37,13 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from stopping import bench_main
+
 from hil_client.demo import rig_emulator_serve
+from rig_emulator.registers import load_map
 
 BATCH_FRAMES = 1000
 UNITS = (1, 2, 3, 4, 5, 6, 7, 100)
-EXCEPTION_CODES = {1, 2, 3, 4, 0x0B}
 FLOW_SETPOINT = (1, 0)  # unit, holding address of the bench PLC's flow setpoint (float32 ABCD)
 
 
@@ -99,6 +105,94 @@ def _garbage(rng: random.Random, frames: int) -> bytes:
     return bytes(out)
 
 
+#: The units of the register map (the instruments', the clock's and the plant's truth).
+MAP_UNITS = {device.unit_id for device in load_map().devices}
+#: The functions the server implements (everything else: 01).
+FUNCTIONS = {1, 2, 3, 4, 5, 6, 15, 16, 23, 43}
+#: Read quantities the spec allows (6.1-6.4), and write quantities (6.11, 6.12, 6.17).
+READ_LIMITS = {1: 2000, 2: 2000, 3: 125, 4: 125}
+ILLEGAL_FUNCTION, ILLEGAL_ADDRESS, ILLEGAL_VALUE, NO_SUCH_UNIT = 0x01, 0x02, 0x03, 0x0B
+#: The clock's unit: a write there on a real-time server is refused with 01 whatever it is.
+SIM_CONTROL = 100
+
+
+def _spec_exception(unit: int, pdu: bytes) -> int | None:
+    """The exception code the spec (and the README's order of checks: unit, function,
+    quantity and structure, then address) requires for a request illegal in a way this
+    fuzz can tell from the request alone; None for one that may be legal."""
+    fc = pdu[0]
+    if unit not in MAP_UNITS:
+        return NO_SUCH_UNIT
+    if fc not in FUNCTIONS:
+        return ILLEGAL_FUNCTION
+    if fc in READ_LIMITS:
+        if len(pdu) != 5:
+            return ILLEGAL_VALUE
+        quantity = struct.unpack(">H", pdu[3:5])[0]
+        return None if 1 <= quantity <= READ_LIMITS[fc] else ILLEGAL_VALUE
+    if fc in (5, 6):
+        if len(pdu) != 5:
+            return ILLEGAL_VALUE
+        if fc == 5 and pdu[3:5] not in (b"\xff\x00", b"\x00\x00"):
+            return ILLEGAL_VALUE
+        return None
+    if fc in (15, 16):
+        if len(pdu) < 6:
+            return ILLEGAL_VALUE
+        quantity, count = struct.unpack(">H", pdu[3:5])[0], pdu[5]
+        if fc == 15:
+            right = 1 <= quantity <= 1968 and count == (quantity + 7) // 8
+        else:
+            right = 1 <= quantity <= 123 and count == 2 * quantity
+        return None if right and len(pdu) == 6 + count else ILLEGAL_VALUE
+    if fc == 23:
+        if len(pdu) < 10:
+            return ILLEGAL_VALUE
+        read_q, write_q = struct.unpack(">H", pdu[3:5])[0], struct.unpack(">H", pdu[7:9])[0]
+        count = pdu[9]
+        right = 1 <= read_q <= 125 and 1 <= write_q <= 121 and count == 2 * write_q
+        return None if right and len(pdu) == 10 + count else ILLEGAL_VALUE
+    return None  # 43: its sub-functions are not modelled here
+
+
+def _refusals(unit: int, fc: int) -> set[int]:
+    """The exception codes a request that may be legal can still get (no faults run):
+    an address the unit lacks (02), a value its write rules refuse (03), a clock command
+    on a real-time server (01)."""
+    if fc in READ_LIMITS:
+        return {ILLEGAL_ADDRESS}
+    if fc == 43:
+        return {ILLEGAL_FUNCTION, ILLEGAL_ADDRESS, ILLEGAL_VALUE}
+    return {ILLEGAL_ADDRESS, ILLEGAL_VALUE} | ({ILLEGAL_FUNCTION} if unit == SIM_CONTROL else set())
+
+
+def _answered_correctly(unit: int, pdu: bytes, reply: bytes) -> bool:
+    """Whether ``reply`` is the spec's to ``pdu`` sent to ``unit``: the exception code it
+    requires where the fuzz can tell the request is illegal; else a refusal the request
+    can get, or the reply of its function with the length and shape the spec gives (a
+    read's byte count and data for the quantity asked, a write's echo). Before, any reply
+    with the request's function byte passed, and any of 01-04 and 0B (a stranger's
+    review)."""
+    fc = pdu[0]
+    required = _spec_exception(unit, pdu)
+    if required is not None:
+        return reply == bytes([fc | 0x80, required])
+    if reply[:1] == bytes([fc | 0x80]):
+        return len(reply) == 2 and reply[1] in _refusals(unit, fc)
+    if fc in READ_LIMITS:
+        quantity = struct.unpack(">H", pdu[3:5])[0]
+        size = (quantity + 7) // 8 if fc in (1, 2) else 2 * quantity
+        return reply[:2] == bytes([fc, size]) and len(reply) == 2 + size
+    if fc in (5, 6):
+        return reply == pdu
+    if fc in (15, 16):
+        return reply == pdu[:5]
+    if fc == 23:
+        size = 2 * struct.unpack(">H", pdu[3:5])[0]
+        return reply[:2] == bytes([fc, size]) and len(reply) == 2 + size
+    return reply[:2] == bytes([43, 14]) and len(reply) >= 7  # device identification
+
+
 class _Reader:
     def __init__(self, sock: socket.socket) -> None:
         self.sock, self.data = sock, b""
@@ -138,17 +232,13 @@ def _framed_batch(port: int, sock: socket.socket | None, rng: random.Random, fir
     sender.start()
     reader = _Reader(sock)
     correct = 0
-    for (tid, _), pdu in zip(requests, pdus, strict=True):
+    for (tid, unit), pdu in zip(requests, pdus, strict=True):
         got = reader.reply()
         if got is None:
             sock.close()
             return None, correct
         reply_tid, reply = got
-        fc = pdu[0]
-        if reply_tid == tid & 0xFFFF and (
-            (reply[0] == fc and fc < 0x80)
-            or (reply[0] == fc | 0x80 and len(reply) == 2 and reply[1] in EXCEPTION_CODES)
-        ):
+        if reply_tid == tid & 0xFFFF and _answered_correctly(unit, pdu, reply):
             correct += 1
     sender.join(timeout=10)
     return sock, correct
@@ -262,4 +352,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    bench_main(main)
