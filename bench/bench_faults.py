@@ -22,7 +22,6 @@ Servers are ``rig-emulator serve`` subprocesses; load generators run in other pr
 
 from __future__ import annotations
 
-import argparse
 import asyncio
 import math
 import statistics
@@ -33,7 +32,7 @@ from pathlib import Path
 
 from bench_modbus import ROUND_S, ROUNDS, _rps, _server_step
 from rawclient import RawClient
-from stopping import bench_main
+from stopping import bench_main, sections_asked
 
 from hil_client.demo import rig_emulator_serve
 
@@ -254,25 +253,16 @@ SECTIONS = ("cost", "lockstep_timing", "realtime_timing", "throughput")
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument(
-        "sections", nargs="*", metavar="SECTION", help=f"of {', '.join(SECTIONS)} [all]"
-    )
-    args = parser.parse_args(argv)
-    unknown = [name for name in args.sections if name not in SECTIONS]
-    if unknown:
-        parser.error(f"unknown section {unknown[0]!r}: the sections are {', '.join(SECTIONS)}")
-    chosen = args.sections or SECTIONS
+    chosen = sections_asked(argv, SECTIONS, __doc__.splitlines()[0])
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        for name in SECTIONS:
-            if name in chosen:
-                {
-                    "cost": bench_fault_cost,
-                    "lockstep_timing": lambda: bench_lockstep_timing(folder),
-                    "realtime_timing": lambda: bench_realtime_timing(folder),
-                    "throughput": lambda: bench_throughput(folder),
-                }[name]()
+        for name in chosen:
+            {
+                "cost": bench_fault_cost,
+                "lockstep_timing": lambda: bench_lockstep_timing(folder),
+                "realtime_timing": lambda: bench_realtime_timing(folder),
+                "throughput": lambda: bench_throughput(folder),
+            }[name]()
     return 0
 
 

@@ -24,7 +24,6 @@ Servers and load generators run in separate processes (the machine has 2 cores).
 
 from __future__ import annotations
 
-import argparse
 import asyncio
 import multiprocessing as mp
 import socket
@@ -35,7 +34,7 @@ import sys
 import time
 from pathlib import Path
 
-from stopping import bench_main, quiet_child, require_exit_zero, result_of
+from stopping import bench_main, quiet_child, require_exit_zero, result_of, sections_asked
 
 from hil_client.wait_for_port import free_port, wait_for_port
 
@@ -431,15 +430,7 @@ SECTIONS = {
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument(
-        "sections", nargs="*", metavar="SECTION", help=f"of {', '.join(SECTIONS)} [all]"
-    )
-    args = parser.parse_args(argv)
-    unknown = [name for name in args.sections if name not in SECTIONS]
-    if unknown:
-        parser.error(f"unknown section {unknown[0]!r}: the sections are {', '.join(SECTIONS)}")
-    for name in args.sections or SECTIONS:
+    for name in sections_asked(argv, SECTIONS, __doc__.splitlines()[0]):
         SECTIONS[name]()
     return 0
 

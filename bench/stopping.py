@@ -20,11 +20,12 @@ from the script and from each load generator's process.
 
 from __future__ import annotations
 
+import argparse
 import queue
 import signal
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -97,3 +98,19 @@ def result_of(process: Any, results: Any, timeout_s: float = 120.0) -> Any:
         if time.monotonic() > deadline:
             process.terminate()
             raise BenchStopped(f"a load generator gave no count in {timeout_s:g} s")
+
+
+def sections_asked(
+    argv: list[str] | None, sections: Collection[str], description: str
+) -> list[str]:
+    """The sections a bench script's command line names (``python bench/X.py [SECTION ...]``),
+    in the script's order; all of them without a name. An unknown name is a usage error."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument(
+        "sections", nargs="*", metavar="SECTION", help=f"of {', '.join(sections)} [all]"
+    )
+    args = parser.parse_args(argv)
+    unknown = [name for name in args.sections if name not in sections]
+    if unknown:
+        parser.error(f"unknown section {unknown[0]!r}: the sections are {', '.join(sections)}")
+    return [name for name in sections if not args.sections or name in args.sections]
