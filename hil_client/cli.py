@@ -51,7 +51,7 @@ from hil_client.fault_files import EventsWriter, events_path, fault_report, writ
 from hil_client.fault_files import summary as fault_summary
 from hil_client.jsonio import strict_json
 from hil_client.lablog import DECIMALS, LabLogWriter, meta_path, same_companions, write_meta
-from hil_client.modbus_client import WRITE_FUNCTIONS
+from hil_client.modbus_client import READ_FUNCTIONS, WRITE_FUNCTIONS
 from hil_client.progress import LiveView, ProgressLine, hms
 from hil_client.protocol.definition import ProtocolError, load_protocol
 from hil_client.protocol.rig import RigError
@@ -1571,15 +1571,18 @@ def _slow_units(rig: ModbusRig, rows: int, median_s: float | None) -> str | None
     wall time between rows (``median_s`` of simulated time at the server's speed): then
     they, not the server's clock, made the rows slow (a stranger's probe: an FID that never
     answered cost every row the 5-s reply timeout, rows came 50 s apart at x10, and the
-    warning blamed the server's clock). None if no unit did."""
+    warning blamed the server's clock). Read timeouts only: a write held behind another
+    unit's slow replies times out with them, and its unit made no row slow (a re-probe: a
+    delay fault on unit 1 named unit 7 too, "unit 7 (: no reply ...)", for its coil write
+    queued behind). None if no unit did."""
     if median_s is None or not rows or rig.lockstep:
         return None
     timed_out: dict[int, set[float]] = {}
-    signals: dict[int, list[str]] = {}
+    signals: dict[int, dict[str, None]] = {}  # (in the order first named)
     for event in rig.comm_events:
-        if event.get("event") == "timeout":
+        if event.get("event") == "timeout" and event.get("function") in READ_FUNCTIONS:
             timed_out.setdefault(event["unit"], set()).add(event["time_s"])
-            signals.setdefault(event["unit"], event.get("signals", []))
+            signals.setdefault(event["unit"], {}).update(dict.fromkeys(event.get("signals", [])))
     slow = sorted(unit for unit, times in timed_out.items() if 2 * len(times) > rows)
     if not slow or len(slow) * rig.timeout_s < 0.5 * median_s / rig.speed:
         return None

@@ -16,12 +16,18 @@ requests are in flight at most (None: no limit, the rest wait and go as replies 
 server that answers a pipelined request with exception 06 (server busy) while it answers
 the earlier ones has it set to the number that were in flight, and the request is sent
 again once nothing sent before it waits (once, alone; 06 again then is the unit's own busy,
-its exception given and the window as it was); a server that answered a request sent alone
-but none sent behind another, the timeout passing, drops pipelined requests: the window
-becomes 1 and those requests go again, one at a time (a stranger's bench device that took 4
-transactions at a time stopped the run before the first row, "refused with exception 06";
-one that read one request per segment, "cannot reach ...: no reply within the timeout").
-A server that pipelines keeps the window open: nothing is held back.
+its exception given and the window as it was). One such 06 narrows the window only for a
+while: after :data:`REOPEN_AFTER` clean replies it opens again, and it is kept only when the
+server refuses what is sent behind that many once more (the evidence of a limit: twice, a
+wider window not answered in between). A 06 that went away when asked again says nothing
+of a limit by itself (a stranger's probe: a 0.5-s busy fault at a run's start, the coil
+writes behind the setpoint's answered once asked again after it, kept the window at 1 for
+the whole run: ten times the segments, a lockstep run twice as long). A server that answered
+a request sent alone but none sent behind another, the timeout passing, drops pipelined
+requests: the window becomes 1 and those requests go again, one at a time (a stranger's
+bench device that took 4 transactions at a time stopped the run before the first row,
+"refused with exception 06"; one that read one request per segment, "cannot reach ...: no
+reply within the timeout"). A server that pipelines keeps the window open: nothing is held back.
 
 Replies that name no request sent (a server that answers every request with transaction
 ID 0) are counted, and a timeout then names them ("replies came with transaction id 0, not
@@ -181,6 +187,14 @@ class _Came(NamedTuple):
 IN_ORDER_EVIDENCE = 10
 #: the most stray transaction IDs a timeout's message names
 STRAYS_NAMED = 3
+#: clean replies (no 06) after a window narrowed by one busy answer before it opens again
+#: (:attr:`Connection.window`): about two steps of ``hil-client run`` (13 to 20 requests
+#: each), so a busy moment of the server costs a few steps one at a time, never the run
+REOPEN_AFTER = 40
+#: narrowings by a pipelined 06 answered once sent alone, a wider window not answered in
+#: between, before the window is kept for good: "more than once" (a passing busy fault
+#: seldom falls twice on the very steps that try the wider window)
+BUSY_EVIDENCE = 2
 
 
 class Connection:
@@ -206,7 +220,11 @@ class Connection:
         self._corrupt = ""  # why what the server sends is no longer read (a bad frame)
         #: the most requests in flight at once (None: no limit); see the module docstring
         self.window: int | None = None
-        self._window_shown: int | None = None  # the window before a 06 not yet confirmed
+        self._window_shown: int | None = None  # the window kept (a limit shown, or none)
+        self._narrowings = 0  # narrowings by a 06 answered alone, none answered wider since
+        self._narrowed_to: int | None = None  # the window of the last narrowing (trying)
+        self._counted = False  # the last narrowing counted among them already
+        self._clean = 0  # replies with no 06 since the last narrowing
         self._unsent: deque[int] = deque()  # waiting requests not sent yet, in order sent
         self._in_flight: set[int] = set()  # sent and waiting
         self._ahead: dict[int, int] = {}  # how many were in flight when each went out
@@ -241,6 +259,8 @@ class Connection:
             self.reorders = self.reorders or earlier.reorders
             self._in_turn = max(self._in_turn, earlier._in_turn)
             self.window = self._window_shown = earlier._window_shown
+            self._narrowings = earlier._narrowings
+            self._narrowed_to = earlier._narrowed_to  # (tried again here: the window kept)
             self._busy_alone |= earlier._busy_alone
             self._pipelined_answered |= earlier._pipelined_answered
             self._alone_answered |= earlier._alone_answered
@@ -303,6 +323,7 @@ class Connection:
         ):
             return False
         self.window = self._window_shown = 1
+        self._narrowed_to = None
         for tid in list(silent):
             self._send_again(tid)
         self._transmit()
@@ -470,6 +491,8 @@ class Connection:
                 self._pipelined_answered = True
             else:
                 self._alone_answered = True
+            if not (body[0] & 0x80 and body[1:] == b"\x06"):  # (a unit's own busy: no news)
+                self._widen(ahead)
         # in turn: the first request sent after the last one answered, another after it
         after = [s.seq for s in self._waiting.values() if s.seq > self._answered_seq]
         in_turn = len(after) >= 2 and sent.seq == after[0]
@@ -499,8 +522,13 @@ class Connection:
             if busy:
                 self._busy_alone.add(sent.unit)
                 self.window = self._window_shown
-            else:
-                self._window_shown = self.window  # confirmed: fewer in flight are served
+                self._narrowed_to = None
+            elif self._narrowed_to is not None and not self._counted:
+                self._counted = True  # (once per narrowing: a step's several 06 are one)
+                self._narrowings += 1
+                if self._narrowings >= BUSY_EVIDENCE:  # a limit: fewer in flight served
+                    self._window_shown = self.window
+                    self._narrowed_to = None
             return False
         if not busy:
             self._busy_alone.discard(sent.unit)
@@ -508,10 +536,32 @@ class Connection:
         ahead = self._ahead.get(tid, 0)
         if not ahead or sent.unit in self._busy_alone:
             return False
-        self.window = ahead if self.window is None else min(self.window, ahead)
+        before = self.window
+        self.window = ahead if before is None else min(before, ahead)
+        if self.window != self._window_shown:
+            if self._narrowed_to is None or before != self._narrowed_to:
+                self._counted = False  # (a narrowing of its own, not one more 06 of it)
+            self._narrowed_to = self.window
+        self._clean = 0
         self._busy_retried.add(tid)
         self._send_again(tid)
         return True
+
+    def _widen(self, ahead: int) -> None:
+        """After a clean reply (sent behind ``ahead`` others): a window narrowed by one
+        busy answer opens again (to the one kept) after :data:`REOPEN_AFTER` of them, and a
+        reply to a request sent behind as many as it was narrowed to shows that the server
+        takes that many: the narrowing is no evidence of a limit any more."""
+        if self._narrowed_to is None:
+            return
+        if self.window != self._narrowed_to and ahead >= self._narrowed_to:
+            self._narrowings = 0
+            self._narrowed_to = None
+            return
+        self._clean += 1
+        if self._clean >= REOPEN_AFTER and self.window == self._narrowed_to:
+            self.window = self._window_shown  # (the caller sends what it lets through)
+            self._counted = False
 
     def _dropped(self, droppable: Collection[int]) -> list[int]:
         """On a connection :attr:`in_order`, with no whole frame left to read, the requests

@@ -40,7 +40,10 @@ timeout the rig reconnects, so later steps do not queue behind a slow unit (on a
 line a silent unit costs one timeout per request, one transaction at a time). The
 simulation control (unit 100) must answer: its transient exceptions (06 busy, a gateway's
 0A and 0B) are asked again after a short pause, within the reply timeout, each an
-``exception`` event with ``retried``; one that persists stops the run.
+``exception`` event with ``retried``; one that persists stops the run. A 0A or 0B before
+unit 100 has ever answered is no passing one: a server without that unit (another map)
+says so from the first request, and the run stops at once (it waited the whole reply
+timeout for the same error: a stranger's re-probe).
 
 What the Modbus specification leaves to a device is learned once and kept: a block of
 readings a unit refuses as too long (02 or 03: it may take fewer than 125 registers a read)
@@ -396,6 +399,7 @@ class ModbusRig:
         #: file): a unit that refuses its reads even in pieces, one whose coils take FC5 only
         self.notes: list[str] = []
         self._split_tried: set[tuple[int, int, int]] = set()  # reads asked in pieces once
+        self._whole_answered: set[tuple[int, int, int]] = set()  # ... answered whole once
         self._single_coil_units: set[int] = set()  # units that refused FC15: FC5 instead
         self._single_coils_said: set[int] = set()  # ... whose FC5 answered, said in notes
         self._answered_units: set[int] = set()  # units that answered a read with data
@@ -415,6 +419,7 @@ class ModbusRig:
             self._points["reset"] = register_map.point("reset")  # (optional: a rebuild)
         self._conn: Connection | None = None
         self._earlier: Connection | None = None  # the last connection closed
+        self._own_answered = False  # the simulation control answered a request with data
         self._dead = False  # the last patient wait found its connection dead (_still_coming)
         self._head_own = False  # ... and the request it was silent on was the rig's own
         self._command: RigCommand | None = None
@@ -624,8 +629,9 @@ class ModbusRig:
             return
         read = self._status_plan[0]
         count = IN_ORDER_EVIDENCE + 1
-        conn.send([(read.unit, read_pdu(read.function, read.start, read.count))] * count)
-        conn.receive_all(count)
+        requests = [(read.unit, read_pdu(read.function, read.start, read.count))] * count
+        conn.send(requests)
+        self._note_own_answers(requests, conn.receive_all(count)[0])
 
     def _reconnect(self, reason: str, lost: str) -> dict[str, float]:
         """Connect again (with backoff); the server's status once back (``lost``: the
@@ -679,10 +685,24 @@ class ModbusRig:
     def _transient(self, exc: ModbusExceptionResponse, requests: list[tuple[int, bytes]]) -> bool:
         """Whether ``exc``, to one of ``requests``, is the simulation control's transient
         refusal of reads alone (asked again as they are: a write is not)."""
+        return self._passing(exc) and all(pdu[0] in READ_FUNCTIONS for _, pdu in requests)
+
+    def _passing(self, reply: Reply) -> bool:
+        """Whether ``reply`` is the simulation control's transient exception
+        (:data:`TRANSIENT_CODES`): a gateway's 0A or 0B only once the unit has answered
+        (before, it is a server without that unit: a map question, told at once)."""
         return (
-            exc.unit in self._own_units
-            and exc.code in TRANSIENT_CODES
-            and all(pdu[0] in READ_FUNCTIONS for _, pdu in requests)
+            isinstance(reply, ModbusExceptionResponse)
+            and reply.unit in self._own_units
+            and reply.code in TRANSIENT_CODES
+            and (reply.code == 0x06 or self._own_answered)
+        )
+
+    def _note_own_answers(self, requests: list[tuple[int, bytes]], replies: list[Reply]) -> None:
+        """Take note of a reply with data from the simulation control among ``replies``."""
+        self._own_answered = self._own_answered or any(
+            isinstance(reply, bytes) and unit in self._own_units
+            for (unit, _), reply in zip(requests, replies, strict=False)
         )
 
     def _transient_pauses(self) -> Iterator[bool]:
@@ -724,6 +744,7 @@ class ModbusRig:
                                     self._conn.receive()
                         raise
                     times.append(time.monotonic())
+                self._note_own_answers(requests, replies)
                 return replies  # type: ignore[return-value]
             everything = range(len(requests))
             replies, times = self._conn.receive_all(
@@ -733,6 +754,7 @@ class ModbusRig:
             if len(times) < len(requests):  # (the one that failed waited till now)
                 times.append(time.monotonic())
             self._account(requests, sent, times)
+        self._note_own_answers(requests, replies)
         for reply in replies:
             if isinstance(reply, NoReply):
                 self._connect(abort=True)
@@ -794,13 +816,7 @@ class ModbusRig:
         as they were: the same values)."""
         replies = self._exchange_tolerant_once(requests, own, patient, clock_read)
         pauses = self._transient_pauses()
-        while again := [
-            i
-            for i, ((unit, _), reply) in enumerate(zip(requests, replies, strict=True))
-            if unit in self._own_units
-            and isinstance(reply, ModbusExceptionResponse)
-            and reply.code in TRANSIENT_CODES
-        ]:
+        while again := [i for i, reply in enumerate(replies) if self._passing(reply)]:
             for i in again:
                 refused = replies[i]
                 assert isinstance(refused, ModbusExceptionResponse)
@@ -848,6 +864,7 @@ class ModbusRig:
             self._account(requests, sent, [time.monotonic()])
             raise
         self._account(requests, sent, times, clock_read)
+        self._note_own_answers(requests, replies)
         previous = sent
         for (unit, pdu), reply, at in zip(requests, replies, times, strict=True):
             late = at - previous > LATE_S
@@ -895,7 +912,16 @@ class ModbusRig:
         rows without a flow, a temperature or an O2, exit 0: a stranger's probe). Learned
         once per read and kept: the pieces that answered replace it in :attr:`_reads` (the
         pieces it refuses too stay, their fields empty); where no piece answers, it stays
-        whole and :attr:`notes` says so once. Returns the replies of the new :attr:`_reads`."""
+        whole and :attr:`notes` says so once. A block its unit answered whole before is never
+        asked so: its refusal is a passing one (an ``exception`` fault; a 10-s fault was
+        taken for a device that cannot take the block, five events for one row and a note
+        that its fields are empty while it does: a stranger's re-probe). Returns the
+        replies of the new :attr:`_reads`."""
+        self._whole_answered.update(
+            (read.unit, read.function, read.start)
+            for read, reply in zip(self._reads, replies, strict=True)
+            if isinstance(reply, bytes) and len(read.points) > 1
+        )
         refused = [
             i
             for i, (read, reply) in enumerate(zip(self._reads, replies, strict=True))
@@ -924,13 +950,16 @@ class ModbusRig:
 
     def _too_long(self, read: _Read, reply: Reply) -> bool:
         """Whether ``reply`` refuses ``read``, an instrument's of two points or more not yet
-        asked in pieces, as a read its unit may take only in pieces."""
+        asked in pieces and never answered whole, as a read its unit may take only in
+        pieces."""
+        key = (read.unit, read.function, read.start)
         return (
             isinstance(reply, ModbusExceptionResponse)
             and reply.code in _TOO_LONG
             and read.unit not in self._own_units
             and len(read.points) > 1
-            and (read.unit, read.function, read.start) not in self._split_tried
+            and key not in self._split_tried
+            and key not in self._whole_answered
         )
 
     def _refused_event(self, read: _Read, reply: Reply) -> None:
@@ -1096,13 +1125,15 @@ class ModbusRig:
         or FC15 for coils; one without it ran a whole protocol with the burner off, exit 0:
         a stranger's probe); learned: that unit's coils go as FC5 from then on, said once in
         :attr:`notes`. ``requests`` takes the FC5 requests in their places (a lockstep step's
-        journal is that list: a replay sends what the unit takes)."""
+        journal is that list: a replay sends what the unit takes). Not over Modbus/TCP
+        Security: there a 01 is the client's role refusing writes (an observer's FC15 was
+        taken for a unit without it, every coil asked again as FC5, refused too)."""
         refused = [
             i
             for i, ((unit, pdu), reply) in enumerate(zip(requests, replies, strict=True))
             if pdu[0] == 15 and isinstance(reply, ModbusExceptionResponse) and reply.code == 1
         ]
-        if not refused:
+        if not refused or self.url.startswith("modbus+tls://"):
             return replies
         self._single_coil_units |= {requests[i][0] for i in refused}
         for i in refused:

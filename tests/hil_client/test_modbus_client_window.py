@@ -13,7 +13,12 @@ import pytest
 
 from hil_client.analysis.logio import read_log
 from hil_client.cli import main
-from hil_client.modbus_client import Connection, ModbusExceptionResponse, read_pdu
+from hil_client.modbus_client import (
+    REOPEN_AFTER,
+    Connection,
+    ModbusExceptionResponse,
+    read_pdu,
+)
 from tests.hil_client.rigs.plc_h import QuirkyDevice
 
 #: the stranger's short protocol (/tmp quick.yaml): about 250 simulated seconds
@@ -55,6 +60,35 @@ def device():
         relay.close()
 
 
+class _Connections:
+    """The client's connections as it opens them, and the segments they send (each send of
+    one or more requests): what a run did with its window, watched, not changed."""
+
+    def __init__(self) -> None:
+        self.opened: list[Connection] = []
+        self.segments = 0
+
+
+@pytest.fixture
+def connections(monkeypatch) -> _Connections:
+    """Watch the :class:`Connection` s of a run (:class:`_Connections`)."""
+    seen = _Connections()
+    init, transmit = Connection.__init__, Connection._transmit
+
+    def watched_init(self, *args, **kwargs) -> None:
+        init(self, *args, **kwargs)
+        seen.opened.append(self)
+
+    def watched_transmit(self) -> None:
+        unsent = len(self._unsent)
+        transmit(self)
+        seen.segments += unsent != len(self._unsent)
+
+    monkeypatch.setattr(Connection, "__init__", watched_init)
+    monkeypatch.setattr(Connection, "_transmit", watched_transmit)
+    return seen
+
+
 def _run(tmp_path: Path, port: int, *extra: str) -> tuple[int, Path]:
     protocol = tmp_path / "quick.yaml"
     protocol.write_text(PROTOCOL)
@@ -70,7 +104,7 @@ def _events(out: Path) -> list[dict]:
 
 
 def test_a_device_taking_four_transactions_at_a_time_gets_a_whole_run(
-    serve_process, device, tmp_path, capsys
+    serve_process, device, tmp_path, capsys, connections
 ):
     """A stranger's probe: a device that takes 4 outstanding transactions and answers 06
     (server busy) to the rest, as the TCP guide allows, stopped the run before its first
@@ -84,9 +118,34 @@ def test_a_device_taking_four_transactions_at_a_time_gets_a_whole_run(
     log = read_log(out)
     assert len(log) > 100  # (about 250 rows of 1 s: the protocol ran)
     assert not any(e["event"] == "exception" for e in _events(out))
+    # the limit is kept once shown twice (the window narrowed at the first burst, opened
+    # again after REOPEN_AFTER clean replies, narrowed once more): 4, not opened again
+    assert connections.opened and connections.opened[-1].window == 4
     # the busy answers came while the client learnt the limit, not every step: fewer than
-    # one step's requests (it was 06 to 9 of the first 13, then the run stopped)
-    assert 0 < relay.busy_answers < STEP_REQUESTS
+    # two steps' requests (two narrowings; it was 06 to 9 of the first 13, then the run
+    # stopped)
+    assert 0 < relay.busy_answers < 2 * STEP_REQUESTS
+
+
+def test_a_passing_busy_fault_does_not_narrow_the_window_for_good(
+    serve_process, tmp_path, capsys, connections
+):
+    """A stranger's re-probe: a 0.5-s busy fault (exception 06 on unit 1) at a lockstep
+    run's start: the coil writes queued behind the setpoint write got 06, were asked again
+    alone after the step's advance (the fault over), were answered, and the window of 1 was
+    kept for the whole run: 1818 segments instead of 184, the run twice as long."""
+    faults = tmp_path / "faults.yaml"
+    faults.write_text("faults:\n  - {kind: exception, unit: 1, code: 6, at_s: 0, for_s: 0.5}\n")
+    server = serve_process("--boiler", "windhager_12kw", "--lockstep", "--faults", str(faults))
+    code, out = _run(tmp_path, server.port)
+    err = capsys.readouterr().err
+    assert code == 0, err
+    rows = len(read_log(out))
+    assert rows > 100  # (about 250 rows of 1 s: the protocol ran)
+    assert [conn.window for conn in connections.opened] == [None]  # opened again
+    # a step is one segment with the window open (the connect's reads and the first
+    # REOPEN_AFTER replies one at a time aside); one at a time it was seven a row
+    assert connections.segments < rows + REOPEN_AFTER
 
 
 def test_a_device_that_drops_pipelined_requests_is_read_one_at_a_time(
@@ -159,3 +218,23 @@ def test_slow_rows_name_the_unit_that_timed_out_not_the_servers_clock(
     assert "ran faster than the client could read" not in warning
     meta = json.loads(out.with_name(out.stem + ".meta.json").read_text())
     assert any("each row waited for unit 3" in note for note in meta["notes"])
+
+
+def test_slow_rows_name_the_unit_whose_reads_timed_out_with_its_readings(
+    serve_process, tmp_path, capsys
+):
+    """A stranger's re-probe: a 3-s delay fault on unit 1 (real time, reply timeout 1 s):
+    the warning named unit 1 with no readings ("unit 1 (: no reply ...") and unit 7, which
+    has no fault: its only timeouts were its coil write held behind unit 1's delayed
+    replies. Read timeouts only count, and the unit is named with its readings."""
+    faults = tmp_path / "faults.yaml"
+    faults.write_text("faults:\n  - {kind: delay, unit: 1, delay_ms: 3000}\n")
+    server = serve_process("--boiler", "windhager_12kw", "--speed", "20", "--faults", str(faults))
+    code, out = _run(tmp_path, server.port, "--reply-timeout", "1")
+    err = capsys.readouterr().err
+    assert code == 0, err
+    # unit 7's coil writes did time out behind unit 1 (what misled the warning)
+    assert any(e["unit"] == 7 and e["event"] == "timeout" for e in _events(out))
+    warning = next(line for line in err.splitlines() if "rows came" in line)
+    assert "each row waited for unit 1 (water_flow_kg_h, water_in_temp_C, " in warning
+    assert "unit 7" not in warning and "(: " not in warning, warning

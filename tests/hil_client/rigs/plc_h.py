@@ -5,8 +5,11 @@ back, with one quirk a device written from the docs may have (a stranger's bench
 - ``busy``: it takes at most ``limit`` transactions at once and answers exception 06 (server
   busy) to a request that comes while that many are outstanding (the TCP guide lets a
   device handle fewer transactions at once than a client sends);
-- ``one_at_a_time``: a request that comes while another is outstanding is dropped without a
-  reply (a device that reads one request per segment);
+- ``one_at_a_time``: a request that comes while another is outstanding, or behind another
+  in the same segment, is dropped without a reply (a device that reads one request per
+  segment; the segment rule makes it drop pipelined requests whatever the timing: by the
+  outstanding rule alone, a reply that came back before the relay read on let the next one
+  through, and a run seen answering pipelined requests did not fall back);
 - ``tid0``: every reply carries transaction ID 0, not its request's;
 - ``silent_unit``: requests to the unit ``limit`` get no reply (an absent instrument).
 
@@ -63,6 +66,7 @@ class QuirkyDevice:
         with contextlib.suppress(OSError):
             while chunk := client.recv(65536):
                 buffer += chunk
+                first_of_segment = True
                 while len(buffer) >= 7:
                     tid, _, length, unit = HEADER.unpack(buffer[:7])
                     if len(buffer) < 6 + length:
@@ -75,12 +79,13 @@ class QuirkyDevice:
                                 HEADER.pack(tid, 0, 3, unit) + bytes([frame[7] | 0x80, 6])
                             )
                             continue
-                        if (self.quirk == "one_at_a_time" and outstanding) or (
-                            self.quirk == "silent_unit" and unit == self.limit
-                        ):
+                        if (
+                            self.quirk == "one_at_a_time" and (outstanding or not first_of_segment)
+                        ) or (self.quirk == "silent_unit" and unit == self.limit):
                             self.dropped += 1
                             continue
                         outstanding.add(tid)
+                        first_of_segment = False
                     upstream.sendall(frame)
         self._close(client, upstream)
 

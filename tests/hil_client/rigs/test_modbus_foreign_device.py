@@ -16,6 +16,7 @@ import numpy as np
 
 from hil_client.analysis.logio import read_log
 from hil_client.cli import main
+from hil_client.modbus_client import IN_ORDER_EVIDENCE
 from hil_client.protocol.rig import RigCommand
 from hil_client.rigs.modbus import ModbusRig
 from rig_emulator.registers import load_map
@@ -230,3 +231,84 @@ def test_transient_exceptions_of_the_simulation_control_are_asked_again(tmp_path
     # bounded by the reply timeout (1 s) with the run around it; an unbounded retry would
     # run on for the protocol's 110 s (generous: the machine is shared)
     assert took < 30.0
+
+
+def test_a_server_without_the_simulation_control_is_told_at_once(tmp_path, capsys):
+    """A stranger's re-probe: a server without unit 100 (its map had the simulation control
+    at unit 99; the emulator answers 0B for a unit it does not have) took the whole
+    --reply-timeout (21 s with 20) asking again before the same one-line error, which came
+    at once before 0A and 0B were taken for passing. A 0B from the very first request is a
+    map question: told at once, the unit asked no more than it takes to find out."""
+    for code in (0x0B, 0x0A):
+        with ForeignDevice(Quirks(sim_control_exceptions=lambda n, c=code: c)) as device:
+            assert _run(device, tmp_path, "--reply-timeout", "20") == 1
+            asked = [r for r in device.requests if r[0] == 100]
+        err = capsys.readouterr().err
+        assert f"unit 100: function 4 refused with exception {code:02X}" in err, err
+        # the 11 pipelined reads showing the order it answers in, and the two of its status
+        # and clock (asked again with pauses doubling up to 1 s, 20 s of reply timeout took
+        # 25 more)
+        assert len(asked) == IN_ORDER_EVIDENCE + 1 + 2, asked
+
+
+def test_a_passing_refusal_of_a_block_answered_before_is_no_device_limit(
+    serve_process, tmp_path, capsys
+):
+    """A stranger's re-probe: emulator exception faults answering 03 (10 s on unit 2) and 02
+    (5 s on unit 1) were taken for a device that cannot take the block: asked in halves,
+    a warning and a meta note that the unit refused the read "in pieces down to one point
+    at a time too: those fields are empty while it does", five exception events for the
+    fault's first row instead of one. A block its unit answered whole is not asked in
+    pieces: the rows' fields empty, one event a row, the block whole again after."""
+    faults = tmp_path / "faults.yaml"
+    faults.write_text(
+        "faults:\n"
+        "  - {kind: exception, unit: 2, code: 3, at_s: 30, for_s: 10}\n"
+        "  - {kind: exception, unit: 1, code: 2, at_s: 60, for_s: 5}\n"
+    )
+    server = serve_process("--boiler", "windhager_12kw", "--lockstep", "--faults", str(faults))
+    assert _run(server, tmp_path) == 0
+    err = capsys.readouterr().err
+    assert "in pieces" not in err, err
+    meta = json.loads((tmp_path / "log.meta.json").read_text())
+    assert not any("in pieces" in note for note in meta["notes"]), meta["notes"]
+    refused = [e for e in _events(tmp_path) if e["event"] == "exception" and e["function"] < 5]
+    per_row = {(e["unit"], e["function"], e["time_s"], *e["signals"]) for e in refused}
+    assert len(per_row) == len(refused), refused  # one event a read and row
+    assert {(e["unit"], e["code"]) for e in refused} == {(2, 3), (1, 2)}
+    # the analyser's whole block each row (its six readings in 11 registers), never halves
+    assert {len(e["signals"]) for e in refused if e["unit"] == 2} == {6}
+    log = read_log(tmp_path / "log.csv")
+    after = log["time_s"] >= 70  # (both faults over: every reading there)
+    for signal in (*UNIT_1_READINGS, "flue_gas_O2_pct", "flue_gas_CO2_pct"):
+        assert np.all(np.isfinite(log[signal][after])), signal
+
+
+def test_a_tls_roles_refusal_of_fc15_is_not_taken_for_a_device_without_it(tmp_path, serve):
+    """A stranger's re-probe: a TLS observer's coil writes refused with 01 (its role may
+    not write) were taken for a unit without FC15: every coil asked again as FC5, refused
+    too, and the unit's coils went as FC5 for the rest of the run. Over Modbus/TCP Security
+    a 01 to FC15 is the role's: no FC5."""
+    from rig_emulator.certs import make_lab_certificates
+    from rig_emulator.modbus.roles import DEFAULT_POLICY
+    from rig_emulator.modbus.tls import server_context
+    from rig_emulator.modbus.transports import Transports
+
+    certs = tmp_path / "certs"
+    make_lab_certificates(certs)
+    context = server_context(certs / "server.pem", certs / "server.key", certs / "ca.pem")
+    srv = serve(lockstep=False, speed=30.0, ssl_context=context)
+
+    async def roles() -> None:
+        Transports(srv.server.modbus_server).authorise(DEFAULT_POLICY)
+
+    srv.call(roles())
+    protocol = tmp_path / "foreign.yaml"
+    protocol.write_text(PROTOCOL)
+    tls = ["--tls-cert", str(certs / "observer.pem"), "--tls-key", str(certs / "observer.key")]
+    rig = ["--rig", f"modbus+tls://127.0.0.1:{srv.port}", *tls, "--tls-ca", str(certs / "ca.pem")]
+    argv = ["run", str(protocol), "--boiler", "windhager_12kw", "--quiet", *rig]
+    assert main([*argv, "--out", str(tmp_path / "log.csv")]) == 0
+    refused = [e for e in _events(tmp_path) if e["event"] == "exception" and e["code"] == 1]
+    assert any(e["function"] == 15 for e in refused), refused  # (the role's refusals)
+    assert not any(e["function"] == 5 for e in refused), refused
