@@ -10,6 +10,7 @@ import asyncio
 import csv
 import json
 import logging
+import signal
 import threading
 from collections.abc import Iterator
 from concurrent.futures import Future
@@ -25,6 +26,18 @@ from rig_emulator.modbus import BenchServer
 from rig_emulator.registers import load_map
 
 logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
+
+
+@pytest.fixture(autouse=True)
+def _ctrl_c_as_a_terminal_gives_it() -> None:
+    """Each test starts with Ctrl-C as a terminal gives it to a command: SIGINT handled
+    (Python's default handler). An ignored SIGINT is inherited by every process a test
+    starts, which then cannot be interrupted: a test of Ctrl-C failed in a CI run whose
+    worker an earlier test had left ignoring it (code that ends a command ignores SIGINT
+    from there on: serve's stop, the launchers' exit); the same test passes alone."""
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
 
 BOILERS = ("windhager_12kw", "windhager_6kw")
 
