@@ -8,7 +8,6 @@ import contextlib
 import logging
 import os
 import re
-import struct
 import time
 from collections.abc import Callable, Iterator
 
@@ -21,7 +20,6 @@ from tests.rig_emulator.transports.served import RtuClient
 
 BAUD = 19200
 BURST_BYTES = 64 * 1024  # the stranger's burst
-READ = struct.pack(">BHH", 4, 0, 2)  # FC4 of 2 registers; its reply starts 04 04
 #: "(N bytes since the last such line" of the first line, ": N more bytes discarded" of
 #: those that say the rest
 SAID = re.compile(r"\((\d+) bytes since the last such line|: (\d+) more bytes discarded")
@@ -59,12 +57,16 @@ def noisy_line(serve) -> Iterator[tuple[RtuLine, Callable[[], None]]]:
         client = RtuClient(line.path)
         try:
             os.write(client.fd, os.urandom(BURST_BYTES))
-            # asked until answered: then the line has read the whole burst (2 s a try, 30 s
-            # in all: it owes 0.15 s after a burst, the rest is a loaded machine's room)
+            # until the line has read the burst: all of it discarded but the line time it
+            # may owe (30 s at most, a loaded machine's room; the line answering after a
+            # burst is test_rtu_burst's: in one CI run at three workers an answer asked
+            # for here did not come within 30 s)
             deadline = time.monotonic() + 30.0
-            while not client.exchange(1, READ, timeout_s=2.0) and time.monotonic() < deadline:
-                pass
-            assert line.transactions >= 1, "the line never answered after the burst"
+            while (
+                line.discarded <= BURST_BYTES - 10 * rtu.OWED_CHARACTERS
+                and time.monotonic() < deadline
+            ):
+                time.sleep(0.05)
         finally:
             client.close()
         yield line, stop
@@ -82,7 +84,7 @@ def test_a_bursts_discarded_bytes_are_all_said_by_the_stop(serve, caplog):
         assert len(_said(caplog)) == 1  # within its minute: the first line only
         stop()
     said = _said(caplog)
-    # the burst's bytes beyond the line time it may owe, nearly all of them
+    # the burst's bytes beyond the line time it may owe, nearly all of them (waited for)
     assert line.discarded > BURST_BYTES - 10 * rtu.OWED_CHARACTERS, line.discarded
     assert sum(said) == line.discarded, (said, line.discarded)
     assert len(said) == 2  # the first line, and the rest in one
