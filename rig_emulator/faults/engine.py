@@ -718,11 +718,13 @@ def _end_s(fault: ActiveFault, t_sim_s: float) -> float:
 
 
 def _combine(faults: list[ActiveFault]) -> tuple[CommDecision, tuple[ActiveFault, ...]]:
-    """One decision from several communication faults on a unit (oldest first), and the
-    faults whose effect it serves, which alone count its requests: no reply wins (the
-    newest such fault; nothing else reaches the client), else the newest exception and the
-    longest delay (the newest of equal ones), each fault overridden by another of its kind
-    serving nothing."""
+    """One decision from several communication faults on a unit, and the faults whose
+    effect it serves, which alone count its requests. ``faults`` come as the all-units
+    faults (unit 0) and then the unit's own, each oldest first, and of a kind the last one
+    wins: the unit's own over an all-units fault, then the newest (a re-probe: an 06 set on
+    unit 2 still answered after a newer 0B on every unit). No reply wins over everything
+    (nothing else reaches the client); else the last exception and the longest delay (the
+    last of equal ones). A fault another of its kind overrides serves nothing."""
     dropping: ActiveFault | None = None
     excepting: ActiveFault | None = None
     delaying: ActiveFault | None = None
