@@ -98,6 +98,30 @@ class Assessment:
 
 
 @dataclass(frozen=True)
+class GridSSE:
+    """Sums of squares of a candidate's residual per grid point and block
+    (:meth:`CurveCandidate.grid_sse`)."""
+
+    blocks: list[tuple]
+    thetas: list[dict[str, float]]
+    #: per grid point: the sum of squares on each of ``blocks``
+    table: list[list[float]]
+
+    def best(self, blocks: list[tuple]) -> dict[str, float]:
+        """The first grid point of least sum of squares on ``blocks`` (some of the table's,
+        summed in the order given)."""
+        index = {id(b): i for i, b in enumerate(self.blocks)}
+        columns = [index[id(b)] for b in blocks]
+        best, best_sse = None, math.inf
+        for theta, row in zip(self.thetas, self.table, strict=True):
+            sse = sum(row[i] for i in columns)
+            if sse < best_sse:
+                best, best_sse = theta, sse
+        assert best is not None
+        return best
+
+
+@dataclass(frozen=True)
 class CurveCandidate:
     effect: str
     signal: str
@@ -145,17 +169,22 @@ class CurveCandidate:
         carried = float(np.mean(before)) if len(before) else float(r[anchor])
         return r[rows] - carried * carried_share(case, anchor)[rows]
 
-    def fit(self, case: Case, blocks: list[tuple]) -> dict[str, float]:
+    def grid_sse(self, case: Case, blocks: list[tuple]) -> GridSSE:
+        """Each point of the grid with the sum of squares of its residual on each block:
+        the residual over the whole log is computed once per point, and every fit on any
+        set of the blocks (the folds' and the final one) is read from the table."""
         names = list(self.grid)
-        best, best_sse = None, math.inf
+        thetas, table = [], []
         for point in np.array(np.meshgrid(*self.grid.values())).reshape(len(names), -1).T:
             theta = dict(zip(names, point.tolist(), strict=True))
             full = self.residual(case, theta)
-            sse = sum(float(np.sum(self.block_residual(case, full, b) ** 2)) for b in blocks)
-            if sse < best_sse:
-                best, best_sse = theta, sse
-        assert best is not None
-        return best
+            thetas.append(theta)
+            table.append([float(np.sum(self.block_residual(case, full, b) ** 2)) for b in blocks])
+        return GridSSE(blocks, thetas, table)
+
+    def fit(self, case: Case, blocks: list[tuple]) -> dict[str, float]:
+        """The grid point of least squares on ``blocks``."""
+        return self.grid_sse(case, blocks).best(blocks)
 
     def decide(self, units: Sequence[BlockGain]) -> tuple[bool, float, str]:
         ev = Evidence(tuple(units))
@@ -178,13 +207,22 @@ class CurveCandidate:
 
     def assess(self, case: Case) -> Assessment:
         blocks = self.blocks(case)
+        table = self.grid_sse(case, blocks) if blocks else None
+        residuals: dict[tuple | None, np.ndarray] = {}  # per theta scored (None: the base)
+
+        def block_residual(theta: dict[str, float] | None, block: tuple) -> np.ndarray:
+            key = None if theta is None else tuple(theta.items())
+            if key not in residuals:
+                residuals[key] = self.residual(case, theta)
+            return self.block_residual(case, residuals[key], block)
+
         ev, _ = cross_validate(
             blocks,
-            lambda train: self.fit(case, train),
-            lambda theta, block: self.block_residual(case, self.residual(case, theta), block),
+            lambda train: table.best(train),
+            block_residual,
             NOISE_FLOOR[self.signal],
         )
-        theta = self.fit(case, blocks) if blocks else {}
+        theta = table.best(blocks) if table else {}
         before, after = ev.rmsd() if ev.blocks else (math.nan, math.nan)
         decide = self.decide
         # without a fingerprint of its own, the mark is the RMSD it removes where it acts
