@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 import queue
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -89,38 +90,47 @@ def test_a_second_demo_on_the_same_out_dir_changes_nothing(tmp_path):
     assert f"modbus://127.0.0.1:{port}`" in (tmp_path / "report.md").read_text()
 
 
+@pytest.fixture(scope="module")
+def complete_demo(tmp_path_factory) -> tuple[Path, str]:
+    """One demo run to completion (its out_dir and everything it printed), shared by the
+    tests that read it or copy it: each demo costs about 10 s of CPU."""
+    out = tmp_path_factory.mktemp("complete_demo")
+    code, said = _Demo(out).finish()
+    assert code == 0, said
+    return out, said
+
+
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
-def test_an_interrupted_demo_leaves_the_complete_one_whole(tmp_path, signum):
+def test_an_interrupted_demo_leaves_the_complete_one_whole(complete_demo, tmp_path, signum):
     """A stranger's probe: a demo interrupted after a complete one left out/demo mixed
     (report.md and the figure of the complete run beside the interrupted run's log and
     server.log), the complete log set aside as NAME.previousN.csv, one more copy per
     interrupted demo. Now the complete demo stays whole, and the interrupted one is kept
     in incomplete/, which holds the last one only."""
-    code, said = _Demo(tmp_path).finish()
-    assert code == 0, said
-    complete = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
+    out = tmp_path / "demo"
+    shutil.copytree(complete_demo[0], out)
+    complete = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
     assert {"short_protocol.csv", "report.md", "server.log"} <= set(complete)
     for attempt in range(2):
-        demo = _Demo(tmp_path)
+        demo = _Demo(out)
         demo.wait_for(r"hil-client: t0 at")  # rows are being written
         os.kill(demo.process.pid, signum)
         code, said = demo.finish()
         assert code != 0 and "Traceback" not in said, said
-        assert f"kept in {tmp_path / 'incomplete'}/" in said, said
-        now = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
+        assert f"kept in {out / 'incomplete'}/" in said, said
+        now = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
         assert now == complete, attempt  # nothing replaced, nothing set aside beside it
-        kept = sorted(p.name for p in (tmp_path / "incomplete").iterdir())
+        kept = sorted(p.name for p in (out / "incomplete").iterdir())
         assert "short_protocol.csv" in kept and "server.log" in kept, kept
-        rows = (tmp_path / "incomplete" / "short_protocol.csv").read_text().count("\n")
+        rows = (out / "incomplete" / "short_protocol.csv").read_text().count("\n")
         assert 1 < rows < complete["short_protocol.csv"].count(b"\n")
-    assert sorted(p.name for p in tmp_path.iterdir() if p.is_dir()) == ["incomplete"]
+    assert sorted(p.name for p in out.iterdir() if p.is_dir()) == ["incomplete"]
 
 
-def test_the_demo_says_what_each_fuel_figure_is(tmp_path):
+def test_the_demo_says_what_each_fuel_figure_is(complete_demo):
     """A stranger's probe: the demo's summary gave the test phase's fuel as 7.44 kg and
     report.md 7.47 kg, both called fuel. The summary's is the balance's loss, the report's
     the fuel as received (the ash left in the boiler added back): each now says so."""
-    code, said = _Demo(tmp_path).finish()
-    assert code == 0, said
+    out, said = complete_demo
     note = "'fuel kg (a.r.)' is the fuel as received, that loss with the ash"
-    assert note in said and note in (tmp_path / "report.md").read_text()
+    assert note in said and note in (out / "report.md").read_text()

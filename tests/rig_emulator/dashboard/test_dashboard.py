@@ -217,16 +217,16 @@ def test_idle_streams_never_lock_a_new_viewer_out(dashboard):
         (b"GET / HTTP/1.1\r\nX: " + b"a" * 70_000 + b"\r\n\r\n", b"400"),
     ],
 )
-def test_bad_requests_get_an_answer_and_the_server_lives_on(dashboard, request_bytes, status):
-    _, http = dashboard()
+def test_bad_requests_get_an_answer_and_the_server_lives_on(served_once, request_bytes, status):
+    _, http = served_once("--lockstep")
     with socket.create_connection(("127.0.0.1", http), timeout=10) as s:
         s.sendall(request_bytes)
         assert s.recv(64).split(b" ")[1] == status
     assert _get(http, "/api/state")[0] == 200
 
 
-def test_the_page_ships_everything_it_needs(dashboard):
-    _, http = dashboard()
+def test_the_page_ships_everything_it_needs(served_once):
+    _, http = served_once("--lockstep")
     status, kind, page = _get(http, "/")
     assert status == 200 and kind.startswith("text/html")
     # no internet: nothing is loaded from another host

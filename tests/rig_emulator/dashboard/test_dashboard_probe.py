@@ -214,10 +214,10 @@ def test_the_api_shows_each_reading_as_its_registers_carry_it(served):
         (b"GET /" + b"a" * 70_000 + b" HTTP/1.1\r\n\r\n", (b"414", b"", b"4096")),
     ],
 )
-def test_http_methods_paths_and_lengths(served, request_bytes, expect):
+def test_http_methods_paths_and_lengths(served_once, request_bytes, expect):
     """A stranger's probe: HEAD / got 405, a 405 carried no Allow, GET //api/state said
     "no such page: /state", a URL of 5000 bytes got 400 "headers too long"."""
-    _, http = served("--lockstep")
+    _, http = served_once("--lockstep")
     status, header, in_body = expect
     answer = _raw(http, request_bytes)
     head, _, body = answer.partition(b"\r\n\r\n")
@@ -231,10 +231,10 @@ def test_http_methods_paths_and_lengths(served, request_bytes, expect):
 
 
 @pytest.mark.parametrize("body", [b"", b"  ", b"signal=speed_factor"])
-def test_an_empty_or_non_json_control_body_says_not_json(served, body):
+def test_an_empty_or_non_json_control_body_says_not_json(served_once, body):
     """A stranger's probe: an empty body to /api/control was read as {} and answered
     "signal: expected one of ...", as if the signal were missing."""
-    _, http = served("--lockstep", "--http-control")
+    _, http = served_once("--lockstep", "--http-control")
     for path in ("/api/control", "/api/faults"):
         status, answer = _post(http, body, path)
         assert status == 400 and "not JSON" in answer["error"], (path, answer)
