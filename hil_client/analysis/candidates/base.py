@@ -182,10 +182,6 @@ class CurveCandidate:
             table.append([float(np.sum(self.block_residual(case, full, b) ** 2)) for b in blocks])
         return GridSSE(blocks, thetas, table)
 
-    def fit(self, case: Case, blocks: list[tuple]) -> dict[str, float]:
-        """The grid point of least squares on ``blocks``."""
-        return self.grid_sse(case, blocks).best(blocks)
-
     def decide(self, units: Sequence[BlockGain]) -> tuple[bool, float, str]:
         ev = Evidence(tuple(units))
         z = ev.z

@@ -65,7 +65,6 @@ def test_the_table_fits_every_set_of_blocks_as_a_direct_search_does():
             assert fit == _direct_fit(candidate, case, list(train))
             fits.add(tuple(fit.values()))
     assert len(fits) > 5  # the sets of blocks disagree: the test tells them apart
-    assert candidate.fit(case, blocks) == _direct_fit(candidate, case, blocks)
 
 
 def test_a_tie_goes_to_the_first_grid_point():
