@@ -77,7 +77,12 @@ def read_jsonl(path: Path, what: str, notes: list[str] | None = None) -> list[di
     out = []
     if Path(path).exists() and not Path(path).is_file():  # a FIFO or a device: read forever
         raise ValueError(f"{path}: not a regular file ({what})")
-    text = Path(path).read_text(encoding="utf-8")
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:  # the error named no file (a stranger's probe)
+        raise ValueError(
+            f"{path}: not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at {exc.start}) ({what})"
+        ) from None
     lines = text.splitlines()
     for number, line in enumerate(lines, 1):
         if not line.strip():

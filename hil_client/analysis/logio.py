@@ -429,8 +429,9 @@ class _Parsed:
 
 def _numbers(values: tuple[str, ...] | list[str]) -> np.ndarray | None:
     """Fields as numbers, an empty one or a spreadsheet's no-reading code NaN; None if one
-    is not a number (float() reads '6_9' as 69: a probe)."""
-    if "_" in "".join(values):
+    is not a number (float() reads '6_9' as 69 and a full-width '５' as 5: probes)."""
+    joined = "".join(values)
+    if "_" in joined or not joined.isascii():
         return None
     try:  # every field a number (most columns): read at once
         return np.array(values, dtype=float)
@@ -590,8 +591,8 @@ def _ends_unterminated(path: Path) -> bool:
 
 
 def _is_number(text: str) -> bool:
-    if "_" in text:  # (Python's float() reads '6_9' as 69; no lab writes it so)
-        return False
+    if "_" in text or not text.isascii():  # (Python's float() reads '6_9' as 69 and other
+        return False  # scripts' digits, '５' as 5; no lab writes them so)
     try:
         float(text)
     except ValueError:

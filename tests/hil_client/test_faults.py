@@ -351,6 +351,22 @@ def test_an_events_file_not_as_run_writes_it_is_one_line(tmp_path, capsys, line,
     assert err.count("\n") == 1 and "line 1" in err and fault in err, err
 
 
+def test_an_events_file_that_is_not_utf8_is_named_in_one_line(tmp_path, capsys):
+    """A stranger's probe: an events file beside the log in another encoding gave
+    "'utf-8' codec can't decode byte 0xff ...", naming no file."""
+    log = tmp_path / "log.csv"
+    log.write_text("time_s,water_flow_kg_h\n0,1\n1,1\n")
+    events = tmp_path / "log.modbus_events.jsonl"
+    events.write_bytes(b"\xff\xfe\x00garbage")
+    journal = tmp_path / "j.jsonl"
+    journal.write_text("")
+    argv = ["fault-report", str(log), "--journal", str(journal), "--out", str(tmp_path / "r")]
+    assert hil_client_main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(events) in err and "not UTF-8 text (byte 0xff at 0)" in err
+    assert not (tmp_path / "r").exists()
+
+
 @needs_gates
 def test_a_delay_longer_than_the_reconnect_timeout_stops_the_run_in_one_line(serve):
     """Held behind a delay longer than --reconnect-timeout, the lockstep advance was given

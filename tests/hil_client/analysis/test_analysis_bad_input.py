@@ -514,16 +514,21 @@ def test_a_time_in_hours_or_days_is_refused(run_log, tmp_path, capsys, unit, per
     assert "a time in hours, or Excel's days?" in err and err.count("\n") == 1
 
 
-def test_a_number_written_with_underscores_is_no_number(run_log, tmp_path, capsys):
-    """A stranger's probe: Python's float() read '6_9' as 69 (and '1_000' as 1000 C)."""
+@pytest.mark.parametrize("written", ["6_9", "\uff15", "\u0665"])
+def test_a_number_written_with_underscores_or_other_digits_is_no_number(
+    run_log, tmp_path, capsys, written
+):
+    """Strangers' probes: Python's float() read '6_9' as 69 (and '1_000' as 1000 C), a
+    full-width '５' as 5 and an Arabic-Indic '٥' as 5 (a flow of 5 kg/h, no word)."""
 
-    def underscore(header, row):
+    def edit(header, row):
         if row[header.index("time_s")].startswith("5000."):
-            row[header.index("water_out_temp_C")] = "6_9"
+            row[header.index("water_flow_kg_h")] = written
 
-    path = _edited(run_log, tmp_path, "us", underscore)
+    path = _edited(run_log, tmp_path, "us", edit)
     assert main(["balance", path, "--boiler", "windhager_12kw"]) == 2
-    assert "'6_9' is not a number" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert f"'{written}' is not a number" in err and err.count("\n") == 1, err
 
 
 def test_an_integer_too_large_for_a_float_in_a_meta_file_is_one_line(tmp_path, capsys):
