@@ -17,7 +17,7 @@ where to look:
   while the boiler fired (a boiler's direct efficiency, Eq. 7 against the balance and the
   nominal calorific value; the water's stored heat counted);
 - a balance that gains mass, or loses more than a bed's burn-out, while the burner is
-  off (refills taken out first).
+  off, or ends the firing heavier than it began it (refills taken out first).
 """
 
 from __future__ import annotations
@@ -273,6 +273,32 @@ def _closure(log: LabLog, params: BoilerParams, burning: np.ndarray) -> list[str
     ]
 
 
+def _firing_gain(log: LabLog, burning: np.ndarray) -> list[str]:
+    """A balance that ends the firing heavier than it began it (refills taken out): the
+    boiler burns fuel, so the column is read with its sign reversed, mirrored, or refilled
+    in a way the refill detection did not take out (a stranger's probe: fuel 0.00 kg and
+    -0.23 kg in the results, with no word)."""
+    if "balance_mass_kg" not in log.columns:
+        return []
+    firing = np.flatnonzero(burning)
+    if len(firing) < 2:
+        return []
+    span = slice(int(firing[0]), int(firing[-1]) + 1)
+    mass = log.balance_without_refills()[span]
+    read = np.flatnonzero(np.isfinite(mass))
+    if len(read) < 2:
+        return []
+    gain = float(mass[read[-1]] - mass[read[0]])
+    if not gain > QUIET_GAIN_MAX_KG:
+        return []
+    t = log.t[span]
+    return [
+        f"column 'balance_mass_kg' gains {gain:.2f} kg from time_s = {t[read[0]]:g} to "
+        f"{t[read[-1]]:g} while the boiler fires, which burns fuel: is its sign reversed, or "
+        "a refill not taken out?"
+    ]
+
+
 def _quiet_gain(log: LabLog, burning: np.ndarray) -> list[str]:
     if "balance_mass_kg" not in log.columns:
         return []
@@ -371,6 +397,7 @@ def suspicious(log: LabLog, params: BoilerParams | None = None) -> list[str]:
         *_flow(log),
         *(_fuel_rate(log, params) if params is not None else []),
         *(_closure(log, params, burning) if params is not None else []),
+        *_firing_gain(log, burning),
         *_quiet_gain(log, burning),
     ]
     return [f"{log.path}: {line}" for line in found]

@@ -49,6 +49,9 @@ MUTATIONS = {
         "loses",
     ),  # stand-by 'fuel' of 3 kg (a re-probe)
     "flue gas in kelvin": ({"flue_gas_temp_C": lambda x, t: x + 273.15}, "below"),
+    # a stranger's probes: fuel 0.00 kg and -0.23 kg in the results, no word
+    "balance sign reversed": ({"balance_mass_kg": lambda x, t: -x}, "while the boiler fires"),
+    "balance mirrored": ({"balance_mass_kg": lambda x, t: 500.0 - x}, "while the boiler fires"),
 }
 
 
