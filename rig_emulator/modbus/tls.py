@@ -76,8 +76,10 @@ def _load(ctx: ssl.SSLContext, cert: str | Path, key: str | Path, ca: str | Path
     for name, path in (("certificate", cert), ("key", key), ("CA", ca)):
         if Path(path).is_dir():  # it said "no such file" of a directory (a stranger's probe)
             raise TlsConfigError(f"TLS {name} {path}: is a directory, not a PEM file")
-        if not Path(path).is_file():
+        if not Path(path).exists():
             raise TlsConfigError(f"TLS {name} {path}: no such file")
+        if not Path(path).is_file():  # a FIFO or a device (it said "no such file": a probe)
+            raise TlsConfigError(f"TLS {name} {path}: not a regular file, not a PEM file")
     try:
         ctx.load_cert_chain(str(cert), str(key), password=_no_passphrase(key))
     except TlsConfigError:

@@ -4,6 +4,7 @@ log lines that read as what happened (``serve`` as its own process, real files, 
 
 from __future__ import annotations
 
+import os
 import ssl
 import struct
 import time
@@ -60,14 +61,17 @@ def test_a_serial_path_that_is_no_line_is_one_line(path, fault):
 
 
 def test_tls_files_that_are_not_what_they_should_be_are_named(lab):
-    """A stranger's probe: a directory was "no such file", and garbage PEM or a certificate
-    and key swapped said only "([SSL] PEM lib (_ssl.c:3905))"."""
+    """Strangers' probes: a directory and a FIFO were "no such file", and garbage PEM or a
+    certificate and key swapped said only "([SSL] PEM lib (_ssl.c:3905))"."""
     ca, d = lab
     (d / "garbage.pem").write_text("garbage\n")
+    if not (d / "fifo.pem").exists():
+        os.mkfifo(d / "fifo.pem")
     write_pair(make_client(ca, "other", None), d, "other")
     for files, fault in (
         (_tls(d, cert="."), "TLS certificate " + str(d / ".") + ": is a directory"),
         (_tls(d, ca="."), ": is a directory, not a PEM file"),
+        (_tls(d, cert="fifo.pem"), "fifo.pem: not a regular file, not a PEM file"),
         (_tls(d, cert="garbage.pem"), "garbage.pem: not a PEM certificate"),
         (_tls(d, cert="server.key", key="server.pem"), "server.key: not a PEM certificate"),
         (_tls(d, key="garbage.pem"), "garbage.pem: not a PEM private key"),
