@@ -78,9 +78,10 @@ def check_journal(journal: Sequence[Mapping[str, Any]], source: str = "fault jou
     number, ``kind`` one of the fault kinds, ``unit`` (communication faults) a unit number,
     ``signal`` (instrument faults) a name, ``code`` (exception) an integer; each id started
     once (the server numbers its faults afresh in each journal) and ended at most once,
-    not before its start, with the kind of its start; ``epoch_id`` (the server's start, 8
-    hex digits) on every line or on none, the same on all: one journal is one server's."""
-    starts: dict[int, tuple[float, str, int]] = {}  # id -> (time, kind, line)
+    not before its start, with the kind and the unit or signal of its start; ``epoch_id``
+    (the server's start, 8 hex digits) on every line or on none, the same on all: one
+    journal is one server's."""
+    starts: dict[int, tuple[float, str, int, Any]] = {}  # id -> (time, kind, line, target)
     ended: dict[int, int] = {}  # id -> line
     epoch: tuple[Any, int] | None = None  # (epoch_id, line) of the first line
     for line, event in enumerate(journal, 1):
@@ -117,10 +118,11 @@ def check_journal(journal: Sequence[Mapping[str, Any]], source: str = "fault jou
                 raise bad("code", "not an exception code (a whole number)")
         elif not isinstance(event.get("signal"), str):
             raise bad("signal", "not the name of a lab-log column")
+        target = event.get("unit") if kind in COMM_KINDS else event.get("signal")
         if event["event"] == "start":
             if fid in starts:
                 raise bad("id", f"fault {fid} started already (line {starts[fid][2]})")
-            starts[fid] = (float(t), kind, line)
+            starts[fid] = (float(t), kind, line, target)
         elif fid not in starts:
             raise bad("id", f"the end of fault {fid}, which has not started")
         elif fid in ended:
@@ -131,6 +133,9 @@ def check_journal(journal: Sequence[Mapping[str, Any]], source: str = "fault jou
                 raise bad("t_sim_s", f"the end is before the start ({starts[fid][0]:g} s)")
             if kind != starts[fid][1]:
                 raise bad("kind", f"fault {fid} started as '{starts[fid][1]}'")
+            if target != starts[fid][3]:
+                key = "unit" if kind in COMM_KINDS else "signal"
+                raise bad(key, f"fault {fid} started on {key} {starts[fid][3]!r}")
 
 
 def _is_epoch_id(value: Any) -> bool:

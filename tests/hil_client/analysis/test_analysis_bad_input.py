@@ -279,6 +279,28 @@ END = {**START, "event": "end", "t_sim_s": 630.0}
             [{"event": "start", "id": 1, "t_sim_s": 1.0, "kind": "spike", "signal": 5}],
             "line 1: field 'signal' = 5",
         ),
+        # a stranger's probe: an end on another signal or unit closed the fault started on
+        # the first
+        (
+            [
+                {
+                    "event": "start",
+                    "id": 1,
+                    "t_sim_s": 1.0,
+                    "kind": "stuck",
+                    "signal": "room_temp_C",
+                },
+                {
+                    "event": "end",
+                    "id": 1,
+                    "t_sim_s": 2.0,
+                    "kind": "stuck",
+                    "signal": "flue_gas_temp_C",
+                },
+            ],
+            "line 2: field 'signal' = 'flue_gas_temp_C': fault 1 started on signal 'room_temp_C'",
+        ),
+        ([START, {**END, "unit": 3}], "line 2: field 'unit' = 3: fault 1 started on unit 2"),
         ([{k: v for k, v in START.items() if k != "kind"}], "line 1: no field 'kind'"),
         ([{**START, "kind": "exception", "code": "x"}], "line 1: field 'code' = 'x'"),
     ],
@@ -290,7 +312,7 @@ def test_a_bad_journal_line_is_refused_naming_file_line_and_field(lines, message
 
 
 def test_a_journal_as_the_server_writes_it_passes():
-    spike = {"event": "start", "id": 2, "t_sim_s": 1.0, "kind": "spike", "signal": "x"}
+    spike = {"event": "start", "id": 2, "t_sim_s": 1.0, "kind": "spike", "signal": "room_temp_C"}
     exc = {"event": "start", "id": 3, "t_sim_s": 2.0, "kind": "exception", "unit": 0}
     check_journal(
         [START, END, spike, {**spike, "event": "end", "t_sim_s": 1.0}, {**exc, "code": 11.0}],
