@@ -59,11 +59,13 @@ REQUIRED = (
 #: What a reading of a lab instrument can physically be, by the unit its column's name ends
 #: in [that unit]; beyond it (or infinite), a reading is an instrument's error code (-999,
 #: 9999, 1e30, inf) and counts as missing. The flue gas of a small boiler stays below
-#: 1,000 C; a balance, flow or power meter reads a few hundred of its units.
+#: 1,000 C; a balance, flow or power meter reads a few hundred of its units. A gas
+#: analyser's zero drifts by a few ppm, never by a hundred (-999 ppm of CO was taken as a
+#: reading: a stranger's probe).
 PLAUSIBLE_RANGES = {
     "_temp_C": (-60.0, 1500.0),
     "_pct": (-5.0, 105.0),
-    "_ppm": (-1000.0, 1e6),
+    "_ppm": (-100.0, 1e6),
     "_kg_h": (-1e5, 1e5),
     "_kg": (-1e5, 1e5),
     "_m_s": (-100.0, 100.0),
