@@ -59,13 +59,11 @@ REQUIRED = (
 #: What a reading of a lab instrument can physically be, by the unit its column's name ends
 #: in [that unit]; beyond it (or infinite), a reading is an instrument's error code (-999,
 #: 9999, 1e30, inf) and counts as missing. The flue gas of a small boiler stays below
-#: 1,000 C; a balance, flow or power meter reads a few hundred of its units. A gas
-#: analyser's zero drifts by a few ppm, never by a hundred (-999 ppm of CO was taken as a
-#: reading: a stranger's probe).
+#: 1,000 C; a balance, flow or power meter reads a few hundred of its units.
 PLAUSIBLE_RANGES = {
     "_temp_C": (-60.0, 1500.0),
     "_pct": (-5.0, 105.0),
-    "_ppm": (-100.0, 1e6),
+    "_ppm": (-1000.0, 1e6),
     "_kg_h": (-1e5, 1e5),
     "_kg": (-1e5, 1e5),
     "_m_s": (-100.0, 100.0),
@@ -433,7 +431,7 @@ def _numbers(values: tuple[str, ...] | list[str]) -> np.ndarray | None:
     """Fields as numbers, an empty one or a spreadsheet's no-reading code NaN; None if one
     is not a number (float() reads '6_9' as 69 and a full-width '５' as 5: probes)."""
     joined = "".join(values)
-    if "_" in joined or not joined.isascii():
+    if "_" in joined or _other_digits(joined):
         return None
     try:  # every field a number (most columns): read at once
         return np.array(values, dtype=float)
@@ -592,9 +590,16 @@ def _ends_unterminated(path: Path) -> bool:
         return fh.read(1) not in (b"\n", b"\r")
 
 
+def _other_digits(text: str) -> bool:
+    """Whether ``text`` holds a digit of another script than ASCII's (float() reads '５' and
+    '٥' as 5; no lab writes them so); other non-ASCII characters, a no-break space after a
+    number a spreadsheet pasted, are float()'s to judge (a re-probe)."""
+    return not text.isascii() and any(not c.isascii() and c.isdecimal() for c in text)
+
+
 def _is_number(text: str) -> bool:
-    if "_" in text or not text.isascii():  # (Python's float() reads '6_9' as 69 and other
-        return False  # scripts' digits, '５' as 5; no lab writes them so)
+    if "_" in text or _other_digits(text):  # (float() reads '6_9' as 69; no lab writes it)
+        return False
     try:
         float(text)
     except ValueError:

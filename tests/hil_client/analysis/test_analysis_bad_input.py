@@ -553,6 +553,22 @@ def test_a_number_written_with_underscores_or_other_digits_is_no_number(
     assert f"'{written}' is not a number" in err and err.count("\n") == 1, err
 
 
+@pytest.mark.parametrize("written", ["22.5\u00a0", "\u200922.5", "22.5\u3000"])
+def test_a_number_beside_a_space_of_another_script_is_still_a_number(
+    run_log, tmp_path, capsys, written
+):
+    """A re-probe: refusing every non-ASCII character refused a no-break space after a
+    number (what a spreadsheet in Windows-1252 keeps of one pasted from the web), a log
+    read before; only other scripts' digits are refused."""
+
+    def edit(header, row):
+        if row[header.index("time_s")].startswith("5000."):
+            row[header.index("water_in_temp_C")] = written
+
+    path = _edited(run_log, tmp_path, "sp", edit)
+    assert main(["balance", path, "--boiler", "windhager_12kw"]) == 0, capsys.readouterr().err
+
+
 def test_an_integer_too_large_for_a_float_in_a_meta_file_is_one_line(tmp_path, capsys):
     """A stranger's probe: a 401-digit t1_s ended balance in OverflowError's traceback."""
     path = _short_log(tmp_path, meta={"t0_s": 3.0, "t1_s": 10**400})

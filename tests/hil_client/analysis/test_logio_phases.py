@@ -144,10 +144,6 @@ def test_an_instruments_error_code_is_a_missing_reading_and_named(tmp_path):
     assert len(log.notes) == 1
     assert "'flue_gas_temp_C': 2 reading(s)" in log.notes[0] and "row 2: '-999'" in log.notes[0]
     assert read_log(path, as_read=True)["flue_gas_temp_C"][1] == 1e30
-    # a CO analyser's -999 is its error code too (a stranger's probe: read as -999 ppm)
-    co = _write(tmp_path, HEADER + ",flue_gas_CO_ppm\n" + "\n".join(r + ",-999" for r in rows))
-    log = read_log(co)
-    assert np.isnan(log["flue_gas_CO_ppm"]).all() and "row 2: '-999'" in log.notes[-1]
     # an infinite reading is the same, in a column of any unit (here one with none)
     path = _write(tmp_path, HEADER + ",boiler_on\n" + "\n".join(r + ",inf" for r in rows))
     log = read_log(path)
