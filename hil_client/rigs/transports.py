@@ -171,11 +171,17 @@ def tls_client_context(files: TlsFiles) -> ssl.SSLContext:
     used."""
     ctx = ssl.SSLContext(ssl.PROTOCOL_TLS_CLIENT)
     ctx.minimum_version = ssl.TLSVersion.TLSv1_2
-    for name, path in (("--tls-cert", files.cert), ("--tls-key", files.key)):
-        if not path.is_file():
+    for name, path in (
+        ("--tls-cert", files.cert),
+        ("--tls-key", files.key),
+        ("--tls-ca", files.ca),
+    ):
+        if path.is_dir():
+            raise ValueError(f"{name} {path}: is a directory, not a PEM file")
+        if not path.exists():
             raise ValueError(f"{name} {path}: no such file")
-    if not files.ca.is_file():
-        raise ValueError(f"--tls-ca {files.ca}: no such file")
+        if not path.is_file():  # a FIFO or a device (it said "no such file": a re-probe)
+            raise ValueError(f"{name} {path}: not a regular file, not a PEM file")
     try:
         ctx.load_cert_chain(str(files.cert), str(files.key), password=_no_passphrase)
     except _Encrypted:

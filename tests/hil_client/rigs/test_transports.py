@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import re
+from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
@@ -58,6 +61,26 @@ def test_tls_options_all_or_none(tmp_path):
         connector("modbus+tls://127.0.0.1:802", 1.0, None)
     with pytest.raises(ValueError, match="--tls-cert c: no such file"):
         connector("modbus+tls://127.0.0.1:802", 1.0, files)
+
+
+def test_tls_files_that_are_no_regular_files_are_named_so(tmp_path):
+    """A re-probe: the client said "no such file" of a FIFO, a device and a directory."""
+    from rig_emulator.certs import make_lab_certificates
+
+    make_lab_certificates(tmp_path)
+    os.mkfifo(tmp_path / "fifo.pem")
+    good = {"tls_cert": tmp_path / "server.pem", "tls_key": tmp_path / "server.key"}
+    good["tls_ca"] = tmp_path / "ca.pem"
+    for option, path, said in (
+        ("tls_cert", tmp_path / "fifo.pem", "not a regular file, not a PEM file"),
+        ("tls_ca", Path("/dev/null"), "not a regular file, not a PEM file"),
+        ("tls_key", tmp_path, "is a directory, not a PEM file"),
+        ("tls_ca", tmp_path / "none.pem", "no such file"),
+    ):
+        files = tls_files(SimpleNamespace(**{**good, option: path}))
+        flag = "--" + option.replace("_", "-")
+        with pytest.raises(ValueError, match=f"{flag} {re.escape(str(path))}: {said}"):
+            connector("modbus+tls://127.0.0.1:802", 1.0, files)
 
 
 def test_a_key_protected_by_a_passphrase_is_one_line(tmp_path):
