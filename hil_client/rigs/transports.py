@@ -41,6 +41,7 @@ from hil_client.modbus_client import (
 )
 from rig_emulator.modbus.rtu import PTY_MULTIPLEXER, is_pty_multiplexer
 from rig_emulator.modbus.rtu_wire import PARITIES, frame, reply_length, silence_s, unframe
+from rig_emulator.modbus.tls import pem_file_problem
 
 DEFAULT_TLS_PORT = 802
 DEFAULT_BAUD = 19200
@@ -176,12 +177,9 @@ def tls_client_context(files: TlsFiles) -> ssl.SSLContext:
         ("--tls-key", files.key),
         ("--tls-ca", files.ca),
     ):
-        if path.is_dir():
-            raise ValueError(f"{name} {path}: is a directory, not a PEM file")
-        if not path.exists():
-            raise ValueError(f"{name} {path}: no such file")
-        if not path.is_file():  # a FIFO or a device (it said "no such file": a re-probe)
-            raise ValueError(f"{name} {path}: not a regular file, not a PEM file")
+        problem = pem_file_problem(path)
+        if problem:
+            raise ValueError(f"{name} {path}: {problem}")
     try:
         ctx.load_cert_chain(str(files.cert), str(files.key), password=_no_passphrase)
     except _Encrypted:

@@ -74,12 +74,9 @@ def client_context(cert: str | Path, key: str | Path, ca: str | Path) -> ssl.SSL
 
 def _load(ctx: ssl.SSLContext, cert: str | Path, key: str | Path, ca: str | Path) -> None:
     for name, path in (("certificate", cert), ("key", key), ("CA", ca)):
-        if Path(path).is_dir():  # it said "no such file" of a directory (a stranger's probe)
-            raise TlsConfigError(f"TLS {name} {path}: is a directory, not a PEM file")
-        if not Path(path).exists():
-            raise TlsConfigError(f"TLS {name} {path}: no such file")
-        if not Path(path).is_file():  # a FIFO or a device (it said "no such file": a probe)
-            raise TlsConfigError(f"TLS {name} {path}: not a regular file, not a PEM file")
+        problem = pem_file_problem(path)
+        if problem:
+            raise TlsConfigError(f"TLS {name} {path}: {problem}")
     try:
         ctx.load_cert_chain(str(cert), str(key), password=_no_passphrase(key))
     except TlsConfigError:
@@ -94,6 +91,19 @@ def _load(ctx: ssl.SSLContext, cert: str | Path, key: str | Path, ca: str | Path
     except (ssl.SSLError, ValueError) as exc:
         problem = "not a PEM certificate" if not _certificates(ca) else _reason(exc)
         raise TlsConfigError(f"TLS CA {ca}: cannot be used ({problem})") from None
+
+
+def pem_file_problem(path: str | Path) -> str | None:
+    """Why ``path`` cannot be a PEM file, or None: strangers' probes had a directory, a FIFO
+    and a device all called "no such file", on the server and the client."""
+    path = Path(path)
+    if path.is_dir():
+        return "is a directory, not a PEM file"
+    if not path.exists():
+        return "no such file"
+    if not path.is_file():  # a FIFO or a device
+        return "not a regular file, not a PEM file"
+    return None
 
 
 def _certificates(path: str | Path) -> list[x509.Certificate]:
