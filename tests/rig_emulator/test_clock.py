@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
 import pytest
 
 from rig_emulator.clock import REALTIME, RealTimeTicks, SimClock
@@ -70,6 +71,42 @@ def test_physics_over_its_budget_is_dropped_not_chased():
     assert (tick.overrun_ms, tick.achieved_speed) == pytest.approx((40.0, 60.0))
     ticks.next_deadline()
     assert ticks.begin(0.2, sim_s=6.0).due_s == pytest.approx(10.0)  # not 14
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_no_burst_of_ticks_runs_the_clock_ahead(seed: int):
+    """The guarantee the SIGSTOP test reads over the wire: whatever the delays (a tick's
+    wake-up a little or whole periods late, work up to its budget, physics cut short),
+    simulated time published at wall times a <= b moves at most ``speed * (b - a + 2
+    periods)``, and never ahead of the requested speed's schedule. Driven as the server's
+    tick loop drives it: sleep to the deadline (or not at all when late), begin, work,
+    finish, publish."""
+    rng = np.random.default_rng(seed)
+    speed, period_s = 100.0, 0.1
+    ticks = _ticks(speed)
+    now_s, sim_s = 0.0, 0.0
+    published: list[tuple[float, float]] = [(0.0, 0.0)]  # (wall time, simulated time)
+    for _ in range(400):
+        deadline_s = ticks.next_deadline()
+        delay_s = rng.choice(
+            [0.0, rng.uniform(0, period_s), rng.uniform(period_s, 3.0)], p=[0.6, 0.35, 0.05]
+        )
+        now_s = max(now_s, deadline_s) + delay_s
+        tick = ticks.begin(now_s, sim_s)
+        missing_s = max(tick.due_s, 0.0) * rng.choice([0.0, rng.uniform(0, 1)], p=[0.8, 0.2])
+        sim_s += max(tick.due_s, 0.0) - missing_s
+        now_s += rng.uniform(0, 0.4 * period_s)  # the physics, in its budget
+        ticks.finish(tick, missing_s)
+        assert tick.achieved_speed <= speed * (1 + 1e-9)
+        published.append((now_s, sim_s))
+    wall = np.array([w for w, _ in published])
+    sim = np.array([s for _, s in published])
+    assert np.all(np.diff(sim) >= 0)
+    # every pair (a, b): sim[b] - sim[a] <= speed * (wall[b] - wall[a] + 2 periods)
+    # (the floating point sum of 400 ticks: 1e-9 relative)
+    excess = (sim[None, :] - sim[:, None]) - speed * (wall[None, :] - wall[:, None] + 2 * period_s)
+    upper = np.triu(np.ones_like(excess, dtype=bool))
+    assert excess[upper].max() <= 1e-9 * sim[-1]
 
 
 def test_real_time_mode_advances_with_the_wall_clock(serve):
