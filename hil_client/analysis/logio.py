@@ -25,6 +25,7 @@ The optional ``NAME.meta.json`` beside the log is read when present.
 from __future__ import annotations
 
 import bisect
+import codecs
 import csv
 import json
 import math
@@ -37,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from hil_client.analysis.error_codes import CodesError, all_nines_codes, declared_codes
 from hil_client.protocol.rig import LOG_COLUMNS
 
 TEXT_COLUMNS = ("phase", "sequence")
@@ -287,12 +289,20 @@ def read_log(
             f"{path}: column 'time_s' is not increasing at row {i + 3} ({t[i]:g} -> {t[i + 1]:g})"
         )
     meta_file = path.with_name(path.stem + ".meta.json")
+    meta = _meta(meta_file)
+    if not as_read:
+        _drop_error_codes(path, columns, meta, meta_file, notes)
+    return LabLog(path, columns, text, meta, notes)
+
+
+def _meta(meta_file: Path) -> dict[str, Any]:
+    """The log's meta file as an object, {} where there is none."""
     meta: dict[str, Any] = {}
     if meta_file.exists() and not meta_file.is_file():  # a FIFO or a device: read forever
         raise LogError(f"{meta_file}: not a regular file, not a meta file")
     if meta_file.exists():
         try:
-            meta = json.loads(meta_file.read_text(encoding="utf-8"))
+            meta = json.loads(meta_file.read_text(encoding="utf-8-sig"))  # BOM dropped
         except UnicodeDecodeError as exc:
             raise LogError(f"{meta_file}: not UTF-8 text (byte at {exc.start})") from None
         except OSError as exc:
@@ -303,7 +313,39 @@ def read_log(
             raise LogError(f"{meta_file}: not valid JSON (nested too deeply)") from None
         if not isinstance(meta, dict):
             raise LogError(f"{meta_file}: expected a JSON object")
-    return LabLog(path, columns, text, meta, notes)
+    return meta
+
+
+def _drop_error_codes(
+    path: Path,
+    columns: dict[str, np.ndarray],
+    meta: dict[str, Any],
+    meta_file: Path,
+    notes: list[str],
+) -> None:
+    """Instruments' error codes inside the plausible ranges (:mod:`.error_codes`: all
+    nines in the columns the log format names, and what the meta file declares) taken as
+    missing, one note per column."""
+    try:
+        declared = declared_codes(meta, list(columns), meta_file)
+    except CodesError as exc:
+        raise LogError(str(exc)) from None
+    for name, values in columns.items():
+        if name == "time_s":
+            continue
+        codes = np.zeros(values.shape, dtype=bool)
+        if name in KNOWN_COLUMNS:
+            codes |= all_nines_codes(values)
+        if name in declared:
+            codes |= np.isin(values, declared[name])
+        if codes.any():
+            i = int(np.flatnonzero(codes)[0])
+            found = ", ".join(f"{v:g}" for v in np.unique(values[codes])[:4])
+            notes.append(
+                f"{path}: column '{name}': {int(codes.sum())} reading(s) {found} (first row "
+                f"{i + 2}), taken as missing (an instrument's error code)"
+            )
+            values[codes] = np.nan
 
 
 #: Rows parsed into columns at a time (a few tens of MB of text fields at most)
@@ -495,8 +537,8 @@ def _text_of(path: Path, notes: list[str]) -> str:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         line = data.count(b"\n", 0, exc.start) + 1
-        try:
-            text = data.decode("cp1252")
+        try:  # a byte-order mark is UTF-8's even where the rest is not (pasted cells)
+            text = data.removeprefix(codecs.BOM_UTF8).decode("cp1252")
         except UnicodeDecodeError:
             raise LogError(
                 f"{path}: line {line}: byte 0x{data[exc.start]:02x} is neither UTF-8 nor "
