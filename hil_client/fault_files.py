@@ -78,7 +78,7 @@ def read_jsonl(path: Path, what: str, notes: list[str] | None = None) -> list[di
     if Path(path).exists() and not Path(path).is_file():  # a FIFO or a device: read forever
         raise ValueError(f"{path}: not a regular file ({what})")
     try:
-        text = Path(path).read_text(encoding="utf-8")
+        text = Path(path).read_text(encoding="utf-8-sig")  # an editor's byte-order mark
     except UnicodeDecodeError as exc:  # the error named no file (a stranger's probe)
         raise ValueError(
             f"{path}: not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at {exc.start}) ({what})"

@@ -299,7 +299,8 @@ def set_aside(path: Path) -> Path | None:
 def read_journal(path: str | Path) -> list[dict[str, Any]]:
     """The events of a journal file, in order."""
     events = []
-    for number, line in enumerate(Path(path).read_text(encoding="utf-8").splitlines(), 1):
+    text = Path(path).read_text(encoding="utf-8-sig")  # an editor's byte-order mark dropped
+    for number, line in enumerate(text.splitlines(), 1):
         if line.strip():
             try:
                 events.append(json.loads(line))

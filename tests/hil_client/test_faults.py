@@ -367,6 +367,17 @@ def test_an_events_file_that_is_not_utf8_is_named_in_one_line(tmp_path, capsys):
     assert not (tmp_path / "r").exists()
 
 
+def test_a_jsonl_file_saved_with_a_byte_order_mark_is_read(tmp_path):
+    """A re-probe: a journal or events file saved by an editor that writes UTF-8's
+    byte-order mark was refused as "line 1 is not JSON"."""
+    from hil_client.fault_files import read_jsonl
+
+    path = tmp_path / "j.jsonl"
+    path.write_bytes(b"\xef\xbb\xbf" + b'{"event": "start"}\n{"event": "end"}\n')
+    assert read_jsonl(path, "a journal") == [{"event": "start"}, {"event": "end"}]
+    assert read_journal(path) == [{"event": "start"}, {"event": "end"}]
+
+
 @needs_gates
 def test_a_delay_longer_than_the_reconnect_timeout_stops_the_run_in_one_line(serve):
     """Held behind a delay longer than --reconnect-timeout, the lockstep advance was given

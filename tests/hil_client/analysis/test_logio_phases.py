@@ -133,6 +133,20 @@ def test_a_spreadsheets_byte_order_mark_is_not_part_of_the_first_name(tmp_path):
     assert read_log(path)["time_s"].tolist() == [1.0, 2.0, 3.0]
 
 
+def test_a_byte_order_mark_before_windows_1252_text_and_on_the_meta_file(tmp_path):
+    """A re-probe: a log that begins with UTF-8's byte-order mark but holds Windows-1252
+    bytes further on (a note typed in a spreadsheet on Windows) read its first column as
+    'ï»¿time_s' and was refused; a meta file saved with the mark was not JSON."""
+    full = "\n".join(f"{i},1,1,1,1,1,1,1,1,Kessel w\xe4rmer" for i in range(1, 4))
+    path = tmp_path / "log.csv"
+    path.write_bytes(b"\xef\xbb\xbf" + (HEADER + ",note\n" + full + "\n").encode("cp1252"))
+    path.with_name("log.meta.json").write_bytes(b"\xef\xbb\xbf" + b'{"test": "stationary"}')
+    log = read_log(path)
+    assert log["time_s"].tolist() == [1.0, 2.0, 3.0] and log.meta == {"test": "stationary"}
+    assert log.text["note"][-1] == "Kessel w\u00e4rmer"
+    assert any("read as Windows-1252" in note for note in log.notes)
+
+
 def test_an_instruments_error_code_is_a_missing_reading_and_named(tmp_path):
     """-999 from a thermocouple amplifier or 1e30 from a logger's overflow is no
     temperature: read as one it would swamp every figure; it is missing, and the user is
