@@ -33,6 +33,9 @@ step, and the spike or offset was missed: a stranger's probe; ``s`` is 0 there.)
 Everything the client saw that no journalled fault explains is **false** (client events
 only: the detectors run inside fault windows).
 
+A fault on a signal the log has no column for (one its client did not read, or a name no
+server serves: a journal edited by hand) is listed under ``unjudged``: the log cannot say.
+
 Without client events (``client_events`` None: the log of another acquisition program,
 with no ``LOG.modbus_events.jsonl``) the log alone is compared: a ``no_reply`` or
 ``exception`` is detected where the unit's readings (``unit_signals``, from the register
@@ -415,11 +418,11 @@ def compare(
         if log_only and kind in ("delay", "disconnect"):  # no mark in the readings
             unjudged.append(fault)
             continue
-        if (
-            log_only
-            and kind in ("spike", "offset", "stuck", "drift")
-            and (log_columns is None or fault["signal"] not in log_columns)
-        ):  # a reading the log does not hold (it was counted missed: a re-probe)
+        if fault.get("signal") is not None and (
+            (log_only and log_columns is None)
+            or (log_columns is not None and fault["signal"] not in log_columns)
+        ):  # a reading the log does not hold, or no server's (a typo in a journal): it
+            # was counted missed (re-probes, the log alone and beside its events)
             unjudged.append(fault)
             continue
         if log_only and kind in ("no_reply", "exception", "dropout"):

@@ -122,3 +122,31 @@ def test_a_log_alone_reads_error_codes_as_missing_and_judges_only_what_it_holds(
     rows = {f["kind"]: f for f in report["faults"]}
     assert rows["no_reply"]["detected"] and rows["no_reply"]["first_seen_s"] == 100.0
     assert {f["kind"] for f in report["unjudged"]} == {"dropout", "spike"}, report["unjudged"]
+
+
+def test_a_fault_on_a_reading_the_log_lacks_is_unjudged_beside_its_events():
+    """A stranger's probe: a journal whose fault names a signal no column of the log holds
+    (a journal edited by hand, 'flue_gas_tmp_C') had that fault counted missed when the
+    client's events were beside the log. It is unjudged, and a fault on a column the log
+    holds is still judged."""
+    from hil_client.analysis.fault_report import compare
+
+    n = 100
+    t = np.arange(float(n))
+    flue = 120.0 + np.random.default_rng(0).normal(0.0, 0.5, n)
+    flue[50] = 400.0  # one reading, as a spike is
+    columns = {"flue_gas_temp_C": flue}
+    journal = [
+        {"event": "start", "id": 1, "t_sim_s": 50.0, "t_wall": 0.0, "kind": "spike",
+         "signal": "flue_gas_temp_C", "value": 400.0},
+        {"event": "end", "id": 1, "t_sim_s": 50.5, "t_wall": 0.0, "kind": "spike",
+         "signal": "flue_gas_temp_C"},
+        {"event": "start", "id": 2, "t_sim_s": 70.0, "t_wall": 0.0, "kind": "spike",
+         "signal": "flue_gas_tmp_C", "value": 400.0},
+        {"event": "start", "id": 3, "t_sim_s": 80.0, "t_wall": 0.0, "kind": "dropout",
+         "signal": "flue_gas_tmp_C"},
+    ]  # fmt: skip
+    report = compare(journal, [], columns, t)
+    assert [f["id"] for f in report["faults"]] == [1] and report["faults"][0]["detected"]
+    assert sorted(f["id"] for f in report["unjudged"]) == [2, 3]
+    assert report["missed"] == 0
