@@ -12,6 +12,8 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 
+from rig_emulator.names import host_name_problem
+
 
 def free_port(host: str = "127.0.0.1") -> int:
     """A TCP port that is free on ``host`` right now (the OS picks it)."""
@@ -49,10 +51,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"--timeout: {args.timeout:g} is not a number of seconds >= 0")
     if not 1 <= args.port <= 65535:
         parser.error(f"port: {args.port} is not a TCP port (1-65535)")
-    try:  # (lab..local ended in a traceback from the resolver: a probe)
-        args.host.encode("idna")
-    except UnicodeError:
-        parser.error(f"host: '{args.host}' is no host name (a label is empty or too long)")
+    problem = host_name_problem(args.host)
+    if problem is not None:
+        parser.error(f"host: '{args.host[:80]}' is no host name ({problem})")
     if wait_for_port(args.host, args.port, args.timeout):
         return 0
     print(

@@ -19,6 +19,7 @@ from typing import IO, Any
 from rig_emulator.atomic import open_without_waiting
 from rig_emulator.boilers import load_boiler
 from rig_emulator.model.params import BoilerParams, ParameterError
+from rig_emulator.names import host_name_problem
 
 
 class UsageError(Exception):
@@ -351,12 +352,9 @@ def listen_host(text: str) -> str:
         raise argparse.ArgumentTypeError(
             "empty; give an address (127.0.0.1, or 0.0.0.0 for every interface)"
         )
-    try:  # (lab..local ended in a traceback from the resolver: a probe)
-        text.encode("idna")
-    except UnicodeError:
-        raise argparse.ArgumentTypeError(
-            f"'{text}' is no host name (a label between dots is empty or over 63 characters)"
-        ) from None
+    problem = host_name_problem(text)
+    if problem is not None:
+        raise argparse.ArgumentTypeError(f"'{text[:80]}' is no host name ({problem})")
     return text
 
 

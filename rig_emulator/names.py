@@ -62,3 +62,21 @@ def hidden_character(text: str) -> str | None:
         f"U+{ord(hidden):04X}{' ' + called if called else ''}: "
         f"{HIDDEN_CATEGORIES[unicodedata.category(hidden)]}"
     )
+
+
+#: The longest host name the resolver takes, in characters without the root's dot (RFC
+#: 1035's 255 octets on the wire).
+HOST_NAME_MAX = 253
+
+
+def host_name_problem(host: str) -> str | None:
+    """What makes ``host`` no host name the resolver can be asked for, or None (a probe:
+    ``lab..local`` ended in a traceback from Python's idna codec; a 319-character name
+    went to the resolver)."""
+    try:
+        host.encode("idna")
+    except UnicodeError:
+        return "a label between dots is empty or over 63 characters"
+    if len(host.rstrip(".")) > HOST_NAME_MAX:
+        return f"{len(host)} characters, over {HOST_NAME_MAX}"
+    return None

@@ -42,6 +42,7 @@ from hil_client.modbus_client import (
 from rig_emulator.modbus.rtu import PTY_MULTIPLEXER, is_pty_multiplexer
 from rig_emulator.modbus.rtu_wire import PARITIES, frame, reply_length, silence_s, unframe
 from rig_emulator.modbus.tls import pem_file_problem
+from rig_emulator.names import host_name_problem
 
 DEFAULT_TLS_PORT = 802
 DEFAULT_BAUD = 19200
@@ -115,13 +116,9 @@ def parse_endpoint(url: str) -> Endpoint:
         return Endpoint("modbus-rtu", path=parsed.path, baud=int(baud_text), parity=parity)
     if not parsed.hostname:
         raise ValueError(f"'{url}' names no host ({parsed.scheme}://HOST:PORT)")
-    try:  # (lab..local ended in a traceback from the resolver: a probe)
-        parsed.hostname.encode("idna")
-    except UnicodeError:
-        raise ValueError(
-            f"'{url}': '{parsed.hostname}' is no host name (a label between dots is empty or "
-            "over 63 characters)"
-        ) from None
+    problem = host_name_problem(parsed.hostname)
+    if problem is not None:
+        raise ValueError(f"'{url[:100]}': '{parsed.hostname[:80]}' is no host name ({problem})")
     port = url_port(url, DEFAULT_TLS_PORT if parsed.scheme == "modbus+tls" else 502)
     return Endpoint(parsed.scheme, host=parsed.hostname, port=port)
 

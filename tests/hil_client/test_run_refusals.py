@@ -488,6 +488,10 @@ def test_a_rig_host_that_is_no_host_name_is_one_line(tmp_path, capsys, scheme):
     out = _kept(tmp_path)
     argv = ["run", "stationary", "--boiler", "windhager_12kw", "--out", str(out)]
     _refused(capsys, [*argv, "--rig", f"{scheme}://lab..local:5020"], "'lab..local' is no host")
+    # every label under 64 but 319 characters in all: no name the resolver takes (it was
+    # sent to it, and the run waited on it)
+    host = ".".join(["a" * 63] * 5)
+    _refused(capsys, [*argv, "--rig", f"{scheme}://{host}:5020"], "319 characters, over 253")
     assert out.read_text() == KEPT
 
 

@@ -13,6 +13,7 @@ from hil_client.wait_for_port import main
     [
         (["lab..local", "5020"], "'lab..local' is no host name"),  # a probe: a traceback
         (["127.0.0.1", "70000"], "70000 is not a TCP port"),  # a probe: "not reachable"
+        ([".".join(["a" * 63] * 5), "5020"], "319 characters, over 253"),  # sent to DNS
     ],
 )
 def test_bad_usage_is_one_line_and_exit_2(capsys, argv, message):
