@@ -38,12 +38,16 @@ from typing import Any
 
 import numpy as np
 
-from hil_client.analysis.error_codes import CodesError, all_nines_codes, declared_codes
+from hil_client.analysis.error_codes import CodesError, all_nines_codes, declared_codes, near
 from hil_client.protocol.rig import LOG_COLUMNS
+from rig_emulator.signals import MEASURED
 
 TEXT_COLUMNS = ("phase", "sequence")
 #: The columns the log format names (CONTRACT section 3 and the project's own logger's)
 KNOWN_COLUMNS = frozenset(LOG_COLUMNS)
+#: The columns of the bench's instruments' readings (not commands or state: setpoints,
+#: ``boiler_on``, ``rig_epoch``)
+INSTRUMENT_COLUMNS = KNOWN_COLUMNS & frozenset(MEASURED)
 #: Columns every analysis of CONTRACT section 3 may rely on.
 REQUIRED = (
     "time_s",
@@ -291,7 +295,7 @@ def read_log(
     meta_file = path.with_name(path.stem + ".meta.json")
     meta = _meta(meta_file)
     if not as_read:
-        _drop_error_codes(path, columns, meta, meta_file, notes)
+        _drop_error_codes(path, columns, text, meta, meta_file, notes)
     return LabLog(path, columns, text, meta, notes)
 
 
@@ -319,25 +323,30 @@ def _meta(meta_file: Path) -> dict[str, Any]:
 def _drop_error_codes(
     path: Path,
     columns: dict[str, np.ndarray],
+    text: dict[str, list[str]],
     meta: dict[str, Any],
     meta_file: Path,
     notes: list[str],
 ) -> None:
     """Instruments' error codes inside the plausible ranges (:mod:`.error_codes`: all
-    nines in the columns the log format names, and what the meta file declares) taken as
-    missing, one note per column."""
+    nines in the instruments' columns, and what the meta file declares) taken as missing,
+    one note per column."""
     try:
-        declared = declared_codes(meta, list(columns), meta_file)
+        declared = declared_codes(
+            meta,
+            list(columns),
+            KNOWN_COLUMNS - INSTRUMENT_COLUMNS,
+            [*text, *TEXT_COLUMNS],
+            meta_file,
+        )
     except CodesError as exc:
         raise LogError(str(exc)) from None
     for name, values in columns.items():
-        if name == "time_s":
-            continue
         codes = np.zeros(values.shape, dtype=bool)
-        if name in KNOWN_COLUMNS:
+        if name in INSTRUMENT_COLUMNS:
             codes |= all_nines_codes(values)
         if name in declared:
-            codes |= np.isin(values, declared[name])
+            codes |= near(values, declared[name])
         if codes.any():
             i = int(np.flatnonzero(codes)[0])
             found = ", ".join(f"{v:g}" for v in np.unique(values[codes])[:4])

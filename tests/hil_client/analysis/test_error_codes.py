@@ -16,10 +16,10 @@ from hil_client.analysis.logio import LogError, read_log
 from hil_client.cli import main
 
 
-def test_all_nines_beyond_the_other_readings_are_codes():
+def test_all_nines_beyond_their_neighbours_are_codes():
     flow = np.array([0.0, 512.3, 9999.0, 600.1, 9999.0, 598.7])
     assert all_nines_codes(flow).tolist() == [False, False, True, False, True, False]
-    # a large boiler's real 9999 kg/h among readings of 9,000-11,000 stays a reading
+    # a large boiler's real 9999 kg/h among readings of 9,100-10,450 stays a reading
     big = np.array([9100.0, 9999.0, 10450.0, 9800.0])
     assert not all_nines_codes(big).any()
     # a CO analyser that reads down to -200 ppm (a profile the emulator allows) and -999
@@ -27,27 +27,57 @@ def test_all_nines_beyond_the_other_readings_are_codes():
     assert all_nines_codes(co).tolist() == [False, True, False, False, False]
     # a thermocouple open all the test: every reading the code
     assert all_nines_codes(np.full(4, 999.9)).all()
-    # 999.9 as a float32 register carries it, and one decimal more
-    assert all_nines_codes(np.array([80.0, float(np.float32(999.9)), -9999.99])).tolist() == [
-        False,
-        True,
-        True,
-    ]
+    # open for five minutes between readings of 120 and 125 C: the whole stretch
+    flue = np.r_[np.full(10, 120.0), np.full(300, 999.9), np.full(10, 125.0)]
+    assert all_nines_codes(flue).sum() == 300
+    # as a float32 register carries 999.9, and as the client prints 9999.9 and -999.9
+    # from one (%.4f, %.5f: a re-probe), and one decimal more
+    coded = np.array([80.0, float(np.float32(999.9)), 9999.9004, 81.0, -999.90002, -9999.99])
+    assert all_nines_codes(coded).tolist() == [False, True, True, False, True, True]
     # near misses are readings: 1000, 998, 99.9 (two nines), 9999.5
     near = np.array([20.0, 1000.0, 998.0, 99.9, 9999.5])
     assert not all_nines_codes(near).any()
     assert 99.99 not in ALL_NINES and 999.0 in ALL_NINES and -99999.0 in ALL_NINES
 
 
-def test_declared_codes_for_every_column_or_per_column(tmp_path):
-    meta_file = tmp_path / "x.meta.json"
-    columns = ["time_s", "water_flow_kg_h", "flue_gas_temp_C"]
-    every = declared_codes({"missing_values": [-1, 32767]}, columns, meta_file)
-    assert set(every) == {"water_flow_kg_h", "flue_gas_temp_C"}  # never time_s
-    assert every["water_flow_kg_h"].tolist() == [-1.0, 32767.0]
-    one = declared_codes({"missing_values": {"flue_gas_temp_C": 0}}, columns, meta_file)
+def test_real_readings_that_are_all_nines_stay_readings():
+    """Re-probes of rules that dropped all nines beyond the column's other readings, or
+    far from either neighbour: a start-up's CO peak of 999 ppm between 964 and 973 and a
+    CO of 999 between 630 and 1259 (benchmark plants' logs), a barometer's 999.9 hPa
+    after 1000.0 (99 % of the column)."""
+    co = np.array([120.0, 640.0, 964.0, 999.0, 973.0, 972.0, 610.0])
+    assert not all_nines_codes(co).any()
+    # and on the way up, every 5 s (another benchmark plant's start-up)
+    assert not all_nines_codes(np.array([0.0, 126.0, 630.0, 999.0, 1259.0, 1052.0])).any()
+    pressure = np.r_[np.full(60, 1000.0), np.full(5000, 999.9)]
+    assert not all_nines_codes(pressure).any()
+
+
+COLUMNS = ["time_s", "water_flow_kg_h", "flue_gas_temp_C", "water_flow_setpoint_kg_h"]
+NOT_READINGS = ["water_flow_setpoint_kg_h", "boiler_on", "phase"]
+
+
+def _declared(declared, tmp_path, columns=COLUMNS, text=("phase",)):
+    meta = {"missing_values": declared}
+    return declared_codes(meta, columns, NOT_READINGS, text, tmp_path / "x.meta.json")
+
+
+def test_declared_codes_for_every_reading_column_or_per_column(tmp_path):
+    every = _declared([32767, -1], tmp_path)
+    # never time_s, nor a command: a setpoint of 0 or -1 is no code (a re-probe: a
+    # declaration of 0 emptied boiler_on, rig_epoch and the setpoint)
+    assert set(every) == {"water_flow_kg_h", "flue_gas_temp_C"}
+    assert every["water_flow_kg_h"].tolist() == [-1.0, 32767.0]  # sorted
+    one = _declared({"flue_gas_temp_C": 0}, tmp_path)
     assert list(one) == ["flue_gas_temp_C"] and one["flue_gas_temp_C"].tolist() == [0.0]
-    assert declared_codes({"boiler": "x"}, columns, meta_file) == {}
+    # named as the header spells it (the reader takes 'Flue_Gas_Temp_C' as the format's
+    # name: a re-probe), a command when named, and an empty list (an exporter's: none)
+    named = _declared(
+        {"FLUE_gas_temp_C": -9, "water_flow_setpoint_kg_h": [], "water_flow_kg_h": []}, tmp_path
+    )
+    assert named["flue_gas_temp_C"].tolist() == [-9.0] and named["water_flow_kg_h"].size == 0
+    assert _declared([], tmp_path)["water_flow_kg_h"].size == 0
+    assert declared_codes({"boiler": "x"}, COLUMNS, NOT_READINGS, (), tmp_path / "x") == {}
 
 
 @pytest.mark.parametrize(
@@ -55,7 +85,7 @@ def test_declared_codes_for_every_column_or_per_column(tmp_path):
     [
         ({"water_flw_kg_h": -1}, "names column 'water_flw_kg_h', which the log does not have"),
         ({"time_s": 0}, "names 'time_s'"),
-        ([], "is an empty list"),
+        ({"Phase": "x"}, "names 'Phase', a text column: it holds no readings"),
         (["-999"], "'-999' is not a finite number"),
         (True, "True' is not a finite number"),
         ([float("nan")], "is not a finite number"),
@@ -65,11 +95,7 @@ def test_declared_codes_for_every_column_or_per_column(tmp_path):
 )
 def test_a_declaration_that_cannot_be_read_is_named(tmp_path, declared, message):
     with pytest.raises(CodesError, match=r"x\.meta\.json: 'missing_values'") as err:
-        declared_codes(
-            {"missing_values": declared},
-            ["time_s", "water_flow_kg_h", "flue_gas_temp_C"],
-            tmp_path / "x.meta.json",
-        )
+        _declared(declared, tmp_path)
     assert message in str(err.value)
 
 
@@ -127,8 +153,8 @@ def test_codes_in_a_run_are_missing_and_the_balance_stands(run_log, tmp_path, ca
 def test_declared_codes_in_the_meta_file_are_missing(tmp_path):
     path = tmp_path / "lab.csv"
     path.write_text(
-        "time_s,water_flow_kg_h,flue_gas_temp_C,lab_note\n"
-        "0,600,120,-1\n1,-1,121,-1\n2,601,32767,-1\n3,602,122,-1\n"
+        "time_s,water_flow_kg_h,flue_gas_temp_C,lab_note,water_flow_setpoint_kg_h\n"
+        "0,600,120,-1,-1\n1,-1,121,-1,-1\n2,601,32767,-1,-1\n3,602,122,-1,-1\n"
     )
     required = ("time_s", "water_flow_kg_h", "flue_gas_temp_C")
     assert read_log(path, required)["water_flow_kg_h"][1] == -1.0  # undeclared: a reading
@@ -137,6 +163,7 @@ def test_declared_codes_in_the_meta_file_are_missing(tmp_path):
     log = read_log(path, required)
     assert np.isnan(log["water_flow_kg_h"][1]) and np.isnan(log["flue_gas_temp_C"][2])
     assert np.isnan(log["lab_note"]).all()  # the lab's own column too
+    assert (log["water_flow_setpoint_kg_h"] == -1.0).all()  # a command: no code
     assert log["water_flow_kg_h"][[0, 2, 3]].tolist() == [600.0, 601.0, 602.0]
     meta.write_text(json.dumps({"missing_values": {"flue_gas_temp_C": 32767}}))
     log = read_log(path, required)
