@@ -3,12 +3,15 @@ while the server's clock ran on leaves a hole in the rows, and the run says so."
 
 from __future__ import annotations
 
+import itertools
 import re
 import time
 
 from hil_client.protocol.definition import protocol_from_mapping
 from hil_client.protocol.runner import run_protocol
+from hil_client.rigs.local import LocalRig
 from hil_client.rigs.modbus import ModbusRig
+from rig_emulator.instruments.profile import load_profile
 from rig_emulator.registers import load_map
 
 TINY = {
@@ -64,3 +67,40 @@ def test_a_client_held_up_while_the_server_ran_on_is_a_hole_in_a_note(serve):
         spans,
         times[38:42],
     )
+
+
+class _HeldUpRig(LocalRig):
+    """The in-process plant, whose steps ``held`` let five periods pass instead of one, as
+    a real-time server's clock does while the client waits a unit's 5-s reply timeout at
+    a 1-s period (the plant moves on, the rows between are never acquired)."""
+
+    def __init__(self, params, held: range) -> None:
+        super().__init__(params, load_profile("clean"))
+        self.held, self.steps = held, 0
+
+    def advance(self, dt_s: float) -> float:
+        self.steps += 1
+        return super().advance(5 * dt_s if self.steps in self.held else dt_s)
+
+
+def test_holes_one_after_the_other_of_exactly_five_periods_are_all_told(params_12kw):
+    """A stranger's probe: a unit that timed out on every row from some time on (the
+    default 5-s reply timeout at a 1-s period) left 19 holes in the rows, of which only the
+    six of 5.1 s got a note; the thirteen of exactly 5.0 s, and those after holes had
+    become the typical step, were told nowhere: 52 acquisitions lost without a word."""
+    rig = _HeldUpRig(params_12kw, range(40, 65))
+    times: list[float] = []
+    result = run_protocol(
+        protocol_from_mapping(TINY, "tiny"), 12.0, rig, lambda row: times.append(row[0])
+    )
+    holes = [n for n in result.notes if n.startswith("no row from time_s")]
+    assert len(holes) == 10 and "more than 10 such holes in the rows" in result.notes
+    assert "4 acquisitions missed" in holes[0], holes[0]
+    steps = [b - a for a, b in itertools.pairwise(times)]
+    assert steps.count(5.0) == 25  # what the rows show: 25 holes of 5 periods
+    total = next(n for n in result.notes if " holes in the rows in all" in n)
+    start = times[steps.index(5.0)]
+    assert total == (
+        f"25 holes in the rows in all, from time_s = {start:g} to {start + 125:g} s: 100 "
+        "acquisitions missed"
+    ), total
