@@ -1566,31 +1566,54 @@ def _coarse_sampling(
 
 
 def _slow_units(rig: ModbusRig, rows: int, median_s: float | None) -> str | None:
-    """The units that timed out on most of the ``rows`` (the events file's ``timeout``),
-    named with their signals and how often, where their timeouts were at least half the
-    wall time between rows (``median_s`` of simulated time at the server's speed): then
-    they, not the server's clock, made the rows slow (a stranger's probe: an FID that never
+    """The units that held most of the ``rows`` up (the events file's read ``timeout``s,
+    and ``late`` replies), named with their signals and how often, where what they cost a
+    row (the reply timeout, their late replies' waits; the median over the rows) came to
+    at least half the wall
+    time between rows (``median_s`` of simulated time at the server's speed): then they,
+    not the server's clock, made the rows slow. Stranger's probes: an FID that never
     answered cost every row the 5-s reply timeout, rows came 50 s apart at x10, and the
-    warning blamed the server's clock). Read timeouts only: a write held behind another
-    unit's slow replies times out with them, and its unit made no row slow (a re-probe: a
-    delay fault on unit 1 named unit 7 too, "unit 7 (: no reply ...)", for its coil write
-    queued behind). None if no unit did."""
+    warning blamed the server's clock; a unit whose replies came 4.5 s late, just within
+    the timeout, was blamed the same. Reads only: a write held behind another unit's slow
+    replies times out with them, and its unit made no row slow (a re-probe: a delay fault
+    on unit 1 named unit 7 too, "unit 7 (: no reply ...)", for its coil write queued
+    behind). None if no unit did."""
     if median_s is None or not rows or rig.lockstep:
         return None
-    timed_out: dict[int, set[float]] = {}
-    signals: dict[int, dict[str, None]] = {}  # (in the order first named)
+    held: dict[int, dict[float, float]] = {}  # unit -> row time -> what it cost the row [s]
+    timed_out: dict[int, set[float]] = {}  # unit -> the rows its reads timed out on
     for event in rig.comm_events:
-        if event.get("event") == "timeout" and event.get("function") in READ_FUNCTIONS:
-            timed_out.setdefault(event["unit"], set()).add(event["time_s"])
-            signals.setdefault(event["unit"], {}).update(dict.fromkeys(event.get("signals", [])))
-    slow = sorted(unit for unit, times in timed_out.items() if 2 * len(times) > rows)
-    if not slow or len(slow) * rig.timeout_s < 0.5 * median_s / rig.speed:
+        kind, unit = event.get("event"), event.get("unit")
+        if not rig.unit_signals(unit):  # the simulation control's: the server's own pace
+            continue
+        if kind == "timeout" and event.get("function") in READ_FUNCTIONS:
+            cost = rig.timeout_s
+            timed_out.setdefault(unit, set()).add(event["time_s"])
+        elif kind == "late":
+            cost = float(event.get("wait_s", 0.0))
+        else:
+            continue
+        rows_of = held.setdefault(unit, {})  # (a late write and a late read: both waited)
+        rows_of[event["time_s"]] = rows_of.get(event["time_s"], 0.0) + cost
+    slow = sorted(unit for unit, times in held.items() if 2 * len(times) > rows)
+    costs = {unit: float(np.median(list(held[unit].values()))) for unit in slow}
+    if not slow or sum(costs.values()) < 0.5 * median_s / rig.speed:
         return None
-    return " and ".join(
-        f"unit {unit} ({', '.join(signals[unit])}: no reply within the reply timeout, "
-        f"{rig.timeout_s:g} s, on {len(timed_out[unit])} of {rows} rows)"
-        for unit in slow
-    )
+    said = []
+    for unit in slow:
+        readings = ", ".join(rig.unit_signals(unit))
+        if 2 * len(timed_out.get(unit, ())) > rows:
+            said.append(
+                f"unit {unit} ({readings}: no reply within the reply timeout, "
+                f"{rig.timeout_s:g} s, on {len(timed_out[unit])} of {rows} rows)"
+            )
+        else:
+            said.append(
+                f"unit {unit} ({readings}: replies {costs[unit]:.1f} s late a row (median) on "
+                f"{len(held[unit])} of {rows} rows, within the reply timeout, "
+                f"{rig.timeout_s:g} s)"
+            )
+    return " and ".join(said)
 
 
 def _cmd_fault_report(args: argparse.Namespace) -> int:

@@ -404,6 +404,13 @@ class ModbusRig:
         self._single_coils_said: set[int] = set()  # ... whose FC5 answered, said in notes
         self._answered_units: set[int] = set()  # units that answered a read with data
         self._refusing_units: dict[int, set[int]] = {}  # ... that refused one: their codes
+        #: per unit, why its reads failed in this step (:meth:`_decode_tolerant`), and over
+        #: the run: the rows it failed in and why (:meth:`end_notes`)
+        self._step_failures: dict[int, dict[str, None]] = {}
+        self._failed_rows: dict[int, dict[float, None]] = {}
+        self._failure_reasons: dict[int, dict[str, None]] = {}
+        self._failed_signals: dict[int, dict[str, None]] = {}  # the readings of those reads
+        self.rows_stepped = 0  # steps completed: the rows of the log
         #: the ``rig_epoch`` column: 0, one higher after each break the rig went on from
         self.epoch = 0
         plan = _read_plan(register_map, self._served)  # a required reading missing fails
@@ -1056,6 +1063,15 @@ class ModbusRig:
                 self._failed(read.unit, read.function, reply, [p.signal for p in read.points])
                 if isinstance(reply, ModbusExceptionResponse):
                     self._refusing_units.setdefault(read.unit, set()).add(reply.code)
+                    reason = f"exception {reply.code:02X}"
+                elif reply.reason == "no reply":
+                    reason = "no reply (a later one came first)"
+                else:  # a timeout, or a reply after it
+                    reason = f"no reply within the reply timeout, {self.timeout_s:g} s"
+                self._step_failures.setdefault(read.unit, {})[reason] = None
+                self._failed_signals.setdefault(read.unit, {}).update(
+                    dict.fromkeys(p.signal for p in read.points)
+                )
                 for p in read.points:
                     into[p.signal] = math.nan
                 continue
@@ -1484,6 +1500,7 @@ class ModbusRig:
         the client fell behind, and more across a break (see the module docstring).
         """
         for _ in range(1000):
+            self._step_failures.clear()  # (an attempt given up left its own)
             try:
                 step = self._step_lockstep if self.lockstep else self._step_realtime
                 passed = step(dt_s)
@@ -1510,6 +1527,10 @@ class ModbusRig:
                     {"time_s": round(self.log_time_s, 3), "server_time_s": self.sim_time_s} | event
                 )
             self._step_events.clear()
+            self.rows_stepped += 1
+            for unit, reasons in self._step_failures.items():
+                self._failed_rows.setdefault(unit, {})[round(self.log_time_s, 3)] = None
+                self._failure_reasons.setdefault(unit, {}).update(reasons)
             if self.gaps and self.gaps[-1]["end_time_s"] is None:
                 for gap in self.gaps:
                     if gap["end_time_s"] is None:
@@ -1701,21 +1722,42 @@ class ModbusRig:
             "type and scale carry no more (a wider type or a coarser scale in the map does)"
         )
 
+    def unit_signals(self, unit: int) -> list[str]:
+        """The readings this rig reads from ``unit``, in the order of its reads."""
+        return list(
+            dict.fromkeys(p.signal for r in self._reads if r.unit == unit for p in r.points)
+        )
+
     def end_notes(self) -> list[str]:
         """The lines a run's end tells (a warning each, and a note of the meta file), beside
-        :attr:`notes`: each unit that refused every read of the run, with the readings it
-        never gave (a device whose every read of units 1 and 2 was refused left a run that
-        looked clean, exit 0: a stranger's probe), and :meth:`limit_note`."""
+        :attr:`notes`: each unit whose reads failed (no reply, a timeout, an exception),
+        with the readings it never gave (a device whose every read of units 1 and 2 was
+        refused left a run that looked clean, exit 0: a stranger's probe; so did an
+        analyser that never answered, or stopped answering a minute in: the flue-gas
+        columns empty in every row, and only the events file said why), and
+        :meth:`limit_note`."""
         lines = []
-        for unit, codes in self._refusing_units.items():
+        for unit, rows in sorted(self._failed_rows.items()):
+            signals = ", ".join(self._failed_signals[unit])
+            why = list(self._failure_reasons[unit])
             if unit in self._answered_units:
-                continue
-            signals = [p.signal for r in self._reads if r.unit == unit for p in r.points]
-            how = ", ".join(f"{code:02X}" for code in sorted(codes))
-            lines.append(
-                f"unit {unit} refused every read of this run (exception {how}): "
-                f"{', '.join(dict.fromkeys(signals))} never read, empty in every row"
-            )
+                times = list(rows)
+                lines.append(
+                    f"unit {unit} gave no reading in {len(rows)} of {self.rows_stepped} rows "
+                    f"(from time_s = {times[0]:g} to {times[-1]:g} s: {'; '.join(why)}): "
+                    f"{signals} empty there"
+                )
+            elif all(reason.startswith("exception") for reason in why):
+                how = ", ".join(f"{code:02X}" for code in sorted(self._refusing_units[unit]))
+                lines.append(
+                    f"unit {unit} refused every read of this run (exception {how}): "
+                    f"{signals} never read, empty in every row"
+                )
+            else:
+                lines.append(
+                    f"unit {unit} never answered a read of this run ({'; '.join(why)}): "
+                    f"{signals} never read, empty in every row"
+                )
         limits = self.limit_note()
         return [*lines, limits] if limits else lines
 

@@ -238,3 +238,24 @@ def test_slow_rows_name_the_unit_whose_reads_timed_out_with_its_readings(
     warning = next(line for line in err.splitlines() if "rows came" in line)
     assert "each row waited for unit 1 (water_flow_kg_h, water_in_temp_C, " in warning
     assert "unit 7" not in warning and "(: " not in warning, warning
+
+
+def test_slow_rows_name_the_unit_whose_replies_came_late_within_the_timeout(
+    serve_process, tmp_path, capsys
+):
+    """A stranger's probe: a unit whose replies came 4.5 s late, within the 5-s reply
+    timeout, made every row 4.5 s late (30 ``late`` events), and the warning blamed the
+    server's clock ("ran faster than the client could read ... a slower --speed, a faster
+    tick or --lockstep keeps the period"), which is not what slowed them. Here a 0.6-s
+    delay on unit 1 under a 2-s timeout at x20."""
+    faults = tmp_path / "faults.yaml"
+    faults.write_text("faults:\n  - {kind: delay, unit: 1, delay_ms: 600}\n")
+    server = serve_process("--boiler", "windhager_12kw", "--speed", "20", "--faults", str(faults))
+    code, out = _run(tmp_path, server.port, "--reply-timeout", "2")
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert not any(e["event"] == "timeout" for e in _events(out))  # late, never timed out
+    warning = next(line for line in err.splitlines() if "rows came" in line)
+    assert "each row waited for unit 1 (water_flow_kg_h, water_in_temp_C, " in warning
+    assert "s late a row (median) on " in warning and "within the reply timeout, 2 s)" in warning
+    assert "ran faster than the client could read" not in warning, warning
