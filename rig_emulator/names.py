@@ -75,8 +75,12 @@ def host_name_problem(host: str) -> str | None:
     and one of 245 characters but 281 in IDNA, went to the resolver)."""
     try:
         encoded = host.encode("idna")  # what the resolver gets: 'ü' is 'xn--tda'
-    except UnicodeError:
-        return "a label between dots is empty or over 63 characters"
+    except UnicodeError as exc:
+        why = str(exc.__cause__ or exc).removeprefix("UnicodeError: ")
+        if "too long" in why:  # ("label empty or too long", "label too long")
+            return "a label between dots is empty or over 63 characters"
+        # (a mixed-direction label, a lone surrogate: told as empty or too long, a re-probe)
+        return f"not a name IDNA can encode: {why}"
     if len(encoded.rstrip(b".")) > HOST_NAME_MAX:
         idna = " in IDNA" if len(encoded) != len(host) else ""
         return f"{len(encoded)} characters{idna}, over {HOST_NAME_MAX}"

@@ -477,11 +477,10 @@ def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibrati
             v = _mean_read(log, "flue_gas_velocity_m_s", mask)
             if v is not None:
                 t_air = float(np.nanmean(tb)) + k.T_NORMAL_K
-                p_pa = (
-                    float(np.nanmean(log["ambient_pressure_hPa"][mask])) * 100.0
-                    if log.has("ambient_pressure_hPa")
-                    else 101325.0
-                )
+                # standard air where the barometer read nothing there (a column of error
+                # codes: its nanmean was NaN, and so was UA_on: a re-probe)
+                p_hpa = _mean_read(log, "ambient_pressure_hPa", mask)
+                p_pa = p_hpa * 100.0 if p_hpa is not None else 101325.0
                 rho = p_pa / (R_AIR * t_air)
                 per_K = rho * CP_AIR * 1000.0 * DUCT_AREA_M2  # W/K per m/s
                 ua_on_values.append((v * per_K, _u("flue_gas_velocity_m_s", v) * per_K))

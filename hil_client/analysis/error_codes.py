@@ -78,8 +78,11 @@ def near(values: np.ndarray, codes: np.ndarray) -> np.ndarray:
 
 def all_nines_codes(values: np.ndarray) -> np.ndarray:
     """Per reading, whether it is an all-nines error code (see the module docstring): an
-    all-nines value far from the nearest readings before and after it that are not (every
-    one, in a column of nothing else)."""
+    all-nines value beyond the nearest readings before and after it that are not. A column
+    of nothing else keeps them: a barometer that logs whole hPa on a day at 999 hPa, or a
+    sensor open all run, cannot be told apart from the data, and a column that never moves
+    is what the analyses' checks of a stuck sensor name (a re-probe: the barometer's
+    column was emptied, and calibrate's UA_on with it)."""
     finite = np.isfinite(values)
     nines = finite & near(values, ALL_NINES)
     if not nines.any():
@@ -94,8 +97,8 @@ def all_nines_codes(values: np.ndarray) -> np.ndarray:
     next_ = np.where(after < v.size, v[np.minimum(after, v.size - 1)], np.nan)
     low, high = np.fmin(prev, next_), np.fmax(prev, next_)  # NaN: neither side has one
     reach = CODE_JUMP_FRACTION * np.abs(v)
-    with np.errstate(invalid="ignore"):
-        beyond = np.isnan(low) | (v < low - reach) | (v > high + reach)
+    with np.errstate(invalid="ignore"):  # (NaN: no reading to compare with, no code)
+        beyond = (v < low - reach) | (v > high + reach)
     out = np.zeros(values.shape, dtype=bool)
     out[rows] = ~plain & beyond
     return out

@@ -28,6 +28,10 @@ def test_host_names_the_resolver_takes(host):
         (LONGEST + "e", "254 characters, over 253"),
         # 245 characters, but 6 labels of 'xn--' and 40 encoded letters: 281 (a re-probe)
         (".".join(["ü" * 40] * 6), "in IDNA, over 253"),
+        # a label of two characters, refused for mixing directions, not for its length (it
+        # was told as "empty or over 63 characters": a re-probe)
+        ("a\u05d0.local", "not a name IDNA can encode: Violation of BIDI requirement"),
+        ("\udcff.lab", "not a name IDNA can encode: Invalid character"),
     ],
 )
 def test_host_names_it_does_not(host, problem):

@@ -339,6 +339,37 @@ def test_a_column_never_read_in_stand_by_leaves_its_value_documented(round_trip,
     assert "ua_amb_off_W_K" in fitted  # the water's cooling is still read
 
 
+def test_a_barometer_that_read_nothing_gives_ua_on_at_standard_air(round_trip, tmp_path):
+    """A re-probe: a barometer column left empty throughout (a whole-hPa barometer's 999
+    read as error codes, at the time) gave UA_on NaN, the documentation value kept with a
+    warning: the air density took the mean of nothing. Standard air (1013.25 hPa) is taken,
+    and the draught's heat scales with the density (Eq. 14-16)."""
+    _, boiler, logs, _ = round_trip
+    text = logs[0].read_text().splitlines()
+    header = text[0].split(",")
+    j, k, ti = (header.index(c) for c in ("ambient_pressure_hPa", "phase", "time_s"))
+    cooling = [r.split(",") for r in text[1:] if r.split(",")[k] == "cooling_2"]
+    t3 = float(cooling[0][ti])  # UA_on is read from cooling_2's rows after t3 + 30 min
+    pressures = [float(f[j]) for f in cooling if float(f[ti]) > t3 + 1800.0 and f[j]]
+    rows = [",".join("" if i == j else v for i, v in enumerate(r.split(","))) for r in text[1:]]
+    fits = {}
+    for name, body in (("read", text[1:]), ("silent", rows)):
+        path = tmp_path / f"{name}.csv"
+        path.write_text("\n".join([text[0], *body]) + "\n")
+        meta = logs[0].with_name(logs[0].stem + ".meta.json")
+        path.with_name(f"{name}.meta.json").write_text(meta.read_text())
+        out = tmp_path / f"{name}.yaml"
+        assert main(["calibrate", str(path), "--boiler", str(boiler), "--out", str(out)]) == 0
+        fitted = json.loads(out.with_suffix(".uncertainty.json").read_text())
+        fits[name] = fitted["ua_amb_on_W_K"]["value"]
+        ua_off = fitted["ua_amb_off_W_K"]["value"]  # (the same from both: no air in it)
+    # UA_on = UA_off - the draught air's heat per K, which scales with the air's density;
+    # 0.1 %: the density at the mean of the readings against the mean density of each
+    # interval (the barometer's noise and drift over those rows)
+    draught = (ua_off - fits["read"]) * 1013.25 / float(np.mean(pressures))
+    assert fits["silent"] == pytest.approx(ua_off - draught, rel=0.001), (fits, ua_off)
+
+
 def test_a_gap_in_the_record_is_counted_on_neither_side_of_the_fuel(run_log, tmp_path):
     """Two hours cut out of a load cycle: the balance counted the fuel burnt in the gap,
     the model its own one-step guess, and the deviation went from -9 % to -18 % (a

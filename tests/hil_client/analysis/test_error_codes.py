@@ -25,8 +25,10 @@ def test_all_nines_beyond_their_neighbours_are_codes():
     # a CO analyser that reads down to -200 ppm (a profile the emulator allows) and -999
     co = np.array([-200.0, -999.0, 35.0, 120.0, np.nan])
     assert all_nines_codes(co).tolist() == [False, True, False, False, False]
-    # a thermocouple open all the test: every reading the code
-    assert all_nines_codes(np.full(4, 999.9)).all()
+    # a column of nothing but nines: no reading to tell a code from (a barometer logging
+    # whole hPa on a day at 999, a re-probe; or a sensor open all run, a stuck column the
+    # analyses' checks name)
+    assert not all_nines_codes(np.full(4, 999.0)).any()
     # open for five minutes between readings of 120 and 125 C: the whole stretch
     flue = np.r_[np.full(10, 120.0), np.full(300, 999.9), np.full(10, 125.0)]
     assert all_nines_codes(flue).sum() == 300
