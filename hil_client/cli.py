@@ -1373,6 +1373,12 @@ def _run(args: argparse.Namespace, held: contextlib.ExitStack) -> int:
         if progress is not None:
             progress.done()
         kept = _what_is_kept(written[0], previous, getattr(rig, "gaps", []))
+        ended = _end_notes(rig)  # (a unit silent for minutes before an outage went untold)
+        for warning in ended:
+            print(f"hil-client: warning: {warning}", file=sys.stderr)
+        if written[0] and ended:
+            meta["notes"] = [*meta["notes"], *ended]
+            write_meta(out, meta)
         print(f"hil-client: error: {exc}; {kept}", file=sys.stderr)
         return 1
     except OSError as exc:  # the log's disk full, its file system gone read-only

@@ -78,11 +78,12 @@ def near(values: np.ndarray, codes: np.ndarray) -> np.ndarray:
 
 def all_nines_codes(values: np.ndarray) -> np.ndarray:
     """Per reading, whether it is an all-nines error code (see the module docstring): an
-    all-nines value beyond the nearest readings before and after it that are not. A column
-    of nothing else keeps them: a barometer that logs whole hPa on a day at 999 hPa, or a
-    sensor open all run, cannot be told apart from the data, and a column that never moves
-    is what the analyses' checks of a stuck sensor name (a re-probe: the barometer's
-    column was emptied, and calibrate's UA_on with it)."""
+    all-nines value beyond the nearest readings before and after it that are not. In a
+    column of nothing else, its most common value stands for the readings: a barometer
+    that logs whole hPa on a day at 999 hPa, or a sensor open all run, cannot be told apart
+    from the data, and a column that never moves is what the analyses' checks of a stuck
+    sensor name (a re-probe: the barometer's column was emptied, and calibrate's UA_on
+    with it)."""
     finite = np.isfinite(values)
     nines = finite & near(values, ALL_NINES)
     if not nines.any():
@@ -90,6 +91,10 @@ def all_nines_codes(values: np.ndarray) -> np.ndarray:
     rows = np.flatnonzero(finite)
     v = values[rows]
     plain = ~nines[rows]
+    if not plain.any():  # all nines: its most common value is the reading (a meter at a
+        # whole 999 kg/h with its code 9999 now and then kept both: a re-probe)
+        levels, counts = np.unique(v, return_counts=True)
+        plain = v == levels[np.argmax(counts)]
     k = np.arange(v.size)
     before = np.maximum.accumulate(np.where(plain, k, -1))
     after = np.minimum.accumulate(np.where(plain, k, v.size)[::-1])[::-1]

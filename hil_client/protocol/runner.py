@@ -322,7 +322,7 @@ def run_protocol(
     epoch = getattr(rig, "epoch", 0)
     restart_phase = bool(getattr(rig, "restart_phase", False))
     recent: deque[float] = deque(maxlen=HOLE_TYPICAL_STEPS)  # simulated time per step
-    holes = missed = 0
+    holes = missed = counted = 0  # counted: the note that counts the holes past ten
     holes_from_s = holes_to_s = 0.0  # the first hole's start, the last one's end
     # a rig that tells the flow setpoint as its wire carries it: that is logged (a uint16
     # x0.5 holds 137.5 where 137.4702 was asked, and the log said 137.4702: a stranger's
@@ -399,7 +399,14 @@ def run_protocol(
                 timing = rig.step_timing if timed else None  # type: ignore[attr-defined]
                 result.notes.append(_hole(t - passed, t, dt, timing))
             if holes == HOLES_TOLD + 1:
-                result.notes.append(f"more than {HOLES_TOLD} such holes in the rows")
+                counted = len(result.notes)
+                result.notes.append("")
+            if holes > HOLES_TOLD:  # kept up to date: a run stopped or interrupted has it
+                result.notes[counted] = (
+                    f"more than {HOLES_TOLD} such holes in the rows: {holes} in all, from "
+                    f"time_s = {holes_from_s:g} to {holes_to_s:g} s, {missed} acquisitions "
+                    "missed"
+                )
             if on_phase is not None and holes <= HOLES_TOLD + 1:
                 on_phase(result)  # into the meta file now (a run stopped before its first
                 # phase mark lost it: a re-probe)
@@ -539,11 +546,6 @@ def run_protocol(
                 on_phase(result)
             break
 
-    if holes > HOLES_TOLD:
-        result.notes.append(
-            f"{holes} holes in the rows in all, from time_s = {holes_from_s:g} to "
-            f"{holes_to_s:g} s: {missed} acquisitions missed"
-        )
     result.rows = rows
     result.duration_s = t
     return result

@@ -1738,14 +1738,18 @@ class ModbusRig:
         :meth:`limit_note`."""
         lines = []
         for unit, rows in sorted(self._failed_rows.items()):
-            signals = ", ".join(self._failed_signals[unit])
+            # the log's columns only (a status the rig reads is none: a re-probe)
+            logged = [s for s in self._failed_signals[unit] if s in READING_KEYS]
+            signals = ", ".join(logged)
             why = list(self._failure_reasons[unit])
-            if unit in self._answered_units:
+            if not logged:
+                continue
+            if unit in self._answered_units:  # (some of its reads, or some of the rows)
                 times = list(rows)
                 lines.append(
-                    f"unit {unit} gave no reading in {len(rows)} of {self.rows_stepped} rows "
-                    f"(from time_s = {times[0]:g} to {times[-1]:g} s: {'; '.join(why)}): "
-                    f"{signals} empty there"
+                    f"unit {unit} gave no reading of {signals} in {len(rows)} of "
+                    f"{self.rows_stepped} rows (from time_s = {times[0]:g} to {times[-1]:g} "
+                    f"s: {'; '.join(why)}): empty there"
                 )
             elif all(reason.startswith("exception") for reason in why):
                 how = ", ".join(f"{code:02X}" for code in sorted(self._refusing_units[unit]))

@@ -454,3 +454,31 @@ def test_servers_publish_a_new_epoch_per_start_and_their_set_up(serve):
         assert va[key] == vb[key]
     assert vc["profile_id"] != va["profile_id"] and vc["boiler_id"] == va["boiler_id"]
     assert vd["boiler_id"] != va["boiler_id"] and vd["seed"] == 4.0
+
+
+def test_a_run_stopped_by_an_outage_names_the_unit_that_was_silent(servers, tmp_path, capsys):
+    """A re-probe: a unit silent for minutes before the server went away (an outage longer
+    than --reconnect-timeout) had its readings empty in most rows, and the stopped run said
+    nothing of it, though a finished or interrupted one did."""
+    faults = tmp_path / "faults.yaml"
+    faults.write_text("faults:\n  - {kind: no_reply, unit: 2, at_s: 0}\n")
+    port = free_port()
+    server = servers(port, "--lockstep", "--faults", str(faults))
+    out = tmp_path / "stopped.csv"
+
+    def killer() -> None:
+        _wait(lambda: _rows(out) >= 300, "row 300")
+        server.kill()
+
+    thread = threading.Thread(target=killer, daemon=True)
+    thread.start()
+    code = _run(port, out, "--reconnect-timeout", "1")
+    thread.join(timeout=90)
+    err = capsys.readouterr().err
+    assert code == 1, err
+    lines = err.splitlines()
+    told = [line for line in lines if "unit 2 never answered a read of this run" in line]
+    assert len(told) == 1 and told[0].startswith("hil-client: warning: "), err
+    assert lines[-1].startswith("hil-client: error: ") and "not back within 1 s" in lines[-1]
+    notes = _meta(out)["notes"]
+    assert any("unit 2 never answered a read of this run" in n for n in notes), notes

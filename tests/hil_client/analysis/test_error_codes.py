@@ -29,6 +29,10 @@ def test_all_nines_beyond_their_neighbours_are_codes():
     # whole hPa on a day at 999, a re-probe; or a sensor open all run, a stuck column the
     # analyses' checks name)
     assert not all_nines_codes(np.full(4, 999.0)).any()
+    # ... whose most common value stands for the readings: a meter at a whole 999 kg/h
+    # with its code 9999 every tenth row (a re-probe: both kept, the mean flow 1,899)
+    steady = np.where(np.arange(20) % 10 == 5, 9999.0, 999.0)
+    assert np.flatnonzero(all_nines_codes(steady)).tolist() == [5, 15]
     # open for five minutes between readings of 120 and 125 C: the whole stretch
     flue = np.r_[np.full(10, 120.0), np.full(300, 999.9), np.full(10, 125.0)]
     assert all_nines_codes(flue).sum() == 300
