@@ -106,6 +106,31 @@ def _no_reply(exc: Exception) -> bool:
     return "No response received" in str(exc) and not isinstance(exc.__cause__, OSError)
 
 
+#: The Modbus exception codes by their names in the Application Protocol Specification
+#: (section 7)
+EXCEPTION_NAMES = {
+    1: "illegal function",
+    2: "illegal data address",
+    3: "illegal data value",
+    4: "server device failure",
+    5: "acknowledge",
+    6: "server device busy",
+    8: "memory parity error",
+    10: "gateway path unavailable",
+    11: "gateway target device failed to respond",
+}
+
+
+def _refusal(reply: Any) -> str:
+    """A refused request's reply as the spec names it: "exception 04 (server device
+    failure)" (pymodbus's repr, "ExceptionResponse(dev_id=1, function_code=144, ...)", was
+    the message: a stranger's probe)."""
+    code = getattr(reply, "exception_code", None)
+    if not isinstance(code, int):
+        return str(reply)
+    return f"exception {code:02X} ({EXCEPTION_NAMES.get(code, 'not in the spec')})"
+
+
 def _switch(signal_name: str, value: object) -> bool:
     """``value`` as a coil carries it: 0 or 1, False or True (numpy's too), nothing else."""
     import numpy as np
@@ -292,6 +317,14 @@ class RigEmulator:
         """A pymodbus client connected to the server (reconnected when needed)."""
         from pymodbus.client import ModbusTcpClient
 
+        __tracebackhide__ = True
+        timeout = self.reply_timeout_s
+        if (
+            isinstance(timeout, bool)
+            or not isinstance(timeout, numbers.Real)
+            or not 0 < timeout < math.inf
+        ):  # (pymodbus said "Timeout value out of range", naming nothing: a probe)
+            raise ValueError(f"reply_timeout_s = {timeout!r}: expected a number of seconds > 0")
         if self._client is None:
             self._client = ModbusTcpClient(
                 self.host, port=self.port, timeout=self.reply_timeout_s, retries=0
@@ -342,7 +375,7 @@ class RigEmulator:
             f"write at {unit}:{start}",
         )
         if reply.isError():
-            raise RigEmulatorError(f"write at {unit}:{start} refused: {reply}")
+            raise RigEmulatorError(f"write at {unit}:{start} refused: {_refusal(reply)}")
 
     def advance(self, seconds: float) -> None:
         """Advance the simulation by ``seconds`` and return once the new state is readable.
@@ -393,7 +426,7 @@ class RigEmulator:
             client.comm_params.timeout_connect = ADVANCE_TIMEOUT_S
             reply = client.write_registers(point.address, registers, device_id=device.unit_id)
         if reply.isError():
-            raise RigEmulatorError(f"advance by {seconds} s refused: {reply}")
+            raise RigEmulatorError(f"advance by {seconds} s refused: {_refusal(reply)}")
 
     def inject(self, fault: Mapping[str, Any]) -> None:
         """Set a fault, a dict as in ``FAULTS.yaml`` (e.g. ``{"kind": "dropout", "signal":
@@ -440,7 +473,8 @@ class RigEmulator:
         """A signal's published value (reading, status or command) by name."""
         from rig_emulator.registers import decode, invalid_value
 
-        device, point = self.map.point(signal_name)
+        __tracebackhide__ = True  # a wrong name fails the user's line, not the plugin's
+        device, point = self._point("read", signal_name)
         method = {
             "input": "read_input_registers",
             "holding": "read_holding_registers",
@@ -453,7 +487,7 @@ class RigEmulator:
             f"read of {signal_name}",
         )
         if reply.isError():
-            raise RigEmulatorError(f"read of {signal_name} refused: {reply}")
+            raise RigEmulatorError(f"read of {signal_name} refused: {_refusal(reply)}")
         words = reply.bits[:1] if point.table in ("coil", "discrete") else reply.registers
         value = decode(point, list(words))
         # an integer at its invalid code is no reading, as a float's NaN is
@@ -470,7 +504,15 @@ class RigEmulator:
         from rig_emulator.registers import encode
 
         __tracebackhide__ = True  # a bad value fails the user's line, not the plugin's
-        device, point = self.map.point(signal_name)
+        device, point = self._point("write", signal_name)
+        if not point.writable or point.table not in ("holding", "coil"):
+            # (an FC16 at a reading's address wrote the holding register there: "writing"
+            # water_flow_kg_h set the flow setpoint, without a word: a stranger's probe)
+            raise ValueError(
+                f"write({signal_name!r}, ...): {signal_name} is no command (unit "
+                f"{device.unit_id} point '{point.name}', {point.table} table, access "
+                f"{point.access}); read() reads it"
+            )
         if point.table == "coil":
             on = _switch(signal_name, value)
             reply = self._call(
@@ -486,7 +528,20 @@ class RigEmulator:
                 f"write of {signal_name}",
             )
         if reply.isError():
-            raise RigEmulatorError(f"write of {signal_name} = {value} refused: {reply}")
+            raise RigEmulatorError(f"write of {signal_name} = {value} refused: {_refusal(reply)}")
+
+    def _point(self, call: str, signal_name: str) -> tuple[Any, Any]:
+        """The device and point of ``signal_name``, or ``ValueError`` naming the signals
+        there are (a bare ``KeyError: 'nope'`` was the message: a stranger's probe)."""
+        __tracebackhide__ = True
+        try:
+            return self.map.point(signal_name)
+        except KeyError:
+            names = dict.fromkeys(p.signal for d in self.map.devices for p in d.points)
+            raise ValueError(
+                f"{call}({signal_name!r}): no point of the register map publishes it (one "
+                f"of {', '.join(names)})"
+            ) from None
 
     def truth(self, signal_name: str) -> float:
         """The plant's true value of a measured signal (not the reading), from the truth

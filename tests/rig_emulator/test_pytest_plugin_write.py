@@ -42,3 +42,41 @@ def test_a_register_command_refuses_what_is_no_number(tmp_path):
             with pytest.raises(ValueError, match=r"water_flow_setpoint_kg_h.*expected a number"):
                 rig.write("water_flow_setpoint_kg_h", bad)
         assert rig.read("water_flow_setpoint_kg_h") == 700.0
+
+
+def test_a_reading_or_a_status_is_no_command_and_nothing_is_sent(tmp_path):
+    """A stranger's probe: ``write("water_flow_kg_h", 700)`` sent FC16 to the reading's
+    address in the holding table, where the flow setpoint sits: the setpoint became 700
+    and the measured flow followed, without a word; ``water_in_temp_C`` and ``boiler_on``
+    set the return setpoint and the boiler's set temperature the same way."""
+    from rig_emulator.pytest_plugin import RigEmulator
+
+    with RigEmulator(workdir=tmp_path) as rig:
+        commands = ("water_flow_setpoint_kg_h", "return_setpoint_C", "boiler_set_temp_C")
+        before = {name: rig.read(name) for name in commands}
+        for reading in ("water_flow_kg_h", "water_in_temp_C", "boiler_on", "sim_time_s"):
+            with pytest.raises(ValueError, match=rf"write\('{reading}', \.\.\.\): {reading} is no"):
+                rig.write(reading, 600)
+        assert {name: rig.read(name) for name in commands} == before  # nothing was sent
+        with pytest.raises(ValueError, match=r"read\('nope'\): no point of the register map"):
+            rig.read("nope")
+        with pytest.raises(ValueError, match=r"write\('nope'\): no point"):
+            rig.write("nope", 1)
+
+
+def test_a_refusal_names_the_exception_and_a_bad_timeout_is_named(tmp_path):
+    """Stranger's probes: a refused write said "ExceptionResponse(dev_id=1,
+    function_code=144, exception_code=4)"; ``reply_timeout_s = -1`` gave pymodbus's
+    "Timeout value out of range", naming nothing."""
+    from rig_emulator.pytest_plugin import RigEmulator, RigEmulatorError
+
+    with RigEmulator(workdir=tmp_path) as rig:
+        # a setpoint beyond what its point accepts: the server's 03
+        with pytest.raises(RigEmulatorError, match=r"refused: exception 03 \(illegal data value\)"):
+            rig.write("water_flow_setpoint_kg_h", 1e9)
+        for bad in (-1, 0, "abc", float("nan"), True):
+            rig.reply_timeout_s = bad
+            with pytest.raises(ValueError, match=r"reply_timeout_s = .*: expected a number"):
+                rig.read("sim_time_s")
+        rig.reply_timeout_s = 2.0
+        assert rig.read("sim_time_s") == 0.0
