@@ -39,7 +39,7 @@ import threading
 import time
 from collections.abc import Callable, Collection, Iterable, Iterator, Mapping, MutableMapping
 from contextvars import ContextVar
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from rig_emulator.faults.journal import FaultJournal
@@ -370,6 +370,17 @@ class FaultEngine:
         self._arm(self._initial)
 
     # ------------------------------------------------------------------ setting faults
+    def _in_range(self, spec: FaultSpec) -> FaultSpec:
+        """A drawn spike on a signal whose register cannot carry its value reads the
+        register's end, as an instrument's overload does (random spikes of the default
+        9999 on an int16 flue-gas temperature were served at 327.67 with a warning that
+        blamed the map, where a spike set by hand beyond its register is refused: a
+        stranger's probe)."""
+        served = self.reading_ranges.get(str(spec.signal)) if spec.kind == "spike" else None
+        if served is None or spec.parameter is None:
+            return spec
+        return replace(spec, parameter=min(max(float(spec.parameter), served.lo), served.hi))
+
     def _arm(self, entries: Iterable[tuple[Entry, str]]) -> None:
         for entry, source in entries:
             if isinstance(entry, RandomSpec):
@@ -489,7 +500,7 @@ class FaultEngine:
             self._pending = [p for p in self._pending if p not in due]
         for state in self._random:
             due += [
-                (s, "random", -math.inf)
+                (self._in_range(s), "random", -math.inf)
                 for s in state.draw(t_sim_s, self.instrument_units, self.signals)
             ]
         for fault in ended:

@@ -422,3 +422,25 @@ def test_a_set_takes_only_a_block_written_for_it(serve):
     assert set_again.isError() and set_again.exception_code == 3, set_again
     assert not c.write_register(command_address, 2, device_id=100).isError()  # clear alone
     assert read_point(c, dev, count) == 0.0
+
+
+def test_random_spikes_beyond_a_register_read_its_end(serve, tmp_path):
+    """A stranger's probe: random spikes of the default 9999 on the int16 flue-gas
+    temperature (327.67 C at most) were taken, served at 327.67 with a warning blaming the
+    map ("widen the point's type"), and journalled as asking 9999; the same spike set by
+    hand is refused. A drawn spike reads its register's end, as an instrument's overload
+    does, and the journal says so."""
+    faults = faults_from_list(
+        [{"kind": "random", "rate_per_h": 3600, "kinds": ["spike"], "seed": 7,
+          "signals": ["flue_gas_temp_C"], "fault_for_s": 1}]
+    )  # fmt: skip
+    journal = tmp_path / "j.jsonl"
+    srv = serve(faults=faults, fault_log=journal)
+    c = client(srv.port)
+    for _ in range(120):
+        assert not write(c, srv, *ADVANCE, 1).isError()
+    c.close()
+    starts = [e for e in read_journal(journal) if e["event"] == "start"]
+    assert len(starts) >= 5
+    assert {e["value"] for e in starts} == {327.67}, starts[:3]
+    assert all(e["served"]["reading"] == 327.67 for e in starts if e.get("served"))
