@@ -150,3 +150,35 @@ def test_a_fault_on_a_reading_the_log_lacks_is_unjudged_beside_its_events():
     assert [f["id"] for f in report["faults"]] == [1] and report["faults"][0]["detected"]
     assert sorted(f["id"] for f in report["unjudged"]) == [2, 3]
     assert report["missed"] == 0
+
+
+def test_a_log_of_the_faulted_readings_alone_is_compared(serve, tmp_path, capsys):
+    """A stranger's probe: a lab's program logging time_s and the analyser's O2 alone was
+    refused ("missing required column 'water_flow_kg_h'"): a fault report needs the time
+    and the readings of the faults, not the analyses' columns."""
+    units = unit_signals(load_map())
+    analyser = next(u for u, s in units.items() if "flue_gas_O2_pct" in s)
+    journal = tmp_path / "journal.jsonl"
+    faults = [{"kind": "no_reply", "unit": analyser, "at_s": 20, "for_s": 10}]
+    srv = serve(faults=faults_from_list(faults), fault_log=journal)
+    _, o2 = srv.map.point("flue_gas_O2_pct")
+    sim = srv.map.device("sim_control")
+    advance = next(p for p in sim.points if p.name == "lockstep_advance")
+    mb = ModbusClient(host="127.0.0.1", port=srv.port, timeout=0.3, auto_open=True)
+    lines = ["time_s,flue_gas_O2_pct"]
+    for step in range(1, 41):
+        mb.unit_id = sim.unit_id
+        assert mb.write_multiple_registers(advance.address, encode(advance, 1.0))
+        mb.unit_id = analyser
+        regs = mb.read_input_registers(o2.address, o2.width)
+        lines.append(f"{step},{'' if regs is None else f'{decode(o2, regs):.3f}'}")
+    mb.close()
+    log = tmp_path / "o2.csv"
+    log.write_text("\n".join(lines) + "\n")
+    report = tmp_path / "report.json"
+    code = hil_client_main(
+        ["fault-report", str(log), "--journal", str(journal), "--out", str(report)]
+    )
+    assert code == 0, capsys.readouterr().err
+    rows = json.loads(report.read_text())["faults"]
+    assert [(r["kind"], r["detected"]) for r in rows] == [("no_reply", True)], rows
