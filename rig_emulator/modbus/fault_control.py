@@ -68,9 +68,12 @@ def reading_ranges(register_map: RegisterMap) -> dict[str, ReadingRange]:
             where = f"unit {device.unit_id} {point.name}, {point.datatype} x {point.scale:g}"
             here = ReadingRange(lo, hi, where, abs(point.scale))
             known = out.get(point.signal)
-            if known is not None and known.hi - known.lo <= hi - lo:
+            if known is not None:  # what every register serves: the intersection, named
+                # by the narrower (a narrower second register was kept alone: a uint16's
+                # 0 at its low end let a spike of -100 through, a re-probe)
+                named = known if known.hi - known.lo <= hi - lo else here
                 here = ReadingRange(
-                    max(lo, known.lo), min(hi, known.hi), known.register, known.step
+                    max(lo, known.lo), min(hi, known.hi), named.register, named.step
                 )
             out[point.signal] = here
     return out

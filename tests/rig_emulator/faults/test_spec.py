@@ -128,6 +128,32 @@ def test_a_spike_is_one_its_register_serves_to_its_step(signal, value, ok):
             check_spikes([spike], reading_ranges(load_map()), "faults.yaml")
 
 
+def test_a_signal_on_two_registers_serves_what_both_serve():
+    """A re-probe: a map publishing flue_gas_temp_C as a uint16 x0.1 (0..6553.4) and as an
+    int16 x0.01 (-327.67..327.67) kept the narrower's range alone: a spike of -100 was
+    taken, journalled -100 and served 0 by the uint16. The range is what both serve."""
+    from rig_emulator.faults import check_spikes
+    from rig_emulator.modbus.fault_control import reading_ranges
+    from rig_emulator.registers import MAP_DIR, map_from_mapping
+    from rig_emulator.yamlio import read_yaml
+
+    data = read_yaml(MAP_DIR / "wieselburg_bench.yaml", ValueError)
+    device = next(
+        d for d in data["devices"] if any(p["name"] == "flue_gas_temp" for p in d["points"])
+    )
+    point = next(p for p in device["points"] if p["name"] == "flue_gas_temp")
+    used = {(p["table"], p["address"] + k) for p in device["points"] for k in range(4)}
+    address = next(a for a in range(100, 200) if ("input", a) not in used)
+    device["points"].insert(  # the wider first: the narrower one came second
+        0, dict(point, name="flue_gas_temp_coarse", datatype="uint16", scale=0.1, address=address)
+    )
+    ranges = reading_ranges(map_from_mapping(data, "two.yaml"))
+    assert ranges["flue_gas_temp_C"][:2] == (0.0, pytest.approx(327.67))
+    (spike,) = faults_from_list([{"kind": "spike", "signal": "flue_gas_temp_C", "value": -100}])
+    with pytest.raises(FaultError, match=r"outside what flue_gas_temp_C's register serves"):
+        check_spikes([spike], ranges, "faults.yaml")
+
+
 @pytest.mark.parametrize(
     "entry",
     [
