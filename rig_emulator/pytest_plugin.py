@@ -50,6 +50,9 @@ MAX_ADVANCE_CALL_S = 366 * 86_400
 #: ``no_reply`` fault costs this long, then :class:`RigEmulatorError` (it cost 60 s and
 #: ended in pymodbus's own exception: a stranger's probe). ``reply_timeout_s`` sets it.
 REPLY_TIMEOUT_S = 5.0
+#: The longest ``reply_timeout_s`` taken [s]: a day (the socket library's own limit, the
+#: platform's time_t, is far beyond any test's patience)
+REPLY_TIMEOUT_MAX_S = 86400.0
 #: How long an advance may take to answer [s]: a day of the lab profile takes seconds on a
 #: loaded machine.
 ADVANCE_TIMEOUT_S = 300.0
@@ -318,20 +321,29 @@ class RigEmulator:
         from pymodbus.client import ModbusTcpClient
 
         __tracebackhide__ = True
+        timeout = self._timeout_s()
+        if self._client is None:
+            self._client = ModbusTcpClient(self.host, port=self.port, timeout=timeout, retries=0)
+        if not self._client.connected and not self._client.connect():
+            raise RigEmulatorError(f"cannot connect to {self.host}:{self.port}")
+        return self._client
+
+    def _timeout_s(self) -> float:
+        """:attr:`reply_timeout_s` as a float, or ``ValueError`` naming it (pymodbus said
+        "Timeout value out of range", naming nothing; numpy's float32 and a Fraction were
+        a TypeError in the socket library, 1e12 an OverflowError: probes)."""
+        __tracebackhide__ = True
         timeout = self.reply_timeout_s
         if (
             isinstance(timeout, bool)
             or not isinstance(timeout, numbers.Real)
-            or not 0 < timeout < math.inf
-        ):  # (pymodbus said "Timeout value out of range", naming nothing: a probe)
-            raise ValueError(f"reply_timeout_s = {timeout!r}: expected a number of seconds > 0")
-        if self._client is None:
-            self._client = ModbusTcpClient(
-                self.host, port=self.port, timeout=self.reply_timeout_s, retries=0
+            or not 0 < float(timeout) <= REPLY_TIMEOUT_MAX_S
+        ):
+            raise ValueError(
+                f"reply_timeout_s = {timeout!r}: expected a number of seconds > 0 and at "
+                f"most {REPLY_TIMEOUT_MAX_S:g}"
             )
-        if not self._client.connected and not self._client.connect():
-            raise RigEmulatorError(f"cannot connect to {self.host}:{self.port}")
-        return self._client
+        return float(timeout)
 
     def _call(self, request: Callable[[Any], Any], what: str) -> Any:
         """``request(client)`` within :attr:`reply_timeout_s`; once more on a new connection
@@ -340,7 +352,7 @@ class RigEmulator:
         from pymodbus.exceptions import ConnectionException, ModbusIOException
 
         client = self.client
-        client.comm_params.timeout_connect = self.reply_timeout_s
+        client.comm_params.timeout_connect = self._timeout_s()
         try:
             return request(client)
         except ModbusIOException as exc:
@@ -348,7 +360,7 @@ class RigEmulator:
                 self._reconnect()  # next call goes on a new one (a late reply on this
                 late = " (a write delayed is still carried out when its delay ends)"
                 raise RigEmulatorError(  # one answered the calls after it: a re-probe)
-                    f"{what}: no reply within {self.reply_timeout_s:g} s (a no_reply fault, "
+                    f"{what}: no reply within {self._timeout_s():g} s (a no_reply fault, "
                     "or a delay longer than that; reply_timeout_s sets the wait)"
                     + (late if what.startswith("write") else "")
                 ) from exc
@@ -537,7 +549,12 @@ class RigEmulator:
         try:
             return self.map.point(signal_name)
         except KeyError:
-            names = dict.fromkeys(p.signal for d in self.map.devices for p in d.points)
+            names = dict.fromkeys(  # (write: its commands only, all it takes: a re-probe)
+                p.signal
+                for d in self.map.devices
+                for p in d.points
+                if call != "write" or (p.writable and p.table in ("holding", "coil"))
+            )
             raise ValueError(
                 f"{call}({signal_name!r}): no point of the register map publishes it (one "
                 f"of {', '.join(names)})"

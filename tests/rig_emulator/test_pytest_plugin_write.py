@@ -68,15 +68,26 @@ def test_a_refusal_names_the_exception_and_a_bad_timeout_is_named(tmp_path):
     """Stranger's probes: a refused write said "ExceptionResponse(dev_id=1,
     function_code=144, exception_code=4)"; ``reply_timeout_s = -1`` gave pymodbus's
     "Timeout value out of range", naming nothing."""
+    from fractions import Fraction
+
+    import numpy as np
+
     from rig_emulator.pytest_plugin import RigEmulator, RigEmulatorError
 
     with RigEmulator(workdir=tmp_path) as rig:
         # a setpoint beyond what its point accepts: the server's 03
         with pytest.raises(RigEmulatorError, match=r"refused: exception 03 \(illegal data value\)"):
             rig.write("water_flow_setpoint_kg_h", 1e9)
-        for bad in (-1, 0, "abc", float("nan"), True):
+        # (1e12 was an OverflowError of the socket library: a re-probe)
+        for bad in (-1, 0, "abc", float("nan"), True, float("inf"), 1e12):
             rig.reply_timeout_s = bad
             with pytest.raises(ValueError, match=r"reply_timeout_s = .*: expected a number"):
                 rig.read("sim_time_s")
-        rig.reply_timeout_s = 2.0
-        assert rig.read("sim_time_s") == 0.0
+        # numpy's float32 and a Fraction were a TypeError in the socket library (a re-probe)
+        for good in (2.0, np.float32(2.0), Fraction(1, 2)):
+            rig.reply_timeout_s = good
+            assert rig.read("sim_time_s") == 0.0
+        with pytest.raises(ValueError) as err:
+            rig.write("water_flow_kg_hh", 1)
+        assert "water_flow_setpoint_kg_h" in str(err.value)  # the commands, not the readings
+        assert "water_flow_kg_h," not in str(err.value) and "true_" not in str(err.value)
