@@ -78,12 +78,13 @@ def near(values: np.ndarray, codes: np.ndarray) -> np.ndarray:
 
 def all_nines_codes(values: np.ndarray) -> np.ndarray:
     """Per reading, whether it is an all-nines error code (see the module docstring): an
-    all-nines value beyond the nearest readings before and after it that are not. In a
-    column of nothing else, its most common value stands for the readings: a barometer
-    that logs whole hPa on a day at 999 hPa, or a sensor open all run, cannot be told apart
-    from the data, and a column that never moves is what the analyses' checks of a stuck
-    sensor name (a re-probe: the barometer's column was emptied, and calibrate's UA_on
-    with it)."""
+    all-nines value beyond the nearest readings before and after it that are not. A
+    column of nothing else keeps them (:func:`only_nines` says so): a barometer that logs
+    whole hPa on a day at 999 hPa, or a sensor open all run, cannot be told apart from the
+    data (re-probes: the barometer's column was emptied, and calibrate's UA_on with it; a
+    meter at a whole 999 kg/h with its code 9999 in between cannot be told from a meter
+    at 9999 that read 999 a while, and taking the most common value for the readings
+    dropped the real ones of the second)."""
     finite = np.isfinite(values)
     nines = finite & near(values, ALL_NINES)
     if not nines.any():
@@ -91,10 +92,6 @@ def all_nines_codes(values: np.ndarray) -> np.ndarray:
     rows = np.flatnonzero(finite)
     v = values[rows]
     plain = ~nines[rows]
-    if not plain.any():  # all nines: its most common value is the reading (a meter at a
-        # whole 999 kg/h with its code 9999 now and then kept both: a re-probe)
-        levels, counts = np.unique(v, return_counts=True)
-        plain = v == levels[np.argmax(counts)]
     k = np.arange(v.size)
     before = np.maximum.accumulate(np.where(plain, k, -1))
     after = np.minimum.accumulate(np.where(plain, k, v.size)[::-1])[::-1]
@@ -107,6 +104,17 @@ def all_nines_codes(values: np.ndarray) -> np.ndarray:
     out = np.zeros(values.shape, dtype=bool)
     out[rows] = ~plain & beyond
     return out
+
+
+def only_nines(values: np.ndarray) -> np.ndarray | None:
+    """The distinct values of a column whose every reading is all nines and which holds
+    more than one of them (999 and 9999: which are the codes, the log cannot say), else
+    None."""
+    finite = values[np.isfinite(values)]
+    if not finite.size or not near(finite, ALL_NINES).all():
+        return None
+    levels = np.unique(finite)
+    return levels if levels.size > 1 else None
 
 
 class CodesError(ValueError):

@@ -38,7 +38,13 @@ from typing import Any
 
 import numpy as np
 
-from hil_client.analysis.error_codes import CodesError, all_nines_codes, declared_codes, near
+from hil_client.analysis.error_codes import (
+    CodesError,
+    all_nines_codes,
+    declared_codes,
+    near,
+    only_nines,
+)
 from hil_client.protocol.rig import LOG_COLUMNS
 from rig_emulator.signals import MEASURED
 
@@ -345,6 +351,14 @@ def _drop_error_codes(
         codes = np.zeros(values.shape, dtype=bool)
         if name in INSTRUMENT_COLUMNS:
             codes |= all_nines_codes(values)
+            levels = only_nines(values)
+            if levels is not None:
+                shown = ", ".join(f"{v:g}" for v in levels[:4])
+                notes.append(
+                    f"{path}: column '{name}' holds nothing but all-nines values ({shown}): "
+                    "an instrument's error codes or its readings, which the log cannot tell "
+                    "apart; kept as readings (the meta file's missing_values names codes)"
+                )
         if name in declared:
             codes |= near(values, declared[name])
         if codes.any():

@@ -11,7 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hil_client.analysis.error_codes import ALL_NINES, CodesError, all_nines_codes, declared_codes
+from hil_client.analysis.error_codes import (
+    ALL_NINES,
+    CodesError,
+    all_nines_codes,
+    declared_codes,
+    only_nines,
+)
 from hil_client.analysis.logio import LogError, read_log
 from hil_client.cli import main
 
@@ -29,10 +35,13 @@ def test_all_nines_beyond_their_neighbours_are_codes():
     # whole hPa on a day at 999, a re-probe; or a sensor open all run, a stuck column the
     # analyses' checks name)
     assert not all_nines_codes(np.full(4, 999.0)).any()
-    # ... whose most common value stands for the readings: a meter at a whole 999 kg/h
-    # with its code 9999 every tenth row (a re-probe: both kept, the mean flow 1,899)
+    # ... nor between two levels: a meter at a whole 999 kg/h with its code 9999 in
+    # between, or one at 9999 that read 999 a while (re-probes: taking the most common
+    # value for the readings dropped the real ones of the second); said, not guessed
     steady = np.where(np.arange(20) % 10 == 5, 9999.0, 999.0)
-    assert np.flatnonzero(all_nines_codes(steady)).tolist() == [5, 15]
+    assert not all_nines_codes(steady).any()
+    assert only_nines(steady).tolist() == [999.0, 9999.0]
+    assert only_nines(np.full(4, 999.0)) is None and only_nines(flow) is None
     # open for five minutes between readings of 120 and 125 C: the whole stretch
     flue = np.r_[np.full(10, 120.0), np.full(300, 999.9), np.full(10, 125.0)]
     assert all_nines_codes(flue).sum() == 300
@@ -189,3 +198,13 @@ def test_a_bad_declaration_is_one_line_and_exit_2(run_log, tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "names column 'water_flow'" in err, err
     assert not path.with_name("run.balance.json").exists()
+
+
+def test_a_column_of_nothing_but_two_nines_levels_is_kept_and_said(tmp_path):
+    path = tmp_path / "lab.csv"
+    rows = [f"{i},{9999 if i % 10 == 5 else 999},120" for i in range(20)]
+    path.write_text("time_s,water_flow_kg_h,flue_gas_temp_C\n" + "\n".join(rows) + "\n")
+    log = read_log(path, ("time_s", "water_flow_kg_h"))
+    assert np.isfinite(log["water_flow_kg_h"]).all()
+    said = [n for n in log.notes if "holds nothing but all-nines values (999, 9999)" in n]
+    assert len(said) == 1 and "missing_values names codes" in said[0], log.notes
