@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from hil_client.analysis.fault_report import (
+    INSTRUMENT_UNITS_ANY,
     check_journal,
     check_log_served,
     compare,
@@ -138,6 +139,8 @@ def fault_report(
     # time_s and the faulted readings are all a comparison needs (the analyses' columns
     # were required: a lab's program logging the analyser alone was refused, a probe)
     log = read_log(Path(log_path), ("time_s",), as_read=True)
+    if events is None:
+        _check_log_holds_a_faulted_reading(log, journal, register_map or load_map())
     check_log_served(log.meta, str(log_path), str(journal_path), journal_epoch(journal))
     offset = log.meta.get("server_time_offset_s", 0.0)
     offset = finite_number(offset) or 0.0
@@ -167,6 +170,31 @@ def fault_report(
     report["journal"] = str(journal_path)
     report["notes"] = notes
     return report
+
+
+def _check_log_holds_a_faulted_reading(
+    log: LabLog, journal: Sequence[dict[str, Any]], register_map: RegisterMap
+) -> None:
+    """Refuse a log compared alone (no events file) that has no column of any reading the
+    journal's faults concern: nothing in it could show one (a re-probe: a log of time_s
+    alone gave "3 unjudged", exit 0)."""
+    by_unit = unit_signals(register_map)
+    concerned: dict[str, None] = {}
+    for event in journal:
+        if event.get("event") != "start":
+            continue
+        if isinstance(event.get("signal"), str):
+            concerned[event["signal"]] = None
+        elif event.get("unit") == INSTRUMENT_UNITS_ANY:
+            concerned.update(dict.fromkeys(s for signals in by_unit.values() for s in signals))
+        else:
+            concerned.update(dict.fromkeys(by_unit.get(event.get("unit"), [])))
+    if concerned and not any(name in log.columns for name in concerned):
+        shown = ", ".join(list(concerned)[:6]) + (", ..." if len(concerned) > 6 else "")
+        raise ValueError(
+            f"{log.path}: no column of a reading the journal's faults concern ({shown}): "
+            "nothing in it can show them (a fault report needs time_s and those readings)"
+        )
 
 
 def _rig_epochs(log: LabLog) -> np.ndarray:
@@ -284,7 +312,7 @@ def summary(report: dict[str, Any]) -> str:
         never += f", {unjudged} unjudged (no mark in the readings, and no Modbus events)"
     journalled = len(report["faults"]) + outside + len(report.get("unseen", ())) + still
     journalled += unjudged
-    none = "none in the run" if journalled else "none journalled"
+    none = "none judged" if journalled else "none journalled"  # (was "none in the run")
     false = "false not counted" if report["false"] is None else f"{report['false']} false"
     return (
         f"faults: {report['detected']} detected, {report['missed']} missed, "

@@ -182,3 +182,16 @@ def test_a_log_of_the_faulted_readings_alone_is_compared(serve, tmp_path, capsys
     assert code == 0, capsys.readouterr().err
     rows = json.loads(report.read_text())["faults"]
     assert [(r["kind"], r["detected"]) for r in rows] == [("no_reply", True)], rows
+    # a log of time_s alone: nothing in it can show the fault (a re-probe: "1 unjudged
+    # ... (none in the run)", exit 0), refused in one line; nothing written
+    capsys.readouterr()
+    bare = tmp_path / "bare.csv"
+    bare.write_text("time_s\n" + "\n".join(str(i) for i in range(1, 41)) + "\n")
+    out = tmp_path / "bare.json"
+    assert (
+        hil_client_main(["fault-report", str(bare), "--journal", str(journal), "--out", str(out)])
+        == 2
+    )
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no column of a reading the journal's faults concern" in err
+    assert "flue_gas_O2_pct" in err and not out.exists()
