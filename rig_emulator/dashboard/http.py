@@ -425,6 +425,13 @@ class Dashboard:
         if len(self._handlers) <= self.max_connections:
             return True
         shed = self._shed(keep=connection)
+        if shed is None:  # streams never wait for a request: four held the page hostage
+            # under --max-connections' share of 4, every request reset (a stranger's probe)
+            stream = self._close_oldest_stream(
+                f"{len(self._handlers) - 1} HTTP connections open (its limit)"
+            )
+            if stream is not None:
+                return True
         self._at_limit(
             "dashboard: %d HTTP connections open (its limit): %s",
             len(self._handlers) - 1,
@@ -509,23 +516,31 @@ class Dashboard:
         else:
             await self._faults(body, writer)
 
+    def _close_oldest_stream(self, why: str) -> str | None:
+        """Close the oldest live stream (it may be a connection that stopped reading) for
+        a new request: its peer, or None when there is none."""
+        if not self._streams:
+            return None
+        oldest = next(iter(self._streams))
+        self._evicted += 1
+        now = time.monotonic()
+        if now - self._evicted_said >= EVICTION_LOG_S:
+            log.warning(
+                "dashboard: %s: the oldest stream closed for a new request (%d so since the "
+                "last such line; at most one a minute)",
+                why,
+                self._evicted,
+            )
+            self._evicted, self._evicted_said = 0, now
+        writer = self._streams.pop(oldest)
+        writer.transport.abort()
+        _end(oldest)
+        return _peer(writer)
+
     async def _stream(self, writer: asyncio.StreamWriter) -> None:
         if len(self._streams) >= MAX_STREAMS:
-            # the oldest gives way (it may be a connection that stopped reading): a new
-            # viewer is never locked out by streams nobody reads
-            oldest = next(iter(self._streams))
-            self._evicted += 1
-            now = time.monotonic()
-            if now - self._evicted_said >= EVICTION_LOG_S:
-                log.warning(
-                    "dashboard: %d live streams: the oldest closed for a new one (%d so "
-                    "since the last such line; at most one a minute)",
-                    MAX_STREAMS,
-                    self._evicted,
-                )
-                self._evicted, self._evicted_said = 0, now
-            self._streams.pop(oldest).transport.abort()
-            _end(oldest)
+            # a new viewer is never locked out by streams nobody reads
+            self._close_oldest_stream(f"{MAX_STREAMS} live streams")
         queue: asyncio.Queue = asyncio.Queue(maxsize=2)
         self._streams[queue] = writer
         try:
@@ -555,7 +570,8 @@ class Dashboard:
         if not isinstance(request, dict):
             raise BadRequest('expected {"signal": NAME, "value": NUMBER}')
         signal, value = request.get("signal"), request.get("value")
-        if signal not in self._controls:
+        if not isinstance(signal, str) or signal not in self._controls:  # (a list: a
+            # traceback, "unhashable type", and an empty reply: a stranger's probe)
             raise BadRequest(f"signal: expected one of {', '.join(self._controls)}")
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise BadRequest("value: expected a number")
@@ -697,17 +713,24 @@ async def _read_request(reader: asyncio.StreamReader) -> tuple[str, str, dict[st
         lines.append(field.decode("latin-1").removesuffix("\r\n"))
     if not version.startswith("HTTP/1."):
         raise BadRequest(f"unsupported protocol {version!r}")
-    headers = {}
+    headers: dict[str, str] = {}
+    lengths: set[str] = set()
     for line in lines:
         if ":" in line:
             name, value = line.split(":", 1)
             headers[name.strip().lower()] = value.strip()
+            if name.strip().lower() == "content-length":
+                lengths.add(value.strip())
     if "transfer-encoding" in headers:  # a body of chunks: the length must be given
         raise BadRequest("Transfer-Encoding is not accepted; send the body with Content-Length")
-    try:
-        length = int(headers.get("content-length", "0"))
-    except ValueError:
-        raise BadRequest("Content-Length is not a number") from None
+    # RFC 9112 6.3: differing lengths are a framing error (it waited for the larger and
+    # dropped the connection); RFC 9110 8.6: digits only (+30 and 3_0 were taken: probes)
+    if len(lengths) > 1:
+        raise BadRequest(f"Content-Length given twice, differing ({', '.join(sorted(lengths))})")
+    text = headers.get("content-length", "0")
+    if not (text.isascii() and text.isdigit()):
+        raise BadRequest(f"Content-Length {text[:20]!r} is not a number of bytes")
+    length = int(text)
     if not 0 <= length <= MAX_BODY_BYTES:
         raise BadRequest(f"body of {length} bytes (at most {MAX_BODY_BYTES})")
     body = await reader.readexactly(length) if length else b""

@@ -240,6 +240,31 @@ def test_an_empty_or_non_json_control_body_says_not_json(served_once, body):
         assert status == 400 and "not JSON" in answer["error"], (path, answer)
 
 
+@pytest.mark.parametrize("signal", [b'["speed_factor"]', b'{"a": 1}'])
+def test_a_control_signal_that_is_no_name_is_a_400(served_once, signal):
+    """A stranger's probe: a list or an object as the signal was a traceback in the
+    server's log ("unhashable type") and an empty reply."""
+    _, http = served_once("--lockstep", "--http-control")
+    status, answer = _post(http, b'{"signal": ' + signal + b', "value": 1}', "/api/control")
+    assert status == 400 and answer["error"].startswith("signal: expected one of"), answer
+
+
+@pytest.mark.parametrize(
+    "lengths",
+    [[b"+2"], [b"2_0"], [b"\xd9\xa2"], [b"2", b"99"]],  # (an Arabic-Indic two too)
+)
+def test_a_content_length_that_is_no_number_of_bytes_or_given_twice_is_a_400(served_once, lengths):
+    """A stranger's probe: Content-Length +30 and 3_0 were taken (Python's int() reads
+    them; RFC 9110 8.6 allows digits only), and two differing ones waited for the larger,
+    then dropped the connection with no reply (RFC 9112 6.3: a 400)."""
+    _, http = served_once("--lockstep", "--http-control")
+    fields = b"".join(b"Content-Length: " + n + b"\r\n" for n in lengths)
+    request = b"POST /api/control HTTP/1.1\r\nHost: 127.0.0.1\r\n" + fields + b"\r\n{}"
+    with socket.create_connection(("127.0.0.1", http), timeout=10) as s:
+        s.sendall(request)
+        assert s.recv(64).split(b" ")[1] == b"400"
+
+
 @pytest.mark.skipif(CHROMIUM is None, reason="chromium not installed (make tools installs it)")
 def test_axes_and_faults_are_readable_in_a_real_browser(served, tmp_path):
     """A stranger's probe (lab profile, steady state): the flue gas axis read 118 118 118

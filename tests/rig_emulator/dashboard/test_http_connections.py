@@ -209,3 +209,30 @@ def test_out_of_descriptors_with_no_idle_http_connection_is_one_line_not_a_count
     assert len(said) == 1 and "none waits for its request" in said[0], lines
     assert not any("descriptor not logged" in line for line in lines), lines
     assert not any("shortages" in line for line in lines), lines  # one shortage, logged
+
+
+def test_live_streams_filling_the_dashboards_share_give_way_to_a_request(tmp_path):
+    """A stranger's probe: with the dashboard's share of connections at 4 (a tight
+    open-file limit), four live streams (four tabs, or an idle neighbour) held the page
+    hostage: a stream never waits for a request, so none could be closed for a GET, and
+    every request was reset. The oldest stream gives way to a new request, as it does to
+    a new stream at the streams' limit."""
+    http = free_port()
+    options = (*_tls_options(tmp_path / "certs"), "--tcp-port", "0", "--serial", "pty")
+    with serving_limited(
+        tmp_path / "serve.log", *options, "--http", str(http), http=http
+    ) as served:
+        share = _dashboard_share(served.lines())
+        streams = []
+        try:
+            for _ in range(share):
+                stream = socket.create_connection(("127.0.0.1", http), timeout=5)
+                streams.append(stream)
+                stream.sendall(b"GET /api/stream HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
+                assert stream.recv(64).startswith(b"HTTP/1.1 200")
+            state = http_get(http, "/api/state")
+        finally:
+            close_all(streams)
+    lines = served.lines()
+    assert _answered(state), (state[:200], lines[-5:])
+    assert any("the oldest stream closed for a new request" in line for line in lines), lines
