@@ -12,8 +12,9 @@ fuel of 1,508 kg). Two rules find them:
   (a setpoint of 999 kg/h is a command, not a reading): a reading of three or more nines
   before the point and nines after it if any (999, -999, 999.9, 9999, 99999.99, ...) that
   lies beyond the readings next to it (the nearest before and after that are not all
-  nines) by more than :data:`CODE_JUMP_FRACTION` of its own size. A code replaces the
-  reading and has nothing to do with those around it; a real reading that happens to be
+  nines) by more than :data:`CODE_JUMP_FRACTION` of its own size, unless such readings
+  are most of the column or all it holds (kept, and said: :func:`nines_verdict`). A code
+  replaces the reading and has nothing to do with those around it; a real reading that happens to be
   all nines lies between them (a start-up's CO at 5-s rows: 630, 999, 1259 ppm) or near
   them (a CO peak's 999 between 964 and 973, a barometer's 999.9 hPa after 1000.0, a
   large boiler's 9999 kg/h among 9,800 and 10,100). Re-probes: each of these was dropped
@@ -78,17 +79,24 @@ def near(values: np.ndarray, codes: np.ndarray) -> np.ndarray:
 
 def all_nines_codes(values: np.ndarray) -> np.ndarray:
     """Per reading, whether it is an all-nines error code (see the module docstring): an
-    all-nines value beyond the nearest readings before and after it that are not. A
-    column of nothing else keeps them (:func:`only_nines` says so): a barometer that logs
-    whole hPa on a day at 999 hPa, or a sensor open all run, cannot be told apart from the
-    data (re-probes: the barometer's column was emptied, and calibrate's UA_on with it; a
-    meter at a whole 999 kg/h with its code 9999 in between cannot be told from a meter
-    at 9999 that read 999 a while, and taking the most common value for the readings
-    dropped the real ones of the second)."""
+    all-nines value beyond the nearest readings before and after it that are not, and no
+    more than half the column's readings (:func:`nines_verdict`)."""
+    return nines_verdict(values)[0]
+
+
+def nines_verdict(values: np.ndarray) -> tuple[np.ndarray, list[float]]:
+    """The all-nines codes of a column (a mask) and the all-nines values it keeps although
+    they could be codes: where they are all it holds besides none (a barometer that logs
+    whole hPa on a day at 999 hPa, a sensor open all run: nothing to compare with), and
+    where those beyond their neighbours make up most of its readings (a meter at a whole
+    999 kg/h from a 0 on, with its code 9999 in between: every 999 lay beyond the 0). The
+    data cannot tell codes from readings there; a log says so, its meta file's
+    ``missing_values`` can (re-probes: each of these was emptied, real readings and all,
+    and calibrate's UA_on became NaN with the barometer's)."""
     finite = np.isfinite(values)
     nines = finite & near(values, ALL_NINES)
     if not nines.any():
-        return nines
+        return nines, []
     rows = np.flatnonzero(finite)
     v = values[rows]
     plain = ~nines[rows]
@@ -100,21 +108,16 @@ def all_nines_codes(values: np.ndarray) -> np.ndarray:
     low, high = np.fmin(prev, next_), np.fmax(prev, next_)  # NaN: neither side has one
     reach = CODE_JUMP_FRACTION * np.abs(v)
     with np.errstate(invalid="ignore"):  # (NaN: no reading to compare with, no code)
-        beyond = (v < low - reach) | (v > high + reach)
+        beyond = ~plain & ((v < low - reach) | (v > high + reach))
+    kept = [] if plain.any() else sorted({float(x) for x in v})
+    for level in np.unique(v[beyond]):
+        same = beyond & (v == level)
+        if 2 * same.sum() > v.size:  # most of the column: no code to take out
+            beyond &= ~same
+            kept.append(float(level))
     out = np.zeros(values.shape, dtype=bool)
-    out[rows] = ~plain & beyond
-    return out
-
-
-def only_nines(values: np.ndarray) -> np.ndarray | None:
-    """The distinct values of a column whose every reading is all nines and which holds
-    more than one of them (999 and 9999: which are the codes, the log cannot say), else
-    None."""
-    finite = values[np.isfinite(values)]
-    if not finite.size or not near(finite, ALL_NINES).all():
-        return None
-    levels = np.unique(finite)
-    return levels if levels.size > 1 else None
+    out[rows] = beyond
+    return out, sorted(kept)
 
 
 class CodesError(ValueError):

@@ -38,13 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from hil_client.analysis.error_codes import (
-    CodesError,
-    all_nines_codes,
-    declared_codes,
-    near,
-    only_nines,
-)
+from hil_client.analysis.error_codes import CodesError, declared_codes, near, nines_verdict
 from hil_client.protocol.rig import LOG_COLUMNS
 from rig_emulator.signals import MEASURED
 
@@ -349,18 +343,20 @@ def _drop_error_codes(
         raise LogError(str(exc)) from None
     for name, values in columns.items():
         codes = np.zeros(values.shape, dtype=bool)
-        if name in INSTRUMENT_COLUMNS:
-            codes |= all_nines_codes(values)
-            levels = only_nines(values)
-            if levels is not None:
-                shown = ", ".join(f"{v:g}" for v in levels[:4])
-                notes.append(
-                    f"{path}: column '{name}' holds nothing but all-nines values ({shown}): "
-                    "an instrument's error codes or its readings, which the log cannot tell "
-                    "apart; kept as readings (the meta file's missing_values names codes)"
-                )
         if name in declared:
             codes |= near(values, declared[name])
+        if name in INSTRUMENT_COLUMNS:  # (on what the declared codes leave: a re-probe)
+            left = np.where(codes, np.nan, values)
+            nines, kept = nines_verdict(left)
+            codes |= nines
+            if kept and np.unique(left[np.isfinite(left)]).size > 1:  # (a constant column
+                # is what the checks of a stuck sensor name)
+                shown = ", ".join(f"{v:g}" for v in kept[:4])
+                notes.append(
+                    f"{path}: column '{name}': all-nines values ({shown}) that may be an "
+                    "instrument's error codes or its readings, which the log cannot tell "
+                    "apart; kept as readings (the meta file's missing_values names codes)"
+                )
         if codes.any():
             i = int(np.flatnonzero(codes)[0])
             found = ", ".join(f"{v:g}" for v in np.unique(values[codes])[:4])

@@ -16,7 +16,7 @@ from hil_client.analysis.error_codes import (
     CodesError,
     all_nines_codes,
     declared_codes,
-    only_nines,
+    nines_verdict,
 )
 from hil_client.analysis.logio import LogError, read_log
 from hil_client.cli import main
@@ -40,11 +40,19 @@ def test_all_nines_beyond_their_neighbours_are_codes():
     # value for the readings dropped the real ones of the second); said, not guessed
     steady = np.where(np.arange(20) % 10 == 5, 9999.0, 999.0)
     assert not all_nines_codes(steady).any()
-    assert only_nines(steady).tolist() == [999.0, 9999.0]
-    assert only_nines(np.full(4, 999.0)) is None and only_nines(flow) is None
+    assert nines_verdict(steady)[1] == [999.0, 9999.0]
+    assert nines_verdict(np.full(4, 999.0))[1] == [999.0] and nines_verdict(flow)[1] == []
+    # the same with the pump's 0 first: every 999 lay beyond it, most of the column; kept
+    # and said, and the 9999 a code (a re-probe: the whole column emptied)
+    pumped = np.r_[0.0, steady]
+    codes, kept = nines_verdict(pumped)
+    assert np.flatnonzero(codes).tolist() == [6, 16] and kept == [999.0]
     # open for five minutes between readings of 120 and 125 C: the whole stretch
-    flue = np.r_[np.full(10, 120.0), np.full(300, 999.9), np.full(10, 125.0)]
+    flue = np.r_[np.full(200, 120.0), np.full(300, 999.9), np.full(200, 125.0)]
     assert all_nines_codes(flue).sum() == 300
+    # ... but not for most of the log: a meter at 999 most of the run reads the same
+    flue = np.r_[np.full(10, 120.0), np.full(300, 999.9), np.full(10, 125.0)]
+    assert not all_nines_codes(flue).any() and nines_verdict(flue)[1] == [999.9]
     # as a float32 register carries 999.9, and as the client prints 9999.9 and -999.9
     # from one (%.4f, %.5f: a re-probe), and one decimal more
     coded = np.array([80.0, float(np.float32(999.9)), 9999.9004, 81.0, -999.90002, -9999.99])
@@ -206,5 +214,11 @@ def test_a_column_of_nothing_but_two_nines_levels_is_kept_and_said(tmp_path):
     path.write_text("time_s,water_flow_kg_h,flue_gas_temp_C\n" + "\n".join(rows) + "\n")
     log = read_log(path, ("time_s", "water_flow_kg_h"))
     assert np.isfinite(log["water_flow_kg_h"]).all()
-    said = [n for n in log.notes if "holds nothing but all-nines values (999, 9999)" in n]
+    said = [n for n in log.notes if "all-nines values (999, 9999) that may be" in n]
     assert len(said) == 1 and "missing_values names codes" in said[0], log.notes
+    # the meta file names 9999: the log can tell them apart now, and says nothing more (a
+    # re-probe: "cannot tell apart; kept" and "taken as missing" of one column)
+    path.with_name("lab.meta.json").write_text('{"missing_values": {"water_flow_kg_h": 9999}}')
+    log = read_log(path, ("time_s", "water_flow_kg_h"))
+    assert np.isnan(log["water_flow_kg_h"]).sum() == 2
+    assert not any("may be" in n for n in log.notes), log.notes
