@@ -334,16 +334,16 @@ class RigEmulator:
         a TypeError in the socket library, 1e12 an OverflowError: probes)."""
         __tracebackhide__ = True
         timeout = self.reply_timeout_s
-        if (
-            isinstance(timeout, bool)
-            or not isinstance(timeout, numbers.Real)
-            or not 0 < float(timeout) <= REPLY_TIMEOUT_MAX_S
-        ):
+        try:  # (an int of 400 digits: OverflowError from float(), a re-probe)
+            seconds = float(timeout) if isinstance(timeout, numbers.Real) else math.nan
+        except OverflowError:
+            seconds = math.inf
+        if isinstance(timeout, bool) or not 0 < seconds <= REPLY_TIMEOUT_MAX_S:
             raise ValueError(
                 f"reply_timeout_s = {timeout!r}: expected a number of seconds > 0 and at "
                 f"most {REPLY_TIMEOUT_MAX_S:g}"
             )
-        return float(timeout)
+        return seconds
 
     def _call(self, request: Callable[[Any], Any], what: str) -> Any:
         """``request(client)`` within :attr:`reply_timeout_s`; once more on a new connection

@@ -246,7 +246,8 @@ class Dashboard:
     async def stop(self) -> None:
         if self._evicted:  # (those after the last line were never counted: a re-probe)
             log.warning(
-                "dashboard: %d more live stream(s) closed for new ones since the last such line",
+                "dashboard: %d more live stream(s) closed for new streams or requests since the "
+                "last such line",
                 self._evicted,
             )
             self._evicted = 0
