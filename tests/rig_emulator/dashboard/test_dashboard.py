@@ -394,7 +394,7 @@ def test_streams_closed_for_new_ones_are_logged_at_most_once_a_minute(serve, cap
         with caplog.at_level(logging.WARNING, logger="rig_emulator.dashboard"):
             srv.call(board.stop())
     # the rest are counted when the dashboard stops (a re-probe: they never were)
-    assert "39 more live stream(s) closed for new ones" in caplog.text
+    assert "39 more live stream(s) closed for new streams or requests" in caplog.text
 
 
 def test_a_stop_with_requests_half_sent_logs_no_traceback():
