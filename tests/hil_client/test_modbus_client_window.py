@@ -220,6 +220,20 @@ def test_slow_rows_name_the_unit_that_timed_out_not_the_servers_clock(
     assert any("each row waited for unit 3" in note for note in meta["notes"])
 
 
+def _delayed_unit_1_run(serve_process, tmp_path, capsys, delay_ms: int, reply_timeout: str):
+    """A run at x20 with a delay fault on unit 1 (the bench PLC): its log and the warning
+    on its rows' spacing, which names unit 1 with its readings."""
+    faults = tmp_path / "faults.yaml"
+    faults.write_text(f"faults:\n  - {{kind: delay, unit: 1, delay_ms: {delay_ms}}}\n")
+    server = serve_process("--boiler", "windhager_12kw", "--speed", "20", "--faults", str(faults))
+    code, out = _run(tmp_path, server.port, "--reply-timeout", reply_timeout)
+    err = capsys.readouterr().err
+    assert code == 0, err
+    warning = next(line for line in err.splitlines() if "rows came" in line)
+    assert "each row waited for unit 1 (water_flow_kg_h, water_in_temp_C, " in warning
+    return out, warning
+
+
 def test_slow_rows_name_the_unit_whose_reads_timed_out_with_its_readings(
     serve_process, tmp_path, capsys
 ):
@@ -227,16 +241,9 @@ def test_slow_rows_name_the_unit_whose_reads_timed_out_with_its_readings(
     the warning named unit 1 with no readings ("unit 1 (: no reply ...") and unit 7, which
     has no fault: its only timeouts were its coil write held behind unit 1's delayed
     replies. Read timeouts only count, and the unit is named with its readings."""
-    faults = tmp_path / "faults.yaml"
-    faults.write_text("faults:\n  - {kind: delay, unit: 1, delay_ms: 3000}\n")
-    server = serve_process("--boiler", "windhager_12kw", "--speed", "20", "--faults", str(faults))
-    code, out = _run(tmp_path, server.port, "--reply-timeout", "1")
-    err = capsys.readouterr().err
-    assert code == 0, err
+    out, warning = _delayed_unit_1_run(serve_process, tmp_path, capsys, 3000, "1")
     # unit 7's coil writes did time out behind unit 1 (what misled the warning)
     assert any(e["unit"] == 7 and e["event"] == "timeout" for e in _events(out))
-    warning = next(line for line in err.splitlines() if "rows came" in line)
-    assert "each row waited for unit 1 (water_flow_kg_h, water_in_temp_C, " in warning
     assert "unit 7" not in warning and "(: " not in warning, warning
 
 
@@ -248,14 +255,7 @@ def test_slow_rows_name_the_unit_whose_replies_came_late_within_the_timeout(
     server's clock ("ran faster than the client could read ... a slower --speed, a faster
     tick or --lockstep keeps the period"), which is not what slowed them. Here a 0.6-s
     delay on unit 1 under a 2-s timeout at x20."""
-    faults = tmp_path / "faults.yaml"
-    faults.write_text("faults:\n  - {kind: delay, unit: 1, delay_ms: 600}\n")
-    server = serve_process("--boiler", "windhager_12kw", "--speed", "20", "--faults", str(faults))
-    code, out = _run(tmp_path, server.port, "--reply-timeout", "2")
-    err = capsys.readouterr().err
-    assert code == 0, err
+    out, warning = _delayed_unit_1_run(serve_process, tmp_path, capsys, 600, "2")
     assert not any(e["event"] == "timeout" for e in _events(out))  # late, never timed out
-    warning = next(line for line in err.splitlines() if "rows came" in line)
-    assert "each row waited for unit 1 (water_flow_kg_h, water_in_temp_C, " in warning
     assert "s late a row (median) on " in warning and "within the reply timeout, 2 s)" in warning
     assert "ran faster than the client could read" not in warning, warning

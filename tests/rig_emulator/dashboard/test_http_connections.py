@@ -159,16 +159,20 @@ def test_at_a_tiny_open_file_limit_every_listener_leaves_the_dashboard_its_share
     assert not any("Traceback" in line for line in lines), lines
 
 
+def _every_listener_limited(tmp_path: Path, http: int):
+    """``serve`` under the open-file limit with TLS, a second TCP port, a pty and the
+    dashboard on ``http``: the dashboard's share as small as the limits make it."""
+    options = (*_tls_options(tmp_path / "certs"), "--tcp-port", "0", "--serial", "pty")
+    return serving_limited(tmp_path / "serve.log", *options, "--http", str(http), http=http)
+
+
 def test_the_dashboards_limit_is_the_share_the_start_line_names(tmp_path):
     """A re-probe: the start's line said "with room for the dashboard's 6 connections"
     while the dashboard logged "4 HTTP connections open (its limit)": it made its share
     again, with the descriptors open once the other listeners were. Now one computation
     gives both: connections beyond the share the line names close the oldest idle one."""
     http = free_port()
-    options = (*_tls_options(tmp_path / "certs"), "--tcp-port", "0", "--serial", "pty")
-    with serving_limited(
-        tmp_path / "serve.log", *options, "--http", str(http), http=http
-    ) as served:
+    with _every_listener_limited(tmp_path, http) as served:
         share = _dashboard_share(served.lines())
         idle = idle_connections(http, share + 1)
         try:
@@ -218,10 +222,7 @@ def test_live_streams_filling_the_dashboards_share_give_way_to_a_request(tmp_pat
     every request was reset. The oldest stream gives way to a new request, as it does to
     a new stream at the streams' limit."""
     http = free_port()
-    options = (*_tls_options(tmp_path / "certs"), "--tcp-port", "0", "--serial", "pty")
-    with serving_limited(
-        tmp_path / "serve.log", *options, "--http", str(http), http=http
-    ) as served:
+    with _every_listener_limited(tmp_path, http) as served:
         share = _dashboard_share(served.lines())
         streams = []
         try:
