@@ -312,7 +312,8 @@ def summary(report: dict[str, Any]) -> str:
         never += f", {unjudged} unjudged (no mark in the readings, and no Modbus events)"
     journalled = len(report["faults"]) + outside + len(report.get("unseen", ())) + still
     journalled += unjudged
-    none = "none judged" if journalled else "none journalled"  # (was "none in the run")
+    # (faults in the run the log could not judge were "none in the run": a re-probe)
+    none = "none judged" if unjudged else "none in the run" if journalled else "none journalled"
     false = "false not counted" if report["false"] is None else f"{report['false']} false"
     return (
         f"faults: {report['detected']} detected, {report['missed']} missed, "
