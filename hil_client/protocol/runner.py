@@ -192,8 +192,8 @@ def check_setpoints(
 #: (the median of the last :data:`HOLE_TYPICAL_STEPS` that were not holes) with no break
 #: the rig recorded: the client was held up (paused, swapped out, overloaded; or waiting
 #: on a slow unit) while a real-time server ran on, and the rows between were never
-#: acquired. A run that is merely
-#: coarse throughout (a server at x1000) is said once at the end instead.
+#: acquired. A run that is merely coarse throughout (a server at x1000) is said once at the
+#: end instead.
 HOLE_FACTOR = 5.0
 HOLE_TYPICAL_STEPS = 60
 HOLES_TOLD = 10
