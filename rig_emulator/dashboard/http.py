@@ -519,7 +519,7 @@ class Dashboard:
 
     def _close_oldest_stream(self, why: str) -> str | None:
         """Close the oldest live stream (it may be a connection that stopped reading) for
-        a new request: its peer, or None when there is none."""
+        a new stream or request: its peer, or None when there is none."""
         if not self._streams:
             return None
         oldest = next(iter(self._streams))
@@ -527,8 +527,8 @@ class Dashboard:
         now = time.monotonic()
         if now - self._evicted_said >= EVICTION_LOG_S:
             log.warning(
-                "dashboard: %s: the oldest stream closed for a new request (%d so since the "
-                "last such line; at most one a minute)",
+                "dashboard: %s: the oldest stream closed for a new connection (%d so since "
+                "the last such line; at most one a minute)",
                 why,
                 self._evicted,
             )

@@ -236,4 +236,4 @@ def test_live_streams_filling_the_dashboards_share_give_way_to_a_request(tmp_pat
             close_all(streams)
     lines = served.lines()
     assert _answered(state), (state[:200], lines[-5:])
-    assert any("the oldest stream closed for a new request" in line for line in lines), lines
+    assert any("the oldest stream closed for a new connection" in line for line in lines), lines
