@@ -55,9 +55,11 @@ once their frame has ended.
 
 from __future__ import annotations
 
+import array
 import asyncio
 import contextlib
 import errno
+import fcntl
 import logging
 import os
 import select
@@ -93,6 +95,11 @@ DISCARD_LOG_INTERVAL_S = 60.0  # bytes discarded for coming too fast: a log line
 #: doubling on each try that finds none, up to REOPEN_MAX_S: an adapter plugged back in
 #: is served within two seconds, and a path that stays empty costs a try every two
 REOPEN_FIRST_S = 0.1
+#: A reply still unread this long after it came is nobody's, dropped from a pty's client
+#: side [s]: a master waiting for it reads it within milliseconds (a client on a loaded
+#: CI machine was held up 0.12 s at most, measured); one held up longer loses it, as it
+#: would on a line it did not listen to
+UNREAD_REPLY_S = 1.0
 REOPEN_MAX_S = 2.0
 EXECUTE_TIMEOUT_S = 30.0
 _BAUD_CONSTANTS = {
@@ -266,6 +273,7 @@ class RtuLine:
         #: back to REOPEN_FIRST_S once the line carries bytes, so one that comes and goes
         #: without a byte is tried ever less often
         self._reopen_wait_s = REOPEN_FIRST_S
+        self._unread_check_at: float | None = None  # when replies unread are dropped
         self._stop_r, self._stop_w = os.pipe()
         #: a byte here: a delay fault holding the reply waited for ended (:meth:`_wake`)
         self._wake_r, self._wake_w = os.pipe()
@@ -300,6 +308,9 @@ class RtuLine:
         early: tuple[int, Future] | None = None  # a read answered ahead: (length, answer)
         while True:
             timeout = max(deadline - time.monotonic(), 0.0) if received else None
+            if self._unread_check_at is not None:  # replies nobody read: dropped then
+                check_in = max(self._unread_check_at - time.monotonic(), 0.0)
+                timeout = check_in if timeout is None else min(timeout, check_in)
             if self._discards_unlogged:  # their count is said when the minute ends
                 said_at = self._discard_logged_at + DISCARD_LOG_INTERVAL_S
                 said_in = max(said_at - time.monotonic(), 0.0)
@@ -310,6 +321,8 @@ class RtuLine:
             now = time.monotonic()
             if now - self._discard_logged_at >= DISCARD_LOG_INTERVAL_S:
                 self._log_discards_left()
+            if self._unread_check_at is not None and now >= self._unread_check_at:
+                self._drop_unread_replies()
             if self._fd in ready:
                 try:
                     data = os.read(self._fd, 4096)
@@ -544,8 +557,25 @@ class RtuLine:
             os.write(self._fd, out)
         except OSError as exc:
             log.warning("RTU %s: reply not written (%s)", self.path, exc.strerror)
+        if self._keep_fd is not None:  # (a pty: see :meth:`_drop_unread_replies`)
+            self._unread_check_at = reply_end + UNREAD_REPLY_S
         self.transactions += 1
         return reply_end + self.silence_s
+
+    def _drop_unread_replies(self) -> None:
+        """Empty the pty's client side of replies nobody read: a reply the master never
+        read (it timed out, was killed) is gone from a real line, but on a pty it waited
+        in the client side's queue, and the next master took it for its own answer (a
+        stranger's probe: mbpoll read 700 where the register held 600, exit 0). A master
+        waiting for its reply reads it within milliseconds of its coming; one still
+        unread :data:`UNREAD_REPLY_S` later is nobody's."""
+        self._unread_check_at = None
+        waiting = array.array("i", [0])
+        with contextlib.suppress(OSError):
+            fcntl.ioctl(self._keep_fd, termios.FIONREAD, waiting)
+            if waiting[0]:
+                termios.tcflush(self._keep_fd, termios.TCIFLUSH)
+                log.debug("RTU %s: %d unread reply bytes dropped", self.path, waiting[0])
 
     def _wait_until(self, when: float) -> bool:
         """Wait until the monotonic clock reads ``when`` (to about 0.1 ms); False if the

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 from pymodbus.framer.rtu import FramerRTU
 
-from rig_emulator.modbus.rtu import open_line
+from rig_emulator.modbus.rtu import UNREAD_REPLY_S, open_line
 from rig_emulator.modbus.rtu_wire import character_s, silence_s
 from rig_emulator.modbus.transports import Transports
 from tests.modbus_helpers import client, read_point
@@ -546,3 +546,29 @@ def test_a_broadcast_spares_the_maps_own_units_wherever_they_are(serve):
         line.close()
         tcp.close()
         srv.call(transports.stop())
+
+
+def test_a_reply_nobody_read_is_not_the_next_masters(rtu_server):
+    """A stranger's probe: a master that sent a read and went away without reading the
+    reply (killed, timed out) left it queued on the pty's client side; the next master
+    (mbpoll, which does not flush on opening) took it for its own answer and printed the
+    register's old value, exit 0. On a line a reply nobody hears is gone."""
+    import tty
+
+    gone = Line(rtu_server.line.path)
+    for _ in range(3):  # three reads of unit 1, none read
+        gone.send(rtu_frame(1, _fc4(0, 2)))
+        time.sleep(_after(rtu_frame(1, _fc4(0, 2))))
+    gone.close()
+    time.sleep(UNREAD_REPLY_S + 0.5)  # the next master comes a while later
+    fd = os.open(rtu_server.line.path, os.O_RDWR | os.O_NOCTTY)  # as mbpoll: no flush
+    try:
+        tty.setraw(fd, termios.TCSANOW)  # (the default, TCSAFLUSH, would flush the queue)
+        os.write(fd, rtu_frame(4, _fc4(0, 2)))
+        deadline, reply = time.monotonic() + 2.0, b""
+        while len(reply) < 9 and time.monotonic() < deadline:
+            reply += os.read(fd, 9 - len(reply))
+    finally:
+        os.close(fd)
+    # (read at once, as a master does: stale bytes queued would come first)
+    assert reply[:3] == bytes([4, 4, 4]) and rtu_frame(4, reply[1:-2]) == reply, reply.hex()
