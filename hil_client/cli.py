@@ -1588,9 +1588,12 @@ def _slow_units(rig: ModbusRig, rows: int, median_s: float | None) -> str | None
         return None
     held: dict[int, dict[float, float]] = {}  # unit -> row time -> what it cost the row [s]
     timed_out: dict[int, set[float]] = {}  # unit -> the rows its reads timed out on
+    readings: dict[int, list[str]] = {}  # per unit (looked up once, not per event)
     for event in rig.comm_events:
         kind, unit = event.get("event"), event.get("unit")
-        if not rig.unit_signals(unit):  # the simulation control's: the server's own pace
+        if unit not in readings:
+            readings[unit] = rig.unit_signals(unit)
+        if not readings[unit]:  # the simulation control's: the server's own pace
             continue
         if kind == "timeout" and event.get("function") in READ_FUNCTIONS:
             cost = rig.timeout_s
@@ -1607,15 +1610,15 @@ def _slow_units(rig: ModbusRig, rows: int, median_s: float | None) -> str | None
         return None
     said = []
     for unit in slow:
-        readings = ", ".join(rig.unit_signals(unit))
+        signals = ", ".join(readings[unit])
         if 2 * len(timed_out.get(unit, ())) > rows:
             said.append(
-                f"unit {unit} ({readings}: no reply within the reply timeout, "
+                f"unit {unit} ({signals}: no reply within the reply timeout, "
                 f"{rig.timeout_s:g} s, on {len(timed_out[unit])} of {rows} rows)"
             )
         else:
             said.append(
-                f"unit {unit} ({readings}: replies {costs[unit]:.1f} s late a row (median) on "
+                f"unit {unit} ({signals}: replies {costs[unit]:.1f} s late a row (median) on "
                 f"{len(held[unit])} of {rows} rows, within the reply timeout, "
                 f"{rig.timeout_s:g} s)"
             )

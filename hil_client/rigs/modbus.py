@@ -403,7 +403,6 @@ class ModbusRig:
         self._single_coil_units: set[int] = set()  # units that refused FC15: FC5 instead
         self._single_coils_said: set[int] = set()  # ... whose FC5 answered, said in notes
         self._answered_units: set[int] = set()  # units that answered a read with data
-        self._refusing_units: dict[int, set[int]] = {}  # ... that refused one: their codes
         #: per unit, why its reads failed in this step (:meth:`_decode_tolerant`), and over
         #: the run: the rows it failed in and why (:meth:`end_notes`)
         self._step_failures: dict[int, dict[str, None]] = {}
@@ -1062,7 +1061,6 @@ class ModbusRig:
             if not isinstance(reply, bytes):
                 self._failed(read.unit, read.function, reply, [p.signal for p in read.points])
                 if isinstance(reply, ModbusExceptionResponse):
-                    self._refusing_units.setdefault(read.unit, set()).add(reply.code)
                     reason = f"exception {reply.code:02X}"
                 elif reply.reason == "no reply":
                     reason = "no reply (a later one came first)"
@@ -1751,8 +1749,8 @@ class ModbusRig:
                     f"{self.rows_stepped} rows (from time_s = {times[0]:g} to {times[-1]:g} "
                     f"s: {'; '.join(why)}): empty there"
                 )
-            elif all(reason.startswith("exception") for reason in why):
-                how = ", ".join(f"{code:02X}" for code in sorted(self._refusing_units[unit]))
+            elif all(reason.startswith("exception ") for reason in why):
+                how = ", ".join(sorted(reason.removeprefix("exception ") for reason in why))
                 lines.append(
                     f"unit {unit} refused every read of this run (exception {how}): "
                     f"{signals} never read, empty in every row"
