@@ -51,6 +51,9 @@ DASHBOARD_SHARE = 4  # the dashboard's share of them at most, where few are: 1/4
 #: browser's few connections), within their shares above
 FILES_MIN = 4
 DASHBOARD_MIN = 4
+#: the dashboard's connections however few descriptors are free: an open page's event
+#: stream and one request beside it (with one, every request closed the page's stream)
+DASHBOARD_LEAST = 2
 #: the dashboard's HTTP connections open at once (streams included), its own limit
 DASHBOARD_CONNECTIONS = 256
 
@@ -125,9 +128,10 @@ def descriptor_shares(
     it and the files :data:`RESERVED_DESCRIPTORS`; else the files keep :data:`FILES_MIN`
     and the dashboard :data:`DASHBOARD_MIN` (within a sixteenth and a quarter of what is
     free; nothing without a dashboard: a share kept for a dashboard not running cost a
-    server without ``--http`` 169 of its 900 clients, a re-probe), Modbus the rest; at
-    least one each wanted. The soft open-file limit is raised first where what is wanted
-    needs it (:func:`open_file_limit`)."""
+    server without ``--http`` 169 of its 900 clients, a re-probe; the dashboard at least
+    :data:`DASHBOARD_LEAST`), Modbus the rest; at least one each wanted. The soft
+    open-file limit is raised first where what is wanted needs it
+    (:func:`open_file_limit`)."""
     own = open_descriptors() + own_to_come
     needed = own + RESERVED_DESCRIPTORS + dashboard_wanted + modbus_wanted
     was, limit = open_file_limit(needed)
@@ -138,7 +142,7 @@ def descriptor_shares(
     # descriptors short at a connection are met by closing the oldest unused (a re-probe)
     files_floor = min(FILES_MIN, max(spare // FILES_SHARE, 1))
     files = min(RESERVED_DESCRIPTORS, max(spare - dashboard_wanted - modbus_wanted, files_floor))
-    dashboard_floor = min(DASHBOARD_MIN, max(spare // DASHBOARD_SHARE, 1))
+    dashboard_floor = min(DASHBOARD_MIN, max(spare // DASHBOARD_SHARE, DASHBOARD_LEAST))
     dashboard = min(dashboard_wanted, max(spare - files - modbus_wanted, dashboard_floor))
     modbus = max(spare - files - dashboard, 1)
     return DescriptorShares(was, limit, own, files, modbus, dashboard)

@@ -94,9 +94,10 @@ HANDSHAKE_LOG_BURST = 20  # failed TLS handshakes logged a minute, the rest coun
 CONNECTION_LOG_BURST = 20
 CONNECTION_LOG_INTERVAL_S = 60.0
 #: descriptors a server may open after its connection limit is fitted, besides a second TCP
-#: listener and the dashboard's (as many as its own listener has): a serial line's four (a
-#: pty's two ends, the pipe that stops its reader) and the fault journal
-LATER_DESCRIPTORS = 5
+#: listener and the dashboard's (as many as its own listener has): a serial line's seven (a
+#: pty's two ends, the pipes that stop and wake its reader, the watch on its masters'
+#: closes) and the fault journal
+LATER_DESCRIPTORS = 8
 
 
 @dataclass(frozen=True)

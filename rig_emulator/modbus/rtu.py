@@ -58,6 +58,7 @@ from __future__ import annotations
 import array
 import asyncio
 import contextlib
+import ctypes
 import errno
 import fcntl
 import logging
@@ -120,6 +121,26 @@ def check_line_options(baud: int, parity: str) -> None:
     if baud not in _BAUD_CONSTANTS:
         known = ", ".join(str(b) for b in sorted(_BAUD_CONSTANTS) if b >= 1200)
         raise SerialConfigError(f"--baud: {baud} is not a serial line speed ({known})")
+
+
+def _close_watch(path: str) -> int | None:
+    """An inotify descriptor that becomes readable when an opener of ``path`` closes it,
+    or None where the system has none (not Linux) or refuses one."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        fd = libc.inotify_init1(os.O_NONBLOCK | os.O_CLOEXEC)
+    except (OSError, AttributeError):
+        return None
+    if fd < 0:
+        return None
+    if libc.inotify_add_watch(fd, os.fsencode(path), _IN_CLOSE_WRITE | _IN_CLOSE_NOWRITE) < 0:
+        os.close(fd)
+        return None
+    return fd
+
+
+#: inotify's events for a file closed after writing, and after reading only (inotify(7))
+_IN_CLOSE_WRITE, _IN_CLOSE_NOWRITE = 0x08, 0x10
 
 
 def open_line(
@@ -252,6 +273,9 @@ class RtuLine:
         self.silence_s = silence_s(baud)
         self._fd: int | None
         self._fd, self._keep_fd, self.path, applied = open_line(path, baud, parity)
+        #: a pty's client side closed by a master (inotify; None where it cannot be had):
+        #: what it left unread is dropped then (:meth:`_drop_unread_replies`)
+        self._closes = _close_watch(self.path) if self._keep_fd is not None else None
         #: keep the reply's on-wire time (a pty); a device's UART takes it itself
         self.paced = path == "pty" or is_pty(self._fd)
         #: the line's settings in words for the start-up log: a pty carries bytes, not
@@ -293,7 +317,15 @@ class RtuLine:
         if self._thread is not None:
             await asyncio.to_thread(self._thread.join, 5.0)
         self._log_discards_left()
-        for fd in (self._fd, self._keep_fd, self._stop_r, self._stop_w, self._wake_r, self._wake_w):
+        for fd in (
+            self._fd,
+            self._keep_fd,
+            self._closes,
+            self._stop_r,
+            self._stop_w,
+            self._wake_r,
+            self._wake_w,
+        ):
             if fd is not None:
                 with contextlib.suppress(OSError):
                     os.close(fd)
@@ -315,9 +347,14 @@ class RtuLine:
                 said_at = self._discard_logged_at + DISCARD_LOG_INTERVAL_S
                 said_in = max(said_at - time.monotonic(), 0.0)
                 timeout = said_in if timeout is None else min(timeout, said_in)
-            ready, _, _ = select.select([self._fd, self._stop_r], [], [], timeout)
+            watched = [self._fd, self._stop_r] + ([self._closes] if self._closes else [])
+            ready, _, _ = select.select(watched, [], [], timeout)
             if self._stop_r in ready:
                 return
+            if self._closes is not None and self._closes in ready:  # a master let go
+                with contextlib.suppress(OSError):
+                    os.read(self._closes, 4096)
+                self._drop_unread_replies()
             now = time.monotonic()
             if now - self._discard_logged_at >= DISCARD_LOG_INTERVAL_S:
                 self._log_discards_left()
@@ -566,9 +603,10 @@ class RtuLine:
         """Empty the pty's client side of replies nobody read: a reply the master never
         read (it timed out, was killed) is gone from a real line, but on a pty it waited
         in the client side's queue, and the next master took it for its own answer (a
-        stranger's probe: mbpoll read 700 where the register held 600, exit 0). A master
-        waiting for its reply reads it within milliseconds of its coming; one still
-        unread :data:`UNREAD_REPLY_S` later is nobody's."""
+        stranger's probe: mbpoll read 700 where the register held 600, exit 0). Called
+        when a master closes the pty (what it left is nobody's), and when a reply is still
+        unread :data:`UNREAD_REPLY_S` after it came (a master waiting for it reads it
+        within milliseconds; one that stays open after giving up left it)."""
         self._unread_check_at = None
         waiting = array.array("i", [0])
         with contextlib.suppress(OSError):

@@ -559,8 +559,8 @@ def test_a_reply_nobody_read_is_not_the_next_masters(rtu_server):
     for _ in range(3):  # three reads of unit 1, none read
         gone.send(rtu_frame(1, _fc4(0, 2)))
         time.sleep(_after(rtu_frame(1, _fc4(0, 2))))
-    gone.close()
-    time.sleep(UNREAD_REPLY_S + 0.5)  # the next master comes a while later
+    gone.close()  # its close drops what it left, seen by the line's thread at once
+    time.sleep(0.2)  # (a master's process starting: mbpoll's takes longer)
     fd = os.open(rtu_server.line.path, os.O_RDWR | os.O_NOCTTY)  # as mbpoll: no flush
     try:
         tty.setraw(fd, termios.TCSANOW)  # (the default, TCSAFLUSH, would flush the queue)
@@ -572,3 +572,38 @@ def test_a_reply_nobody_read_is_not_the_next_masters(rtu_server):
         os.close(fd)
     # (read at once, as a master does: stale bytes queued would come first)
     assert reply[:3] == bytes([4, 4, 4]) and rtu_frame(4, reply[1:-2]) == reply, reply.hex()
+
+
+def test_a_reply_left_by_a_master_that_stays_open_is_dropped_after_a_while(rtu_server):
+    """A master that gave up on a reply but keeps the line open (it times out, then polls
+    on) would read the old reply as the answer to its next request: a reply still unread
+    UNREAD_REPLY_S after it came is nobody's."""
+    line = Line(rtu_server.line.path)
+    try:
+        line.send(rtu_frame(1, _fc4(0, 2)))
+        time.sleep(UNREAD_REPLY_S + 0.5)  # not read: the master timed out
+        line.send(rtu_frame(4, _fc4(0, 2)))
+        reply = line.read(9, timeout_s=2.0)
+    finally:
+        line.close()
+    assert reply[:3] == bytes([4, 4, 4]), reply.hex()
+
+
+@needs_mbpoll
+def test_mbpoll_after_a_master_that_left_reads_the_register_now(cli_server):
+    """The stranger's reproduction with mbpoll itself: a master reads unit 7's set
+    temperature and exits without reading the reply; the register is written over TCP;
+    mbpoll then read the old value from the reply left on the pty, exit 0."""
+    pty, port, _ = cli_server
+    tcp = client(port)
+    try:
+        assert not tcp.write_register(0, 700, device_id=7).isError()
+        gone = Line(pty)
+        gone.send(rtu_frame(7, bytes([3, 0, 0, 0, 1])))
+        time.sleep(0.2)  # its reply came: nobody reads it
+        gone.close()
+        assert not tcp.write_register(0, 600, device_id=7).isError()
+    finally:
+        tcp.close()
+    out = _mbpoll("-a", "7", "-r", "0", "-c", "1", "-t", "4", pty).stdout
+    assert _mbpoll_values(out) == {0: "600"}, out
