@@ -128,6 +128,10 @@ class TooLong(Exception):
     """A request target longer than :data:`MAX_TARGET_BYTES` (refused with 414)."""
 
 
+class SlowRequest(Exception):
+    """A request not all come within :data:`REQUEST_TIMEOUT_S` (refused with 408)."""
+
+
 def _check_same_site(headers: dict[str, str]) -> None:
     """Controls come from the page itself, never from another site the lab's browser has
     open: the body must be declared JSON (a form, or a ``no-cors`` fetch of another site,
@@ -140,8 +144,10 @@ def _check_same_site(headers: dict[str, str]) -> None:
         raise CrossSite(f"Content-Type {kind or 'none'}: controls are sent as application/json")
     host = headers.get("host", "")
     origin = headers.get("origin")
-    if origin is not None and urlsplit(origin).netloc.lower() != host.lower():
-        raise CrossSite(f"Origin {origin} is not this dashboard ({host})")
+    # the page's own origin is http://host (RFC 6454 4: scheme, host and port); a page of
+    # https://host is another origin, as is one whose Origin is "null" (a sandbox, a file)
+    if origin is not None and origin.lower() != f"http://{host}".lower():
+        raise CrossSite(f"Origin {origin} is not this dashboard (http://{host})")
     name = urlsplit(f"//{host}").hostname or ""
     if not _own_name(name):
         raise CrossSite(f"Host {host or 'none'} is not an address or a name of this machine")
@@ -451,15 +457,20 @@ class Dashboard:
             if not self._admit(connection):
                 writer.transport.abort()
                 return
-            method, target, headers, body = await asyncio.wait_for(
-                _read_request(reader), REQUEST_TIMEOUT_S
-            )
+            try:
+                method, target, headers, body = await asyncio.wait_for(
+                    _read_request(reader), REQUEST_TIMEOUT_S
+                )
+            except TimeoutError:
+                raise SlowRequest(f"request incomplete after {REQUEST_TIMEOUT_S:g} s") from None
             connection.reading = False
             await self._route(method, target, headers, body, writer)
         except BadRequest as exc:
             await _respond(writer, 400, {"error": str(exc)})
         except TooLong as exc:
             await _respond(writer, 414, {"error": str(exc)})
+        except SlowRequest as exc:  # RFC 9110 15.5.9: said, and the connection closed
+            await _respond(writer, 408, {"error": str(exc)})
         except CrossSite as exc:
             log.warning("dashboard: refused a POST from another site (%s)", exc)
             await _respond(writer, 403, {"error": str(exc)})
@@ -716,12 +727,16 @@ async def _read_request(reader: asyncio.StreamReader) -> tuple[str, str, dict[st
         raise BadRequest(f"unsupported protocol {version!r}")
     headers: dict[str, str] = {}
     lengths: set[str] = set()
+    hosts: list[str] = []
     for line in lines:
         if ":" in line:
             name, value = line.split(":", 1)
             headers[name.strip().lower()] = value.strip()
             if name.strip().lower() == "content-length":
                 lengths.add(value.strip())
+            elif name.strip().lower() == "host":
+                hosts.append(value.strip())
+    headers["host"] = _host(version, target, hosts)
     if "transfer-encoding" in headers:  # a body of chunks: the length must be given
         raise BadRequest("Transfer-Encoding is not accepted; send the body with Content-Length")
     # RFC 9112 6.3: differing lengths are a framing error (it waited for the larger and
@@ -736,6 +751,25 @@ async def _read_request(reader: asyncio.StreamReader) -> tuple[str, str, dict[st
         raise BadRequest(f"body of {length} bytes (at most {MAX_BODY_BYTES})")
     body = await reader.readexactly(length) if length else b""
     return method, target, headers, body
+
+
+def _host(version: str, target: str, hosts: list[str]) -> str:
+    """The host a request names (RFC 9112 3.2): an absolute target's authority, else its
+    one ``Host`` field; an HTTP/1.1 request without one, one with two, or a host that is
+    not an authority (spaces, a path, user information) is refused. HTTP/1.0 may omit it."""
+    if len(hosts) > 1:
+        raise BadRequest(f"Host given {len(hosts)} times ({', '.join(hosts)[:80]})")
+    if "://" in target.split("?", 1)[0]:  # absolute form: its authority, not Host (3.2.2)
+        host = urlsplit(target).netloc
+    elif hosts:
+        host = hosts[0]
+    elif version == "HTTP/1.0":
+        return ""
+    else:
+        raise BadRequest(f"{version} request without a Host field")
+    if not host.isascii() or any(c in host for c in " \t/?#@\\") or not host.isprintable():
+        raise BadRequest(f"Host {host[:80]!r} is not a host and port")
+    return host
 
 
 async def _respond(
@@ -755,6 +789,7 @@ REASONS = {
     403: "Forbidden",
     404: "Not Found",
     405: "Method Not Allowed",
+    408: "Request Timeout",
     414: "URI Too Long",
     503: "Service Unavailable",
 }

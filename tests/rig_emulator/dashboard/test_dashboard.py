@@ -195,7 +195,7 @@ def test_idle_streams_never_lock_a_new_viewer_out(dashboard):
     try:
         for _ in range(70):
             s = socket.create_connection(("127.0.0.1", http), timeout=10)
-            s.sendall(b"GET /api/stream HTTP/1.1\r\n\r\n")
+            s.sendall(b"GET /api/stream HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
             idle.append(s)
         with urllib.request.urlopen(f"http://127.0.0.1:{http}/api/stream", timeout=10) as r:
             assert r.status == 200
@@ -209,12 +209,15 @@ def test_idle_streams_never_lock_a_new_viewer_out(dashboard):
 @pytest.mark.parametrize(
     ("request_bytes", "status"),
     [
-        (b"GET /nothing HTTP/1.1\r\n\r\n", b"404"),
-        (b"DELETE /api/state HTTP/1.1\r\n\r\n", b"405"),
+        (b"GET /nothing HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n", b"404"),
+        (b"DELETE /api/state HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n", b"405"),
         (b"GARBAGE\r\n\r\n", b"400"),
-        (b"GET /api/state?window=abc HTTP/1.1\r\n\r\n", b"400"),
-        (b"POST /api/control HTTP/1.1\r\nContent-Length: 99999999\r\n\r\n", b"400"),
-        (b"GET / HTTP/1.1\r\nX: " + b"a" * 70_000 + b"\r\n\r\n", b"400"),
+        (b"GET /api/state?window=abc HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n", b"400"),
+        (
+            b"POST /api/control HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 99999999\r\n\r\n",
+            b"400",
+        ),
+        (b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nX: " + b"a" * 70_000 + b"\r\n\r\n", b"400"),
     ],
 )
 def test_bad_requests_get_an_answer_and_the_server_lives_on(served_once, request_bytes, status):
@@ -339,7 +342,7 @@ def test_a_chunked_body_is_refused_for_what_it_is(dashboard):
     _, http = dashboard("--http-control")
     with socket.create_connection(("127.0.0.1", http), timeout=10) as s:
         s.sendall(
-            b"POST /api/control HTTP/1.1\r\nContent-Type: application/json\r\n"
+            b"POST /api/control HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
             b"Transfer-Encoding: chunked\r\n\r\n5\r\n"
         )
         answer = b""
@@ -383,7 +386,7 @@ def test_streams_closed_for_new_ones_are_logged_at_most_once_a_minute(serve, cap
         with caplog.at_level(logging.WARNING, logger="rig_emulator.dashboard"):
             for _ in range(MAX_STREAMS + 40):
                 s = socket.create_connection(("127.0.0.1", board.port), timeout=10)
-                s.sendall(b"GET /api/stream HTTP/1.1\r\n\r\n")
+                s.sendall(b"GET /api/stream HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
                 assert s.recv(12) == b"HTTP/1.1 200"  # (its place taken: it streams)
                 opened.append(s)
         lines = [r.getMessage() for r in caplog.records if "live streams" in r.getMessage()]

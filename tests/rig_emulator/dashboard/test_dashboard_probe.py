@@ -197,21 +197,36 @@ def test_the_api_shows_each_reading_as_its_registers_carry_it(served):
     [
         # HEAD of a page: its head, no body (RFC 9110 9.3.2)
         (b"HEAD / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n", (b"200", b"text/html", None)),
-        (b"HEAD /api/state HTTP/1.1\r\n\r\n", (b"200", b"application/json", None)),
+        (
+            b"HEAD /api/state HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n",
+            (b"200", b"application/json", None),
+        ),
         # 405 names what is allowed (RFC 9110 15.5.6)
-        (b"PUT /api/state HTTP/1.1\r\n\r\n", (b"405", b"Allow: GET, HEAD", b"PUT")),
-        (b"GET /api/control HTTP/1.1\r\n\r\n", (b"405", b"Allow: POST", b"GET")),
+        (
+            b"PUT /api/state HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n",
+            (b"405", b"Allow: GET, HEAD", b"PUT"),
+        ),
+        (b"GET /api/control HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n", (b"405", b"Allow: POST", b"GET")),
         # the method before the body's type: a POST to a page that takes none is 405
         # (a re-probe: 403 "Content-Type none"), with or without a body
         (
             b"POST /api/state HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n",
             (b"405", b"Allow: GET, HEAD", b"POST"),
         ),
-        (b"POST / HTTP/1.1\r\nContent-Length: 2\r\n\r\n{}", (b"405", b"Allow: GET, HEAD", b"POST")),
+        (
+            b"POST / HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 2\r\n\r\n{}",
+            (b"405", b"Allow: GET, HEAD", b"POST"),
+        ),
         # the path asked for, not a host "api" and a path "/state"
-        (b"GET //api/state HTTP/1.1\r\n\r\n", (b"404", b"", b"//api/state")),
-        (b"GET /api/state?window=" + b"9" * 5000 + b" HTTP/1.1\r\n\r\n", (b"414", b"", b"4096")),
-        (b"GET /" + b"a" * 70_000 + b" HTTP/1.1\r\n\r\n", (b"414", b"", b"4096")),
+        (b"GET //api/state HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n", (b"404", b"", b"//api/state")),
+        (
+            b"GET /api/state?window=" + b"9" * 5000 + b" HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n",
+            (b"414", b"", b"4096"),
+        ),
+        (
+            b"GET /" + b"a" * 70_000 + b" HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n",
+            (b"414", b"", b"4096"),
+        ),
     ],
 )
 def test_http_methods_paths_and_lengths(served_once, request_bytes, expect):
@@ -263,6 +278,61 @@ def test_a_content_length_that_is_no_number_of_bytes_or_given_twice_is_a_400(ser
     with socket.create_connection(("127.0.0.1", http), timeout=10) as s:
         s.sendall(request)
         assert s.recv(64).split(b" ")[1] == b"400"
+
+
+@pytest.mark.parametrize(
+    ("request_bytes", "status", "said"),
+    [
+        # RFC 9112 3.2: an HTTP/1.1 request without Host, or with two, is a 400
+        (b"GET /api/state HTTP/1.1\r\n\r\n", b"400", b"without a Host"),
+        (b"GET / HTTP/1.1\r\nHost: a\r\nHost: 127.0.0.1\r\n\r\n", b"400", b"Host given 2"),
+        (b"GET / HTTP/1.1\r\nHost: 127.0.0.1/x\r\n\r\n", b"400", b"not a host and port"),
+        (b"GET /api/state HTTP/1.0\r\n\r\n", b"200", b'"units"'),  # 1.0 may omit it
+        # an absolute target's authority is the host (RFC 9112 3.2.2), Host ignored
+        (b"GET http://localhost/api/state HTTP/1.1\r\n\r\n", b"200", b'"units"'),
+    ],
+)
+def test_the_host_is_one_field_or_the_targets_authority(served_once, request_bytes, status, said):
+    """A stranger's probe: HTTP/1.1 requests without a Host field were answered; two
+    differing Host fields were read as the last."""
+    _, http = served_once("--lockstep")
+    answer = _raw(http, request_bytes)
+    assert answer.split(b" ")[1] == status and said in answer, answer[:300]
+
+
+@pytest.mark.parametrize(
+    ("target", "headers"),
+    [
+        # a proxy's absolute form names another host: that is the host, whatever Host says
+        ("http://attacker.example/api/control", {"Host": "127.0.0.1"}),
+        # a page of https://127.0.0.1:PORT is another origin (RFC 6454 4: the scheme too)
+        ("/api/control", {"Host": "127.0.0.1:{http}", "Origin": "https://127.0.0.1:{http}"}),
+        ("/api/control", {"Host": "127.0.0.1:{http}", "Origin": "null"}),  # a sandbox, a file
+    ],
+)
+def test_a_control_from_another_origin_by_another_path_is_refused(served_once, target, headers):
+    """A re-probe: the Origin's scheme was not compared (https://host was taken for the
+    page's own), and a control in absolute form was judged by its Host field alone."""
+    _, http = served_once("--lockstep", "--http-control")
+    fields = "".join(f"{k}: {v.format(http=http)}\r\n" for k, v in headers.items())
+    body = b'{"signal": "speed_factor", "value": 2}'
+    request = (
+        f"POST {target} HTTP/1.1\r\n{fields}Content-Type: application/json\r\n"
+        f"Content-Length: {len(body)}\r\n\r\n"
+    ).encode() + body
+    assert _raw(http, request).split(b" ")[1] == b"403"
+
+
+def test_a_request_that_never_ends_is_told_408(served_once):
+    """A stranger's probe: a request whose end never came was closed after 10 s without a
+    word; RFC 9110 15.5.9 has the server say 408 and close."""
+    _, http = served_once("--lockstep")
+    with socket.create_connection(("127.0.0.1", http), timeout=30) as s:
+        s.sendall(b"GET /api/state HTTP/1.1\r\nHost: 127.0.0.1\r\n")  # no blank line
+        answer = b""
+        while chunk := s.recv(4096):
+            answer += chunk
+    assert answer.split(b" ")[1] == b"408" and b"incomplete" in answer, answer[:300]
 
 
 @pytest.mark.skipif(CHROMIUM is None, reason="chromium not installed (make tools installs it)")
