@@ -59,6 +59,8 @@ def parse_utf8_string_der(der: bytes) -> str:
         if size == 0 or size > 4 or len(der) < 2 + size:
             raise ValueError("bad ASN.1 length")
         length, start = int.from_bytes(der[2 : 2 + size], "big"), 2 + size
+        if length < 0x80 or der[2] == 0:  # DER: the shortest form only (X.690 10.1)
+            raise ValueError("ASN.1 length not in its shortest form (not DER)")
     if len(der) != start + length:
         raise ValueError("ASN.1 length does not match the extension")
     return der[start:].decode("utf-8")

@@ -85,6 +85,11 @@ def test_utf8string_round_trip_long_and_bad():
         parse_utf8_string_der(b"\x13\x02ab")  # a PrintableString
     with pytest.raises(ValueError):
         parse_utf8_string_der(b"\x0c\x05ab")  # length beyond the value
+    # BER's longer length forms are not DER (X.690 10.1; a re-probe's certificate got its
+    # role from \x0c\x81\x08operator)
+    for ber in (b"\x0c\x81\x08operator", b"\x0c\x82\x00\x08operator"):
+        with pytest.raises(ValueError, match="shortest form"):
+            parse_utf8_string_der(ber)
 
 
 def test_more_server_names(tmp_path, capsys):
