@@ -58,7 +58,6 @@ from __future__ import annotations
 import array
 import asyncio
 import contextlib
-import ctypes
 import errno
 import fcntl
 import logging
@@ -73,6 +72,7 @@ from typing import Any
 
 from rig_emulator.faults.engine import DelayHold, Tally, holding, tallying
 from rig_emulator.modbus.handler import BenchModbusServer, RequestInfo
+from rig_emulator.modbus.pty_masters import PtyMasters
 from rig_emulator.modbus.rtu_wire import (
     BROADCAST_UNIT,
     PARITIES,
@@ -96,12 +96,15 @@ DISCARD_LOG_INTERVAL_S = 60.0  # bytes discarded for coming too fast: a log line
 #: doubling on each try that finds none, up to REOPEN_MAX_S: an adapter plugged back in
 #: is served within two seconds, and a path that stays empty costs a try every two
 REOPEN_FIRST_S = 0.1
+REOPEN_MAX_S = 2.0
 #: A reply still unread this long after it came is nobody's, dropped from a pty's client
 #: side [s]: a master waiting for it reads it within milliseconds (a client on a loaded
 #: CI machine was held up 0.12 s at most, measured); one held up longer loses it, as it
 #: would on a line it did not listen to
 UNREAD_REPLY_S = 1.0
-REOPEN_MAX_S = 2.0
+#: the last master left the pty: its queue is emptied then and this much later, when a
+#: reply the server wrote as it left has reached it [s]
+NOBODY_RECHECK_S = 0.05
 EXECUTE_TIMEOUT_S = 30.0
 _BAUD_CONSTANTS = {
     int(name[1:]): getattr(termios, name)
@@ -121,26 +124,6 @@ def check_line_options(baud: int, parity: str) -> None:
     if baud not in _BAUD_CONSTANTS:
         known = ", ".join(str(b) for b in sorted(_BAUD_CONSTANTS) if b >= 1200)
         raise SerialConfigError(f"--baud: {baud} is not a serial line speed ({known})")
-
-
-def _close_watch(path: str) -> int | None:
-    """An inotify descriptor that becomes readable when an opener of ``path`` closes it,
-    or None where the system has none (not Linux) or refuses one."""
-    try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        fd = libc.inotify_init1(os.O_NONBLOCK | os.O_CLOEXEC)
-    except (OSError, AttributeError):
-        return None
-    if fd < 0:
-        return None
-    if libc.inotify_add_watch(fd, os.fsencode(path), _IN_CLOSE_WRITE | _IN_CLOSE_NOWRITE) < 0:
-        os.close(fd)
-        return None
-    return fd
-
-
-#: inotify's events for a file closed after writing, and after reading only (inotify(7))
-_IN_CLOSE_WRITE, _IN_CLOSE_NOWRITE = 0x08, 0x10
 
 
 def open_line(
@@ -273,9 +256,12 @@ class RtuLine:
         self.silence_s = silence_s(baud)
         self._fd: int | None
         self._fd, self._keep_fd, self.path, applied = open_line(path, baud, parity)
-        #: a pty's client side closed by a master (inotify; None where it cannot be had):
-        #: what it left unread is dropped then (:meth:`_drop_unread_replies`)
-        self._closes = _close_watch(self.path) if self._keep_fd is not None else None
+        #: who has the emulator's pty open (None: a device, or no inotify): no reply is
+        #: written to nobody, and none queued is left to the next master
+        self._masters = PtyMasters.watch(self.path) if self._keep_fd is not None else None
+        #: nobody has the pty open: what a reply still on its way to the client side
+        #: leaves there is dropped then too (:data:`NOBODY_RECHECK_S`)
+        self._nobody_check_at: float | None = None
         #: keep the reply's on-wire time (a pty); a device's UART takes it itself
         self.paced = path == "pty" or is_pty(self._fd)
         #: the line's settings in words for the start-up log: a pty carries bytes, not
@@ -317,15 +303,9 @@ class RtuLine:
         if self._thread is not None:
             await asyncio.to_thread(self._thread.join, 5.0)
         self._log_discards_left()
-        for fd in (
-            self._fd,
-            self._keep_fd,
-            self._closes,
-            self._stop_r,
-            self._stop_w,
-            self._wake_r,
-            self._wake_w,
-        ):
+        if self._masters is not None:
+            self._masters.close()
+        for fd in (self._fd, self._keep_fd, self._stop_r, self._stop_w, self._wake_r, self._wake_w):
             if fd is not None:
                 with contextlib.suppress(OSError):
                     os.close(fd)
@@ -340,26 +320,30 @@ class RtuLine:
         early: tuple[int, Future] | None = None  # a read answered ahead: (length, answer)
         while True:
             timeout = max(deadline - time.monotonic(), 0.0) if received else None
-            if self._unread_check_at is not None:  # replies nobody read: dropped then
-                check_in = max(self._unread_check_at - time.monotonic(), 0.0)
-                timeout = check_in if timeout is None else min(timeout, check_in)
+            for check_at in (self._unread_check_at, self._nobody_check_at):
+                if check_at is not None:  # replies nobody read: dropped then
+                    check_in = max(check_at - time.monotonic(), 0.0)
+                    timeout = check_in if timeout is None else min(timeout, check_in)
             if self._discards_unlogged:  # their count is said when the minute ends
                 said_at = self._discard_logged_at + DISCARD_LOG_INTERVAL_S
                 said_in = max(said_at - time.monotonic(), 0.0)
                 timeout = said_in if timeout is None else min(timeout, said_in)
-            watched = [self._fd, self._stop_r] + ([self._closes] if self._closes else [])
+            watched = [self._fd, self._stop_r] + ([self._masters] if self._masters else [])
             ready, _, _ = select.select(watched, [], [], timeout)
             if self._stop_r in ready:
                 return
-            if self._closes is not None and self._closes in ready:  # a master let go
-                with contextlib.suppress(OSError):
-                    os.read(self._closes, 4096)
-                self._drop_unread_replies()
+            if self._masters is not None and self._masters in ready:  # (before its request)
+                self._masters_changed()
             now = time.monotonic()
             if now - self._discard_logged_at >= DISCARD_LOG_INTERVAL_S:
                 self._log_discards_left()
             if self._unread_check_at is not None and now >= self._unread_check_at:
+                self._unread_check_at = None
                 self._drop_unread_replies()
+            if self._nobody_check_at is not None and now >= self._nobody_check_at:
+                self._nobody_check_at = None
+                if self._masters is not None and not self._masters.openers:
+                    self._drop_unread_replies()
             if self._fd in ready:
                 try:
                     data = os.read(self._fd, 4096)
@@ -590,24 +574,45 @@ class RtuLine:
             if not self._wait_until(ended + delay_s):
                 return ended
             reply_end = time.monotonic() + wire_s
-        try:
-            os.write(self._fd, out)
-        except OSError as exc:
-            log.warning("RTU %s: reply not written (%s)", self.path, exc.strerror)
-        if self._keep_fd is not None:  # (a pty: see :meth:`_drop_unread_replies`)
-            self._unread_check_at = reply_end + UNREAD_REPLY_S
+        if self._masters is not None:
+            self._masters_changed()
+        if self._masters is not None and not self._masters.openers:
+            # nobody has the pty open (the master timed out, was killed): on a line the
+            # reply reaches nobody; on a pty it would wait for the next master
+            log.debug(
+                "RTU %s: unit %d's reply not written: nobody has the line", self.path, unit_id
+            )
+        else:
+            try:
+                os.write(self._fd, out)
+            except OSError as exc:
+                log.warning("RTU %s: reply not written (%s)", self.path, exc.strerror)
+            if self._keep_fd is not None:  # (a pty: see :meth:`_drop_unread_replies`)
+                self._unread_check_at = reply_end + UNREAD_REPLY_S
         self.transactions += 1
         return reply_end + self.silence_s
+
+    def _masters_changed(self) -> None:
+        """Take the pty's opens and closes (:class:`PtyMasters`): what is queued when a
+        master comes to a pty nobody had open, or the last one leaves, is nobody's; a
+        reply on its way to the client side as the last one left is dropped a moment
+        later (:data:`NOBODY_RECHECK_S`: the queue read empty while it was)."""
+        assert self._masters is not None
+        came, left = self._masters.update()
+        if came or left:
+            self._drop_unread_replies()
+        if left:
+            self._nobody_check_at = time.monotonic() + NOBODY_RECHECK_S
 
     def _drop_unread_replies(self) -> None:
         """Empty the pty's client side of replies nobody read: a reply the master never
         read (it timed out, was killed) is gone from a real line, but on a pty it waited
         in the client side's queue, and the next master took it for its own answer (a
         stranger's probe: mbpoll read 700 where the register held 600, exit 0). Called
-        when a master closes the pty (what it left is nobody's), and when a reply is still
-        unread :data:`UNREAD_REPLY_S` after it came (a master waiting for it reads it
-        within milliseconds; one that stays open after giving up left it)."""
-        self._unread_check_at = None
+        when nobody has the pty open or a master comes to it (:meth:`_masters_changed`),
+        and when a reply is still unread :data:`UNREAD_REPLY_S` after it came (a master
+        waiting for it reads it within milliseconds; one that stays open after giving up
+        left it)."""
         waiting = array.array("i", [0])
         with contextlib.suppress(OSError):
             fcntl.ioctl(self._keep_fd, termios.FIONREAD, waiting)

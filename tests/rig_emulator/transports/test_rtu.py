@@ -548,30 +548,68 @@ def test_a_broadcast_spares_the_maps_own_units_wherever_they_are(serve):
         srv.call(transports.stop())
 
 
-def test_a_reply_nobody_read_is_not_the_next_masters(rtu_server):
-    """A stranger's probe: a master that sent a read and went away without reading the
-    reply (killed, timed out) left it queued on the pty's client side; the next master
-    (mbpoll, which does not flush on opening) took it for its own answer and printed the
-    register's old value, exit 0. On a line a reply nobody hears is gone."""
+def _read_as_mbpoll(path: str, unit: int) -> bytes:
+    """Open the pty as mbpoll (libmodbus) does, without flushing it, ask ``unit`` for two
+    input registers and read at once, as a master does: stale bytes queued come first."""
     import tty
 
-    gone = Line(rtu_server.line.path)
-    for _ in range(3):  # three reads of unit 1, none read
-        gone.send(rtu_frame(1, _fc4(0, 2)))
-        time.sleep(_after(rtu_frame(1, _fc4(0, 2))))
-    gone.close()  # its close drops what it left, seen by the line's thread at once
-    time.sleep(0.2)  # (a master's process starting: mbpoll's takes longer)
-    fd = os.open(rtu_server.line.path, os.O_RDWR | os.O_NOCTTY)  # as mbpoll: no flush
+    fd = os.open(path, os.O_RDWR | os.O_NOCTTY)
     try:
         tty.setraw(fd, termios.TCSANOW)  # (the default, TCSAFLUSH, would flush the queue)
-        os.write(fd, rtu_frame(4, _fc4(0, 2)))
+        os.write(fd, rtu_frame(unit, _fc4(0, 2)))
         deadline, reply = time.monotonic() + 2.0, b""
         while len(reply) < 9 and time.monotonic() < deadline:
             reply += os.read(fd, 9 - len(reply))
     finally:
         os.close(fd)
-    # (read at once, as a master does: stale bytes queued would come first)
-    assert reply[:3] == bytes([4, 4, 4]) and rtu_frame(4, reply[1:-2]) == reply, reply.hex()
+    return reply
+
+
+def _is_reply_of(reply: bytes, unit: int) -> bool:
+    return reply[:3] == bytes([unit, 4, 4]) and rtu_frame(unit, reply[1:-2]) == reply
+
+
+def test_a_reply_nobody_read_is_not_the_next_masters(rtu_server):
+    """A stranger's probe: a master that sent a read and went away without reading the
+    reply (killed, timed out) left it queued on the pty's client side; the next master
+    (mbpoll, which does not flush on opening) took it for its own answer and printed the
+    register's old value, exit 0. On a line a reply nobody hears is gone."""
+    gone = Line(rtu_server.line.path)
+    for _ in range(3):  # three reads of unit 1, none read
+        gone.send(rtu_frame(1, _fc4(0, 2)))
+        time.sleep(_after(rtu_frame(1, _fc4(0, 2))))
+    gone.close()  # the last master left: what it left is dropped, seen at once
+    time.sleep(0.2)  # (a master's process starting: mbpoll's takes longer)
+    reply = _read_as_mbpoll(rtu_server.line.path, 4)
+    assert _is_reply_of(reply, 4), reply.hex()
+
+
+def test_a_master_gone_before_its_reply_came_leaves_none(rtu_server):
+    """A re-probe: a master whose timeout is shorter than the transaction (mbpoll -o 0.01)
+    left before its reply was written; the reply was written after its close and waited
+    for the next master, which read the old value. On a line it reaches nobody."""
+    gone = Line(rtu_server.line.path)
+    gone.send(rtu_frame(1, _fc4(0, 2)))
+    gone.close()  # before the reply's wire time has passed
+    time.sleep(0.2)
+    reply = _read_as_mbpoll(rtu_server.line.path, 4)
+    assert _is_reply_of(reply, 4), reply.hex()
+
+
+def test_another_process_opening_the_pty_takes_no_masters_reply(rtu_server):
+    """A re-probe: a process that opened and closed the pty while a master waited for its
+    reply (``stty -F``, a prober) had the queue emptied at its close, and the master timed
+    out. Only the last master leaving empties it."""
+    master = Line(rtu_server.line.path)
+    try:
+        master.send(rtu_frame(4, _fc4(0, 2)))
+        time.sleep(_after(rtu_frame(4, _fc4(0, 2))))  # the reply is queued, not yet read
+        os.close(os.open(rtu_server.line.path, os.O_RDWR | os.O_NOCTTY))
+        time.sleep(0.2)  # (the line's thread sees the close)
+        reply = master.read(9, timeout_s=2.0)
+    finally:
+        master.close()
+    assert _is_reply_of(reply, 4), reply.hex()
 
 
 def test_a_reply_left_by_a_master_that_stays_open_is_dropped_after_a_while(rtu_server):
