@@ -15,6 +15,7 @@ Emissions the Type 869 model does not carry (assumptions ours, documented):
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import hashlib
 import json
@@ -233,10 +234,18 @@ class Emulator:
         self._apply_commands()
         self.bench.initial_outputs()
         self._true = self._plant_values()
-        self._readings = self._true
+        self._readings = self._true if self.instruments.ideal else self._first_readings()
         self._stale = False
         self._balance_last = float(self._readings[_INDEX["balance_mass_kg"]])
         self._balance_since = 0.0
+
+    def _first_readings(self) -> list[float]:
+        """What the instruments show before the first step: the plant's values through
+        their fixed errors, noise, rounding and floor (they showed the plant's values
+        exactly, a reading off by an instrument's offset from the first step on). Read on
+        a copy: the instruments' draws after it are those of a bank never read at t=0."""
+        first = copy.deepcopy(self.instruments)
+        return first.read(np.array(self._true), self.sim_time_s, 0.0).tolist()
 
     def compile_kernels(self) -> None:
         """Compile (or load from numba's cache) the kernels this emulator runs, on a

@@ -69,6 +69,34 @@ def test_reset_reproduces_the_run(params_12kw):
     assert emu.values() == first
 
 
+def test_the_first_readings_come_through_the_instruments(params_12kw):
+    """The readings before the first step were the plant's values exactly: a lab
+    instrument's offset appeared only from the first step on (a jump in every log's first
+    row, and a reset showed perfect instruments). Now every reading, from t=0 and after a
+    reset, lies off the plant by at most the instrument's band and noise, as after a
+    step, and is rounded to its resolution."""
+    profile = load_profile("lab")
+    emu = Emulator(params_12kw, profile, seed=3)
+    for _ in range(2):  # at t=0 and after a reset
+        shown, true = emu.readings, emu._plant_values()
+        for name, reading, value in zip(MEASURED, shown, true, strict=True):
+            spec = profile.spec(name)
+            if spec.ideal or spec.delay_s > 0 or spec.lag_s > 0 or not math.isfinite(value):
+                continue
+            # (the band and five noise sd's, and half the resolution: the bank's own terms)
+            bound = spec.accuracy_abs + spec.accuracy_rel * abs(value)
+            bound += 5 * (spec.noise_sd + spec.noise_rel * abs(value)) + spec.resolution
+            assert abs(reading - value) <= bound + 1e-9, (name, reading, value)
+            if spec.resolution > 0:
+                steps = reading / spec.resolution
+                assert abs(steps - round(steps)) < 1e-6, (name, reading)
+        off = [r != v for r, v in zip(shown, true, strict=True)]
+        assert sum(off) >= 5, off  # the lab's instruments show their offsets
+        _start(emu)
+        emu.advance(60.0)
+        emu.reset()
+
+
 @pytest.mark.parametrize(
     ("name", "value"),
     [
