@@ -47,6 +47,7 @@ import itertools
 import json
 import logging
 import math
+import re
 import socket
 import time
 from dataclasses import dataclass
@@ -760,16 +761,29 @@ def _host(version: str, target: str, hosts: list[str]) -> str:
     if len(hosts) > 1:
         raise BadRequest(f"Host given {len(hosts)} times ({', '.join(hosts)[:80]})")
     if "://" in target.split("?", 1)[0]:  # absolute form: its authority, not Host (3.2.2)
-        host = urlsplit(target).netloc
+        try:
+            host = urlsplit(target).netloc
+        except ValueError:  # ("http://[::1/": a traceback and no reply, a re-probe)
+            raise BadRequest(f"request target {target[:80]!r} is not a URL") from None
     elif hosts:
         host = hosts[0]
     elif version == "HTTP/1.0":
         return ""
     else:
         raise BadRequest(f"{version} request without a Host field")
-    if not host.isascii() or any(c in host for c in " \t/?#@\\") or not host.isprintable():
+    if not _HOST.fullmatch(host):
         raise BadRequest(f"Host {host[:80]!r} is not a host and port")
+    try:
+        urlsplit(f"//{host}").port  # noqa: B018 (in range: a ValueError if not)
+    except ValueError:
+        raise BadRequest(f"Host {host[:80]!r} is not a host and port") from None
     return host
+
+
+#: a host and an optional port as RFC 3986 3.2.2-3.2.3 write them: an IP literal in
+#: brackets, or an IPv4 address or a name of unreserved, sub-delimiter and %-encoded
+#: characters ("[::1" and "[::1]x" were a traceback and a 200, a re-probe)
+_HOST = re.compile(r"(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9\-._~%!$&'()*+,;=]*)(:[0-9]*)?")
 
 
 async def _respond(

@@ -61,28 +61,33 @@ class PtyMasters:
 
     def update(self) -> tuple[bool, bool]:
         """Take the events that came: (a master came to a pty nobody had open, the last
-        one left). A queue that overflowed is recounted from the processes' descriptors."""
-        came = left = False
+        one left), each seen event by event (a master leaving and the next coming read
+        together are both). After a queue that overflowed, the events are not all there:
+        the count is made again from the processes' descriptors once the queue is read
+        empty (the events read after the overflow are in that count already; applied on
+        top of it, they left a count too high, or a live master unanswered: a re-probe),
+        and only nobody left is told."""
+        came = left = overflowed = False
         while True:
             try:
                 data = os.read(self._fd, 4096)
-            except (BlockingIOError, InterruptedError):
-                break
-            except OSError:  # (closed: the line stopped)
+            except OSError:  # (empty: BlockingIOError; closed: the line stopped)
                 break
             offset = 0
             while offset + _EVENT.size <= len(data):
                 _, mask, _, size = _EVENT.unpack_from(data, offset)
                 offset += _EVENT.size + size
-                before = self.openers
                 if mask & IN_Q_OVERFLOW:
-                    self.openers = count_openers(self.path)
+                    overflowed = True
                 elif mask & IN_OPEN:
+                    came |= self.openers == 0
                     self.openers += 1
                 elif mask & (IN_CLOSE_WRITE | IN_CLOSE_NOWRITE):
+                    left |= self.openers == 1
                     self.openers = max(self.openers - 1, 0)
-                came |= before == 0 and self.openers > 0
-                left |= before > 0 and self.openers == 0
+        if overflowed:
+            self.openers = count_openers(self.path)
+            return False, self.openers == 0
         return came, left
 
     def close(self) -> None:

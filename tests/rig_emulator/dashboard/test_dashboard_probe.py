@@ -287,6 +287,12 @@ def test_a_content_length_that_is_no_number_of_bytes_or_given_twice_is_a_400(ser
         (b"GET /api/state HTTP/1.1\r\n\r\n", b"400", b"without a Host"),
         (b"GET / HTTP/1.1\r\nHost: a\r\nHost: 127.0.0.1\r\n\r\n", b"400", b"Host given 2"),
         (b"GET / HTTP/1.1\r\nHost: 127.0.0.1/x\r\n\r\n", b"400", b"not a host and port"),
+        # a malformed IP literal, in Host or in an absolute target: a traceback, no reply
+        (b"GET / HTTP/1.1\r\nHost: [::1\r\n\r\n", b"400", b"not a host and port"),
+        (b"GET / HTTP/1.1\r\nHost: [::1]x\r\n\r\n", b"400", b"not a host and port"),
+        (b"GET http://[::1/ HTTP/1.1\r\n\r\n", b"400", b"not a URL"),
+        (b"GET / HTTP/1.1\r\nHost: localhost:99999\r\n\r\n", b"400", b"not a host"),
+        (b"GET /api/state HTTP/1.1\r\nHost: [::1]:8080\r\n\r\n", b"200", b'"units"'),
         (b"GET /api/state HTTP/1.0\r\n\r\n", b"200", b'"units"'),  # 1.0 may omit it
         # an absolute target's authority is the host (RFC 9112 3.2.2), Host ignored
         (b"GET http://localhost/api/state HTTP/1.1\r\n\r\n", b"200", b'"units"'),

@@ -55,3 +55,28 @@ def test_the_count_from_proc_sees_other_processes_not_this_one(pty_path):
         assert count_openers(pty_path) == 0
     finally:
         os.close(own)
+
+
+def test_after_an_overflowed_queue_the_count_is_the_processes(pty_path):
+    """A re-probe: 400,000 opens and closes overflowed inotify's queue; the count was then
+    made again from /proc and the events queued behind the overflow applied on top of it,
+    leaving a count too high (a stale reply reached the next master) or none (a live
+    master unanswered). Now the count after an overflow is the processes' own."""
+    with open("/proc/sys/fs/inotify/max_queued_events") as limit:
+        storm = int(limit.read()) + 1000  # opens and closes: twice as many events
+    masters = PtyMasters.watch(pty_path)
+    assert masters is not None
+    try:
+        with open(pty_path, "rb", buffering=0) as held:
+            child = subprocess.Popen(["sleep", "30"], stdin=held)  # a master, held open
+        try:
+            for _ in range(storm):
+                os.close(os.open(pty_path, os.O_RDONLY | os.O_NOCTTY))
+            came, left = masters.update()
+            assert masters.openers == 1 and not came and not left
+        finally:
+            child.kill()
+            child.wait()
+        assert masters.update() == (False, True) and masters.openers == 0
+    finally:
+        masters.close()
