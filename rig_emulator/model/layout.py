@@ -135,6 +135,7 @@ STATE_FIELDS = (
     "fuel_dry_kg",  # dry fuel burnt so far [kg]
     "electric_Wh",  # electricity drawn so far [Wh]
     "starts",  # ignitions so far
+    "restart_at_C",  # a stopped boiler starts at or below this node temperature [C]
 )
 S = index_of(STATE_FIELDS)
 S_T = S["t_boiler_C"]
@@ -146,6 +147,7 @@ S_SINCE_STOP = S["since_stop_s"]
 S_FUEL = S["fuel_dry_kg"]
 S_ELECTRIC = S["electric_Wh"]
 S_STARTS = S["starts"]
+S_RESTART_AT = S["restart_at_C"]
 N_STATE = len(STATE_FIELDS)
 
 # --- boiler outputs of one step (temperatures at the end, heat flows as step means)
@@ -206,5 +208,8 @@ N_OUTPUTS = len(OUTPUT_FIELDS)
 OFF = 0  #: switched off by the external command
 STARTUP = 1  #: firing at Pstart after a start
 MODULATING = 2  #: firing between Pmin and Pmax to hold the set temperature
-CUTOUT = 3  #: stopped above the shut-off temperature, waiting for the restart temperature
+#: stopped, waiting to start: after a cut-out at the shut-off temperature, for the restart
+#: temperature; switched on with the water at or above the set temperature, for the water
+#: to fall to it
+CUTOUT = 3
 MODE_NAMES = {OFF: "off", STARTUP: "start_up", MODULATING: "modulating", CUTOUT: "cut_out"}

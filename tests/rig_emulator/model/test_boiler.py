@@ -164,7 +164,7 @@ def test_a_restart_where_modulation_holds_settles_into_modulation(params, load):
     flow = load * params.nominal_flow_kg_h
     ss = steady_state(c, flow, 55.0, 22.0)
     assert ss.t_boiler_C < params.shutoff_temp_C  # modulation (at Pmin or above) holds it
-    s = new_state(80.0)  # switched on hot: no start until the water is back at 55 C
+    s = new_state(80.0)  # switched on hot: no start until the water is back at 70 C
     n = 10 * 3600
     out = run(c, s, np.full(n, flow), np.full(n, 55.0), np.ones(n, bool))
     mode = out[:, Y_MODE].astype(int)
@@ -173,6 +173,28 @@ def test_a_restart_where_modulation_holds_settles_into_modulation(params, load):
     assert mode[-1] == MODULATING
     assert last[Y_T_BOILER] == pytest.approx(ss.t_boiler_C, abs=1e-6)
     assert last[Y_Q_WATER] == pytest.approx(ss.q_water_kW, abs=1e-6)
+
+
+@pytest.mark.parametrize(("t_on_C", "waits_for"), [(71.5, "set_temp_C"), (86.0, "restart_temp_C")])
+def test_switched_on_above_the_set_temperature_it_starts_when_the_water_falls_to_it(
+    params, t_on_C, waits_for
+):
+    """A stranger's physics probe: switched on at 71.3 C with a full load on the loop, the
+    boiler waited for 55 C as after a cut-out, hours without fire, while at 68.8 C it
+    fired at once. Switched on above the set temperature there is no demand until the
+    water falls to it; only above the shut-off (an overheated boiler) does it wait for the
+    restart temperature, as after a cut-out (the paper, 3: off above 85 C, on at 55 C)."""
+    c = pack_constants(params)
+    s = new_state(t_on_C)
+    n = 3 * 3600
+    out = run(c, s, np.full(n, params.nominal_flow_kg_h), np.full(n, 55.0), np.ones(n, bool))
+    mode = out[:, Y_MODE].astype(int)
+    temp = out[:, Y_T_BOILER]
+    starts = np.flatnonzero((mode[1:] == STARTUP) & (mode[:-1] == CUTOUT)) + 1
+    assert mode[0] == CUTOUT and len(starts) >= 1
+    first = starts[0]  # (the decision uses the temperature at the start of the step)
+    threshold = getattr(params, waits_for)
+    assert temp[first - 1] <= threshold < temp[first - 2]
 
 
 def test_switched_off_boiler_cools_with_ua_off(params):
