@@ -667,6 +667,15 @@ class BenchModbusServer:
         shares = self.shares = descriptor_shares(
             self.max_connections, self.dashboard_connections, later
         )
+        if shares.limit - shares.own < shares.files + shares.dashboard + 1:
+            # nothing would be served (a re-probe: under ``ulimit -n 16`` with a pty and the
+            # dashboard the line said "serving at most 1 connections" and served none)
+            least = shares.own + shares.files + shares.dashboard + 1
+            raise OSError(
+                f"the open-file limit (RLIMIT_NOFILE) {shares.limit} leaves no descriptor for a"
+                f" connection: the server's own listeners and files take {shares.own}; raise it"
+                f" to {least} at least (ulimit -n {least})"
+            )
         if shares.modbus < self.max_connections:
             log.warning(
                 "--max-connections %d does not fit the process's %s (%s): serving at most "

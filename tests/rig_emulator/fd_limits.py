@@ -64,7 +64,7 @@ class Limited:
         return self.log.read_text(errors="replace").splitlines()
 
 
-def _limit_descriptors(nofile: int) -> None:
+def limit_descriptors(nofile: int) -> None:
     import resource
 
     resource.setrlimit(resource.RLIMIT_NOFILE, (nofile, nofile))
@@ -96,7 +96,7 @@ def serving_limited(
             stdout=subprocess.PIPE,
             stderr=err,
             text=True,
-            preexec_fn=functools.partial(_limit_descriptors, nofile),
+            preexec_fn=functools.partial(limit_descriptors, nofile),
             env={**os.environ, "PYTHONPATH": str(REPO)},
         )
     try:

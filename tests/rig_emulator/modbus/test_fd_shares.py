@@ -4,14 +4,20 @@ when they run short, each against a real ``rig-emulator serve`` under a low RLIM
 
 from __future__ import annotations
 
+import functools
 import socket
+import subprocess
+import sys
 import time
 
 from hil_client.wait_for_port import free_port
 from tests.rig_emulator.fd_limits import (
+    REPO,
     close_all,
     http_get,
     kernels_loaded,
+    limit_descriptors,
+    modbus_read,
     serving_limited,
     take_descriptors,
 )
@@ -107,3 +113,31 @@ def test_a_dashboard_beside_keeps_a_few_descriptors_not_a_quarter(tmp_path):
     assert answered == 100, [line for line in lines if "connection" in line][-5:]
     assert not any("does not fit" in line for line in lines), lines[:3]
     assert page.startswith(b"HTTP/1.1 200"), page[:100]
+
+
+def test_a_limit_that_leaves_no_connection_is_refused_in_one_line(tmp_path):
+    """A re-probe: under ``ulimit -n 16`` with a pty and the dashboard, the start's line
+    said "serving at most 1 connections", and neither a Modbus client nor the dashboard
+    was ever answered (the server's own descriptors took the whole limit). Now such a
+    limit is refused at the start, naming the limit to raise it to; one that leaves room
+    serves."""
+    serve = [sys.executable, "-m", "rig_emulator.cli", "serve", "--boiler", "windhager_12kw"]
+    serve += ["--lockstep", "--port", "0", "--serial", "pty", "--http", "0"]
+    done = subprocess.run(
+        serve,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        preexec_fn=functools.partial(limit_descriptors, 16),
+        cwd=REPO,
+    )
+    lines = done.stderr.strip().splitlines()
+    assert done.returncode == 2, done.stderr
+    assert "leaves no descriptor for a connection" in lines[-1], lines
+    assert "Traceback" not in done.stderr, done.stderr
+    least = int(lines[-1].rsplit("ulimit -n ", 1)[1].rstrip(")"))
+    http = free_port()
+    options = ("--serial", "pty", "--http", str(http))
+    with serving_limited(tmp_path / "serve.log", *options, http=http, nofile=least) as served:
+        assert modbus_read(served.port)[7:8] == b"\x04"  # (FC 4 answered)
+        assert http_get(http, "/api/state").startswith(b"HTTP/1.1 200")
