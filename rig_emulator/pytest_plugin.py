@@ -22,6 +22,7 @@ block, ``truth`` reads the truth unit (101).
 from __future__ import annotations
 
 import contextlib
+import decimal
 import math
 import numbers
 import os
@@ -334,10 +335,13 @@ class RigEmulator:
         a TypeError in the socket library, 1e12 an OverflowError: probes)."""
         __tracebackhide__ = True
         timeout = self.reply_timeout_s
+        number = isinstance(timeout, numbers.Real | decimal.Decimal)  # (Decimal: not Real)
         try:  # (an int of 400 digits: OverflowError from float(), a re-probe)
-            seconds = float(timeout) if isinstance(timeout, numbers.Real) else math.nan
+            seconds = float(timeout) if number else math.nan
         except OverflowError:
             seconds = math.inf
+        except ValueError:  # (Decimal("sNaN"))
+            seconds = math.nan
         if isinstance(timeout, bool) or not 0 < seconds <= REPLY_TIMEOUT_MAX_S:
             raise ValueError(
                 f"reply_timeout_s = {timeout!r}: expected a number of seconds > 0 and at "

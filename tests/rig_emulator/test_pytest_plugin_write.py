@@ -68,6 +68,7 @@ def test_a_refusal_names_the_exception_and_a_bad_timeout_is_named(tmp_path):
     """Stranger's probes: a refused write said "ExceptionResponse(dev_id=1,
     function_code=144, exception_code=4)"; ``reply_timeout_s = -1`` gave pymodbus's
     "Timeout value out of range", naming nothing."""
+    from decimal import Decimal
     from fractions import Fraction
 
     import numpy as np
@@ -79,12 +80,14 @@ def test_a_refusal_names_the_exception_and_a_bad_timeout_is_named(tmp_path):
         with pytest.raises(RigEmulatorError, match=r"refused: exception 03 \(illegal data value\)"):
             rig.write("water_flow_setpoint_kg_h", 1e9)
         # (1e12 was an OverflowError of the socket library: a re-probe)
-        for bad in (-1, 0, "abc", float("nan"), True, float("inf"), 1e12, 10**400):
+        bad_ones = (-1, 0, "abc", float("nan"), True, float("inf"), 1e12, 10**400)
+        for bad in (*bad_ones, Decimal("sNaN"), Decimal("-1")):
             rig.reply_timeout_s = bad
             with pytest.raises(ValueError, match=r"reply_timeout_s = .*: expected a number"):
                 rig.read("sim_time_s")
         # numpy's float32 and a Fraction were a TypeError in the socket library (a re-probe)
-        for good in (2.0, np.float32(2.0), Fraction(1, 2)):
+        # (a Decimal was "not a number of seconds": a stranger's probe)
+        for good in (2.0, np.float32(2.0), Fraction(1, 2), Decimal("5")):
             rig.reply_timeout_s = good
             assert rig.read("sim_time_s") == 0.0
         with pytest.raises(ValueError) as err:
