@@ -192,7 +192,6 @@ class Dashboard:
         self._streams: dict[asyncio.Queue, asyncio.StreamWriter] = {}
         self._srv: Listener | None = None
         self._task: asyncio.Task | None = None
-        self._last: dict = {}
         self._evicted = 0  # streams closed for new ones since the last line said so
         self._evicted_said = -math.inf  # when that line was logged (monotonic) [s]
         #: the connections being served: ended before the loop stops (cancelled by the
@@ -331,7 +330,7 @@ class Dashboard:
             "last": self.server.lateness.last_s * 1000.0,
             "p99_recent": float(np.percentile(recent, 99)) * 1000.0 if recent else math.nan,
         }
-        self._last = {
+        return {
             "boiler": self.server.emulator.params.name,
             "time_s": time_s,
             # which plant the trend is of: a new epoch (a restarted server) or reset count
@@ -349,7 +348,6 @@ class Dashboard:
             "fault_controls": {"refused": self.server.control_refusal(FAULT_COMMANDS)},
             "units": units(self.server.map, values),
         }
-        return self._last
 
     def _control_state(self, signal: str, point: Point, values: dict[str, float]) -> dict:
         """A control as the page offers it: its point, the lowest and highest value a write
@@ -369,11 +367,11 @@ class Dashboard:
         }
 
     def state(self, window_s: float | None = None) -> dict:
-        """The last push's state with the trend as it is now, tagged with the plant run the
-        trend is of (the push's run, up to a push old, named the plant before a reset
-        while the trend was the new one's: a page would have thrown its points away, a
-        re-probe)."""
-        return self._last | {"trend": self.trend.as_dict(window_s), "run": self._trend_run()}
+        """The state as published now with the trend, tagged with the plant run the trend
+        is of (the last push's state, up to a push old, showed the time and readings from
+        before a lockstep advance beside a trend that ran to its end, and named the plant
+        before a reset while the trend was the new one's: re-probes)."""
+        return self._sample() | {"trend": self.trend.as_dict(window_s)}
 
     def _trend_run(self) -> dict:
         return {"epoch_id": self.server.epoch_id, "resets": self.trend.run}
@@ -558,10 +556,7 @@ class Dashboard:
         self._streams[queue] = writer
         try:
             writer.write(STREAM_HEAD)
-            first = self._last | {
-                "trend_point": self.trend.as_dict(0.0),
-                "run": self._trend_run(),
-            }
+            first = self._sample() | {"trend_point": self.trend.as_dict(0.0)}
             writer.write(f"data: {json.dumps(first, allow_nan=False)}\n\n".encode())
             await writer.drain()
             while True:

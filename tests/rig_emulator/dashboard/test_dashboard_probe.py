@@ -165,6 +165,24 @@ def test_a_long_lockstep_advance_shows_what_the_plant_did_inside(served):
     assert at_half > (flue[0] + flue[-1]) / 2 + 20, (flue[0], at_half, flue[-1])
 
 
+def test_the_state_right_after_a_lockstep_advance_is_the_advances_end(served):
+    """A stranger's probe: /api/state right after an advance showed the time and readings
+    of before it (the last push's, up to half a second old) beside a trend already at its
+    end."""
+    port, http = served("--lockstep")
+    c = client(port)
+    try:
+        start_boiler(c, MAP, seconds=600)
+        fg = read_point(c, *point(MAP, "flue_gas_probe", "flue_gas_temp"))
+        state = _state(http)  # at once: no push since the advance
+    finally:
+        c.close()
+    assert state["time_s"] == pytest.approx(600) == state["trend"]["time_s"][-1]
+    probe = next(u for u in state["units"] if u["name"] == "flue_gas_probe")
+    shown = next(r["value"] for r in probe["readings"] if r["name"] == "flue_gas_temp")
+    assert shown == pytest.approx(fg, abs=1e-9)
+
+
 def test_the_api_shows_each_reading_as_its_registers_carry_it(served):
     """A stranger's probe: with the clean profile /api/state showed the plant's values,
     not the wire's (the FID's int16 x0.1 served 3.1, the API said 3.0731...; the flue gas
