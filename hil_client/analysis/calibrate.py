@@ -398,11 +398,17 @@ def _fit_stationary(
         fitted["fac_a_lambda"] = Fitted(a, u_a, "intercept of the same regression", len(lam))
     else:
         b = doc.fac_b_lambda_h_kg
-        a = float(np.mean(lam - b * fuel[:, 0]))
+        per_interval = lam - b * fuel[:, 0]
+        a = float(np.mean(per_interval))
         a_o2 = float(np.mean(lam_shifted - b * fuel[:, 0]))
-        fitted["fac_a_lambda"] = Fitted(
-            a, abs(a_o2 - a), "lambda - facB m_fuel at one load, facB kept", len(lam)
-        )
+        # the same terms as the regression's: the intervals' scatter, the fuel flows' own
+        # uncertainty through facB (it was the O2 shift alone: a stranger's probe found the
+        # stated uncertainty a third of the fuel flow's share)
+        n = len(per_interval)
+        se_a = float(np.std(per_interval, ddof=1)) / math.sqrt(n) if n > 1 else 0.0
+        u_a_fuel = abs(b) * float(np.mean(fuel[:, 1]))
+        u_a = math.sqrt(se_a**2 + u_a_fuel**2 + (a_o2 - a) ** 2)
+        fitted["fac_a_lambda"] = Fitted(a, u_a, "lambda - facB m_fuel at one load, facB kept", n)
     # --- electric power against firing power
     firing = fuel[:, 0] * doc.fuel.lhv_dry_kJ_kg / 3600.0
     pel = (
