@@ -633,6 +633,8 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
             else f"{written:.4g} written, at that bound (documentation value {documented:.4g})"
         )
         print(f"warning: {key}: {why}; {kept}")
+    for line in result.warnings:
+        print(f"warning: {line}")
     print(f"written: {args.out}, {side}, " + ", ".join(str(p) for p in figures))
     return 0
 
