@@ -203,16 +203,19 @@ class LabLog:
         mass, t = self.columns["balance_mass_kg"], self.t
         cached = self._readings
         if cached is None or cached[0] is not mass or cached[1] is not t:
+            # stuck first: a balance that comes unstuck falls at once to the level it lost
+            # meanwhile, which is no dropout once the stuck readings are none
             read = mass.astype(float)
-            unread = balance_dropouts(mass, t)
-            for u in unread:
-                read[u.start : u.end] = np.nan
+            unread: list[Unread] = []
             if self.has("flue_gas_O2_pct"):
                 firing = fill_gaps(self.columns["flue_gas_O2_pct"], t) < FIRING_O2_PCT
-                stuck = stuck_stretches(read, t, firing)
-                for u in stuck:
+                unread = stuck_stretches(read, t, firing)
+                for u in unread:
                     read[u.start : u.end] = np.nan
-                unread = sorted([*unread, *stuck], key=lambda u: u.start)
+            dropouts = balance_dropouts(read, t)
+            for u in dropouts:
+                read[u.start : u.end] = np.nan
+            unread = sorted([*unread, *dropouts], key=lambda u: u.start)
             cached = self._readings = (mass, t, read, unread)
         return cached[2], cached[3]
 
