@@ -633,6 +633,8 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
             else f"{written:.4g} written, at that bound (documentation value {documented:.4g})"
         )
         print(f"warning: {key}: {why}; {kept}")
+    for line in result.warnings:
+        print(f"warning: {line}")
     print(f"written: {args.out}, {side}, " + ", ".join(str(p) for p in figures))
     return 0
 
@@ -682,7 +684,7 @@ def _cmd_balance(args: argparse.Namespace) -> int:
     print(f"energy balance of {args.log} ({params.name}; phases from the {phases.source})")
     print(balance_table(rows))
     if log.has("balance_mass_kg"):  # taken out of the fuel, as said (it was not: a probe)
-        found = refills(log["balance_mass_kg"], log.t)
+        found = refills(log.balance_readings()[0], log.t)  # (a dropout's return was one)
         if found:
             each = ", ".join(f"+{r.rise_kg:.2f} kg at time_s {log.t[r.start]:g}" for r in found)
             print(f"note: {len(found)} refill(s) of the balance taken out of the fuel ({each})")

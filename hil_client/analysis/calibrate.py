@@ -43,6 +43,7 @@ from hil_client.analysis.logio import (
     LogError,
     fill_gaps,
     flow_plateaus,
+    record_steps,
     stationary_steps,
 )
 from hil_client.analysis.phases import Phases
@@ -193,18 +194,65 @@ def stationary_intervals(log: LabLog, phases: Phases) -> list[Interval]:
     return out
 
 
+#: The largest share of a stationary interval's time the balance may have no readings
+#: over (a dropout, a stuck stretch) before its fuel flow is not read: what rests on
+#: readings that are not there over more than half of it is no reading (as the balance's
+#: :data:`~hil_client.analysis.balance.UNREAD_MAX`)
+BALANCE_UNREAD_MAX = 0.5
+
+
+def _unread_rows(log: LabLog, i0: int, i1: int) -> np.ndarray:
+    """Per row of ``i0``..``i1`` (exclusive), whether the balance's reading there is none
+    (:meth:`LabLog.balance_readings`: a dropout, a stuck stretch)."""
+    rows = np.zeros(i1 - i0, dtype=bool)
+    if not len(rows):
+        return rows
+    for u in log.balance_readings()[1]:
+        rows[max(u.start, i0) - i0 : max(min(u.end, i1) - i0, 0)] = True
+    return rows
+
+
+def _gap_min(log: LabLog, i0: int, i1: int) -> float:
+    """The gaps in the record (:func:`record_steps`) between rows ``i0`` and ``i1 - 1``
+    [min]."""
+    dt, gap = record_steps(log.t)
+    return float(dt[i0 + 1 : i1][gap[i0 + 1 : i1]].sum()) / 60.0
+
+
 def _fuel_rate_dry(iv: Interval, params: BoilerParams) -> tuple[float, float]:
     """(dry fuel flow [kg/h], its standard uncertainty) from a linear fit of the balance,
     refills taken out (one refill in a 6-h test read as fuel going back: no fuel flow, and
-    four parameters left at their documentation values)."""
+    four parameters left at their documentation values); one slope over the stretches
+    between the record's gaps, each with its own intercept (across a clock stepped
+    forward the balance lost nothing in an hour: the fuel flow, and Pel from it, were
+    read 15 % low; a stranger's probe); NaN where the balance has no readings over more
+    than :data:`BALANCE_UNREAD_MAX` of the interval (stuck an hour into a 6-h test, it
+    gave Pel,MAX 73 W for 50)."""
     t = iv.log.t[iv.i0 : iv.i1]
     m = iv.log.balance_without_refills()[iv.i0 : iv.i1]
-    ok = ~np.isnan(m)
-    if ok.sum() < 2:
+    dt, gap = record_steps(iv.log.t)
+    rec = np.where(gap, 0.0, dt)[iv.i0 : iv.i1]
+    rec[0] = 0.0
+    unread = _unread_rows(iv.log, iv.i0, iv.i1)
+    if rec.sum() <= 0.0 or rec[unread].sum() > BALANCE_UNREAD_MAX * rec.sum():
         return math.nan, math.nan
-    _, slope, _, se = _linfit(t[ok], m[ok])
+    seg = np.cumsum(gap[iv.i0 : iv.i1] & (np.arange(len(t)) > 0))
+    ok = ~np.isnan(m)
+    tc, mc = t[ok].copy(), m[ok].copy()
+    for s_ in np.unique(seg[ok]):  # each stretch about its own mean
+        in_s = seg[ok] == s_
+        tc[in_s] -= tc[in_s].mean()
+        mc[in_s] -= mc[in_s].mean()
+    n_seg = len(np.unique(seg[ok]))
+    sxx = float(tc @ tc)
+    if ok.sum() < 2 or sxx <= 0.0:
+        return math.nan, math.nan
+    slope = float(tc @ mc) / sxx
+    dof = int(ok.sum()) - n_seg - 1
+    resid = mc - slope * tc
+    se = math.sqrt(float(resid @ resid) / dof / sxx) if dof > 0 else 0.0
     per_kg_dry = params.fuel.balance_loss_per_kg_dry
-    duration = t[-1] - t[0]
+    duration = float(rec.sum())  # the time recorded
     # the resolution of the two end readings bounds the mass difference: 0.02 kg each
     u_res = math.sqrt(2) * _u("balance_mass_kg", 0.0) / duration
     rate = -slope * 3600.0 / per_kg_dry
@@ -231,6 +279,9 @@ class Calibration:
     fig4: dict[str, np.ndarray]
     fig5: dict[str, np.ndarray]
     flags: dict[str, str] = field(default_factory=dict)
+    #: what the user should know of what was fitted (a gap in the record within it), one
+    #: line each
+    warnings: list[str] = field(default_factory=list)
 
 
 def _lambda_ok(params: BoilerParams) -> bool:
@@ -454,6 +505,15 @@ def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibrati
     """Calibrate from logs (each with its phases) starting from documentation values."""
     fitted: dict[str, Fitted] = {}
     intervals = [iv for log, ph in logs for iv in stationary_intervals(log, ph)]
+    warnings: list[str] = []  # what is fitted across a gap in the record (a probe: none)
+    for iv in intervals:
+        if (gap_min := _gap_min(iv.log, iv.i0, iv.i1)) > 0.0:
+            warnings.append(
+                f"{iv.log.path}: the stationary interval {iv.label} (time_s "
+                f"{iv.log.t[iv.i0]:g}..{iv.log.t[iv.i1 - 1]:g}) spans gaps of {gap_min:.0f} min "
+                "in the record: its fuel flow is read over the time recorded, each side of "
+                "a gap on its own"
+            )
     if intervals:
         fig4, fig5 = _fit_stationary(intervals, doc, fitted)
     else:
@@ -498,6 +558,11 @@ def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibrati
         i0 = int(np.searchsorted(t, ph.t0, side="right"))
         i_end = int(np.searchsorted(t, ph.t0 + doc.startup_duration_s, side="right"))
         if i0 >= 1 and t[-1] >= ph.t0 + doc.startup_duration_s:
+            if (gap_min := _gap_min(log, i0 - 1, i_end)) > 0.0:  # read as if continuous
+                warnings.append(
+                    f"{log.path}: the start-up (time_s {t[i0 - 1]:g}..{t[i_end - 1]:g}) spans "
+                    f"gaps of {gap_min:.0f} min in the record: W_el and Pstart read across them"
+                )
             starts.append((log, i0, i_end))
     if ua_off_values:
         vals = np.array(ua_off_values)
@@ -541,6 +606,9 @@ def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibrati
         dm = (mass[i0 - 1] - mass[i_stop - 1]) / per_kg_dry
         duration = t[i_stop - 1] - t[i0 - 1]
         short_start_up |= duration < PSTART_MIN_S
+        # (no Pstart from a start-up where the balance's readings are none: stuck, a dropout)
+        if _unread_rows(log, i0 - 1, i_stop).any():
+            dm = math.nan
         if duration >= PSTART_MIN_S and dm > 0:  # NaN (no balance) compares False
             p_start.append(
                 (
@@ -605,4 +673,4 @@ def calibrate(logs: list[tuple[LabLog, Phases]], doc: BoilerParams) -> Calibrati
             if short_start_up
             else "no fuel fed over the start-up by the balance (a stuck or empty balance?)"
         )
-    return Calibration(params, fitted, fig4, fig5, flags)
+    return Calibration(params, fitted, fig4, fig5, flags, warnings)

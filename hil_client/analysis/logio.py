@@ -187,19 +187,46 @@ class LabLog:
     _unrefilled: tuple[np.ndarray, np.ndarray, np.ndarray] | None = field(
         default=None, repr=False, compare=False
     )
+    #: (the balance column and time they were read from, its readings, the stretches unread)
+    _readings: tuple[np.ndarray, np.ndarray, np.ndarray, list[Unread]] | None = field(
+        default=None, repr=False, compare=False
+    )
 
     @property
     def t(self) -> np.ndarray:
         return self.columns["time_s"]
 
+    def balance_readings(self) -> tuple[np.ndarray, list[Unread]]:
+        """The balance's readings with those that are none missing (NaN): its dropouts
+        (:func:`balance_dropouts`) and where it is stuck through firing
+        (:func:`stuck_stretches`, by the O2 where logged); and those stretches."""
+        mass, t = self.columns["balance_mass_kg"], self.t
+        cached = self._readings
+        if cached is None or cached[0] is not mass or cached[1] is not t:
+            # stuck first: a balance that comes unstuck falls at once to the level it lost
+            # meanwhile, which is no dropout once the stuck readings are none
+            read = mass.astype(float)
+            unread: list[Unread] = []
+            if self.has("flue_gas_O2_pct"):
+                firing = fill_gaps(self.columns["flue_gas_O2_pct"], t) < FIRING_O2_PCT
+                unread = stuck_stretches(read, t, firing)
+                for u in unread:
+                    read[u.start : u.end] = np.nan
+            dropouts = balance_dropouts(read, t)
+            for u in dropouts:
+                read[u.start : u.end] = np.nan
+            unread = sorted([*unread, *dropouts], key=lambda u: u.start)
+            cached = self._readings = (mass, t, read, unread)
+        return cached[2], cached[3]
+
     def balance_without_refills(self) -> np.ndarray:
-        """The balance's reading with its refills taken out (:func:`without_refills`),
-        computed once per log however many analyses and checks read it (again if the
-        column is replaced)."""
+        """The balance's readings (:meth:`balance_readings`) with its refills taken out
+        (:func:`without_refills`), computed once per log however many analyses and checks
+        read it (again if the column is replaced)."""
         mass, t = self.columns["balance_mass_kg"], self.t
         cached = self._unrefilled
         if cached is None or cached[0] is not mass or cached[1] is not t:
-            cached = self._unrefilled = (mass, t, without_refills(mass, t))
+            cached = self._unrefilled = (mass, t, without_refills(self.balance_readings()[0], t))
         return cached[2]
 
     def has(self, name: str) -> bool:
@@ -739,6 +766,99 @@ def fill_gaps(values: np.ndarray, t: np.ndarray) -> np.ndarray:
 #: A rise of the balance's level bigger than this is a refill [kg]: fuel only leaves a
 #: boiler, and the balance's noise and steps are a few hundredths of a kilogram.
 REFILL_STEP_KG = 0.5
+
+
+#: The burner fires where the flue gas holds less O2 than this [vol-%] (air is 20.95).
+FIRING_O2_PCT = 19.0
+#: Firing this long [s] changes any balance's reading (0.02 kg at 0.1 kg/h is 12 min): a
+#: reading that stays exactly the same through it is stuck.
+STUCK_FIRING_S = 600.0
+#: Faster than this no small boiler's hopper empties by burning [kg/s]: EN 303-5 ends at
+#: 500 kW, which fires about 0.03 kg/s of pellets (500 kW over a lower heating value of
+#: ~17 MJ/kg as received, at ~90 % efficiency); half as fast again for a margin. A fall of
+#: the balance faster than this (and over :data:`REFILL_STEP_KG`) is no fuel burnt.
+BURN_MAX_KG_S = 0.05
+
+
+@dataclass(frozen=True, slots=True)
+class Unread:
+    """A stretch of the balance's readings that are none: rows ``start`` to ``end``
+    (exclusive; the log's length where it lasts to the end), and why, one line."""
+
+    start: int
+    end: int
+    why: str
+
+
+def balance_dropouts(mass_kg: np.ndarray, t: np.ndarray) -> list[Unread]:
+    """The balance's dropouts: a fall between two readings of more than
+    :data:`REFILL_STEP_KG`, faster than :data:`BURN_MAX_KG_S` and to below the lowest
+    reading of the :data:`POUR_DETECT_S` before it (someone who leant on the balance and
+    let go comes back to where it stood: no dropout), up to the first reading back within
+    half the fall of where it fell from (the fuel burnt meanwhile is far less than such a
+    fall), or to the end of the log where none comes back (a balance failed to 0, or fuel
+    taken out by hand: what it reads after is unknown)."""
+    ok = np.flatnonzero(~np.isnan(mass_kg))
+    m, tt = mass_kg[ok], t[ok]
+    out: list[Unread] = []
+    k = 1
+    while k < len(m):
+        fall = m[k - 1] - m[k]
+        if fall > REFILL_STEP_KG and fall > BURN_MAX_KG_S * (tt[k] - tt[k - 1]):
+            lo = int(np.searchsorted(tt, tt[k - 1] - POUR_DETECT_S))
+            if m[k] < float(m[lo:k].min()) - REFILL_STEP_KG:
+                back = np.flatnonzero(m[k:] >= m[k - 1] - fall / 2.0)
+                what = (
+                    f"falls {fall:.2f} kg in {tt[k] - tt[k - 1]:g} s at time_s {tt[k]:g}, "
+                    "faster than any small boiler burns"
+                )
+                if len(back):
+                    j = k + int(back[0])
+                    out.append(
+                        Unread(int(ok[k]), int(ok[j]), f"{what}, and is back at time_s {tt[j]:g}")
+                    )
+                    k = j + 1
+                    continue
+                out.append(
+                    Unread(
+                        int(ok[k]),
+                        len(mass_kg),
+                        f"{what}, and never comes back (a failed balance, or fuel taken out "
+                        "by hand)",
+                    )
+                )
+                break
+        k += 1
+    return out
+
+
+def stuck_stretches(mass_kg: np.ndarray, t: np.ndarray, firing: np.ndarray) -> list[Unread]:
+    """Where the balance reads exactly the same through :data:`STUCK_FIRING_S` of firing
+    (by ``firing``, per row; the steps of the record's gaps not counted): its readings
+    after the first of them are none (the first is where it stuck)."""
+    ok = np.flatnonzero(~np.isnan(mass_kg))
+    if len(ok) < 2:
+        return []
+    m = mass_kg[ok]
+    dt, gap = record_steps(t)
+    fired = np.concatenate(([0.0], np.cumsum(np.where(firing & ~gap, dt, 0.0))))
+    starts = np.flatnonzero(np.concatenate(([True], m[1:] != m[:-1])))
+    ends = np.concatenate((starts[1:], [len(m)])) - 1  # each run's last reading
+    out = []
+    for a, b in zip(starts, ends, strict=True):
+        r0, r1 = int(ok[a]), int(ok[b])
+        firing_s = fired[r1 + 1] - fired[r0 + 1]  # the rows after the first, to the last
+        if b > a and firing_s >= STUCK_FIRING_S:
+            end = r1 + 1 if b + 1 < len(m) else len(mass_kg)
+            out.append(
+                Unread(
+                    r0 + 1,
+                    end,
+                    f"reads {m[a]:g} kg from time_s {t[r0]:g} to {t[r1]:g}, through "
+                    f"{firing_s / 60:.0f} min of firing (stuck)",
+                )
+            )
+    return out
 
 
 #: The balance's level is the median of its readings over this long before a refill

@@ -202,8 +202,8 @@ def test_a_gap_in_the_record_is_said_in_its_phase(run_log, params_12kw):
         for r in energy_balance(cut, params_12kw, phases)
     }
     assert said["test"] == [
-        "the record has gaps of 120 min in all in this phase: its figures read across them "
-        "as if the readings had gone straight"
+        "the record has gaps of 120 min in all in this phase: its figures cover the 240 min "
+        "recorded, heat and fuel alike, the gaps left out"
     ]
     assert not any(v for k, v in said.items() if k != "test")
     assert not any(w for r in energy_balance(log, params_12kw, phases) for w in r.warnings)

@@ -1,0 +1,164 @@
+"""The balance's readings that the physics cannot produce, and gaps in time, against a
+stationary log of known heat and fuel flow built here (a stranger's probe: a balance stuck
+for part of the test gave 512 %, a 60-s dropout to 0 kg was 242 kg of fuel, a clock
+stepped forward 1 h gave 99.7 % for 85.4 %)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from hil_client.analysis.balance import energy_balance
+from hil_client.analysis.calibrate import Interval, _fuel_rate_dry
+from hil_client.analysis.logio import LabLog
+from hil_client.analysis.phases import Phases
+from rig_emulator.model import constants as k
+
+STEP_S = 5.0  # sampling period [s]
+HOURS = 4.0
+Q_WATER_KW = 12.0  # heat to the water [kW]
+LOSS_KG_H = 3.0  # what the balance loses [kg/h]
+RES_KG = 0.02  # the balance's resolution [kg]
+# the balance's resolution at both ends of 12 kg lost in 4 h (0.04 / 12 = 0.3 %) and the
+# rectangles of Eq. 7's sum at a constant heat (exact): within 1 %
+REL = 0.01
+
+
+def _log(t=None, mass=None) -> LabLog:
+    """A stationary log: the burner firing throughout (O2 9 %), the water taking
+    :data:`Q_WATER_KW` (15 K across a constant flow), the balance falling at
+    :data:`LOSS_KG_H` from 250 kg in steps of :data:`RES_KG`; ``t`` and ``mass`` replace
+    the time and the balance's readings."""
+    n = int(HOURS * 3600 / STEP_S)
+    true_t = np.arange(1, n + 1) * STEP_S
+    t = true_t if t is None else t
+    if mass is None:
+        mass = np.round((250.0 - LOSS_KG_H * true_t / 3600.0) / RES_KG) * RES_KG
+    flow = Q_WATER_KW * 3600.0 / (k.CP_WATER * 15.0)
+    cols = {
+        "time_s": np.asarray(t, float),
+        "water_flow_kg_h": np.full(n, flow),
+        "water_in_temp_C": np.full(n, 55.0),
+        "water_out_temp_C": np.full(n, 70.0),
+        "boiler_water_temp_C": np.full(n, 70.0),
+        "flue_gas_temp_C": np.full(n, 150.0),
+        "flue_gas_O2_pct": np.full(n, 9.0),
+        "balance_mass_kg": np.asarray(mass, float),
+        "room_temp_C": np.full(n, 22.0),
+    }
+    return LabLog(path=None, columns=cols, text={})  # type: ignore[arg-type]
+
+
+def _test(log: LabLog, params):
+    t = log.t
+    phases = Phases(0.0, 0.5, float(t[-1]), float(t[-1]) + 1, float(t[-1]) + 2, "test")
+    return next(r for r in energy_balance(log, params, phases) if r.phase == "test")
+
+
+def _truth(params) -> tuple[float, float]:
+    """(Q_fuel [kW], direct efficiency) by hand: the dry fuel is the balance's loss over
+    what one kg of dry fuel leaves it (the fuel less its ash), times the dry HHV."""
+    q_fuel = LOSS_KG_H / params.fuel.balance_loss_per_kg_dry * params.fuel.hhv_dry_kJ_kg / 3600
+    return q_fuel, Q_WATER_KW / q_fuel
+
+
+def test_the_generator_itself(params_12kw):
+    q_fuel, eta = _truth(params_12kw)
+    row = _test(_log(), params_12kw)
+    assert row.q_fuel_kW == pytest.approx(q_fuel, rel=REL)
+    assert row.eta_direct == pytest.approx(eta, rel=REL)
+    assert not row.warnings
+
+
+def test_a_balance_stuck_to_the_end_of_the_test_leaves_its_fuel_unknown(params_12kw):
+    log = _log()
+    mass = log["balance_mass_kg"]
+    at = np.searchsorted(log.t, 3600.0)
+    mass[at:] = mass[at]  # stuck from 1 h on
+    row = _test(log, params_12kw)
+    assert math.isnan(row.fuel_as_received_kg) and math.isnan(row.eta_direct)
+    assert math.isnan(row.eta_indirect) and math.isnan(row.q_fuel_kW)
+    assert row.q_water_kW == pytest.approx(Q_WATER_KW, rel=1e-9)
+    (line,) = row.warnings  # one line, naming the stretch
+    # (from the last reading of the level it stuck at: a step of 0.02 kg lasts 24 s)
+    assert "stuck" in line and f"to {log.t[-1]:g}, through 180 min of firing" in line
+
+
+def test_a_balance_stuck_for_an_hour_between_readings_is_read_across(params_12kw):
+    q_fuel, eta = _truth(params_12kw)
+    log = _log()
+    mass = log["balance_mass_kg"]
+    a, b = np.searchsorted(log.t, [3600.0, 7200.0])
+    mass[a:b] = mass[a]  # stuck 1 h to 2 h, then reading again (falls 3 kg at once)
+    row = _test(log, params_12kw)
+    assert row.q_fuel_kW == pytest.approx(q_fuel, rel=REL)
+    assert row.eta_direct == pytest.approx(eta, rel=REL)
+    (line,) = row.warnings
+    assert "stuck" in line and "read across" in line
+
+
+def test_a_dropout_to_zero_is_no_fuel_and_no_refill(params_12kw):
+    q_fuel, eta = _truth(params_12kw)
+    log = _log()
+    a, b = np.searchsorted(log.t, [7200.0, 7260.0])
+    log["balance_mass_kg"][a:b] = 0.0  # 60 s of 0 kg, then the level again
+    row = _test(log, params_12kw)
+    assert row.q_fuel_kW == pytest.approx(q_fuel, rel=REL)
+    assert row.eta_direct == pytest.approx(eta, rel=REL)
+    (line,) = row.warnings
+    assert "faster than any small boiler burns" in line and f"time_s {log.t[a]:g}" in line
+    from hil_client.analysis.logio import refills
+
+    assert refills(log.balance_readings()[0], log.t) == []  # its return is no refill
+
+
+def test_a_fall_that_never_comes_back_leaves_the_fuel_unknown(params_12kw):
+    log = _log()
+    a = np.searchsorted(log.t, 7200.0)
+    rng = np.random.default_rng(0)  # a failed balance reading a few hundredths around 0
+    log["balance_mass_kg"][a:] = rng.uniform(0.0, 0.06, len(log) - a).round(2)
+    row = _test(log, params_12kw)
+    assert math.isnan(row.fuel_as_received_kg) and math.isnan(row.eta_direct)
+    (line,) = row.warnings
+    assert "never comes back" in line
+
+
+def test_a_clock_stepped_forward_and_a_gap_read_heat_and_fuel_alike(params_12kw):
+    q_fuel, eta = _truth(params_12kw)
+    log = _log()
+    t = log.t.copy()
+    t[t >= 7200.0] += 3600.0  # the clock steps 1 h forward at 2 h; no row is missing
+    row = _test(_log(t=t), params_12kw)
+    assert row.duration_s == pytest.approx(HOURS * 3600.0, abs=STEP_S)  # the time recorded
+    assert row.q_fuel_kW == pytest.approx(q_fuel, rel=REL)
+    assert row.eta_direct == pytest.approx(eta, rel=REL)
+    (line,) = row.warnings
+    assert "gaps of 60 min" in line and f"cover the {HOURS * 60:.0f} min recorded" in line
+    # the same hour truly missing: the heat and the balance's loss over it both left out
+    keep = (log.t < 7200.0) | (log.t >= 10800.0)
+    gapped = LabLog(None, {n: v[keep] for n, v in log.columns.items()}, {})  # type: ignore[arg-type]
+    row = _test(gapped, params_12kw)
+    assert row.duration_s == pytest.approx((HOURS - 1) * 3600.0, abs=STEP_S)
+    assert row.q_fuel_kW == pytest.approx(q_fuel, rel=REL)
+    assert row.eta_direct == pytest.approx(eta, rel=REL)
+    assert "cover the 180 min recorded" in row.warnings[0]
+
+
+def test_calibrate_reads_the_fuel_flow_over_the_time_recorded_only(params_12kw):
+    """The stationary interval's fuel flow (whence Pel,MAX/MIN): across a clock step as
+    without it; none from a balance stuck over most of it."""
+    true_rate = LOSS_KG_H / params_12kw.fuel.balance_loss_per_kg_dry  # dry [kg/h]
+    log = _log()
+    t = log.t.copy()
+    t[t >= 7200.0] += 3600.0
+    jumped = _log(t=t)
+    rate, _ = _fuel_rate_dry(Interval(jumped, 0, len(jumped), "x"), params_12kw)
+    assert rate == pytest.approx(true_rate, rel=REL)
+    stuck = _log()
+    mass = stuck["balance_mass_kg"]
+    at = np.searchsorted(stuck.t, 3600.0)
+    mass[at:] = mass[at]
+    rate, _ = _fuel_rate_dry(Interval(stuck, 0, len(stuck), "x"), params_12kw)
+    assert math.isnan(rate)
