@@ -40,6 +40,7 @@ import numpy as np
 
 from hil_client.analysis.error_codes import CodesError, declared_codes, near, nines_verdict
 from hil_client.protocol.rig import LOG_COLUMNS
+from rig_emulator.model.water_heat import heat_to_water_kW
 from rig_emulator.signals import MEASURED
 
 TEXT_COLUMNS = ("phase", "sequence")
@@ -209,7 +210,7 @@ class LabLog:
             unread: list[Unread] = []
             if self.has("flue_gas_O2_pct"):
                 firing = fill_gaps(self.columns["flue_gas_O2_pct"], t) < FIRING_O2_PCT
-                unread = stuck_stretches(read, t, firing)
+                unread = stuck_stretches(read, t, firing, self._heat_kW())
                 for u in unread:
                     read[u.start : u.end] = np.nan
             dropouts = balance_dropouts(read, t)
@@ -218,6 +219,15 @@ class LabLog:
             unread = sorted([*unread, *dropouts], key=lambda u: u.start)
             cached = self._readings = (mass, t, read, unread)
         return cached[2], cached[3]
+
+    def _heat_kW(self) -> np.ndarray | None:
+        """The heat to the water per row [kW] (Eq. 7, gaps read across), None where the
+        log lacks a column of it."""
+        names = ("water_flow_kg_h", "water_in_temp_C", "water_out_temp_C")
+        if not all(self.has(n) for n in names):
+            return None
+        flow, t_in, t_out = (fill_gaps(self.columns[n], self.t) for n in names)
+        return heat_to_water_kW(flow, t_in, t_out)
 
     def balance_without_refills(self) -> np.ndarray:
         """The balance's readings (:meth:`balance_readings`) with its refills taken out
@@ -771,8 +781,17 @@ REFILL_STEP_KG = 0.5
 #: The burner fires where the flue gas holds less O2 than this [vol-%] (air is 20.95).
 FIRING_O2_PCT = 19.0
 #: Firing this long [s] changes any balance's reading (0.02 kg at 0.1 kg/h is 12 min): a
-#: reading that stays exactly the same through it is stuck.
+#: reading that stays exactly the same through it is stuck (where the heat the water took
+#: meanwhile says that fuel left: :func:`stuck_stretches`).
 STUCK_FIRING_S = 600.0
+#: More energy than this no kilogram of wood gives [kJ/kg]: dry wood's higher heating value
+#: is 18-20 MJ/kg (ENplus pellets: 19.8, the paper's Table 1). Heat the water took, over
+#: this, is the least fuel that left the hopper.
+HHV_MAX_KJ_KG = 21000.0
+#: A balance still on one reading after the heat to the water says this many of its steps
+#: of fuel left is stuck: at a low load a coarse balance (0.1 kg) holds a reading for half
+#: an hour of firing, and is no stuck one.
+STUCK_STEPS = 3
 #: Faster than this no small boiler's hopper empties by burning [kg/s]: EN 303-5 ends at
 #: 500 kW, which fires about 0.03 kg/s of pellets (500 kW over a lower heating value of
 #: ~17 MJ/kg as received, at ~90 % efficiency); half as fast again for a margin. A fall of
@@ -832,23 +851,39 @@ def balance_dropouts(mass_kg: np.ndarray, t: np.ndarray) -> list[Unread]:
     return out
 
 
-def stuck_stretches(mass_kg: np.ndarray, t: np.ndarray, firing: np.ndarray) -> list[Unread]:
+def stuck_stretches(
+    mass_kg: np.ndarray, t: np.ndarray, firing: np.ndarray, heat_kW: np.ndarray | None = None
+) -> list[Unread]:
     """Where the balance reads exactly the same through :data:`STUCK_FIRING_S` of firing
-    (by ``firing``, per row; the steps of the record's gaps not counted): its readings
-    after the first of them are none (the first is where it stuck)."""
+    (by ``firing``, per row; the steps of the record's gaps not counted) and, where the
+    heat to the water is known (``heat_kW``, per row), through the heat of at least
+    :data:`STUCK_STEPS` of its smallest steps of fuel (at :data:`HHV_MAX_KJ_KG`): its
+    readings after the first of them are none (the first is where it stuck)."""
     ok = np.flatnonzero(~np.isnan(mass_kg))
     if len(ok) < 2:
         return []
     m = mass_kg[ok]
     dt, gap = record_steps(t)
     fired = np.concatenate(([0.0], np.cumsum(np.where(firing & ~gap, dt, 0.0))))
+    steps = np.abs(np.diff(m))
+    step_kg = float(steps[steps > 0].min()) if (steps > 0).any() else 0.0
+    heat = (
+        np.concatenate(([0.0], np.cumsum(np.where(gap, 0.0, np.nan_to_num(heat_kW) * dt))))
+        if heat_kW is not None
+        else None
+    )
     starts = np.flatnonzero(np.concatenate(([True], m[1:] != m[:-1])))
     ends = np.concatenate((starts[1:], [len(m)])) - 1  # each run's last reading
     out = []
     for a, b in zip(starts, ends, strict=True):
         r0, r1 = int(ok[a]), int(ok[b])
         firing_s = fired[r1 + 1] - fired[r0 + 1]  # the rows after the first, to the last
-        if b > a and firing_s >= STUCK_FIRING_S:
+        heat_kJ = math.inf if heat is None else heat[r1 + 1] - heat[r0 + 1]
+        if (
+            b > a
+            and firing_s >= STUCK_FIRING_S
+            and heat_kJ >= STUCK_STEPS * step_kg * HHV_MAX_KJ_KG
+        ):
             end = r1 + 1 if b + 1 < len(m) else len(mass_kg)
             out.append(
                 Unread(

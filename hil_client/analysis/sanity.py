@@ -242,8 +242,14 @@ def _closure(log: LabLog, params: BoilerParams, burning: np.ndarray) -> list[str
         return []
     span = slice(int(firing[0]), int(firing[-1]) + 1)
     mass = log.balance_without_refills()[span]
-    read = mass[np.isfinite(mass)]
-    fuel_kg = float(read[0] - read[-1]) if len(read) >= 2 else float("nan")
+    rows = np.flatnonzero(np.isfinite(mass))
+    if len(rows) < 2:
+        return []
+    # the heat over the readings' own span: a balance whose readings stop (stuck to the
+    # end, their readings none) was set against the heat of the whole firing (486 %, a
+    # stranger's probe)
+    span = slice(span.start + int(rows[0]), span.start + int(rows[-1]) + 1)
+    fuel_kg = float(mass[rows[0]] - mass[rows[-1]])
     if not fuel_kg > CLOSURE_FUEL_MIN_KG:
         return []
     ts = t[span]

@@ -162,3 +162,22 @@ def test_calibrate_reads_the_fuel_flow_over_the_time_recorded_only(params_12kw):
     mass[at:] = mass[at]
     rate, _ = _fuel_rate_dry(Interval(stuck, 0, len(stuck), "x"), params_12kw)
     assert math.isnan(rate)
+
+
+def test_a_coarse_balance_at_a_low_load_is_no_stuck_one(params_12kw):
+    """A balance of 0.1-kg steps at 0.35 kg/h (a 13 % load: 1.6 kW to the water) holds
+    each reading 17 min, beyond STUCK_FIRING_S: the heat the water took over it is less
+    than three of its steps of fuel could give, so no reading is taken for stuck, and the
+    fuel is the balance's own (the heat criterion; without it each hold was "stuck")."""
+    low_loss, coarse, low_heat = 0.35, 0.1, 1.6  # [kg/h], [kg], [kW]
+    log = _log()
+    t = log.t
+    log["balance_mass_kg"][:] = np.round((250.0 - low_loss * t / 3600.0) / coarse) * coarse
+    log["water_in_temp_C"][:] = 70.0 - low_heat / Q_WATER_KW * 15.0  # 2 K across the flow
+    readings, unread = log.balance_readings()
+    assert unread == [] and np.isfinite(readings).all()
+    row = _test(log, params_12kw)
+    # the loss over the run, to the balance's steps at both ends (0.2 kg of 1.4 kg)
+    assert row.fuel_dry_kg * params_12kw.fuel.balance_loss_per_kg_dry == pytest.approx(
+        low_loss * HOURS, abs=2 * coarse
+    )
