@@ -360,7 +360,14 @@ def _from_signals(log: LabLog) -> Phases:
             f"{path}: cannot find t2: no change of flow before the first cooling"
             + (
                 f" (the record ends at time_s {t[-1]:g} with the water circulating: cut "
-                "short in its test? give the whole run, or its phase column or meta file)"
+                "short in its test? "
+                # (a log whose phase column ends in its test was sent for the column it has:
+                # a stranger's probe)
+                + (
+                    "its phase column ends before the first cooling too: give the whole run)"
+                    if log.has("phase")
+                    else "give the whole run, or its phase column or meta file)"
+                )
                 if cut_short
                 else ""
             )

@@ -651,3 +651,11 @@ def test_a_record_cut_short_in_its_test_without_marks_is_said_so(run_log, tmp_pa
     with pytest.raises(LogError, match="cannot find t2") as info:
         find_phases(read_log(path))
     assert f"ends at time_s {float(cut[-1][col]):g} with the water circulating" in str(info.value)
+    assert "its phase column or meta file" in str(info.value)  # what it lacks
+    # with its phase column, cut short in the test too: it is not sent for the column it
+    # has (a stranger's probe)
+    head = ",".join(header)
+    path.write_text("\n".join([head, *(",".join(r) for r in cut)]) + "\n")
+    with pytest.raises(LogError, match="cannot find t2") as info:
+        find_phases(read_log(path))
+    assert "its phase column ends before the first cooling too" in str(info.value)
