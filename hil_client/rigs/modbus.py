@@ -114,7 +114,7 @@ from hil_client.protocol.rig import (
     StepTiming,
 )
 from hil_client.rigs.holdups import held_up_s
-from hil_client.rigs.transports import RtuConnection, url_port
+from hil_client.rigs.transports import GarbledReply, RtuConnection, url_port
 from rig_emulator.emulator import check_command
 from rig_emulator.registers import (
     MapError,
@@ -179,6 +179,9 @@ LATE_S = 0.25  # an instrument's reply this much after the one before it: a "lat
 #: fractions of a second: a 0.9-s hold-up under 0.5 s went unnamed, a re-probe; a busy
 #: machine holds a process up for milliseconds)
 HELD_UP_S = 0.5
+#: a garbled reply (bad CRC) to the first status read is asked again this many times: a
+#: line that garbles four in a row is no line to run on
+GARBLED_RETRIES = 3
 
 
 class _Break(Exception):
@@ -451,8 +454,7 @@ class ModbusRig:
         self.values: dict[str, float] = {}
         self._map_check = (plan, register_map)  # checked again when a server comes back
         try:
-            self._connect()
-            status = self._read_status()
+            status = self._first_status()
             problem = self._map_problem(plan, register_map)
             if problem is not None:
                 raise RigError(f"{url}: {problem}")
@@ -465,7 +467,8 @@ class ModbusRig:
                     " (a Modbus/TCP Security server closes the connection of a client "
                     "certificate it refuses: expired, not signed by its CA; its log says why)"
                 )
-            reached = isinstance(exc, UnpairedReplies)  # (it answered: no "cannot reach")
+            # (it answered: no "cannot reach")
+            reached = isinstance(exc, UnpairedReplies | GarbledReply)
             raise RigError(f"{'' if reached else 'cannot reach '}{url}: {exc}{hint}") from None
         except ModbusExceptionResponse as exc:
             why = _role_hint(url, exc) or " (not a rig-emulator with this map?)"
@@ -598,6 +601,20 @@ class ModbusRig:
                 if unserved is not None:
                     return unserved
         return None
+
+    def _first_status(self) -> dict[str, float]:
+        """Connect and read the server's status, asked again (at most
+        :data:`GARBLED_RETRIES` times) where noise on a serial line garbled a reply: a
+        frame lost is routine on a line, and one bad CRC at the start refused the run,
+        "cannot reach" the server that answered (a stranger's probe)."""
+        for attempt in range(GARBLED_RETRIES + 1):
+            try:
+                self._connect()
+                return self._read_status()
+            except GarbledReply:
+                if attempt == GARBLED_RETRIES:
+                    raise
+        raise AssertionError("unreachable")
 
     @property
     def fresh_start(self) -> bool:
@@ -1034,8 +1051,12 @@ class ModbusRig:
             status: dict[str, float] = {}
             self._decode([read], [reply], status)
             done = status.get("lockstep_counter") == self._expected(len(self._journal))[0]
-            self._dead = bool(done)
-            return not done
+            # a serial line carries one transaction at a time: a server that answers the
+            # probe carries out no request, so one not done was lost on the line (a bad
+            # CRC; it was waited for --reconnect-timeout, 60 s a lost frame: a probe)
+            line = isinstance(self._conn, RtuConnection)
+            self._dead = bool(done) or line
+            return not done and not line
         slow = isinstance(reply, NoReply) and reply.reason == "timeout"
         self._dead = not slow
         return slow
@@ -1424,6 +1445,15 @@ class ModbusRig:
         )
         return True
 
+    def _step_again(self, dt_s: float) -> float:
+        """The step once more on a server rebuilt under it (the journal replayed, this step
+        too): what the attempt given up saw was the dead server's (its instruments'
+        timeouts were noted as the row's, "gave no reading ... empty there", of a row the
+        replay logged whole: a stranger's probe)."""
+        self._step_failures.clear()
+        self._step_events.clear()
+        return self._step_lockstep(dt_s)
+
     @staticmethod
     def _timed_out(replies: list[Reply]) -> bool:
         return any(isinstance(r, NoReply) and r.reason == "timeout" for r in replies)
@@ -1624,13 +1654,13 @@ class ModbusRig:
             reason = self._same_plant(values)
             if reason is not None:
                 if values["epoch_id"] != self._epoch_id and self._rebuild_under_step():
-                    return self._step_lockstep(dt_s)  # the journal replayed, this step too
+                    return self._step_again(dt_s)
                 raise _Break(reason, dict(values))
             # (a serial line loses no connection: a server restarted under the step; over
             # TCP a restart loses it, and a unit that timed out is a fault, not asked about)
             timed_out = isinstance(self._conn, RtuConnection) and self._timed_out(reads)
             if timed_out and self._rebuilt_under_timeouts():
-                return self._step_lockstep(dt_s)  # the journal replayed, this step too
+                return self._step_again(dt_s)
         self._check_boiler_switch(values)
         self._logged = len(journal)
         server_time = self._journal_time[-1]

@@ -16,6 +16,7 @@ pipelining: its ``send`` queues, and each ``receive`` is one transaction on the 
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import select
 import ssl
@@ -214,6 +215,11 @@ class TlsConnection(Connection):
             raise ConnectionLost(f"TLS handshake with {host}:{port} failed ({exc})") from None
 
 
+class GarbledReply(ConnectionLost):
+    """A frame whose CRC fails: noise on the line took a reply, from a server that was
+    there to answer."""
+
+
 class RtuConnection:
     """A Modbus RTU client on a serial line: one transaction at a time, frames with CRC,
     a silence of 3.5 characters before each request."""
@@ -252,9 +258,18 @@ class RtuConnection:
         """Queue ``(unit, pdu)`` requests; each :meth:`receive` carries out the oldest."""
         self._pending.extend(requests)
 
-    def receive(self, timeout_s: float | None = None) -> bytes:
+    def receive(
+        self,
+        timeout_s: float | None = None,
+        still_coming: Callable[[], bool] | None = None,
+        patience_s: float = 0.0,
+    ) -> bytes:
         """The reply PDU to the oldest queued request (sent now, on a quiet line), waited
-        for ``timeout_s`` (None: the connection's timeout). :class:`BadReply` for a frame
+        for ``timeout_s`` (None: the connection's timeout); with ``still_coming``, for the
+        connection's timeout at a time, as long as it says the reply is still coming, up to
+        ``patience_s`` in all (a request lost on the line to a bad CRC was waited for 60 s,
+        --reconnect-timeout, where the server was idle at once: a stranger's probe).
+        :class:`BadReply` for a frame
         whose CRC holds but that does not answer the request (another slave address or
         function, an exception without its code, another size than asked for): never
         decoded (a stranger's probe on TCP: such replies were decoded as the request's
@@ -272,12 +287,19 @@ class RtuConnection:
             raise ConnectionLost(f"{self.path}: write failed ({exc.strerror})") from None
         wait_s = self.timeout_s if timeout_s is None else timeout_s
         deadline = time.monotonic() + wait_s
+        last = time.monotonic() + patience_s  # (still_coming: the longest wait in all)
         while True:
-            reply = self._read_reply(deadline, wait_s)
+            try:
+                reply = self._read_reply(deadline, wait_s)
+            except ReplyTimeout:
+                if still_coming is None or time.monotonic() >= last or not still_coming():
+                    raise
+                deadline = min(time.monotonic() + wait_s, last)
+                continue
             self._line_free = time.monotonic() + self.silence_s
             decoded = unframe(reply)
             if decoded is None:
-                raise ConnectionLost(f"{self.path}: garbled reply from unit {unit} ({reply.hex()})")
+                raise GarbledReply(f"{self.path}: garbled reply from unit {unit} ({reply.hex()})")
             if decoded[0] == unit or not unit:
                 break
             # another slave's whole frame: a late reply to a request given up on (a slow
@@ -307,7 +329,8 @@ class RtuConnection:
         as :meth:`Connection.receive_all`, one transaction at a time: only the requests at
         the indices ``own`` are waited for up to ``patience_s`` in all (on a line a slow
         unit's late reply is dropped once the master speaks again, so it holds up nothing
-        after it; ``still_coming`` is not asked: a line has no second way in)."""
+        after it), ``still_coming`` asked after each of the connection's timeouts whether
+        to wait on."""
         out: list[Reply] = []
         times: list[float] = []
         deadline = time.monotonic() + patience_s
@@ -315,7 +338,11 @@ class RtuConnection:
             unit, pdu = self._pending[0]
             patient = max(deadline - time.monotonic(), self.timeout_s)
             try:
-                out.append(self.receive(patient if k in own else None))
+                if k in own and still_coming is not None:
+                    coming = functools.partial(still_coming, unit, pdu[0])
+                    out.append(self.receive(None, coming, patient))
+                else:
+                    out.append(self.receive(patient if k in own else None))
             except ModbusExceptionResponse as exc:
                 out.append(exc)
             except ReplyTimeout:
