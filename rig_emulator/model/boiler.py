@@ -108,7 +108,7 @@ from rig_emulator.model.layout import (
     S_FUEL,
     S_MODE,
     S_MODE_TIME,
-    S_RESTART_AT,
+    S_NO_DEMAND,
     S_SINCE_START,
     S_SINCE_STOP,
     S_STARTS,
@@ -197,7 +197,6 @@ def new_state(t_boiler_C: float) -> np.ndarray:
     s[S_MODE] = OFF
     s[S_SINCE_START] = math.inf
     s[S_SINCE_STOP] = math.inf
-    s[S_RESTART_AT] = -math.inf  # (set at each stop: :func:`update_mode`)
     return s
 
 
@@ -290,12 +289,13 @@ def node_exact(t0_C, q_in_kW, m_cp_kW_K, water_in_C, ua_kW_K, room_C, cap_kJ_K, 
 
 
 @njit(cache=True)
-def controller_mode(c, mode, mode_time_s, t_boiler_C, enabled, restart_at_C):
+def controller_mode(c, mode, mode_time_s, t_boiler_C, enabled, no_demand):
     """Next controller mode from the current one and the node temperature.
 
     Off when not enabled; on enabling it starts unless the water is already at the set
-    temperature (it then waits, as after a cut-out, until the water is at
-    ``restart_at_C``: :func:`update_mode`); firing stops at or above the shut-off
+    temperature (it then waits, as after a cut-out, for the water to fall to the set
+    temperature as it is now where ``no_demand``, else to the restart temperature:
+    :func:`update_mode`); firing stops at or above the shut-off
     temperature (cut-out) and starts again at or below the restart temperature. The
     start-up at Pstart lasts
     ``startup_duration_s`` unless the shut-off ends it, or the set temperature where the
@@ -307,7 +307,7 @@ def controller_mode(c, mode, mode_time_s, t_boiler_C, enabled, restart_at_C):
     if mode == OFF:
         return STARTUP if t_boiler_C < c[K_SET] else CUTOUT
     if mode == CUTOUT:
-        return STARTUP if t_boiler_C <= restart_at_C else CUTOUT
+        return STARTUP if t_boiler_C <= (c[K_SET] if no_demand else c[K_RESTART]) else CUTOUT
     if t_boiler_C >= c[K_SHUTOFF]:
         return CUTOUT
     if mode == STARTUP and mode_time_s >= c[K_STARTUP_S]:
@@ -328,13 +328,12 @@ def update_mode(c, s, enabled):
     Returns (mode for this step, True if the burner starts with this step).
     """
     mode = int(s[S_MODE])
-    new_mode = controller_mode(c, mode, s[S_MODE_TIME], s[S_T], enabled, s[S_RESTART_AT])
+    new_mode = controller_mode(c, mode, s[S_MODE_TIME], s[S_T], enabled, s[S_NO_DEMAND] > 0.5)
     started = False
     if new_mode != mode:
         s[S_MODE_TIME] = 0.0
-        if new_mode == CUTOUT:
-            no_demand = mode == OFF and s[S_T] < c[K_SHUTOFF]
-            s[S_RESTART_AT] = c[K_SET] if no_demand else c[K_RESTART]
+        if new_mode == CUTOUT:  # (the set temperature as it is then: it may be written)
+            s[S_NO_DEMAND] = 1.0 if mode == OFF and s[S_T] < c[K_SHUTOFF] else 0.0
         if new_mode == STARTUP:
             s[S_SINCE_START] = 0.0
             s[S_STARTS] += 1.0

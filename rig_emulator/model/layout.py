@@ -135,7 +135,7 @@ STATE_FIELDS = (
     "fuel_dry_kg",  # dry fuel burnt so far [kg]
     "electric_Wh",  # electricity drawn so far [Wh]
     "starts",  # ignitions so far
-    "restart_at_C",  # a stopped boiler starts at or below this node temperature [C]
+    "no_demand",  # 1: stopped for no demand (switched on at or above the set temperature)
 )
 S = index_of(STATE_FIELDS)
 S_T = S["t_boiler_C"]
@@ -147,7 +147,7 @@ S_SINCE_STOP = S["since_stop_s"]
 S_FUEL = S["fuel_dry_kg"]
 S_ELECTRIC = S["electric_Wh"]
 S_STARTS = S["starts"]
-S_RESTART_AT = S["restart_at_C"]
+S_NO_DEMAND = S["no_demand"]
 N_STATE = len(STATE_FIELDS)
 
 # --- boiler outputs of one step (temperatures at the end, heat flows as step means)

@@ -16,6 +16,7 @@ from rig_emulator.model import (
     step,
 )
 from rig_emulator.model.layout import (
+    K_SET,
     S_FUEL,
     S_T,
     Y_FIRING,
@@ -195,6 +196,27 @@ def test_switched_on_above_the_set_temperature_it_starts_when_the_water_falls_to
     first = starts[0]  # (the decision uses the temperature at the start of the step)
     threshold = getattr(params, waits_for)
     assert temp[first - 1] <= threshold < temp[first - 2]
+
+
+@pytest.mark.parametrize("new_set_C", [80.0, 60.0])
+def test_waiting_for_demand_it_follows_the_set_temperature_as_written(params, new_set_C):
+    """A re-probe: switched on at 75 C (set 70) and the set then written to 80, the boiler
+    waited for 70 C with demand all along; written to 60, it fired at 70 C, 10 K above
+    its set. Waiting for demand it starts where the water is at the set as it is now."""
+    c = pack_constants(params)
+    s = new_state(75.0)
+    flow = np.full(2, 0.3 * params.nominal_flow_kg_h)
+    run(c, s, flow, np.full(2, 55.0), np.ones(2, bool))  # on: no demand at 75 C
+    c[K_SET] = new_set_C
+    n = 3 * 3600
+    out = run(c, s, np.full(n, flow[0]), np.full(n, 55.0), np.ones(n, bool))
+    mode = out[:, Y_MODE].astype(int)
+    temp = out[:, Y_T_BOILER]
+    first = int(np.flatnonzero(mode == STARTUP)[0])
+    if new_set_C > 75.0:
+        assert first == 0  # demand at once
+    else:  # (the decision uses the temperature at the start of the step)
+        assert temp[first - 1] <= new_set_C < temp[first - 2]
 
 
 def test_switched_off_boiler_cools_with_ua_off(params):
