@@ -192,6 +192,8 @@ class Dashboard:
         self._streams: dict[asyncio.Queue, asyncio.StreamWriter] = {}
         self._srv: Listener | None = None
         self._task: asyncio.Task | None = None
+        #: the last sample: the published values it was of, and the state (:meth:`_current`)
+        self._cached: tuple[dict[str, float], dict] | None = None
         self._evicted = 0  # streams closed for new ones since the last line said so
         self._evicted_said = -math.inf  # when that line was logged (monotonic) [s]
         #: the connections being served: ended before the loop stops (cancelled by the
@@ -320,6 +322,15 @@ class Dashboard:
             run=self.server.resets,
         )
 
+    def _current(self) -> dict:
+        """The state as published now: sampled again only where the server published
+        since the last sample (sampled for every GET, the whole map each time, a flood of
+        them cost three times the CPU: a re-probe)."""
+        cached = self._cached
+        if cached is not None and cached[0] is self._published():
+            return cached[1]
+        return self._sample()
+
     def _sample(self) -> dict:
         values = self._published()
         time_s = values["sim_time_s"]
@@ -330,7 +341,7 @@ class Dashboard:
             "last": self.server.lateness.last_s * 1000.0,
             "p99_recent": float(np.percentile(recent, 99)) * 1000.0 if recent else math.nan,
         }
-        return {
+        state = {
             "boiler": self.server.emulator.params.name,
             "time_s": time_s,
             # which plant the trend is of: a new epoch (a restarted server) or reset count
@@ -348,6 +359,8 @@ class Dashboard:
             "fault_controls": {"refused": self.server.control_refusal(FAULT_COMMANDS)},
             "units": units(self.server.map, values),
         }
+        self._cached = (values, state)
+        return state
 
     def _control_state(self, signal: str, point: Point, values: dict[str, float]) -> dict:
         """A control as the page offers it: its point, the lowest and highest value a write
@@ -371,7 +384,7 @@ class Dashboard:
         is of (the last push's state, up to a push old, showed the time and readings from
         before a lockstep advance beside a trend that ran to its end, and named the plant
         before a reset while the trend was the new one's: re-probes)."""
-        return self._sample() | {"trend": self.trend.as_dict(window_s)}
+        return self._current() | {"trend": self.trend.as_dict(window_s)}
 
     def _trend_run(self) -> dict:
         return {"epoch_id": self.server.epoch_id, "resets": self.trend.run}
@@ -556,7 +569,7 @@ class Dashboard:
         self._streams[queue] = writer
         try:
             writer.write(STREAM_HEAD)
-            first = self._sample() | {"trend_point": self.trend.as_dict(0.0)}
+            first = self._current() | {"trend_point": self.trend.as_dict(0.0)}
             writer.write(f"data: {json.dumps(first, allow_nan=False)}\n\n".encode())
             await writer.drain()
             while True:
