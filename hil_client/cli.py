@@ -319,6 +319,8 @@ def _warn_tolerated(logs: Sequence[LabLog]) -> None:
     """A warning line for what was tolerated on reading each log; only once the logs are
     taken, so that a log refused later gets its one error line alone."""
     for log in logs:
+        if log.has("balance_mass_kg"):
+            log.balance_readings()  # (fuel taken off by hand is a note of its reading)
         for note in log.notes:
             print(f"hil-client: warning: {note}", file=sys.stderr)
 

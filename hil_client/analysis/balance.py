@@ -39,7 +39,9 @@ from hil_client.analysis.logio import (
     STUCK_FIRING_S,
     LabLog,
     Unread,
+    balance_step_kg,
     fill_gaps,
+    heat_needs_a_fall,
     record_steps,
 )
 from hil_client.analysis.phases import NAMES, Phases
@@ -149,7 +151,16 @@ def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[Ph
     raw_mass = log["balance_mass_kg"]
     read_all = raw_mass[~np.isnan(raw_mass)]
     fired_all = float(rec[firing].sum())
-    stuck_all = bool(fired_all >= STUCK_FIRING_S and len(read_all) and np.ptp(read_all) == 0)
+    step_kg = balance_step_kg(raw_mass)
+    # (the heat to the water must need the balance to move: a 0.5-kg balance held its
+    # reading through a cooling's 10 min of firing, and was called stuck: a re-probe)
+    heat_all = float(np.nansum(q_water[firing] * rec[firing]))
+    stuck_all = bool(
+        fired_all >= STUCK_FIRING_S
+        and len(read_all)
+        and np.ptp(read_all) == 0
+        and heat_needs_a_fall(heat_all, step_kg)
+    )
     out = []
     for name in NAMES:
         mask = phases.mask(name, t)
@@ -186,7 +197,11 @@ def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[Ph
                 "column 'balance_mass_kg' has no readings: fuel, Q_fuel, flue-gas loss and "
                 "efficiencies unknown"
             )
-        elif stuck_all or (fired_s >= STUCK_FIRING_S and (not len(read) or np.ptp(read) == 0)):
+        elif stuck_all or (
+            fired_s >= STUCK_FIRING_S
+            and (not len(read) or np.ptp(read) == 0)
+            and heat_needs_a_fall(float(np.nansum(q_water[burn] * rec[burn])), step_kg)
+        ):
             balance_loss = math.nan
             what = f"reads {read[0]:g} kg" if len(read) else "has no reading"
             where = "the log's" if stuck_all else "the phase's"

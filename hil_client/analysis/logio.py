@@ -199,7 +199,8 @@ class LabLog:
 
     def balance_readings(self) -> tuple[np.ndarray, list[Unread]]:
         """The balance's readings with those that are none missing (NaN): its dropouts
-        (:func:`balance_dropouts`) and where it is stuck through firing
+        (:func:`balance_falls`; fuel taken off by hand is added back) and where it is stuck
+        through firing
         (:func:`stuck_stretches`, by the O2 where logged); and those stretches."""
         mass, t = self.columns["balance_mass_kg"], self.t
         cached = self._readings
@@ -213,9 +214,12 @@ class LabLog:
                 unread = stuck_stretches(read, t, firing, self._heat_kW())
                 for u in unread:
                     read[u.start : u.end] = np.nan
-            dropouts = balance_dropouts(read, t)
+            dropouts, removals = balance_falls(read, t, self._heat_kW())
             for u in dropouts:
                 read[u.start : u.end] = np.nan
+            for r in removals:
+                read[r.row :] += r.kg
+                self.notes.append(f"the balance {r.why}")
             unread = sorted([*unread, *dropouts], key=lambda u: u.start)
             cached = self._readings = (mass, t, read, unread)
         return cached[2], cached[3]
@@ -792,6 +796,29 @@ HHV_MAX_KJ_KG = 21000.0
 #: of fuel left is stuck: at a low load a coarse balance (0.1 kg) holds a reading for half
 #: an hour of firing, and is no stuck one.
 STUCK_STEPS = 3
+
+
+def balance_step_kg(mass_kg: np.ndarray) -> float:
+    """The balance's smallest change between two readings [kg] (its resolution, where it
+    rounds; 0 where it never changes)."""
+    steps = np.abs(np.diff(mass_kg[~np.isnan(mass_kg)]))
+    return float(steps[steps > 0].min()) if (steps > 0).any() else 0.0
+
+
+def cumulative_heat_kJ(heat_kW: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """The heat to the water summed over the rows' steps up to each row [kJ] (differences
+    of it are the heat between rows), none over a gap in the record (:func:`record_steps`)."""
+    dt, gap = record_steps(t)
+    return np.cumsum(np.where(gap, 0.0, np.nan_to_num(heat_kW) * dt))
+
+
+def heat_needs_a_fall(heat_kJ: float, step_kg: float) -> bool:
+    """Whether ``heat_kJ`` taken by the water needs more fuel than :data:`STUCK_STEPS` of
+    the balance's steps of ``step_kg`` (at :data:`HHV_MAX_KJ_KG`): a balance that did not
+    move meanwhile read no fuel."""
+    return heat_kJ >= STUCK_STEPS * step_kg * HHV_MAX_KJ_KG
+
+
 #: Faster than this no small boiler's hopper empties by burning [kg/s]: EN 303-5 ends at
 #: 500 kW, which fires about 0.03 kg/s of pellets (500 kW over a lower heating value of
 #: ~17 MJ/kg as received, at ~90 % efficiency); half as fast again for a margin. A fall of
@@ -809,46 +836,91 @@ class Unread:
     why: str
 
 
-def balance_dropouts(mass_kg: np.ndarray, t: np.ndarray) -> list[Unread]:
-    """The balance's dropouts: a fall between two readings of more than
-    :data:`REFILL_STEP_KG`, faster than :data:`BURN_MAX_KG_S` and to below the lowest
-    reading of the :data:`POUR_DETECT_S` before it (someone who leant on the balance and
-    let go comes back to where it stood: no dropout), up to the first reading back within
-    half the fall of where it fell from (the fuel burnt meanwhile is far less than such a
-    fall), or to the end of the log where none comes back (a balance failed to 0, or fuel
-    taken out by hand: what it reads after is unknown)."""
+@dataclass(frozen=True, slots=True)
+class Removal:
+    """Fuel taken off the balance by hand (a sample scooped from the hopper, the hopper
+    emptied, the balance tared): the readings from row ``row`` on stand ``kg`` lower
+    than the fuel left, and why, one line."""
+
+    row: int
+    kg: float
+    why: str
+
+
+def balance_falls(
+    mass_kg: np.ndarray, t: np.ndarray, heat_kW: np.ndarray | None = None
+) -> tuple[list[Unread], list[Removal]]:
+    """The balance's falls that are no fuel burnt: readings falling faster than
+    :data:`BURN_MAX_KG_S` from one to the next, over more than :data:`REFILL_STEP_KG` in
+    all (in one step, or over several: a hopper emptied at 0.3 kg a reading was counted
+    as fuel, a re-probe), to below the lowest reading of the :data:`POUR_DETECT_S` before
+    (someone who leant on the balance and let go comes back to where it stood). One that
+    comes back within half the fall of where it fell from is a dropout: its readings are
+    none (:class:`Unread`). One that stays is fuel taken off by hand (:class:`Removal`: a
+    sample, a tare): the readings after it are read as the fuel left, as a refill's are,
+    those while it fell none (taken as a balance that never came back, it left the rest
+    of the log without a fuel figure, and ``validate`` half the fuel: a re-probe). Unless
+    the balance then loses less than the heat the water takes after it needs (``heat_kW``
+    per row, at :data:`HHV_MAX_KJ_KG`, to :data:`STUCK_STEPS` of its steps): a balance
+    failed to 0, whose readings to the end are none."""
     ok = np.flatnonzero(~np.isnan(mass_kg))
     m, tt = mass_kg[ok], t[ok]
-    out: list[Unread] = []
+    dropouts: list[Unread] = []
+    removals: list[Removal] = []
+    fast = np.zeros(len(m), dtype=bool)  # per reading: fell from the one before too fast
+    if len(m) > 1:
+        step = m[:-1] - m[1:]
+        fast[1:] = (step > 0) & (step > BURN_MAX_KG_S * np.diff(tt))
+    step_kg = balance_step_kg(m)
+    heat_kJ = cumulative_heat_kJ(heat_kW, t) if heat_kW is not None else None
     k = 1
     while k < len(m):
-        fall = m[k - 1] - m[k]
-        if fall > REFILL_STEP_KG and fall > BURN_MAX_KG_S * (tt[k] - tt[k - 1]):
-            lo = int(np.searchsorted(tt, tt[k - 1] - POUR_DETECT_S))
-            if m[k] < float(m[lo:k].min()) - REFILL_STEP_KG:
-                back = np.flatnonzero(m[k:] >= m[k - 1] - fall / 2.0)
-                what = (
-                    f"falls {fall:.2f} kg in {tt[k] - tt[k - 1]:g} s at time_s {tt[k]:g}, "
-                    "faster than any small boiler burns"
+        if not fast[k]:
+            k += 1
+            continue
+        end = k  # the run of fast falls: readings k..end
+        while end + 1 < len(m) and fast[end + 1]:
+            end += 1
+        fall = float(m[k - 1] - m[end])
+        lo = int(np.searchsorted(tt, tt[k - 1] - POUR_DETECT_S))
+        if fall <= REFILL_STEP_KG or m[end] >= float(m[lo:k].min()) - REFILL_STEP_KG:
+            k = end + 1
+            continue
+        what = (
+            f"falls {fall:.2f} kg in {tt[end] - tt[k - 1]:g} s at time_s {tt[k]:g}, faster "
+            "than any small boiler burns"
+        )
+        back = np.flatnonzero(m[end:] >= m[k - 1] - fall / 2.0)
+        if len(back):
+            j = end + int(back[0])
+            dropouts.append(
+                Unread(int(ok[k]), int(ok[j]), f"{what}, and is back at time_s {tt[j]:g}")
+            )
+            k = j + 1
+            continue
+        needed_kg = 0.0 if heat_kJ is None else (heat_kJ[-1] - heat_kJ[ok[end]]) / HHV_MAX_KJ_KG
+        if float(m[end] - m[-1]) + STUCK_STEPS * step_kg < needed_kg:  # no fuel read after
+            dropouts.append(
+                Unread(
+                    int(ok[k]),
+                    len(mass_kg),
+                    f"{what}, and never comes back, losing less after than the water's heat "
+                    "needs (a failed balance)",
                 )
-                if len(back):
-                    j = k + int(back[0])
-                    out.append(
-                        Unread(int(ok[k]), int(ok[j]), f"{what}, and is back at time_s {tt[j]:g}")
-                    )
-                    k = j + 1
-                    continue
-                out.append(
-                    Unread(
-                        int(ok[k]),
-                        len(mass_kg),
-                        f"{what}, and never comes back (a failed balance, or fuel taken out "
-                        "by hand)",
-                    )
-                )
-                break
-        k += 1
-    return out
+            )
+            break
+        if end > k:  # (the readings while it fell)
+            dropouts.append(Unread(int(ok[k]), int(ok[end]), f"{what}, by hand"))
+        removals.append(
+            Removal(
+                int(ok[end]),
+                fall,
+                f"{what} and stays there: fuel taken off by hand (a sample, a tare), not "
+                "counted as fuel",
+            )
+        )
+        k = end + 1
+    return dropouts, removals
 
 
 def stuck_stretches(
@@ -865,13 +937,8 @@ def stuck_stretches(
     m = mass_kg[ok]
     dt, gap = record_steps(t)
     fired = np.concatenate(([0.0], np.cumsum(np.where(firing & ~gap, dt, 0.0))))
-    steps = np.abs(np.diff(m))
-    step_kg = float(steps[steps > 0].min()) if (steps > 0).any() else 0.0
-    heat = (
-        np.concatenate(([0.0], np.cumsum(np.where(gap, 0.0, np.nan_to_num(heat_kW) * dt))))
-        if heat_kW is not None
-        else None
-    )
+    step_kg = balance_step_kg(m)
+    heat = np.concatenate(([0.0], cumulative_heat_kJ(heat_kW, t))) if heat_kW is not None else None
     starts = np.flatnonzero(np.concatenate(([True], m[1:] != m[:-1])))
     ends = np.concatenate((starts[1:], [len(m)])) - 1  # each run's last reading
     out = []
@@ -879,11 +946,7 @@ def stuck_stretches(
         r0, r1 = int(ok[a]), int(ok[b])
         firing_s = fired[r1 + 1] - fired[r0 + 1]  # the rows after the first, to the last
         heat_kJ = math.inf if heat is None else heat[r1 + 1] - heat[r0 + 1]
-        if (
-            b > a
-            and firing_s >= STUCK_FIRING_S
-            and heat_kJ >= STUCK_STEPS * step_kg * HHV_MAX_KJ_KG
-        ):
+        if b > a and firing_s >= STUCK_FIRING_S and heat_needs_a_fall(heat_kJ, step_kg):
             end = r1 + 1 if b + 1 < len(m) else len(mass_kg)
             out.append(
                 Unread(

@@ -20,6 +20,7 @@ refused (:class:`LogError` naming the file).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -163,7 +164,13 @@ def validation_metrics(comp: Comparison, log: LabLog, params: BoilerParams) -> d
     t = comp.t
     dt, gap = record_steps(t)
     per_kg_dry = params.fuel.balance_loss_per_kg_dry
-    mass = fill_gaps(log.balance_without_refills(), t)
+    read = log.balance_without_refills()
+    mass = fill_gaps(read, t)
+    # past the balance's last reading (stuck, failed to the end: its readings none) the
+    # fuel is unknown, not none (held, it gave half the fuel and -3.5 %, a re-probe)
+    finite = np.flatnonzero(np.isfinite(read))
+    if len(finite):
+        mass[finite[-1] + 1 :] = np.nan
     # a gap in the record: what the plant burnt in it is unknown to the replay (its inputs
     # were not logged), so neither side counts it (the balance counted the 2.8 kg a 2-h gap
     # burnt, the model its own guess of 0.7 kg: -18 % instead of -9 %, a stranger's probe)
@@ -184,7 +191,7 @@ def validation_metrics(comp: Comparison, log: LabLog, params: BoilerParams) -> d
         )  # fmt: skip
         fuel[name] = {
             "model_kg": model_kg,
-            "balance_kg": lab_kg,
+            "balance_kg": lab_kg if math.isfinite(lab_kg) else None,
             "deviation_pct": 100 * (model_kg - lab_kg) / lab_kg if lab_kg > 0.05 else None,
             "gaps_left_out_s": float(np.sum(dt[idx[gap[idx]]])),
         }
