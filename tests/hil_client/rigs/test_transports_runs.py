@@ -180,6 +180,21 @@ def test_run_over_rtu_equals_the_local_run(rtu_server, tiny, tmp_path):
     assert rtu_server.line.crc_errors == 0
 
 
+def _step_alike(
+    rig: ModbusRig, ref: ModbusRig, command: RigCommand, killer: threading.Thread | None = None
+) -> None:
+    """A 10-s step of both rigs (``killer`` joined once they are through it); every
+    reading of ``rig`` equal to the reference's, bit for bit, NaN where NaN."""
+    for r in (rig, ref):
+        r.apply(command)
+        r.advance(10.0)
+    if killer is not None:
+        killer.join()
+    ours_now, theirs_now = rig.read(), ref.read()
+    for key, value in theirs_now.items():
+        assert ours_now[key] == value or (math.isnan(value) and math.isnan(ours_now[key]))
+
+
 def _replayed_over_a_serial_line(
     serve, tmp_path, steps: int, restart_at: int, after_s: float | None, reply_timeout_s: float
 ) -> None:
@@ -230,14 +245,7 @@ def _replayed_over_a_serial_line(
             elif step == restart_at:
                 killer = threading.Thread(target=restart)
                 killer.start()
-            for r in (rig, ref):
-                r.apply(command)
-                r.advance(10.0)
-            if killer is not None:
-                killer.join()
-            ours_now, theirs_now = rig.read(), ref.read()
-            for key, value in theirs_now.items():  # bit for bit, NaN where NaN
-                assert ours_now[key] == value or (math.isnan(value) and math.isnan(ours_now[key]))
+            _step_alike(rig, ref, command, killer)
         assert [g["action"] for g in rig.gaps] == ["replayed"]
         # (the dead server's timeouts were noted as the replayed row's: "unit 5 gave no
         # reading ... empty there" of a row logged whole, a stranger's probe)
@@ -333,12 +341,7 @@ def test_an_advance_lost_on_a_serial_line_costs_a_reply_timeout_not_the_reconnec
         command = RigCommand(600.0, 50.0, pump_on=True, boiler_on=True)
         deadline = time.monotonic() + 60.0
         while not rig.gaps and time.monotonic() < deadline:
-            for r in (rig, ref):
-                r.apply(command)
-                r.advance(10.0)
-            ours_now, theirs_now = rig.read(), ref.read()
-            for key, value in theirs_now.items():  # bit for bit, NaN where NaN
-                assert ours_now[key] == value or (math.isnan(value) and math.isnan(ours_now[key]))
+            _step_alike(rig, ref, command)
         assert [g["action"] for g in rig.gaps] == ["resumed"], rig.gaps
         # a functional bound, not a speed target: the lost frame is not waited out
         assert rig.gaps[0]["outage_wall_s"] < patience_s / 2, rig.gaps
