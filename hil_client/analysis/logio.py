@@ -890,16 +890,25 @@ def balance_falls(
             f"falls {fall:.2f} kg in {tt[end] - tt[k - 1]:g} s at time_s {tt[k]:g}, faster "
             "than any small boiler burns"
         )
-        back = np.flatnonzero(m[end:] >= m[k - 1] - fall / 2.0)
-        if len(back):
-            j = end + int(back[0])
+        # back where it fell from, less the fuel the water's heat needs meanwhile (within
+        # two of its steps): a refill after fuel taken off lands above, and was taken for
+        # the balance coming back (a re-probe). (Taken instead as fuel taken off and a
+        # refill, a dropout's fuel comes out the same.)
+        after = m[end:]
+        rise = np.flatnonzero(after >= m[k - 1] - fall / 2.0)  # its first reading up again
+        j = end + int(rise[0]) if len(rise) else -1
+        burnt_kg = 0.0 if heat_kJ is None else (heat_kJ[ok[j]] - heat_kJ[ok[k - 1]]) / HHV_MAX_KJ_KG
+        if len(rise) and m[j] <= m[k - 1] - burnt_kg + 2 * step_kg:
             dropouts.append(
                 Unread(int(ok[k]), int(ok[j]), f"{what}, and is back at time_s {tt[j]:g}")
             )
             k = j + 1
             continue
         needed_kg = 0.0 if heat_kJ is None else (heat_kJ[-1] - heat_kJ[ok[end]]) / HHV_MAX_KJ_KG
-        if float(m[end] - m[-1]) + STUCK_STEPS * step_kg < needed_kg:  # no fuel read after
+        # what it lost after, its refills taken out (one counted against the loss made a
+        # sample taken and a hopper refilled later a failed balance: a re-probe)
+        lost_kg = float(m[end] - m[-1]) + sum(r.rise_kg for r in refills(m[end:], tt[end:]))
+        if lost_kg + STUCK_STEPS * step_kg < needed_kg:  # no fuel read after
             dropouts.append(
                 Unread(
                     int(ok[k]),
@@ -915,8 +924,9 @@ def balance_falls(
             Removal(
                 int(ok[end]),
                 fall,
-                f"{what} and stays there: fuel taken off by hand (a sample, a tare), not "
-                "counted as fuel",
+                f"{what} and stays there: fuel taken off by hand (a sample, a tare)"
+                + ("" if needed_kg > 0 else ", or a failed balance (no firing after to tell)")
+                + ", not counted as fuel",
             )
         )
         k = end + 1

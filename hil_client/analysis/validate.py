@@ -164,13 +164,13 @@ def validation_metrics(comp: Comparison, log: LabLog, params: BoilerParams) -> d
     t = comp.t
     dt, gap = record_steps(t)
     per_kg_dry = params.fuel.balance_loss_per_kg_dry
-    read = log.balance_without_refills()
-    mass = fill_gaps(read, t)
-    # past the balance's last reading (stuck, failed to the end: its readings none) the
-    # fuel is unknown, not none (held, it gave half the fuel and -3.5 %, a re-probe)
-    finite = np.flatnonzero(np.isfinite(read))
-    if len(finite):
-        mass[finite[-1] + 1 :] = np.nan
+    mass = fill_gaps(log.balance_without_refills(), t)
+    # from a stretch of readings that are none to the log's end (stuck, failed) the fuel
+    # is unknown, not none (held, it gave half the fuel, a re-probe; a last reading merely
+    # missing, or a balance read every minute, is read across as ever)
+    for unread in log.balance_readings()[1]:
+        if unread.end >= len(t):
+            mass[unread.start :] = np.nan
     # a gap in the record: what the plant burnt in it is unknown to the replay (its inputs
     # were not logged), so neither side counts it (the balance counted the 2.8 kg a 2-h gap
     # burnt, the model its own guess of 0.7 kg: -18 % instead of -9 %, a stranger's probe)

@@ -203,3 +203,20 @@ def test_fuel_taken_off_by_hand_is_no_fuel_and_the_rest_is_read(params_12kw, tak
     assert row.q_fuel_kW == pytest.approx(q_fuel, rel=REL)
     assert row.eta_direct == pytest.approx(eta, rel=REL)
     assert any("fuel taken off by hand" in note for note in log.notes), log.notes
+
+
+@pytest.mark.parametrize(("taken_kg", "readings", "refill_kg"), [(1.0, 1, 15.0), (6.0, 12, 8.0)])
+def test_fuel_taken_off_then_a_refill_is_read_as_both(params_12kw, taken_kg, readings, refill_kg):
+    """A re-probe: a refill half an hour after fuel taken off was taken for the balance
+    coming back (570 % efficiency), or counted against its loss (a "failed balance"):
+    the balance comes back only to where it fell from, never above it."""
+    q_fuel, eta = _truth(params_12kw)
+    log = _log()
+    a, r = (int(i) for i in np.searchsorted(log.t, [7200.0, 9000.0]))
+    mass = log["balance_mass_kg"]
+    for i in range(readings):
+        mass[a + i :] -= taken_kg / readings
+    mass[r:] += refill_kg
+    row = _test(log, params_12kw)
+    assert row.q_fuel_kW == pytest.approx(q_fuel, rel=REL)
+    assert row.eta_direct == pytest.approx(eta, rel=REL)
