@@ -282,10 +282,12 @@ def test_a_server_restarted_under_a_step_on_a_serial_line_is_replayed(serve, tmp
     _replayed_over_a_serial_line(serve, tmp_path, 10, 5, after_s, 0.5)
 
 
-def _corrupt_one_advance(ours: str, theirs: str, stop: threading.Event, after_s: float) -> None:
+def _garble_one_frame(
+    ours: str, theirs: str, stop: threading.Event, after_s: float, head: bytes, to_server: bool
+) -> None:
     """A line between two ptys (``theirs`` the client's, ``ours`` the server's) that flips
-    a bit in the CRC of the first advance (unit 100, FC16) sent after ``after_s``: a frame
-    lost to noise, as on RS-485."""
+    a bit in the CRC of the first frame beginning with ``head`` sent after ``after_s`` to
+    the server (``to_server``) or from it: a frame lost to noise, as on RS-485."""
     import pty
 
     c_side, c_end = pty.openpty()
@@ -303,7 +305,8 @@ def _corrupt_one_advance(ours: str, theirs: str, stop: threading.Event, after_s:
                 except OSError:
                     continue
                 late = time.monotonic() - started > after_s
-                if src == c_side and not done and late and data[:2] == b"\x64\x10":
+                way = src == c_side if to_server else src == s_side
+                if way and not done and late and data[: len(head)] == head:
                     data[-1] ^= 0x01
                     done = True
                 with contextlib.suppress(OSError):
@@ -323,7 +326,8 @@ def test_an_advance_lost_on_a_serial_line_costs_a_reply_timeout_not_the_reconnec
     again. The readings equal an uninterrupted run's."""
     ours, theirs = str(tmp_path / "emulator"), str(tmp_path / "client")
     stop = threading.Event()
-    line = threading.Thread(target=_corrupt_one_advance, args=(ours, theirs, stop, 1.0))
+    advance = b"\x64\x10"  # (unit 100, FC16)
+    line = threading.Thread(target=_garble_one_frame, args=(ours, theirs, stop, 1.0, advance, True))
     line.start()
     try:
         while not (os.path.exists(ours) and os.path.exists(theirs)):
@@ -348,6 +352,33 @@ def test_an_advance_lost_on_a_serial_line_costs_a_reply_timeout_not_the_reconnec
         srv.call(transports.stop())
         rig.close()
         ref.close()
+    finally:
+        stop.set()
+        line.join(timeout=10)
+
+
+def test_a_garbled_first_reply_is_asked_again(serve, tmp_path):
+    """A stranger's probe: one bad CRC on the first reply of a serial line (noise, at the
+    very start) refused the run: "cannot reach ...: garbled reply from unit 100". It is
+    asked again: the run starts, with no break."""
+    ours, theirs = str(tmp_path / "emulator"), str(tmp_path / "client")
+    stop = threading.Event()
+    status = b"\x64\x04"  # (unit 100's reply to the status read, the first exchange)
+    line = threading.Thread(target=_garble_one_frame, args=(ours, theirs, stop, 0.0, status, False))
+    line.start()
+    try:
+        while not (os.path.exists(ours) and os.path.exists(theirs)):
+            time.sleep(0.01)
+        srv = serve()
+        transports = Transports(srv.server.modbus_server)
+        srv.call(transports.add_rtu(ours, 115200, "E"))
+        url = f"modbus-rtu://{theirs}?baud=115200&parity=E"
+        rig = ModbusRig(url, load_map(), connect=connector(url, 0.5))
+        rig.apply(RigCommand(600.0, 50.0, pump_on=True, boiler_on=True))
+        rig.advance(10.0)
+        assert rig.log_time_s == 10.0 and rig.gaps == []
+        srv.call(transports.stop())
+        rig.close()
     finally:
         stop.set()
         line.join(timeout=10)
