@@ -154,7 +154,7 @@ def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[Ph
     step_kg = balance_step_kg(raw_mass)
     # (the heat to the water must need the balance to move: a 0.5-kg balance held its
     # reading through a cooling's 10 min of firing, and was called stuck: a re-probe)
-    heat_all = float(np.nansum(q_water[firing] * rec[firing]))
+    heat_all = _heat_kJ(q_water, rec, firing)
     stuck_all = bool(
         fired_all >= STUCK_FIRING_S
         and len(read_all)
@@ -200,7 +200,7 @@ def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[Ph
         elif stuck_all or (
             fired_s >= STUCK_FIRING_S
             and (not len(read) or np.ptp(read) == 0)
-            and heat_needs_a_fall(float(np.nansum(q_water[burn] * rec[burn])), step_kg)
+            and heat_needs_a_fall(_heat_kJ(q_water, rec, burn), step_kg)
         ):
             balance_loss = math.nan
             what = f"reads {read[0]:g} kg" if len(read) else "has no reading"
@@ -279,6 +279,13 @@ def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[Ph
             )
         )
     return out
+
+
+def _heat_kJ(q_water: np.ndarray, rec: np.ndarray, rows: np.ndarray) -> float:
+    """The heat to the water over ``rows`` (a mask or indices) [kJ]; infinite where it is
+    not known (no water column read: unknown heat is no heat of 0, a re-probe)."""
+    q = q_water[rows]
+    return float(np.nansum(q * rec[rows])) if np.isfinite(q).any() else math.inf
 
 
 def _read_across(

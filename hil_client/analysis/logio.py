@@ -209,12 +209,13 @@ class LabLog:
             # meanwhile, which is no dropout once the stuck readings are none
             read = mass.astype(float)
             unread: list[Unread] = []
+            firing = None
             if self.has("flue_gas_O2_pct"):
                 firing = fill_gaps(self.columns["flue_gas_O2_pct"], t) < FIRING_O2_PCT
                 unread = stuck_stretches(read, t, firing, self._heat_kW())
                 for u in unread:
                     read[u.start : u.end] = np.nan
-            dropouts, removals = balance_falls(read, t, self._heat_kW())
+            dropouts, removals = balance_falls(read, t, self._heat_kW(), firing)
             for u in dropouts:
                 read[u.start : u.end] = np.nan
             for r in removals:
@@ -226,9 +227,10 @@ class LabLog:
 
     def _heat_kW(self) -> np.ndarray | None:
         """The heat to the water per row [kW] (Eq. 7, gaps read across), None where the
-        log lacks a column of it."""
+        log lacks a column of it or one has no readings (unknown heat is no heat of 0: it
+        let a balance failed to 0 pass as fuel taken off, a re-probe)."""
         names = ("water_flow_kg_h", "water_in_temp_C", "water_out_temp_C")
-        if not all(self.has(n) for n in names):
+        if not all(self.has(n) and np.isfinite(self.columns[n]).any() for n in names):
             return None
         flow, t_in, t_out = (fill_gaps(self.columns[n], self.t) for n in names)
         return heat_to_water_kW(flow, t_in, t_out)
@@ -812,11 +814,19 @@ def cumulative_heat_kJ(heat_kW: np.ndarray, t: np.ndarray) -> np.ndarray:
     return np.cumsum(np.where(gap, 0.0, np.nan_to_num(heat_kW) * dt))
 
 
+#: The heat a small boiler's body gives the water without fuel [kJ]: its water and steel,
+#: 200-300 kJ/K (the paper's 12-kW boiler: 80 + 123), from the shut-off's 85 C to a 20 C
+#: room: 13-20 MJ. Heat beyond it needs fuel (a sample taken minutes before the end of
+#: firing was called a failed balance: the body's heat then needed fuel, a re-probe).
+BODY_STORE_KJ = 20000.0
+
+
 def heat_needs_a_fall(heat_kJ: float, step_kg: float) -> bool:
-    """Whether ``heat_kJ`` taken by the water needs more fuel than :data:`STUCK_STEPS` of
-    the balance's steps of ``step_kg`` (at :data:`HHV_MAX_KJ_KG`): a balance that did not
-    move meanwhile read no fuel."""
-    return heat_kJ >= STUCK_STEPS * step_kg * HHV_MAX_KJ_KG
+    """Whether ``heat_kJ`` taken by the water, beyond what the body can give it
+    (:data:`BODY_STORE_KJ`), needs more fuel than :data:`STUCK_STEPS` of the balance's
+    steps of ``step_kg`` (at :data:`HHV_MAX_KJ_KG`): a balance that did not move
+    meanwhile read no fuel."""
+    return heat_kJ - BODY_STORE_KJ >= STUCK_STEPS * step_kg * HHV_MAX_KJ_KG
 
 
 #: Faster than this no small boiler's hopper empties by burning [kg/s]: EN 303-5 ends at
@@ -848,7 +858,10 @@ class Removal:
 
 
 def balance_falls(
-    mass_kg: np.ndarray, t: np.ndarray, heat_kW: np.ndarray | None = None
+    mass_kg: np.ndarray,
+    t: np.ndarray,
+    heat_kW: np.ndarray | None = None,
+    firing: np.ndarray | None = None,
 ) -> tuple[list[Unread], list[Removal]]:
     """The balance's falls that are no fuel burnt: readings falling faster than
     :data:`BURN_MAX_KG_S` from one to the next, over more than :data:`REFILL_STEP_KG` in
@@ -861,8 +874,11 @@ def balance_falls(
     those while it fell none (taken as a balance that never came back, it left the rest
     of the log without a fuel figure, and ``validate`` half the fuel: a re-probe). Unless
     the balance then loses less than the heat the water takes after it needs (``heat_kW``
-    per row, at :data:`HHV_MAX_KJ_KG`, to :data:`STUCK_STEPS` of its steps): a balance
-    failed to 0, whose readings to the end are none."""
+    per row, while ``firing`` where known: the body's heat a cooling gives up needs no
+    fuel, at :data:`HHV_MAX_KJ_KG`, to :data:`STUCK_STEPS` of its steps): a balance
+    failed to 0, whose readings to the end are none. Scoops a few seconds apart are one
+    fall (as a refill's, :data:`POUR_PAUSE_S`: ten scoops of 0.4 kg were fuel, a
+    re-probe)."""
     ok = np.flatnonzero(~np.isnan(mass_kg))
     m, tt = mass_kg[ok], t[ok]
     dropouts: list[Unread] = []
@@ -872,15 +888,34 @@ def balance_falls(
         step = m[:-1] - m[1:]
         fast[1:] = (step > 0) & (step > BURN_MAX_KG_S * np.diff(tt))
     step_kg = balance_step_kg(m)
+    # the balance's own scatter from reading to reading (robust): a dropout's return is
+    # told within it (two steps alone made a noisy balance's dropouts "taken by hand")
+    jumps = np.diff(m)
+    noise_kg = float(1.4826 * np.median(np.abs(jumps - np.median(jumps)))) if len(jumps) else 0.0
+    tolerance_kg = 2 * step_kg + 3 * noise_kg
+    if heat_kW is not None and firing is not None:
+        heat_kW = np.where(firing, heat_kW, 0.0)
     heat_kJ = cumulative_heat_kJ(heat_kW, t) if heat_kW is not None else None
     k = 1
     while k < len(m):
         if not fast[k]:
             k += 1
             continue
-        end = k  # the run of fast falls: readings k..end
-        while end + 1 < len(m) and fast[end + 1]:
-            end += 1
+        # the run of fast falls: readings k..end, pauses up to POUR_PAUSE_S in it, as long
+        # as it falls faster than any boiler burns over all (a noisy balance's falls, a
+        # few seconds apart, joined the whole log: a re-probe)
+        end = k
+        while True:
+            nxt = end + 1
+            while nxt < len(m) and not fast[nxt] and tt[nxt] - tt[end] <= POUR_PAUSE_S:
+                nxt += 1
+            fast_over_all = nxt < len(m) and m[k - 1] - m[nxt] > BURN_MAX_KG_S * (
+                tt[nxt] - tt[k - 1]
+            )
+            if fast_over_all and fast[nxt] and tt[nxt] - tt[end] <= POUR_PAUSE_S:
+                end = nxt
+            else:
+                break
         fall = float(m[k - 1] - m[end])
         lo = int(np.searchsorted(tt, tt[k - 1] - POUR_DETECT_S))
         if fall <= REFILL_STEP_KG or m[end] >= float(m[lo:k].min()) - REFILL_STEP_KG:
@@ -890,21 +925,24 @@ def balance_falls(
             f"falls {fall:.2f} kg in {tt[end] - tt[k - 1]:g} s at time_s {tt[k]:g}, faster "
             "than any small boiler burns"
         )
-        # back where it fell from, less the fuel the water's heat needs meanwhile (within
-        # two of its steps): a refill after fuel taken off lands above, and was taken for
-        # the balance coming back (a re-probe). (Taken instead as fuel taken off and a
-        # refill, a dropout's fuel comes out the same.)
+        # back where it fell from, less the fuel burnt meanwhile: at least what the water's
+        # heat needs, at most twice that (no boiler is under 50 % efficient on HHV), within
+        # the balance's scatter: a refill after fuel taken off lands above, and was taken
+        # for the balance coming back; 1.6 kg put back of 2 taken, below (re-probes). (Taken
+        # instead as fuel taken off and a refill, a dropout's fuel comes out the same.)
         after = m[end:]
         rise = np.flatnonzero(after >= m[k - 1] - fall / 2.0)  # its first reading up again
         j = end + int(rise[0]) if len(rise) else -1
         burnt_kg = 0.0 if heat_kJ is None else (heat_kJ[ok[j]] - heat_kJ[ok[k - 1]]) / HHV_MAX_KJ_KG
-        if len(rise) and m[j] <= m[k - 1] - burnt_kg + 2 * step_kg:
+        expected = m[k - 1] - burnt_kg
+        if len(rise) and expected - burnt_kg - tolerance_kg <= m[j] <= expected + tolerance_kg:
             dropouts.append(
                 Unread(int(ok[k]), int(ok[j]), f"{what}, and is back at time_s {tt[j]:g}")
             )
             k = j + 1
             continue
-        needed_kg = 0.0 if heat_kJ is None else (heat_kJ[-1] - heat_kJ[ok[end]]) / HHV_MAX_KJ_KG
+        heat_after = 0.0 if heat_kJ is None else heat_kJ[-1] - heat_kJ[ok[end]]
+        needed_kg = max(heat_after - BODY_STORE_KJ, 0.0) / HHV_MAX_KJ_KG
         # what it lost after, its refills taken out (one counted against the loss made a
         # sample taken and a hopper refilled later a failed balance: a re-probe)
         lost_kg = float(m[end] - m[-1]) + sum(r.rise_kg for r in refills(m[end:], tt[end:]))
