@@ -316,6 +316,28 @@ def _garble_one_frame(
             os.close(fd)
 
 
+@contextlib.contextmanager
+def _served_through_noise(serve, tmp_path: Path, after_s: float, head: bytes, to_server: bool):
+    """A server's RTU line behind :func:`_garble_one_frame`: the client's URL (the line
+    stopped at the end)."""
+    ours, theirs = str(tmp_path / "emulator"), str(tmp_path / "client")
+    stop = threading.Event()
+    args = (ours, theirs, stop, after_s, head, to_server)
+    line = threading.Thread(target=_garble_one_frame, args=args)
+    line.start()
+    try:
+        while not (os.path.exists(ours) and os.path.exists(theirs)):
+            time.sleep(0.01)
+        srv = serve()
+        transports = Transports(srv.server.modbus_server)
+        srv.call(transports.add_rtu(ours, 115200, "E"))
+        yield f"modbus-rtu://{theirs}?baud=115200&parity=E"
+        srv.call(transports.stop())
+    finally:
+        stop.set()
+        line.join(timeout=10)
+
+
 def test_an_advance_lost_on_a_serial_line_costs_a_reply_timeout_not_the_reconnect_one(
     serve, tmp_path
 ):
@@ -324,18 +346,8 @@ def test_an_advance_lost_on_a_serial_line_costs_a_reply_timeout_not_the_reconnec
     once. The rig now asks the server's counter after each reply timeout: on a line a
     server that answers carries out nothing, so an advance not done was lost, and is sent
     again. The readings equal an uninterrupted run's."""
-    ours, theirs = str(tmp_path / "emulator"), str(tmp_path / "client")
-    stop = threading.Event()
     advance = b"\x64\x10"  # (unit 100, FC16)
-    line = threading.Thread(target=_garble_one_frame, args=(ours, theirs, stop, 1.0, advance, True))
-    line.start()
-    try:
-        while not (os.path.exists(ours) and os.path.exists(theirs)):
-            time.sleep(0.01)
-        srv = serve()
-        transports = Transports(srv.server.modbus_server)
-        srv.call(transports.add_rtu(ours, 115200, "E"))
-        url = f"modbus-rtu://{theirs}?baud=115200&parity=E"
+    with _served_through_noise(serve, tmp_path, 1.0, advance, True) as url:
         patience_s = 120.0  # (the wait the lost advance had)
         rig = ModbusRig(
             url, load_map(), connect=connector(url, 0.5), reconnect_timeout_s=patience_s
@@ -349,36 +361,18 @@ def test_an_advance_lost_on_a_serial_line_costs_a_reply_timeout_not_the_reconnec
         assert [g["action"] for g in rig.gaps] == ["resumed"], rig.gaps
         # a functional bound, not a speed target: the lost frame is not waited out
         assert rig.gaps[0]["outage_wall_s"] < patience_s / 2, rig.gaps
-        srv.call(transports.stop())
         rig.close()
         ref.close()
-    finally:
-        stop.set()
-        line.join(timeout=10)
 
 
 def test_a_garbled_first_reply_is_asked_again(serve, tmp_path):
     """A stranger's probe: one bad CRC on the first reply of a serial line (noise, at the
     very start) refused the run: "cannot reach ...: garbled reply from unit 100". It is
     asked again: the run starts, with no break."""
-    ours, theirs = str(tmp_path / "emulator"), str(tmp_path / "client")
-    stop = threading.Event()
     status = b"\x64\x04"  # (unit 100's reply to the status read, the first exchange)
-    line = threading.Thread(target=_garble_one_frame, args=(ours, theirs, stop, 0.0, status, False))
-    line.start()
-    try:
-        while not (os.path.exists(ours) and os.path.exists(theirs)):
-            time.sleep(0.01)
-        srv = serve()
-        transports = Transports(srv.server.modbus_server)
-        srv.call(transports.add_rtu(ours, 115200, "E"))
-        url = f"modbus-rtu://{theirs}?baud=115200&parity=E"
+    with _served_through_noise(serve, tmp_path, 0.0, status, False) as url:
         rig = ModbusRig(url, load_map(), connect=connector(url, 0.5))
         rig.apply(RigCommand(600.0, 50.0, pump_on=True, boiler_on=True))
         rig.advance(10.0)
         assert rig.log_time_s == 10.0 and rig.gaps == []
-        srv.call(transports.stop())
         rig.close()
-    finally:
-        stop.set()
-        line.join(timeout=10)
