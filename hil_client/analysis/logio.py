@@ -198,10 +198,10 @@ class LabLog:
         return self.columns["time_s"]
 
     def balance_readings(self) -> tuple[np.ndarray, list[Unread]]:
-        """The balance's readings with those that are none missing (NaN): its dropouts
-        (:func:`balance_falls`; fuel taken off by hand is added back) and where it is stuck
-        through firing
-        (:func:`stuck_stretches`, by the O2 where logged); and those stretches."""
+        """The balance's readings with those that are none missing (NaN), and those
+        stretches: its dropouts (:func:`balance_falls`; fuel taken off by hand is added
+        back, said in a note) and where it is stuck through firing (:func:`stuck_stretches`,
+        by the O2 where logged). Both read the heat the water took while firing."""
         mass, t = self.columns["balance_mass_kg"], self.t
         cached = self._readings
         if cached is None or cached[0] is not mass or cached[1] is not t:
@@ -209,13 +209,15 @@ class LabLog:
             # meanwhile, which is no dropout once the stuck readings are none
             read = mass.astype(float)
             unread: list[Unread] = []
-            firing = None
+            heat = self._heat_kW()
             if self.has("flue_gas_O2_pct"):
                 firing = fill_gaps(self.columns["flue_gas_O2_pct"], t) < FIRING_O2_PCT
-                unread = stuck_stretches(read, t, firing, self._heat_kW())
+                if heat is not None:  # (the body's heat a cooling gives up needs no fuel)
+                    heat = np.where(firing, heat, 0.0)
+                unread = stuck_stretches(read, t, firing, heat)
                 for u in unread:
                     read[u.start : u.end] = np.nan
-            dropouts, removals = balance_falls(read, t, self._heat_kW(), firing)
+            dropouts, removals = balance_falls(read, t, heat)
             for u in dropouts:
                 read[u.start : u.end] = np.nan
             for r in removals:
@@ -858,27 +860,26 @@ class Removal:
 
 
 def balance_falls(
-    mass_kg: np.ndarray,
-    t: np.ndarray,
-    heat_kW: np.ndarray | None = None,
-    firing: np.ndarray | None = None,
+    mass_kg: np.ndarray, t: np.ndarray, heat_kW: np.ndarray | None = None
 ) -> tuple[list[Unread], list[Removal]]:
     """The balance's falls that are no fuel burnt: readings falling faster than
     :data:`BURN_MAX_KG_S` from one to the next, over more than :data:`REFILL_STEP_KG` in
-    all (in one step, or over several: a hopper emptied at 0.3 kg a reading was counted
-    as fuel, a re-probe), to below the lowest reading of the :data:`POUR_DETECT_S` before
-    (someone who leant on the balance and let go comes back to where it stood). One that
-    comes back within half the fall of where it fell from is a dropout: its readings are
-    none (:class:`Unread`). One that stays is fuel taken off by hand (:class:`Removal`: a
-    sample, a tare): the readings after it are read as the fuel left, as a refill's are,
-    those while it fell none (taken as a balance that never came back, it left the rest
-    of the log without a fuel figure, and ``validate`` half the fuel: a re-probe). Unless
-    the balance then loses less than the heat the water takes after it needs (``heat_kW``
-    per row, while ``firing`` where known: the body's heat a cooling gives up needs no
-    fuel, at :data:`HHV_MAX_KJ_KG`, to :data:`STUCK_STEPS` of its steps): a balance
-    failed to 0, whose readings to the end are none. Scoops a few seconds apart are one
-    fall (as a refill's, :data:`POUR_PAUSE_S`: ten scoops of 0.4 kg were fuel, a
-    re-probe)."""
+    all (in one step, or in scoops up to :data:`POUR_PAUSE_S` apart while the fall over
+    all stays that fast: ten scoops of 0.4 kg, and a hopper emptied at 0.3 kg a reading,
+    were fuel, re-probes), to below the lowest reading of the :data:`POUR_DETECT_S`
+    before (someone who leant on the balance and let go comes back to where it stood).
+
+    - A dropout (:class:`Unread`, its readings none) where its first reading up again is
+      where it fell from less the fuel burnt meanwhile: at least what the water's heat
+      (``heat_kW`` per row, None: unknown) needs at :data:`HHV_MAX_KJ_KG`, at most twice
+      that, within the balance's own scatter.
+    - A failed balance (:class:`Unread` to the end) where it then loses less, its refills
+      counted back, than the heat after it needs beyond the body's own
+      (:data:`BODY_STORE_KJ`).
+    - Else fuel taken off by hand (:class:`Removal`: a sample, a tare): the readings after
+      it are read as the fuel left, as a refill's are, those while it fell none (taken as
+      a balance that never came back, it left the rest of the log without a fuel figure,
+      and ``validate`` half the fuel: a re-probe)."""
     ok = np.flatnonzero(~np.isnan(mass_kg))
     m, tt = mass_kg[ok], t[ok]
     dropouts: list[Unread] = []
@@ -893,8 +894,6 @@ def balance_falls(
     jumps = np.diff(m)
     noise_kg = float(1.4826 * np.median(np.abs(jumps - np.median(jumps)))) if len(jumps) else 0.0
     tolerance_kg = 2 * step_kg + 3 * noise_kg
-    if heat_kW is not None and firing is not None:
-        heat_kW = np.where(firing, heat_kW, 0.0)
     heat_kJ = cumulative_heat_kJ(heat_kW, t) if heat_kW is not None else None
     k = 1
     while k < len(m):
@@ -925,11 +924,10 @@ def balance_falls(
             f"falls {fall:.2f} kg in {tt[end] - tt[k - 1]:g} s at time_s {tt[k]:g}, faster "
             "than any small boiler burns"
         )
-        # back where it fell from, less the fuel burnt meanwhile: at least what the water's
-        # heat needs, at most twice that (no boiler is under 50 % efficient on HHV), within
-        # the balance's scatter: a refill after fuel taken off lands above, and was taken
-        # for the balance coming back; 1.6 kg put back of 2 taken, below (re-probes). (Taken
-        # instead as fuel taken off and a refill, a dropout's fuel comes out the same.)
+        # (at most twice the least fuel burnt: no boiler is under 50 % efficient on HHV; a
+        # refill after fuel taken off lands above, and was taken for the balance coming
+        # back, 1.6 kg put back of 2 taken below: re-probes. A dropout taken instead as fuel
+        # taken off and a refill comes out the same fuel.)
         after = m[end:]
         rise = np.flatnonzero(after >= m[k - 1] - fall / 2.0)  # its first reading up again
         j = end + int(rise[0]) if len(rise) else -1
