@@ -74,13 +74,17 @@ class _HeldUpRig(LocalRig):
     a real-time server's clock does while the client waits a unit's 5-s reply timeout at
     a 1-s period (the plant moves on, the rows between are never acquired)."""
 
-    def __init__(self, params, held: range) -> None:
+    def __init__(self, params, held: range, rounding_s: float = 0.0) -> None:
         super().__init__(params, load_profile("clean"))
-        self.held, self.steps = held, 0
+        self.held, self.steps, self.rounding_s = held, 0, rounding_s
 
     def advance(self, dt_s: float) -> float:
+        """The time the plant moved, as a clock that rounds tells it: ``rounding_s`` more
+        on a step, less on a hole."""
         self.steps += 1
-        return super().advance(5 * dt_s if self.steps in self.held else dt_s)
+        if self.steps in self.held:
+            return super().advance(5 * dt_s) - self.rounding_s
+        return super().advance(dt_s) + self.rounding_s
 
 
 def test_holes_one_after_the_other_of_exactly_five_periods_are_all_told(params_12kw):
@@ -106,3 +110,14 @@ def test_holes_one_after_the_other_of_exactly_five_periods_are_all_told(params_1
         f"more than 10 such holes in the rows: 25 in all, from time_s = {start:g} to "
         f"{start + 125:g} s, 100 acquisitions missed"
     ], total
+
+
+def test_a_hole_of_five_steps_is_told_through_the_clocks_rounding(params_12kw):
+    """A stranger's probe: a real-time server's time (x200, rows 20 s apart) jumped from
+    11,513.383 to 11,613.383 s, five steps, and no note said so: its clock's rounding, which
+    grows with the time, left the hole a few nanoseconds short of five typical steps
+    (10 ns here)."""
+    rig = _HeldUpRig(params_12kw, range(40, 41), rounding_s=1e-8)
+    result = run_protocol(protocol_from_mapping(TINY, "tiny"), 12.0, rig, lambda row: None)
+    holes = [n for n in result.notes if n.startswith("no row from time_s")]
+    assert len(holes) == 1 and "4 acquisitions missed" in holes[0], result.notes
