@@ -27,22 +27,32 @@ _EVENT = struct.Struct("iIII")  # wd, mask, cookie, len (then len bytes of name)
 
 
 class PtyMasters:
-    """The processes' opens of a pty's client side, other than the server's own (made
-    before the watch began); :meth:`watch` gives None where inotify is not to be had.
+    """The processes' opens of a pty's client side, other than the server's own
+    descriptors; :meth:`watch` gives None where inotify is not to be had.
+
+    inotify's events say *when* somebody opened or closed the pty, not how many have it
+    open: two identical events queued back to back are merged into one (inotify(7)), so a
+    master opening the pty twice (a reader and a writer) was counted once, and its first
+    close left it unanswered (a re-probe: 5 of 8 runs), and two closes merged left a count
+    with nobody there. So each batch of events is followed by a count from /proc, the
+    truth wherever every process's descriptors can be read; the events in between tell
+    only that one master left and the next came within the batch.
 
     Attributes:
-        openers: open descriptions of the client side now (a master, or a prober).
+        openers: descriptors of the client side held now (a master, or a prober).
     """
 
-    def __init__(self, path: str, fd: int) -> None:
+    def __init__(self, path: str, fd: int, own: frozenset[int] = frozenset()) -> None:
         self.path = path
         self._fd = fd
+        self._own = own
         self.openers = 0
 
     @classmethod
-    def watch(cls, path: str) -> PtyMasters | None:
-        """A watch on ``path``'s opens and closes, or None where the system has none (not
-        Linux) or refuses one (no inotify watches left)."""
+    def watch(cls, path: str, own: frozenset[int] = frozenset()) -> PtyMasters | None:
+        """A watch on ``path``'s opens and closes (``own``: this process's descriptors of
+        it, which are no master), or None where the system has none (not Linux) or refuses
+        one (no inotify watches left)."""
         try:
             libc = ctypes.CDLL(None, use_errno=True)
             fd = libc.inotify_init1(os.O_NONBLOCK | os.O_CLOEXEC)
@@ -54,20 +64,24 @@ class PtyMasters:
         if libc.inotify_add_watch(fd, os.fsencode(path), events) < 0:
             os.close(fd)
             return None
-        return cls(path, fd)
+        masters = cls(path, fd, own)
+        masters.openers = count_openers(path, own)[0]
+        return masters
 
     def fileno(self) -> int:
         return self._fd
 
     def update(self) -> tuple[bool, bool]:
         """Take the events that came: (a master came to a pty nobody had open, the last
-        one left), each seen event by event (a master leaving and the next coming read
-        together are both). After a queue that overflowed, the events are not all there:
-        the count is made again from the processes' descriptors once the queue is read
-        empty (the events read after the overflow are in that count already; applied on
-        top of it, they left a count too high, or a live master unanswered: a re-probe),
-        and only nobody left is told."""
-        came = left = overflowed = False
+        one left). A master leaving and the next coming within the batch are both. After
+        the batch the count is the processes' (:func:`count_openers`); where some
+        processes' descriptors cannot be read (another user's: ``sudo mbpoll``), not less
+        than the events say. After a queue that overflowed, the events are not all there
+        and only the processes' count is taken (the events read after the overflow are in
+        it already; applied on top of it, they left a count too high, or a live master
+        unanswered: a re-probe), and only nobody left is told."""
+        before = counted = self.openers
+        opened = closed = overflowed = swapped = False
         while True:
             try:
                 data = os.read(self._fd, 4096)
@@ -80,37 +94,53 @@ class PtyMasters:
                 if mask & IN_Q_OVERFLOW:
                     overflowed = True
                 elif mask & IN_OPEN:
-                    came |= self.openers == 0
-                    self.openers += 1
+                    swapped |= closed and counted == 0
+                    opened = True
+                    counted += 1
                 elif mask & (IN_CLOSE_WRITE | IN_CLOSE_NOWRITE):
-                    left |= self.openers == 1
-                    self.openers = max(self.openers - 1, 0)
+                    closed = True
+                    counted = max(counted - 1, 0)
+        if not (opened or closed or overflowed):
+            return False, False
+        seen, whole = count_openers(self.path, self._own)
         if overflowed:
-            self.openers = count_openers(self.path)
-            return False, self.openers == 0
-        return came, left
+            self.openers = seen
+            return False, seen == 0
+        self.openers = seen if whole else max(seen, counted)
+        came = (before == 0 and opened) or swapped
+        return came, self.openers == 0
 
     def close(self) -> None:
         with contextlib.suppress(OSError):
             os.close(self._fd)
 
 
-def count_openers(path: str) -> int:
-    """The descriptors other processes hold on ``path``'s device, from /proc (those of
-    another user's processes are not seen: a master is the user's own program)."""
+def count_openers(path: str, own: frozenset[int] = frozenset()) -> tuple[int, bool]:
+    """(the descriptors processes hold on ``path``'s device, from /proc, less this
+    process's ``own``; whether every process's descriptors could be read: another user's
+    cannot be, unless this one is root)."""
     try:
         device = os.stat(path).st_rdev
     except OSError:
-        return 0
-    own = str(os.getpid())
-    count = 0
-    with contextlib.suppress(OSError):
-        for pid in os.listdir("/proc"):
-            if not pid.isdigit() or pid == own:
+        return 0, True
+    me = str(os.getpid())
+    count, whole = 0, True
+    try:
+        pids = [pid for pid in os.listdir("/proc") if pid.isdigit()]
+    except OSError:
+        return 0, False
+    for pid in pids:
+        try:
+            fds = os.listdir(f"/proc/{pid}/fd")
+        except PermissionError:
+            whole = False
+            continue
+        except OSError:  # (the process is gone)
+            continue
+        for fd in fds:
+            if pid == me and int(fd) in own:
                 continue
             with contextlib.suppress(OSError):
-                for fd in os.listdir(f"/proc/{pid}/fd"):
-                    with contextlib.suppress(OSError):
-                        status = os.stat(f"/proc/{pid}/fd/{fd}")
-                        count += stat.S_ISCHR(status.st_mode) and status.st_rdev == device
-    return count
+                status = os.stat(f"/proc/{pid}/fd/{fd}")
+                count += stat.S_ISCHR(status.st_mode) and status.st_rdev == device
+    return count, whole

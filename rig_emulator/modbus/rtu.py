@@ -258,7 +258,11 @@ class RtuLine:
         self._fd, self._keep_fd, self.path, applied = open_line(path, baud, parity)
         #: who has the emulator's pty open (None: a device, or no inotify): no reply is
         #: written to nobody, and none queued is left to the next master
-        self._masters = PtyMasters.watch(self.path) if self._keep_fd is not None else None
+        self._masters = (
+            PtyMasters.watch(self.path, frozenset({self._keep_fd}))
+            if self._keep_fd is not None
+            else None
+        )
         #: nobody has the pty open: what a reply still on its way to the client side
         #: leaves there is dropped then too (:data:`NOBODY_RECHECK_S`)
         self._nobody_check_at: float | None = None
