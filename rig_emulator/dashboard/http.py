@@ -708,6 +708,10 @@ def _num(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
+#: A field name (RFC 9110 5.1 and 5.6.2: a token of tchars).
+_TOKEN = re.compile(r"[!#$%&'*+\-.^_`|~0-9A-Za-z]+")
+
+
 async def _read_request(reader: asyncio.StreamReader) -> tuple[str, str, dict[str, str], bytes]:
     try:  # the request line first: a target too long (414) is told from long headers (400)
         line = await reader.readuntil(b"\r\n")
@@ -738,13 +742,18 @@ async def _read_request(reader: asyncio.StreamReader) -> tuple[str, str, dict[st
     lengths: set[str] = set()
     hosts: list[str] = []
     for line in lines:
-        if ":" in line:
-            name, value = line.split(":", 1)
-            headers[name.strip().lower()] = value.strip()
-            if name.strip().lower() == "content-length":
-                lengths.add(value.strip())
-            elif name.strip().lower() == "host":
-                hosts.append(value.strip())
+        name, colon, value = line.partition(":")
+        if line[:1] in (" ", "\t"):  # RFC 9112 5.2: obs-fold, a server rejects or unfolds
+            raise BadRequest("a header line folded onto the one before (obs-fold)")
+        if not colon or not _TOKEN.fullmatch(name):  # RFC 9112 5.1: a server MUST reject
+            # whitespace between the name and the colon (a `Host : ...` was taken: a re-probe)
+            raise BadRequest(f"malformed header line {line[:40]!r}")
+        name, value = name.lower(), value.strip(" \t")
+        headers[name] = value
+        if name == "content-length":
+            lengths.add(value)
+        elif name == "host":
+            hosts.append(value)
     headers["host"] = _host(version, target, hosts)
     if "transfer-encoding" in headers:  # a body of chunks: the length must be given
         raise BadRequest("Transfer-Encoding is not accepted; send the body with Content-Length")

@@ -314,6 +314,11 @@ def test_a_content_length_that_is_no_number_of_bytes_or_given_twice_is_a_400(ser
         (b"GET /api/state HTTP/1.0\r\n\r\n", b"200", b'"units"'),  # 1.0 may omit it
         # an absolute target's authority is the host (RFC 9112 3.2.2), Host ignored
         (b"GET http://localhost/api/state HTTP/1.1\r\n\r\n", b"200", b'"units"'),
+        # RFC 9112 5.1: whitespace before the colon MUST be a 400; 5.2: a folded line (a
+        # re-probe: both were taken, the first as the Host)
+        (b"GET / HTTP/1.1\r\nHost : 127.0.0.1\r\n\r\n", b"400", b"malformed header"),
+        (b"GET / HTTP/1.1\r\nHost:\r\n 127.0.0.1\r\n\r\n", b"400", b"folded"),
+        (b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nno colon\r\n\r\n", b"400", b"malformed"),
     ],
 )
 def test_the_host_is_one_field_or_the_targets_authority(served_once, request_bytes, status, said):
