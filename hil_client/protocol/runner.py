@@ -444,9 +444,13 @@ def run_protocol(
                 )
             else:
                 why = gaps[-1].get("reason") if gaps else None  # not always a new plant
+                # (a log marked complete whose test ran on two plants said only "the run
+                # went on": a stranger's probe read a cold start-up labelled test)
+                cut = "" if phase == "preheat" else f"; its {phase} is not one continuous record"
                 result.notes.append(
                     f"rig_epoch {epoch} from time_s = {t:g} s: "
-                    f"{why or 'a new plant'}; the run went on"
+                    f"{why or 'a new plant'}; the run went on{cut} (the analyses read one "
+                    "rig_epoch)"
                 )
         setpoint = command.flow_setpoint_kg_h
         if not command.pump_on:

@@ -318,6 +318,8 @@ def test_sequences_lost_to_a_break_the_run_went_on_from_leave_it_complete(tmp_pa
     assert meta["complete"] is True and len(meta["gaps"]) == 1, meta
     assert not [n for n in meta["notes"] if "could not be carried out" in n], meta["notes"]
     (lost,) = [n for n in meta["notes"] if "lost to the break" in n]
+    # complete, but the test is no one continuous record, and the note says so
+    assert [n for n in meta["notes"] if "its test is not one continuous record" in n], meta["notes"]
     named = set(re.findall(r"'(s\d)'", lost))
     logged = set(read_log(out).text["sequence"]) - {""}
     # each sequence either had rows or is named as lost, never both
