@@ -859,27 +859,109 @@ class Removal:
     why: str
 
 
+#: A level of the balance is read over at most this long [s] (the median of its readings,
+#: or a line through them): long enough for a noisy balance's level to its own step
+#: (:func:`level_readings`), short enough that a stationary test's firing holds steady
+#: through it and fuel burnt meanwhile is read off the line's slope, as a refill's is
+#: (:data:`POUR_RATE_FROM_S`).
+LEVEL_MAX_S = 300.0
+
+
+#: The median of n readings of Gaussian scatter sigma scatters this many sigma / sqrt(n)
+#: (sqrt(pi / 2): its large-n efficiency against the mean).
+MEDIAN_SPREAD = math.sqrt(math.pi / 2.0)
+
+
+def balance_noise_kg(mass_kg: np.ndarray) -> float:
+    """The scatter of one reading about the balance's level [kg]: the robust spread (the
+    median absolute deviation, times 1.4826) of its changes from reading to reading, over
+    sqrt(2) (two readings' scatters in each); 0 for a balance that only ever steps."""
+    jumps = np.diff(mass_kg[~np.isnan(mass_kg)])
+    if len(jumps) == 0:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(jumps - np.median(jumps))) / math.sqrt(2.0))
+
+
+def level_readings(noise_kg: float, step_kg: float, t: np.ndarray) -> int:
+    """How many readings a level of the balance is read over: enough that their median
+    scatters less than the balance's own step (:data:`MEDIAN_SPREAD` x ``noise_kg`` /
+    sqrt(n) <= ``step_kg``), at least :data:`SMOOTH_READINGS`, over at most
+    :data:`LEVEL_MAX_S` of the log's usual sampling. A single reading, however noisy,
+    is no level: one sized a 0.6-kg sample as 1.1 kg, and one high reading after it was
+    taken for a dropout's return (a re-probe)."""
+    n = SMOOTH_READINGS
+    if step_kg > 0 and noise_kg > 0:
+        n = max(n, math.ceil((MEDIAN_SPREAD * noise_kg / step_kg) ** 2))
+    dt = np.diff(t)
+    period = float(np.median(dt)) if len(dt) and np.median(dt) > 0 else 1.0
+    return int(min(n, max(SMOOTH_READINGS, LEVEL_MAX_S // period)))
+
+
+def _line_step(
+    m: np.ndarray, tt: np.ndarray, before: np.ndarray, after: np.ndarray, tol_kg: float
+) -> tuple[float, float]:
+    """(the fall between the readings ``before`` and ``after`` (rows), the slope [kg/s]): a
+    line of one slope through both, stepping between them, by least squares, fitted again
+    without the readings further than ``tol_kg`` from it (a wild reading is no level)."""
+    rows = np.concatenate((before, after))
+    x = tt[rows] - tt[before[-1]] if len(before) else tt[rows] - tt[after[0]]
+    cols = [np.ones(len(rows)), (rows >= after[0]).astype(float)]
+    if len(rows) >= 4 and np.ptp(x) > 0:  # (a slope wants readings enough)
+        cols.insert(1, x)
+    design = np.column_stack(cols)
+    y = m[rows]
+    keep = np.ones(len(rows), dtype=bool)
+    coef = np.zeros(design.shape[1])
+    for _ in range(2):  # bounded: a fit, then one again without the wild readings
+        if keep.sum() < design.shape[1] or not keep[rows >= after[0]].any():
+            break
+        coef = np.linalg.lstsq(design[keep], y[keep], rcond=None)[0]
+        keep = np.abs(y - design @ coef) <= tol_kg
+    slope = float(coef[1]) if design.shape[1] == 3 else 0.0
+    return -float(coef[-1]), slope
+
+
+def _split(m: np.ndarray, lo: int, hi: int, slope: float, tt: np.ndarray) -> int:
+    """The row in ``lo + 1..hi - 1`` where the readings ``lo..hi - 1``, less a line of
+    ``slope``, are best read as two levels (least squares): where a fall really is."""
+    y = m[lo:hi] - slope * (tt[lo:hi] - tt[lo])
+    n = len(y)
+    if n < 2:
+        return lo
+    c1, c2 = np.cumsum(y), np.cumsum(y * y)
+    i = np.arange(1, n)  # readings left of the split
+    left = c2[i - 1] - c1[i - 1] ** 2 / i
+    right = (c2[-1] - c2[i - 1]) - (c1[-1] - c1[i - 1]) ** 2 / (n - i)
+    return lo + 1 + int(np.argmin(left + right))
+
+
 def balance_falls(
     mass_kg: np.ndarray, t: np.ndarray, heat_kW: np.ndarray | None = None
 ) -> tuple[list[Unread], list[Removal]]:
     """The balance's falls that are no fuel burnt: readings falling faster than
-    :data:`BURN_MAX_KG_S` from one to the next, over more than :data:`REFILL_STEP_KG` in
-    all (in one step, or in scoops up to :data:`POUR_PAUSE_S` apart while the fall over
-    all stays that fast: ten scoops of 0.4 kg, and a hopper emptied at 0.3 kg a reading,
-    were fuel, re-probes), to below the lowest reading of the :data:`POUR_DETECT_S`
-    before (someone who leant on the balance and let go comes back to where it stood).
+    :data:`BURN_MAX_KG_S` from one to the next (in one step, or in scoops up to
+    :data:`POUR_PAUSE_S` apart while the fall over all stays that fast: ten scoops of
+    0.4 kg, and a hopper emptied at 0.3 kg a reading, were fuel, re-probes), by more than
+    :data:`REFILL_STEP_KG`, told on the balance's levels (medians, or a line through
+    :func:`level_readings` of readings either side), not on single readings, and to
+    below the lowest level of the :data:`POUR_DETECT_S` before (someone who leant on the
+    balance and let go comes back to where it stood).
 
-    - A dropout (:class:`Unread`, its readings none) where its first reading up again is
-      where it fell from less the fuel burnt meanwhile: at least what the water's heat
-      (``heat_kW`` per row, None: unknown) needs at :data:`HHV_MAX_KJ_KG`, at most twice
-      that, within the balance's own scatter.
+    - A dropout (:class:`Unread`, its readings none) where the level after its first
+      reading up again is where it fell from less the fuel burnt meanwhile: at least what
+      the water's heat (``heat_kW`` per row, None: unknown) needs at
+      :data:`HHV_MAX_KJ_KG`, at most twice that, within the levels' own scatter (a single
+      high reading after a sample on a noisy balance passed for its return, a re-probe).
     - A failed balance (:class:`Unread` to the end) where it then loses less, its refills
       counted back, than the heat after it needs beyond the body's own
       (:data:`BODY_STORE_KJ`).
-    - Else fuel taken off by hand (:class:`Removal`: a sample, a tare): the readings after
-      it are read as the fuel left, as a refill's are, those while it fell none (taken as
-      a balance that never came back, it left the rest of the log without a fuel figure,
-      and ``validate`` half the fuel: a re-probe)."""
+    - A balance in another unit (:class:`Unread` to the end) where it falls that fast for
+      longer than anyone pours (:data:`POUR_MAX_S`): grams read as kilograms.
+    - Else fuel taken off by hand (:class:`Removal`: a sample, a tare), its size the
+      step between the levels either side: the readings after it are read as the fuel
+      left, as a refill's are, those while it fell none (taken as a balance that never
+      came back, it left the rest of the log without a fuel figure, and ``validate`` half
+      the fuel: a re-probe)."""
     ok = np.flatnonzero(~np.isnan(mass_kg))
     m, tt = mass_kg[ok], t[ok]
     dropouts: list[Unread] = []
@@ -889,12 +971,16 @@ def balance_falls(
         step = m[:-1] - m[1:]
         fast[1:] = (step > 0) & (step > BURN_MAX_KG_S * np.diff(tt))
     step_kg = balance_step_kg(m)
-    # the balance's own scatter from reading to reading (robust): a dropout's return is
-    # told within it (two steps alone made a noisy balance's dropouts "taken by hand")
-    jumps = np.diff(m)
-    noise_kg = float(1.4826 * np.median(np.abs(jumps - np.median(jumps)))) if len(jumps) else 0.0
-    tolerance_kg = 2 * step_kg + 3 * noise_kg
+    # the balance's own scatter, measured on the log: its levels are read over as many
+    # readings as it needs (a sample on a noisy balance went unseen, was sized from two
+    # single readings, or taken for a dropout: a re-probe)
+    noise_kg = balance_noise_kg(m)
+    n = level_readings(noise_kg, step_kg, tt)
+    level_kg = MEDIAN_SPREAD * noise_kg / math.sqrt(n)  # a level's own scatter
+    tolerance_kg = 2 * step_kg + 3 * math.sqrt(2.0) * level_kg  # two levels' difference
+    wild_kg = 2 * step_kg + 4 * noise_kg  # a reading further than this off its level
     heat_kJ = cumulative_heat_kJ(heat_kW, t) if heat_kW is not None else None
+    since = 0  # the readings before this belong to a fall already told
     k = 1
     while k < len(m):
         if not fast[k]:
@@ -915,36 +1001,100 @@ def balance_falls(
                 end = nxt
             else:
                 break
-        fall = float(m[k - 1] - m[end])
-        lo = int(np.searchsorted(tt, tt[k - 1] - POUR_DETECT_S))
-        if fall <= REFILL_STEP_KG or m[end] >= float(m[lo:k].min()) - REFILL_STEP_KG:
+        b0 = max(since, k - n)
+        before = np.arange(b0, k)
+        level_before = float(np.median(m[before])) if len(before) else float(m[k - 1])
+        after = np.arange(end, min(end + n, len(m)))
+        # to its lowest reading (a dropout's), beyond what the noise takes one reading
+        # (a noisy balance's single low readings were dropouts by the dozen), and to the
+        # level after
+        depth = level_before - float(m[end])
+        dips = depth - wild_kg > REFILL_STEP_KG
+        drop = level_before - float(np.median(m[after]))
+        if not dips and drop <= REFILL_STEP_KG:  # (noise, fuel burnt: most runs)
             k = end + 1
             continue
-        what = (
-            f"falls {fall:.2f} kg in {tt[end] - tt[k - 1]:g} s at time_s {tt[k]:g}, faster "
-            "than any small boiler burns"
-        )
+        what = f"at time_s {tt[k]:g}, faster than any small boiler burns"
+        # its first reading up again whose level is up too (one noisy reading is not)
         # (at most twice the least fuel burnt: no boiler is under 50 % efficient on HHV; a
         # refill after fuel taken off lands above, and was taken for the balance coming
         # back, 1.6 kg put back of 2 taken below: re-probes. A dropout taken instead as fuel
         # taken off and a refill comes out the same fuel.)
-        after = m[end:]
-        rise = np.flatnonzero(after >= m[k - 1] - fall / 2.0)  # its first reading up again
-        j = end + int(rise[0]) if len(rise) else -1
-        burnt_kg = 0.0 if heat_kJ is None else (heat_kJ[ok[j]] - heat_kJ[ok[k - 1]]) / HHV_MAX_KJ_KG
-        expected = m[k - 1] - burnt_kg
-        if len(rise) and expected - burnt_kg - tolerance_kg <= m[j] <= expected + tolerance_kg:
-            dropouts.append(
-                Unread(int(ok[k]), int(ok[j]), f"{what}, and is back at time_s {tt[j]:g}")
+        up = level_before - depth / 2.0
+        rise = end + np.flatnonzero(m[end:] >= up) if dips else np.zeros(0, dtype=int)
+        back: tuple[int, float] | None = None
+        padded = np.concatenate((m, np.full(n - 1, np.nan))) if len(rise) else m
+        windows = np.lib.stride_tricks.sliding_window_view(padded, n) if len(rise) else None
+        for part in range(0, len(rise), 64):  # bounded: 64 candidates' levels at a time
+            here = rise[part : part + 64]
+            levels = np.nanmedian(windows[here], axis=1)  # type: ignore[index]
+            up_again = np.flatnonzero(levels >= up)
+            if len(up_again):
+                back = (int(here[up_again[0]]), float(levels[up_again[0]]))
+                break
+        if back is not None:
+            j, level_back = back
+            # the fuel burnt between the times the two levels stand for (their middles)
+            mid_b = before[len(before) // 2] if len(before) else k - 1
+            mid_a = min(j + n // 2, len(m) - 1)
+            burnt_kg = (
+                0.0
+                if heat_kJ is None
+                else (heat_kJ[ok[mid_a]] - heat_kJ[ok[mid_b]]) / HHV_MAX_KJ_KG
             )
-            k = j + 1
+            expected = level_before - burnt_kg
+            if expected - burnt_kg - tolerance_kg <= level_back <= expected + tolerance_kg:
+                dropouts.append(
+                    Unread(
+                        int(ok[k]),
+                        int(ok[j]),
+                        f"falls {depth:.2f} kg in {tt[end] - tt[k - 1]:g} s {what}, and is "
+                        f"back at time_s {tt[j]:g}",
+                    )
+                )
+                since = j
+                k = j + 1
+                continue
+        # no dropout: fuel taken off (or a failed balance), sized between the levels
+        # sized on a line through all readings of LEVEL_MAX_S either side: its slope (the
+        # fuel burnt meanwhile) from few readings of a noisy balance sized a 0.6-kg sample
+        # 0.53-0.66 kg, the step's error sigma * sqrt(8 / readings) (a re-probe)
+        wide_b = np.arange(int(np.searchsorted(tt, tt[k - 1] - LEVEL_MAX_S)), k)
+        wide_a = np.arange(end, int(np.searchsorted(tt, tt[end] + LEVEL_MAX_S, "right")))
+        fall, slope = _line_step(m, tt, wide_b, wide_a, wild_kg)
+        # where the levels change: a run of noise just before a fall is not it
+        at = _split(m, b0, after[-1] + 1, slope, tt) if len(before) else k
+        lo = int(np.searchsorted(tt, tt[k - 1] - POUR_DETECT_S))
+        lows = np.lib.stride_tricks.sliding_window_view(m[max(lo - n + 1, 0) : k], min(n, k))
+        lowest = float(np.median(lows, axis=1).min()) if len(lows) else level_before
+        level_after = level_before - drop
+        if (
+            fall <= REFILL_STEP_KG
+            or not k - 1 <= at <= end + 1
+            or level_after >= min(lowest, level_before) - REFILL_STEP_KG
+        ):
+            k = end + 1
             continue
+        what = f"falls {fall:.2f} kg in {tt[end] - tt[k - 1]:g} s {what}"
+        if tt[end] - tt[k - 1] > POUR_MAX_S:  # longer than anyone pours
+            per_s = fall / (tt[end] - tt[k - 1])
+            dropouts.append(
+                Unread(
+                    int(ok[k]),
+                    len(mass_kg),
+                    f"{what}, {per_s:.2g} kg/s for longer than anyone takes fuel off by "
+                    "hand: is the column in another unit than its name's "
+                    "(balance_mass_kg; grams?)",
+                )
+            )
+            break
         heat_after = 0.0 if heat_kJ is None else heat_kJ[-1] - heat_kJ[ok[end]]
         needed_kg = max(heat_after - BODY_STORE_KJ, 0.0) / HHV_MAX_KJ_KG
         # what it lost after, its refills taken out (one counted against the loss made a
         # sample taken and a hopper refilled later a failed balance: a re-probe)
-        lost_kg = float(m[end] - m[-1]) + sum(r.rise_kg for r in refills(m[end:], tt[end:]))
-        if lost_kg + STUCK_STEPS * step_kg < needed_kg:  # no fuel read after
+        last = float(np.median(m[max(end, len(m) - n) :]))
+        lost_kg = level_after - last + sum(r.rise_kg for r in refills(m[end:], tt[end:]))
+        if lost_kg + STUCK_STEPS * step_kg + tolerance_kg < needed_kg:  # no fuel read after
             dropouts.append(
                 Unread(
                     int(ok[k]),
@@ -965,6 +1115,7 @@ def balance_falls(
                 + ", not counted as fuel",
             )
         )
+        since = end
         k = end + 1
     return dropouts, removals
 
