@@ -328,7 +328,7 @@ def _warn_tolerated(logs: Sequence[LabLog]) -> None:
         if log.has("balance_mass_kg"):
             log.balance_readings()  # (fuel taken off by hand is a note of its reading)
         for note in log.notes:  # each naming its file (the phases' notes did not: a probe)
-            named = note if note.startswith(f"{log.path}: ") else f"{log.path}: {note}"
+            named = note if note.startswith(str(log.path)) else f"{log.path}: {note}"
             print(f"hil-client: warning: {named}", file=sys.stderr)
 
 

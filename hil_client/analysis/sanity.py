@@ -238,6 +238,9 @@ def refuse_wrong_units(log: LabLog, params: BoilerParams | None = None) -> None:
     found = [*_temperatures(log, kelvin=True), *_flue_gas(log, kelvin=True), *_o2_fraction(log)]
     if not found and params is not None:
         found = _closure_refused(log, params, observe_firing(log).burning)
+        # a time in minutes reads the heat 1/60 too: the fuel's rate says so (the flow
+        # was blamed: a re-probe)
+        found = (_fuel_rate(log, params) or found) if found else found
     if found:
         raise LogError(f"{log.path}: {found[0]}")
 

@@ -601,6 +601,7 @@ def test_a_time_in_minutes_is_warned_by_the_fuel_it_would_burn(run_log, tmp_path
 
     path = _edited(run_log, tmp_path, "minutes", minutes)
     (tmp_path / "minutes.meta.json").unlink()  # (its marks are in seconds)
+    # (refused now, its heat to the water 1/60 of the fuel's energy: the time is named)
     main(["balance", path, "--boiler", "windhager_12kw"])
     assert "is time_s in seconds (not minutes)" in capsys.readouterr().err
     clean = str(run_log("stationary", "windhager_12kw").path)
