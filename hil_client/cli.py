@@ -45,7 +45,13 @@ from hil_client.analysis.logio import (
 )
 from hil_client.analysis.phases import Phases, find_phases
 from hil_client.analysis.report import validation_report
-from hil_client.analysis.sanity import check_time_step, refuse_reversed_flow, suspicious
+from hil_client.analysis.sanity import (
+    check_time_step,
+    refuse_reversed_flow,
+    refuse_wrong_units,
+    suspicious,
+    too_few_rows,
+)
 from hil_client.analysis.validate import compare, validation_metrics
 from hil_client.fault_files import EventsWriter, events_path, fault_report, write_report
 from hil_client.fault_files import summary as fault_summary
@@ -321,8 +327,9 @@ def _warn_tolerated(logs: Sequence[LabLog]) -> None:
     for log in logs:
         if log.has("balance_mass_kg"):
             log.balance_readings()  # (fuel taken off by hand is a note of its reading)
-        for note in log.notes:
-            print(f"hil-client: warning: {note}", file=sys.stderr)
+        for note in log.notes:  # each naming its file (the phases' notes did not: a probe)
+            named = note if note.startswith(str(log.path)) else f"{log.path}: {note}"
+            print(f"hil-client: warning: {named}", file=sys.stderr)
 
 
 def _logs_with_phases(
@@ -336,6 +343,7 @@ def _logs_with_phases(
         for log in logs:
             check_time_step(log)
             refuse_reversed_flow(log)
+            refuse_wrong_units(log, boiler)
         found = [(log, _phases_or_why(log, boiler)) for log in logs]
     _warn_tolerated(logs)
     if boiler is not None:
@@ -353,6 +361,10 @@ def _phases_or_why(log: LabLog, boiler: BoilerParams | None, partial: bool = Fal
     try:
         return find_phases(log, partial=partial)
     except LogError as exc:
+        # (a meta file's marks found wrong keep their own message)
+        few = too_few_rows(log) if str(exc).startswith(f"{log.path}: cannot find") else None
+        if few is not None:
+            raise LogError(few) from None
         hints = [line.split(": ", 1)[1] for line in suspicious(log, boiler)]
         if not hints:
             raise
@@ -490,6 +502,8 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     with bad_input(LogError):
         result = diagnose(*cal, *val, doc, args.ignition_charge_kg)
     write_diagnosis(result, args.out, str(args.calibration), str(args.validation))
+    for line in result.content.get("calibration_warnings", []):
+        print(f"hil-client: warning: {line}", file=sys.stderr)
     print(f"effect: {result.effect} (confidence {result.confidence:.2f})")
     if result.unexplained_gap:
         top = result.where[0]
@@ -600,6 +614,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
                         if key in result.flags
                         else {}
                     ),
+                    **({"far_from_documentation": result.far[key]} if key in result.far else {}),
                 }
                 for key, f in result.fitted.items()
             }
@@ -673,6 +688,7 @@ def _cmd_balance(args: argparse.Namespace) -> int:
         check_time_step(log)
         refuse_reversed_flow(log)
         params = _boiler_for(log, args.boiler)
+        refuse_wrong_units(log, params)
         phases = _phases_or_why(log, params, partial=True)
     _warn_tolerated([log])
     _warn_suspicious(log, params)

@@ -380,5 +380,7 @@ def diagnose(
         # what in the logs looks like a wrong unit or a broken sensor: read the answer
         # with these in mind
         "log_warnings": [*suspicious(cal_log, doc), *suspicious(val_log, doc)],
+        # what the calibration warns of (a log of another boiler size: a stranger's probe)
+        "calibration_warnings": list(calibration.warnings),
     }
     return Diagnosis(content, cal, val)

@@ -269,7 +269,13 @@ def read_log(
     header = _header(path, reader, notes)
     for name in required:
         if name not in header:
-            raise LogError(f"{path}: missing required column '{name}'")
+            like = next((h for h in header if _bare(h) == name.lower()), None)
+            hint = (
+                f" (column '{_shown(like)}' has a unit or note after the name: rename it '{name}')"
+                if like is not None
+                else ""
+            )
+            raise LogError(f"{path}: missing required column '{name}'{hint}")
     named = [h for h in header if h]  # unnamed columns: a spreadsheet's trailing ones
     if len(set(named)) != len(named):
         dup = next(h for h in named if named.count(h) > 1)
@@ -279,7 +285,7 @@ def read_log(
     named_width = len(header)
     while named_width and not header[named_width - 1]:
         named_width -= 1
-    parsed = _Parsed(path, header, as_read)
+    parsed = _Parsed(path, header, as_read, required)
     raw: list[list[str]] = []  # rows not parsed yet: the last two wait for the checks below
     comments = 0
     odd: tuple[int, int] | None = None  # (line, fields) of a row of the wrong width
@@ -433,8 +439,11 @@ class _Parsed:
     numbers as float arrays, text as lists, a number column's first unreadable field and
     first implausible reading kept as written for the messages."""
 
-    def __init__(self, path: Path, header: list[str], as_read: bool) -> None:
+    def __init__(
+        self, path: Path, header: list[str], as_read: bool, required: tuple[str, ...] = ()
+    ) -> None:
         self.path = path
+        self.required = required
         self.header = header
         self.as_read = as_read
         self.rows = 0
@@ -524,6 +533,21 @@ class _Parsed:
         wild = np.isinf(out) | (out < low) | (out > high)
         beyond = f"outside {low:g}..{high:g}" if math.isfinite(high) else "not finite"
         why = "an instrument's error code"
+        values = out[wild & np.isfinite(out)]
+        if (
+            name in self.required
+            and len(values) > 0.5 * np.isfinite(out).sum()
+            and len(np.unique(values)) > UNIT_DISTINCT_MIN
+        ):  # most readings, and varied: a unit, not an error code (a balance in grams
+            # was taken as missing whole, and then "has no values": a stranger's probe)
+            around = float(np.median(values))
+            unit = name.rsplit("_", 1)[-1]
+            hint = (
+                "grams? (kg expected)"
+                if name.endswith("_kg") and low <= around / 1000.0 <= high
+                else f"another unit than its name's? ({unit} expected, {low:g}..{high:g})"
+            )
+            raise LogError(f"{path}: column '{name}' reads around {around:.6g}: {hint}")
         if wild.all() or wild.sum() > 0.5 * np.isfinite(out).sum():  # most: not codes
             why = f"most readings: is the column in another unit than its name's ({name})?"
         notes.append(
@@ -531,6 +555,12 @@ class _Parsed:
             f"{i + 2}: '{_shown(written)}'), taken as missing ({why})"
         )
         out[wild] = np.nan
+
+
+#: A required column whose readings beyond its unit's range are most of them and take more
+#: than this many values is in another unit (refused); fewer are an instrument's error codes
+#: (-999, 9999), taken as missing.
+UNIT_DISTINCT_MIN = 20
 
 
 def _numbers(values: tuple[str, ...] | list[str]) -> np.ndarray | None:
@@ -569,6 +599,14 @@ _NO_READING = frozenset(
 MAX_LOG_BYTES = 1_000_000_000
 
 
+#: The first bytes of a compressed file, what it is and how to undo it.
+_ARCHIVES = (
+    (b"\x1f\x8b", "gzip", "gunzip"),
+    (b"PK\x03\x04", "a zip archive", "unzip"),
+    (b"\xfd7zXZ\x00", "xz", "unxz"),
+)
+
+
 def _text_of(path: Path, notes: list[str]) -> str:
     """The log's text: UTF-8 (a spreadsheet's byte-order mark dropped) or, where it is not,
     Windows-1252 as Excel writes a CSV on Windows (said in ``notes``); a file that is
@@ -591,6 +629,9 @@ def _text_of(path: Path, notes: list[str]) -> str:
             return data.decode("utf-16")
         except UnicodeDecodeError:
             raise LogError(f"{path}: starts as UTF-16 text but is not") from None
+    for magic, what, undo in _ARCHIVES:  # (a gzip file was called UTF-16: a probe)
+        if data.startswith(magic):
+            raise LogError(f"{path}: compressed ({what}), not a lab log's text: {undo} it first")
     if b"\x00" in data[:65536]:
         line = data.count(b"\n", 0, data.index(b"\x00")) + 1
         raise LogError(
@@ -642,8 +683,8 @@ def _header(path: Path, reader: Any, notes: list[str]) -> list[str]:
         for sep, what in ((";", "semicolons"), ("\t", "tabs")):
             if sep in header[0]:
                 raise LogError(
-                    f"{path}: fields separated by {what}, not commas (CONTRACT section 3: "
-                    "a CSV with '.' as the decimal point)"
+                    f"{path}: fields separated by {what}, not commas (a lab log is a CSV: "
+                    "commas between fields, '.' as the decimal point)"
                 )
     by_case: dict[str, list[str]] = {}
     for h in header:
@@ -665,6 +706,12 @@ def _header(path: Path, reader: Any, notes: list[str]) -> list[str]:
     if renamed:
         notes.append(f"{path}: column {', '.join(renamed)} (the log format's letter case)")
     return header
+
+
+def _bare(name: str) -> str:
+    """A column's name without a unit or a note after it ('time_s [s]', 'time_s (s)'),
+    in lower case."""
+    return re.split(r"[\s\[(/]", name.strip(), maxsplit=1)[0].lower()
 
 
 def _shown(value: str, width: int = 40) -> str:

@@ -130,6 +130,10 @@ def diagnosis_report(result: dict, figures: list[Path], cal: str, val: str) -> s
                   "answer with these in mind):", ""]  # fmt: skip
         lines += [f"- {w}" for w in warnings]
         lines.append("")
+    if result.get("calibration_warnings"):
+        lines += ["**What the calibration warns of:**", ""]
+        lines += [f"- {w}" for w in result["calibration_warnings"]]
+        lines.append("")
     if result.get("ignition_charge_kg"):
         lines += [
             f"The burner's documented ignition charge, {result['ignition_charge_kg']:g} kg as "

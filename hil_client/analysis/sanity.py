@@ -5,7 +5,9 @@ Real logs come with their units mixed up and their sensors stuck, and an analysi
 them ends in confident, absurd figures (a direct efficiency of 1.3 % from a flow logged
 in l/min; a fuel 237 % richer than nominal behind a forward sensor stuck at 60 C). The
 readings stay as they are, since a warning cannot know the right unit; what it says is
-where to look:
+where to look. What no boiler's bench can read (temperatures in kelvin, oxygen as a
+fraction, heat to the water under 20 % or over 150 % of the fuel's energy) is refused
+instead (:func:`refuse_wrong_units`):
 
 - a time that advances minutes per row (milliseconds?);
 - a water or room temperature whose median is that of water or air in kelvin, a flue
@@ -101,7 +103,9 @@ def _readings(log: LabLog, name: str) -> np.ndarray:
     return x[np.isfinite(x)]
 
 
-def _temperatures(log: LabLog) -> list[str]:
+def _temperatures(log: LabLog, kelvin: bool | None = None) -> list[str]:
+    """Water and room medians above what a lab reads; ``kelvin`` True: only those that are
+    kelvin's (refused), False: only the others (warned), None: all."""
     out = []
     for name, limit in [
         *((n, WATER_MEDIAN_MAX_C) for n in _WATER),
@@ -112,17 +116,21 @@ def _temperatures(log: LabLog) -> list[str]:
             continue
         median = float(np.median(x))
         if median > limit:
-            like = " (kelvin?)" if -30.0 < median - KELVIN_OFFSET < limit else ""
-            out.append(f"column '{name}' reads a median of {median:.1f} C{like}")
+            like = -30.0 < median - KELVIN_OFFSET < limit
+            if kelvin is None or kelvin == like:
+                said = ": kelvin? convert to C" if like else ""
+                out.append(f"column '{name}' reads a median of {median:.1f} C{said}")
     return out
 
 
-def _flue_gas(log: LabLog) -> list[str]:
+def _flue_gas(log: LabLog, kelvin: bool | None = None) -> list[str]:
     x = _readings(log, "flue_gas_temp_C")
     if len(x) >= STUCK_MIN_READINGS and float(np.percentile(x, 5)) > FLUE_GAS_LOW_MAX_C:
         low = float(np.percentile(x, 5))
-        like = " (kelvin?)" if low - KELVIN_OFFSET < FLUE_GAS_LOW_MAX_C else ""
-        return [f"column 'flue_gas_temp_C' never reads below {low:.0f} C{like}"]
+        like = low - KELVIN_OFFSET < FLUE_GAS_LOW_MAX_C
+        if kelvin is None or kelvin == like:
+            said = ": kelvin? convert to C" if like else ""
+            return [f"column 'flue_gas_temp_C' never reads below {low:.0f} C{said}"]
     return []
 
 
@@ -144,10 +152,27 @@ def _oxygen(log: LabLog) -> list[str]:
             f"column 'flue_gas_O2_pct' reads above air's {O2_AIR_PCT} vol-% in {above:.0%} of"
             f" its readings (up to {top:.2f}): an offset, or another unit?"
         ]
-    if top <= 1.0 and len(x) >= STUCK_MIN_READINGS:
+    return _o2_fraction(log)
+
+
+#: The least top reading [vol-%] of an oxygen column read as a fraction (refused): air is
+#: 0.21 of it, a firing boiler's flue gas 0.05-0.15; a column that stays below it (a dead
+#: analyser's zero, a constant 0) is data, not a fraction.
+O2_FRACTION_TOP_MIN = 0.05
+
+
+def _o2_fraction(log: LabLog) -> list[str]:
+    """Oxygen read as a fraction of one (every reading at most 1, moving): the firing seen
+    by the analyser (O2 under 16 vol-%) was all the log, lambda 1.0, and every analysis
+    gave its results (a stranger's probe)."""
+    x = _readings(log, "flue_gas_O2_pct")
+    if len(x) < STUCK_MIN_READINGS:
+        return []
+    top = float(np.max(x))
+    if O2_FRACTION_TOP_MIN <= top <= 1.0 and float(np.ptp(x)) > 0.0:
         return [
             f"column 'flue_gas_O2_pct' reads at most {top:.3g}: a fraction, not vol-%"
-            f" (air is {O2_AIR_PCT})?"
+            f" (air is {O2_AIR_PCT}); multiply by 100"
         ]
     return []
 
@@ -204,6 +229,22 @@ def refuse_reversed_flow(log: LabLog) -> None:
         raise LogError(f"{log.path}: {found[0]}; correct the column's sign and analyse again")
 
 
+def refuse_wrong_units(log: LabLog, params: BoilerParams | None = None) -> None:
+    """Refuse a log in one line where a column is in a unit no boiler's bench reads: water,
+    room or flue-gas temperatures in kelvin, oxygen as a fraction, heat to the water
+    outside :data:`DIRECT_EFFICIENCY_REFUSED` of the fuel's energy (with ``params``). Each
+    gave ten warnings and then confident results with exit 0 (a stranger's probes); what
+    only looks odd stays a warning (:func:`suspicious`)."""
+    found = [*_temperatures(log, kelvin=True), *_flue_gas(log, kelvin=True), *_o2_fraction(log)]
+    if not found and params is not None:
+        found = _closure_refused(log, params, observe_firing(log).burning)
+        # a time in minutes reads the heat 1/60 too: the fuel's rate says so (the flow
+        # was blamed: a re-probe)
+        found = (_fuel_rate(log, params) or found) if found else found
+    if found:
+        raise LogError(f"{log.path}: {found[0]}")
+
+
 #: The most the balance may lose over the record, over what the boiler burns at full power
 #: for as long (its start-up's Pstart is at most 1.5 Pmax; the balance's steps add little)
 FUEL_RATE_MAX_FACTOR = 2.0
@@ -229,29 +270,43 @@ def _fuel_rate(log: LabLog, params: BoilerParams) -> list[str]:
     ]
 
 
-def _closure(log: LabLog, params: BoilerParams, burning: np.ndarray) -> list[str]:
-    """Heat to water over the fuel's energy from the first firing row to the last (the
-    preheat's bench-heated water and a stand-by's losses are no part of it: a clean run of
-    a short part-load test read 19 % over the whole log), the water's stored heat counted;
-    only over :data:`CLOSURE_FUEL_MIN_KG` of fuel."""
+#: Heat to the water over the fuel's energy [-] beyond which no boiler can be, refused
+#: rather than warned (:data:`DIRECT_EFFICIENCY_RANGE` is warned): over more than
+#: :data:`CLOSURE_FUEL_MIN_KG` of fuel (18 MJ at least), the most a boiler's metal can
+#: store beyond the water counted (some 300 kg of steel warmed 50 K, 7 MJ) and its worst
+#: flue-gas and stand-by losses (30 %) leave over 20 % of the fuel's energy to the water;
+#: and no boiler gives the water more than the fuel's energy at its higher calorific value
+#: (108 % of the lower one for wood) and what the metal gives back (some 40 % of 18 MJ), so
+#: never 150 %. Beyond them the flow is in another unit (l/min reads 1/60 of the heat,
+#: m3/h 1/1000, g/s 3.6 times), or the temperatures or the balance are.
+DIRECT_EFFICIENCY_REFUSED = (0.20, 1.50)
+
+
+def _efficiency(log: LabLog, params: BoilerParams, burning: np.ndarray) -> tuple[float, float]:
+    """(heat to water over the fuel's energy [-], the fuel [kg]) from the first firing row
+    to the last (the preheat's bench-heated water and a stand-by's losses are no part of
+    it: a clean run of a short part-load test read 19 % over the whole log), the water's
+    stored heat counted; NaN where it cannot be read or the fuel is not over
+    :data:`CLOSURE_FUEL_MIN_KG`."""
+    nan = (float("nan"), float("nan"))
     if "balance_mass_kg" not in log.columns:
-        return []
+        return nan
     t = log.t
     firing = np.flatnonzero(burning)
     if len(firing) < 2:
-        return []
+        return nan
     span = slice(int(firing[0]), int(firing[-1]) + 1)
     mass = log.balance_without_refills()[span]
     rows = np.flatnonzero(np.isfinite(mass))
     if len(rows) < 2:
-        return []
+        return nan
     # the heat over the readings' own span: a balance whose readings stop (stuck to the
     # end, their readings none) was set against the heat of the whole firing (486 %, a
     # stranger's probe)
     span = slice(span.start + int(rows[0]), span.start + int(rows[-1]) + 1)
     fuel_kg = float(mass[rows[0]] - mass[rows[-1]])
     if not fuel_kg > CLOSURE_FUEL_MIN_KG:
-        return []
+        return nan
     ts = t[span]
     q = heat_to_water_kW(
         np.clip(fill_gaps(log["water_flow_kg_h"], t)[span], 0.0, None),
@@ -262,21 +317,48 @@ def _closure(log: LabLog, params: BoilerParams, burning: np.ndarray) -> list[str
     ok = np.isfinite(q)
     both = ok[1:] & ok[:-1]
     if both.sum() < 2 or not np.isfinite(water[[0, -1]]).all():
-        return []
+        return nan
     heat_kJ = float(np.sum((0.5 * (q[1:] + q[:-1]) * np.diff(ts))[both]))
     heat_kJ += params.c_therm_kJ_K * float(water[-1] - water[0])
     fuel = params.fuel
     energy_kJ = fuel_kg / fuel.balance_loss_per_kg_dry * fuel.lhv_dry_kJ_kg
-    eta = heat_kJ / energy_kJ
-    low, high = DIRECT_EFFICIENCY_RANGE
-    if low <= eta <= high:
-        return []
-    return [
+    return heat_kJ / energy_kJ, fuel_kg
+
+
+def _closure_line(eta: float, fuel_kg: float, band: tuple[float, float], what: str) -> str:
+    low, high = band
+    return (
         f"the heat to the water is {eta:.0%} of the energy of the {fuel_kg:.2f} kg of fuel"
-        f" the balance lost while the boiler fired ({low:.0%}-{high:.0%} for a boiler): is"
+        f" the balance lost while the boiler fired ({low:.0%}-{high:.0%} {what}): is"
         " the flow in kg/h, are the forward and return temperatures right, and is the balance"
         " in kg?"
-    ]
+    )
+
+
+def _closure(log: LabLog, params: BoilerParams, burning: np.ndarray) -> list[str]:
+    """Heat to water over the fuel's energy outside :data:`DIRECT_EFFICIENCY_RANGE`
+    (:func:`_efficiency`)."""
+    eta, fuel_kg = _efficiency(log, params, burning)
+    low, high = DIRECT_EFFICIENCY_RANGE
+    if not np.isfinite(eta) or low <= eta <= high:
+        return []
+    return [_closure_line(eta, fuel_kg, DIRECT_EFFICIENCY_RANGE, "for a boiler")]
+
+
+def _closure_refused(log: LabLog, params: BoilerParams, burning: np.ndarray) -> list[str]:
+    """Heat to water over the fuel's energy outside :data:`DIRECT_EFFICIENCY_REFUSED`,
+    where the flow and the water temperatures move (a flow that reads zero or one value
+    throughout is data: CONTRACT section 4)."""
+    for name in ("water_flow_kg_h", "water_in_temp_C", "water_out_temp_C"):
+        x = _readings(log, name)
+        if len(x) < 2 or float(np.ptp(x)) == 0.0:
+            return []
+    eta, fuel_kg = _efficiency(log, params, burning)
+    low, high = DIRECT_EFFICIENCY_REFUSED
+    if not np.isfinite(eta) or low <= eta <= high:
+        return []
+    line = _closure_line(eta, fuel_kg, DIRECT_EFFICIENCY_REFUSED, "for any boiler")
+    return [f"column 'water_flow_kg_h': {line.replace('kg/h,', 'kg/h (not l/min),')}"]
 
 
 def _firing_gain(log: LabLog, burning: np.ndarray) -> list[str]:
@@ -376,6 +458,24 @@ def check_time_step(log: LabLog) -> None:
             f"milliseconds? (a test bench's run lasts hours to days; the analyses read at "
             f"most {TIME_SPAN_REFUSE_S / 86400:.0f})"
         )
+
+
+#: The fewest rows the phases are found from by the signals: a record's phases (preheat,
+#: start-up, test, two coolings) need some ten readings each (1, 2 or 20 rows said "cannot
+#: find t0: the burner never fires": a stranger's probe). A meta file's marks need none.
+MIN_ROWS = 50
+
+
+def too_few_rows(log: LabLog) -> str | None:
+    """The one line refusing ``log`` when it has fewer than :data:`MIN_ROWS` rows, else
+    None."""
+    if len(log) >= MIN_ROWS:
+        return None
+    return (
+        f"{log.path}: only {len(log)} data row(s); finding the phases from the signals needs "
+        f"at least {MIN_ROWS} (preheat, start-up, test and two coolings, some ten readings "
+        "each)"
+    )
 
 
 def _time_step(log: LabLog) -> list[str]:

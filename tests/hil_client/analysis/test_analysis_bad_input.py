@@ -601,8 +601,89 @@ def test_a_time_in_minutes_is_warned_by_the_fuel_it_would_burn(run_log, tmp_path
 
     path = _edited(run_log, tmp_path, "minutes", minutes)
     (tmp_path / "minutes.meta.json").unlink()  # (its marks are in seconds)
+    # (refused now, its heat to the water 1/60 of the fuel's energy: the time is named)
     main(["balance", path, "--boiler", "windhager_12kw"])
     assert "is time_s in seconds (not minutes)" in capsys.readouterr().err
     clean = str(run_log("stationary", "windhager_12kw").path)
     assert main(["balance", clean, "--boiler", "windhager_12kw"]) == 0
     assert "not minutes" not in capsys.readouterr().err
+
+
+# --- a stranger's probes of the log's form ------------------------------------------------
+
+
+def _log_text(rows: int = 60, header: str = HEADER, sep: str = ",") -> str:
+    body = "".join(
+        sep.join(f"{v}" for v in (i, 300, 50, 60, 60, 150, 8, 250 - 0.001 * i, 20)) + "\n"
+        for i in range(1, rows + 1)
+    )
+    return header.replace(",", sep) + "\n" + body
+
+
+def test_a_required_column_with_a_unit_after_its_name_is_named_in_the_error(tmp_path):
+    """'time_s [s]' gave "missing required column 'time_s'" with no word of the column
+    that is there."""
+    path = tmp_path / "units.csv"
+    path.write_text(_log_text(header=HEADER.replace("time_s", "time_s [s]")))
+    with pytest.raises(LogError) as info:
+        read_log(path)
+    assert str(info.value) == (
+        f"{path}: missing required column 'time_s' (column 'time_s [s]' has a unit or note "
+        "after the name: rename it 'time_s')"
+    )
+
+
+@pytest.mark.parametrize(("sep", "what"), [(";", "semicolons"), ("\t", "tabs")])
+def test_fields_separated_otherwise_cite_no_contract_falsely(tmp_path, sep, what):
+    path = tmp_path / "sep.csv"
+    path.write_text(_log_text(sep=sep))
+    with pytest.raises(LogError) as info:
+        read_log(path)
+    assert str(info.value) == (
+        f"{path}: fields separated by {what}, not commas (a lab log is a CSV: commas "
+        "between fields, '.' as the decimal point)"
+    )
+
+
+@pytest.mark.parametrize(("kind", "said"), [("gzip", "gzip"), ("zip", "a zip archive")])
+def test_a_compressed_log_is_said_to_be_compressed(tmp_path, kind, said):
+    """A gzip file was reported as "NUL bytes: UTF-16 without its byte-order mark"."""
+    import gzip
+    import zipfile
+
+    path = tmp_path / "log.csv"
+    if kind == "gzip":
+        path.write_bytes(gzip.compress(_log_text().encode()))
+    else:
+        with zipfile.ZipFile(path, "w") as z:
+            z.writestr("log.csv", _log_text())
+    with pytest.raises(LogError) as info:
+        read_log(path)
+    assert str(info.value).startswith(f"{path}: compressed ({said}), not a lab log's text")
+
+
+def test_a_balance_in_grams_is_refused_and_error_codes_are_still_missing(tmp_path):
+    """A balance in grams was taken as missing whole ("has no values", or dropped quietly);
+    an instrument's error code in most rows is still taken as missing (a gap is data)."""
+    path = tmp_path / "g.csv"
+    lines = _log_text().splitlines()
+    rows = [r.split(",") for r in lines[1:]]
+    for r in rows:
+        r[7] = f"{float(r[7]) * 1000:.1f}"
+    path.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    with pytest.raises(LogError) as info:
+        read_log(path)
+    assert (
+        str(info.value)
+        == f"{path}: column 'balance_mass_kg' reads around 249970: grams? (kg expected)"
+    )
+    for r in rows[:40]:
+        r[7] = "-999999"
+    for r in rows[40:]:
+        r[7] = "249.9"
+    path.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    log = read_log(path)
+    assert (
+        np.isnan(log["balance_mass_kg"][:40]).all()
+        and not np.isnan(log["balance_mass_kg"][40:]).any()
+    )

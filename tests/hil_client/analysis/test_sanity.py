@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from hil_client.analysis.logio import LabLog, read_log
-from hil_client.analysis.sanity import suspicious
+from hil_client.analysis.sanity import refuse_wrong_units, suspicious
 from hil_client.cli import main
 from rig_emulator.boilers import load_boiler
 
@@ -35,7 +35,7 @@ _WATER_AND_ROOM = ("water_in_temp_C", "water_out_temp_C", "boiler_water_temp_C",
 
 MUTATIONS = {
     "flow in l/min": ({"water_flow_kg_h": lambda x, t: x / 60.0}, "is the flow in kg/h"),
-    "kelvin": ({n: lambda x, t: x + 273.15 for n in _WATER_AND_ROOM}, "(kelvin?)"),
+    "kelvin": ({n: lambda x, t: x + 273.15 for n in _WATER_AND_ROOM}, "kelvin?"),
     "stuck forward": (
         {"water_out_temp_C": lambda x, t: np.full_like(x, 60.0)},
         "'water_out_temp_C' reads 60 throughout while the boiler burns fuel",
@@ -75,16 +75,17 @@ def test_each_wrong_unit_or_broken_sensor_is_named_in_one_line(logs, mutation):
 
 
 def test_balance_prints_the_warning_and_still_gives_its_figures(logs, tmp_path, capsys):
-    """A flow in l/min: the direct efficiency of 1.3 % came without a word; the figures stay
-    (a warning cannot know the right unit), the warning names where to look."""
+    """A flow read a third low: a direct efficiency of some 28 %, odd but not impossible
+    (a flow in l/min, 1.3 %, is refused: see below); the figures stay (a warning cannot know
+    the right unit), the warning names where to look."""
     src = logs["stationary"]
     lines = src.path.read_text().splitlines()
     header = lines[0].split(",")
     col = header.index("water_flow_kg_h")
     rows = [r.split(",") for r in lines[1:]]
     for r in rows:
-        r[col] = f"{float(r[col]) / 60.0:.5f}" if r[col] else r[col]
-    path = tmp_path / "lmin.csv"
+        r[col] = f"{float(r[col]) / 3.0:.5f}" if r[col] else r[col]
+    path = tmp_path / "third.csv"
     path.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
     out = tmp_path / "b.json"
     assert main(["balance", str(path), "--boiler", BOILER, "--out", str(out)]) == 0
@@ -121,7 +122,8 @@ def test_where_the_phases_cannot_be_found_the_error_says_what_looks_wrong(logs, 
     lmin = _rewritten(no_setpoint, tmp_path, "lmin.csv", "water_flow_kg_h", lambda v: v / 60)
     assert main(["balance", str(lmin), "--boiler", BOILER]) == 2
     err = capsys.readouterr().err.strip()
-    assert "cannot find" in err and "kg/h" in err and len(err.splitlines()) == 1, err
+    # (a flow in l/min is now refused by its unit before the phases are looked for)
+    assert "'water_flow_kg_h'" in err and "kg/h" in err and len(err.splitlines()) == 1, err
     # a time in milliseconds is refused before any fit, by its step or, logged faster
     # than every 0.6 s, by its span (a re-probe: 0.5-s rows in ms still calibrated)
     for scale, said in ((1e3, "a median of 1000 s per row"), (500, "spans 302 days")):
@@ -192,3 +194,147 @@ def test_a_meters_zero_in_a_long_standstill_is_no_reversed_flow(logs):
     assert not [w for w in suspicious(zero, load_boiler(BOILER)) if "water_flow_kg_h" in w]
     reversed_meter = _mutated(zero, water_flow_kg_h=lambda x, t: -x)
     assert any("negative" in w for w in suspicious(reversed_meter, load_boiler(BOILER)))
+
+
+# --- what no boiler's bench reads: refused -----------------------------------------------
+
+_KELVIN = {n: (lambda v: v + 273.15) for n in _WATER_AND_ROOM}
+REFUSED = {
+    # ten "(kelvin?)" warnings, then exit 0 everywhere with confident results (a probe)
+    "kelvin": (_KELVIN, "column 'water_in_temp_C' reads a median of", ": kelvin? convert to C"),
+    "flue gas in kelvin": (
+        {"flue_gas_temp_C": lambda v: v + 273.15},
+        "column 'flue_gas_temp_C' never reads below",
+        "kelvin? convert to C",
+    ),
+    "O2 fraction": (
+        {"flue_gas_O2_pct": lambda v: v / 100.0},
+        "column 'flue_gas_O2_pct' reads at most 0.2",
+        "a fraction, not vol-%",
+    ),
+    "flow in l/min": (
+        {"water_flow_kg_h": lambda v: v / 60.0 / 0.978},
+        "column 'water_flow_kg_h': the heat to the water is",
+        "(20%-150% for any boiler)",
+    ),
+    "balance in grams": (
+        {"balance_mass_kg": lambda v: v * 1000.0},
+        "column 'balance_mass_kg' reads around",
+        ": grams? (kg expected)",
+    ),
+}
+
+
+def _changed(src, tmp_path, name: str, changes: dict) -> object:
+    path = src
+    for column, change in changes.items():
+        path = _rewritten(path, tmp_path, name, column, change)
+    return path
+
+
+@pytest.mark.parametrize("mutation", REFUSED)
+def test_a_unit_no_bench_reads_is_refused_by_every_analysis(logs, tmp_path, capsys, mutation):
+    """A stranger's probes: temperatures in kelvin under _C names, oxygen as a fraction, a
+    flow in l/min under water_flow_kg_h (heat to water 2 % of the fuel's energy) gave
+    warnings and then results with exit 0; a balance in grams was taken as missing whole
+    ("has no values" from diagnose, and calibrate and validate dropped it quietly). Every
+    analysis now refuses the log in one line naming the file, the column and the figure,
+    exit 2, and writes nothing; in diagnose either log."""
+    changes, column, said = REFUSED[mutation]
+    bad = _changed(logs["stationary"].path, tmp_path, "bad.csv", changes)
+    good = _rewritten(logs["load_cycle"].path, tmp_path, "good.csv", "room_temp_C", float)
+    runs = {
+        "balance": [str(bad), "--out", str(tmp_path / "b.json")],
+        "validate": [str(bad), "--out", str(tmp_path / "v")],
+        "calibrate": [str(bad), "--out", str(tmp_path / "c.yaml")],
+        "diagnose": [
+            *("--calibration", str(good), "--validation", str(bad)),
+            *("--out", str(tmp_path / "d")),
+        ],
+    }
+    for command, rest in runs.items():
+        assert main([command, *rest, "--boiler", BOILER]) == 2, command
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1, err
+        assert err.startswith(f"hil-client: error: {bad}: {column}"), err
+        assert said in err, err
+    assert not any((tmp_path / n).exists() for n in ("b.json", "v", "c.yaml", "d"))
+
+
+def test_a_flow_of_zero_or_one_value_or_no_fuel_is_data_not_a_wrong_unit(logs):
+    """CONTRACT section 4: zero flow and constant columns are data. The heat to the water
+    of a flow that reads zero (or one value) throughout, or of a balance that loses no fuel,
+    is no ground to refuse a log."""
+    params = load_boiler(BOILER)
+    log = logs["stationary"]
+    for changes in (
+        {"water_flow_kg_h": lambda x, t: np.zeros_like(x)},
+        {"water_flow_kg_h": lambda x, t: np.full_like(x, 5.0)},
+        {"water_flow_kg_h": lambda x, t: x / 60.0, "balance_mass_kg": lambda x, t: x * 0 + 250},
+        {"water_flow_kg_h": lambda x, t: x / 60.0, "balance_mass_kg": lambda x, t: x * np.nan},
+    ):
+        refuse_wrong_units(_mutated(log, **changes), params)
+    # the warning band stays a warning
+    third = _mutated(log, water_flow_kg_h=lambda x, t: x / 3.0)
+    refuse_wrong_units(third, params)
+    assert any("is the flow in kg/h" in w for w in suspicious(third, params))
+
+
+def test_a_log_of_another_boiler_size_is_warned_by_calibrate(run_log, tmp_path, capsys):
+    """A stranger's probe: a 6-kW boiler's log calibrated as the 12-kW one (no meta file to
+    tell) fitted dTnom 43 K (documented 97) and Pstart 7.1 kW (13.2) with no word. The fits
+    stay, a warning names both figures, and the uncertainty file flags them."""
+    src = run_log("stationary", "windhager_6kw").path
+    bare = _rewritten(src, tmp_path, "six.csv", "room_temp_C", float)  # no meta file
+    out = tmp_path / "c.yaml"
+    assert main(["calibrate", str(bare), "--boiler", BOILER, "--out", str(out)]) == 0
+    said = [ln for ln in capsys.readouterr().out.splitlines() if "another boiler size" in ln]
+    assert len(said) == 1, said
+    assert "windhager_12kw" in said[0] and "13.2" in said[0] and "97" in said[0], said
+    flags = json.loads(out.with_suffix(".uncertainty.json").read_text())
+    assert "far_from_documentation" in flags["p_start_kW"]
+    assert "far_from_documentation" in flags["dt_nom_K"]
+    assert not flags["p_start_kW"]["implausible"]  # the fit is kept
+
+
+def test_a_log_of_its_own_boiler_size_is_not_warned(logs, tmp_path, capsys):
+    out = tmp_path / "c.yaml"
+    src = logs["stationary"].path
+    assert main(["calibrate", str(src), "--boiler", BOILER, "--out", str(out)]) == 0
+    assert "another boiler size" not in capsys.readouterr().out
+    flags = json.loads(out.with_suffix(".uncertainty.json").read_text())
+    assert not any("far_from_documentation" in v for v in flags.values())
+
+
+def test_too_few_rows_are_said_as_such(logs, tmp_path, capsys):
+    """A stranger's probe: logs of 1, 2 or 20 rows said "cannot find t0: the burner never
+    fires"; they say how many rows they have and the least the phases need."""
+    lines = _rewritten(logs["stationary"].path, tmp_path, "x.csv", "room_temp_C", float)
+    text = lines.read_text().splitlines()
+    for n in (1, 2, 20):
+        path = tmp_path / f"rows{n}.csv"
+        path.write_text("\n".join(text[: n + 1]) + "\n")
+        assert main(["balance", str(path), "--boiler", BOILER, "--out", str(tmp_path / "b")]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err == (
+            f"hil-client: error: {path}: only {n} data row(s); finding the phases from the "
+            "signals needs at least 50 (preheat, start-up, test and two coolings, some ten "
+            "readings each)"
+        ), err
+
+
+def test_every_warning_names_its_file(tmp_path, capsys):
+    """A stranger's probe: diagnose warned "the record ends before the circulation stops"
+    of the validation log without naming it (the phases' notes carry no file)."""
+    from hil_client.cli import _warn_tolerated
+
+    log = LabLog(tmp_path / "v.csv", {"time_s": np.arange(3.0)}, {}, {})
+    log.notes.append("the record ends before the circulation stops (acquisition cut short?)")
+    log.notes.append(f"{log.path}: 1 comment line(s) (#...) among the rows skipped")
+    _warn_tolerated([log])
+    err = capsys.readouterr().err.splitlines()
+    assert err == [
+        f"hil-client: warning: {log.path}: the record ends before the circulation stops "
+        "(acquisition cut short?)",
+        f"hil-client: warning: {log.path}: 1 comment line(s) (#...) among the rows skipped",
+    ]
