@@ -27,6 +27,7 @@ from __future__ import annotations
 import bisect
 import codecs
 import csv
+import itertools
 import json
 import math
 import re
@@ -337,17 +338,51 @@ def read_log(
     if np.isnan(t).any():
         i = int(np.flatnonzero(np.isnan(t))[0])
         raise LogError(f"{path}: column 'time_s' row {i + 2} is empty")
+    _drop_rows_written_twice(path, columns, text, notes)
+    t = columns["time_s"]
     steps = np.diff(t)
     if (steps <= 0).any():
         i = int(np.flatnonzero(steps <= 0)[0])
+        twice = " with other readings than the row before" if steps[i] == 0 else ""
         raise LogError(
-            f"{path}: column 'time_s' is not increasing at row {i + 3} ({t[i]:g} -> {t[i + 1]:g})"
+            f"{path}: column 'time_s' is not increasing at row {i + 3} ({t[i]:g} -> "
+            f"{t[i + 1]:g}){twice}"
         )
     meta_file = path.with_name(path.stem + ".meta.json")
     meta = _meta(meta_file)
     if not as_read:
         _drop_error_codes(path, columns, text, meta, meta_file, notes)
     return LabLog(path, columns, text, meta, notes)
+
+
+def _drop_rows_written_twice(
+    path: Path, columns: dict[str, np.ndarray], text: dict[str, list[str]], notes: list[str]
+) -> None:
+    """Drop each row that repeats the row before it, field for field (a logger that wrote
+    a row twice: its time does not advance, and the log was refused for it, though nothing
+    is lost by reading it once: a stranger's probe), said in ``notes``. A time repeated with
+    other readings is left for the caller to refuse: which row holds is not to be guessed."""
+    t = columns["time_s"]
+    same = np.diff(t) == 0
+    if not same.any():
+        return
+    for values in columns.values():
+        a, b = values[:-1], values[1:]
+        same &= (a == b) | (np.isnan(a) & np.isnan(b))
+    for values in text.values():
+        same &= np.array([x == y for x, y in itertools.pairwise(values)], dtype=bool)
+    if not same.any():
+        return
+    keep = np.concatenate(([True], ~same))
+    for name, values in columns.items():
+        columns[name] = values[keep]
+    for name, values in text.items():
+        text[name] = [v for v, k in zip(values, keep, strict=True) if k]
+    first = int(np.flatnonzero(same)[0]) + 3  # (the repeat's row, the header being row 1)
+    notes.append(
+        f"{path}: {int(same.sum())} row(s) written twice (the same time and readings as the "
+        f"row before, the first at row {first}); read once"
+    )
 
 
 def _meta(meta_file: Path) -> dict[str, Any]:

@@ -29,9 +29,10 @@ def _write(tmp_path, text: str):
     [
         ("time_s,water_flow_kg_h\n1,2\n", "missing required column 'water_in_temp_C'"),
         (
-            HEADER + "\n1,1,1,1,1,1,1,1,1\n1,1,1,1,1,1,1,1,1\n",
-            "'time_s' is not increasing at row 3",
+            HEADER + "\n1,1,1,1,1,1,1,1,1\n1,2,1,1,1,1,1,1,1\n",
+            "'time_s' is not increasing at row 3 (1 -> 1) with other readings than the row",
         ),
+        (HEADER + "\n2,1,1,1,1,1,1,1,1\n1,1,1,1,1,1,1,1,1\n", "not increasing at row 3 (2 -> 1)"),
         (HEADER + "\n1,1,1,1,1,x,1,1,1\n", "column 'flue_gas_temp_C' row 2: 'x' is not a number"),
         (HEADER + "\n1,1,1,1\n", "row 2 has 4 fields"),
         # a short row with rows after it is no cut-off write: refused wherever it is
@@ -52,6 +53,20 @@ def test_bad_logs_are_refused_naming_what_is_wrong(tmp_path, text, message):
     with pytest.raises(LogError) as info:
         read_log(_write(tmp_path, text))
     assert message in str(info.value) and "\n" not in str(info.value)
+
+
+def test_a_row_written_twice_is_read_once_and_said(tmp_path):
+    """A stranger's probe: a logger that wrote 200 rows twice (the same time and readings)
+    had its log refused ("'time_s' is not increasing"), though reading each once loses
+    nothing; a time repeated with other readings stays refused (above)."""
+    rows = [f"{i},{i},1,1,1,1,1,{9 - i / 10},1" for i in range(1, 6)]
+    twice = [rows[0], rows[1], rows[1], rows[2], rows[3], rows[3], rows[3], rows[4]]
+    log = read_log(_write(tmp_path, HEADER + ",phase\n" + "\n".join(f"{r},test" for r in twice)))
+    assert log["time_s"].tolist() == [1.0, 2.0, 3.0, 4.0, 5.0]
+    assert log["water_flow_kg_h"].tolist() == [1.0, 2.0, 3.0, 4.0, 5.0]
+    assert log.text["phase"] == ["test"] * 5
+    (note,) = log.notes
+    assert "3 row(s) written twice" in note and "the first at row 4" in note, note
 
 
 def test_a_last_row_cut_short_by_a_killed_acquisition_is_left_out_and_named(tmp_path, capsys):
