@@ -35,11 +35,15 @@ class PtyMasters:
     master opening the pty twice (a reader and a writer) was counted once, and its first
     close left it unanswered (a re-probe: 5 of 8 runs), and two closes merged left a count
     with nobody there. So each batch of events is followed by a count from /proc, the
-    truth wherever every process's descriptors can be read; the events in between tell
-    only that one master left and the next came within the batch.
+    truth wherever every process's descriptors can be read (a batch of opens alone
+    needs none: somebody is there); the events in between tell only that one master left
+    and the next came within the batch.
 
     Attributes:
         openers: descriptors of the client side held now (a master, or a prober).
+        arrivals: how many times a master came to a pty nobody had open (or as the last
+            one left): a reply to a request made before the last arrival is the departed
+            master's.
     """
 
     def __init__(self, path: str, fd: int, own: frozenset[int] = frozenset()) -> None:
@@ -47,6 +51,7 @@ class PtyMasters:
         self._fd = fd
         self._own = own
         self.openers = 0
+        self.arrivals = 0
 
     @classmethod
     def watch(cls, path: str, own: frozenset[int] = frozenset()) -> PtyMasters | None:
@@ -100,14 +105,17 @@ class PtyMasters:
                 elif mask & (IN_CLOSE_WRITE | IN_CLOSE_NOWRITE):
                     closed = True
                     counted = max(counted - 1, 0)
-        if not (opened or closed or overflowed):
-            return False, False
+        if not (closed or overflowed):  # (opens alone: somebody is there, as counted)
+            came = before == 0 and opened
+            self.openers, self.arrivals = counted, self.arrivals + came
+            return came, False
         seen, whole = count_openers(self.path, self._own)
         if overflowed:
             self.openers = seen
             return False, seen == 0
         self.openers = seen if whole else max(seen, counted)
         came = (before == 0 and opened) or swapped
+        self.arrivals += came
         return came, self.openers == 0
 
     def close(self) -> None:
