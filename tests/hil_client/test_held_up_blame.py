@@ -136,7 +136,10 @@ def test_a_connection_the_server_closed_keeps_the_server_s_cause(tmp_path):
         server.send_signal(signal.SIGTERM)
         server.wait(timeout=30)
     assert code == 0, err
-    (gap,) = _meta(out)["gaps"]
+    meta = _meta(out)
+    if meta["server_time_offset_s"] >= 400.0:  # (a CI run beside other work: no gap)
+        pytest.skip("the client connected after the disconnect (a loaded machine's start)")
+    (gap,) = meta["gaps"]
     assert gap["action"] == "reconnected" and gap["rig_epoch"] == 0, gap
     assert gap["reason"].startswith("connection lost ("), gap
     assert "held up" not in gap["reason"] and gap["client_held_up_s"] < HELD_UP_S, gap
