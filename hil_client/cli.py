@@ -1436,7 +1436,10 @@ def _run(args: argparse.Namespace, held: contextlib.ExitStack) -> int:
                 f"interrupted (Ctrl-C, SIGTERM or SIGHUP) after {written[0]} rows",
             ]
             meta["interrupted"] = True
-            write_meta(out, meta)
+            # a second interrupt waits (Ctrl-C pressed twice; `timeout` signals the child
+            # and its group: the meta file was left without its notes, a stranger's probe)
+            with contextlib.suppress(KeyboardInterrupt), _signals_held():
+                write_meta(out, meta)
         print(f"hil-client: interrupted; {kept}", file=sys.stderr)
         return 1
     finally:

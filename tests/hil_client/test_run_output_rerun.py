@@ -366,3 +366,35 @@ def test_a_meta_a_killed_set_aside_left_at_out_outlives_a_completing_run(tmp_pat
     assert f"the files without a log that were at {out} are kept as {aside}" in rerun.stderr
     assert aside.read_bytes() == earlier["a.meta.json"]
     assert (tmp_path / "a.previous.csv").read_bytes() == earlier["a.csv"]
+
+
+#: Run first in a run: a real SIGINT to itself once the meta has its first mark, and a
+#: second as the meta of the interrupted run is written (Ctrl-C pressed twice; `timeout`
+#: signals the child and its process group).
+SIGINT_TWICE = """
+import hil_client.cli as cli
+_write_meta = cli.write_meta
+def _hooked(path, meta):
+    if meta.get("interrupted"):
+        os.kill(os.getpid(), signal.SIGINT)
+    written = _write_meta(path, meta)
+    if meta.get("t0_s") is not None and not _hooked.sent:
+        _hooked.sent = True
+        os.kill(os.getpid(), signal.SIGINT)
+    return written
+_hooked.sent = False
+cli.write_meta = _hooked
+"""
+
+
+def test_a_second_ctrl_c_while_the_interrupted_runs_meta_is_written_waits(tmp_path):
+    """A stranger's probe: a run under `timeout -s INT` (which signals the child, then its
+    process group) said only "hil-client: interrupted", and its meta file kept no note,
+    no `interrupted`: the second signal came while that meta was written."""
+    out = tmp_path / "a.csv"
+    run = _hooked_run(SIGINT_TWICE, out)
+    assert run.returncode == 1, run.stderr
+    assert "interrupted; the log keeps the" in run.stderr, run.stderr
+    meta = json.loads((tmp_path / "a.meta.json").read_text())
+    assert meta["interrupted"] is True and meta["complete"] is False, meta
+    assert meta["notes"][-1].startswith("interrupted (Ctrl-C, SIGTERM or SIGHUP) after ")
