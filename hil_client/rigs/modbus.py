@@ -1297,6 +1297,16 @@ class ModbusRig:
             return _foreign(status["sim_time_s"] - sim_time)
         if status["sim_time_s"] < self._row_server_time - _TIME_TOLERANCE_S:
             return "the server was reset (its time went back)"
+        counter = status.get("lockstep_counter", math.nan)
+        if not math.isnan(counter) and int(counter) != self._base_counter:
+            # in real time only another client steps the clock (lockstep mode, an advance,
+            # real time again): its jump was logged as a hole this client was blamed for,
+            # the server "stalled", and rig_epoch stayed (a stranger's probe)
+            return (
+                "another client advanced the server (its step counter went from "
+                f"{self._base_counter} to {int(counter)}; the time moved "
+                f"{status['sim_time_s'] - self._row_server_time:g} s in this step)"
+            )
         return None
 
     def _stop_if_time_pinned(self, status: dict[str, float]) -> None:

@@ -89,6 +89,25 @@ def _meta(out: Path) -> dict:
     return json.loads(out.with_name(out.stem + ".meta.json").read_text())
 
 
+def test_another_client_advancing_a_real_time_server_is_a_break(serve_process, tmp_path):
+    """A stranger's probe: another client stepped a real-time server a day ahead (lockstep
+    mode, an advance of 86,400 s, real time again); the run logged a hole "the server
+    answered late (it stalled ...)", kept rig_epoch 0 and recorded no gap, and the analyses
+    took both sides for one plant. It is a break, as in lockstep."""
+    srv = serve_process("--speed", f"{SPEED:g}", "--allow-control")
+    out = tmp_path / "advanced.csv"
+
+    def advance() -> None:
+        _write(srv.port, ("clock_mode", 1.0), ("lockstep_advance_s", 86400.0), ("clock_mode", 0.0))
+
+    assert _run_while(srv.port, out, advance) == 1  # --on-restart abort, the default
+    meta = _meta(out)
+    (gap,) = meta["gaps"]
+    assert gap["reason"].startswith("another client advanced the server"), gap
+    assert gap["action"] == "abort", gap
+    assert not [n for n in meta["notes"] if "stalled" in n or CLIENT_BLAMED in n], meta
+
+
 def test_another_client_changing_the_speed_is_recorded_not_blamed_on_the_client(
     serve_process, tmp_path, capsys
 ):
