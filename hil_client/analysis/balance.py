@@ -42,6 +42,7 @@ from hil_client.analysis.logio import (
     balance_step_kg,
     fill_gaps,
     heat_needs_a_fall,
+    noisy_balance,
     record_steps,
 )
 from hil_client.analysis.phases import NAMES, Phases
@@ -161,6 +162,7 @@ def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[Ph
         and np.ptp(read_all) == 0
         and heat_needs_a_fall(heat_all, step_kg)
     )
+    noisy = noisy_balance(raw_mass)  # (said in each phase whose fuel rests on it)
     out = []
     for name in NAMES:
         mask = phases.mask(name, t)
@@ -212,6 +214,8 @@ def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[Ph
             )
         else:
             balance_loss = _read_across(not_read, readings, first, idx[-1], balance_loss, warn)
+            if noisy is not None and math.isfinite(balance_loss):
+                warn.append(noisy)
         fuel_dry = max(balance_loss, 0.0) / per_kg_dry if math.isfinite(balance_loss) else math.nan
         # (the balance's loss was given as the fuel as received, short of the ash left in
         # the box: read as such, it made a moisture error that does not exist, a stranger's

@@ -964,6 +964,26 @@ def balance_noise_kg(mass_kg: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(jumps - np.median(jumps))) / math.sqrt(2.0))
 
 
+#: A balance whose readings scatter more than this about its level [kg] (one standard
+#: deviation) hides falls and rises of :data:`REFILL_STEP_KG` in its noise: they stand less
+#: than four of its deviations out (a 0.6-kg sample on a 0.2-kg balance was fuel, and a
+#: 0.3-kg balance's upward noise passed for refills, 2.6 times the fuel: a re-probe).
+NOISY_BALANCE_KG = REFILL_STEP_KG / 4.0
+
+
+def noisy_balance(mass_kg: np.ndarray) -> str | None:
+    """The line saying that the balance's own noise (:func:`balance_noise_kg`, measured on
+    its readings) is beyond :data:`NOISY_BALANCE_KG`, else None."""
+    noise_kg = balance_noise_kg(mass_kg)
+    if noise_kg <= NOISY_BALANCE_KG:
+        return None
+    return (
+        f"column 'balance_mass_kg' scatters {noise_kg:.2f} kg from its level (its noise, "
+        f"measured on the log): refills, samples and dropouts under some {4 * noise_kg:.1f} kg "
+        "are not told from it, and the fuel figures carry it"
+    )
+
+
 def level_readings(noise_kg: float, step_kg: float, t: np.ndarray) -> int:
     """How many readings a level of the balance is read over: enough that their median
     scatters less than the balance's own step (:data:`MEDIAN_SPREAD` x ``noise_kg`` /

@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from hil_client.analysis.firing import observe_firing
-from hil_client.analysis.logio import LabLog, LogError, fill_gaps
+from hil_client.analysis.logio import LabLog, LogError, fill_gaps, noisy_balance
 from rig_emulator.model.params import BoilerParams
 from rig_emulator.model.water_heat import heat_to_water_kW
 
@@ -505,5 +505,8 @@ def suspicious(log: LabLog, params: BoilerParams | None = None) -> list[str]:
         *(_closure(log, params, burning) if params is not None else []),
         *_firing_gain(log, burning),
         *_quiet_gain(log, burning),
+        *filter(
+            None, [noisy_balance(log["balance_mass_kg"]) if log.has("balance_mass_kg") else None]
+        ),
     ]
     return [f"{log.path}: {line}" for line in found]

@@ -332,3 +332,21 @@ def test_a_tared_balance_in_grams_is_told_by_its_unit(params_12kw):
     assert math.isnan(row.fuel_as_received_kg)
     assert any("another unit" in w for w in row.warnings), row.warnings
     assert not any("by hand (a sample" in note for note in log.notes), log.notes
+
+
+@pytest.mark.parametrize(("sigma_kg", "said"), [(0.05, False), (0.1, False), (0.3, True)])
+def test_a_balance_whose_noise_hides_a_sample_says_so(params_12kw, sigma_kg, said):
+    """A re-probe: a balance scattering 0.3 kg read 2.6 times the fuel (its upward noise
+    passed for refills) and one of 0.2 kg counted a 0.6-kg sample as fuel, the phase's
+    warnings empty. Beyond a quarter of the 0.5-kg step that tells a refill or a sample
+    (four of its deviations), the phase says the balance's noise, measured on the log."""
+    from hil_client.analysis.sanity import suspicious
+
+    log = _noisy(sigma_kg, 0)
+    row = _test(log, params_12kw)
+    noisy = [w for w in row.warnings if "scatters" in w]
+    assert bool(noisy) is said, row.warnings
+    assert bool([w for w in suspicious(log) if "scatters" in w]) is said
+    if said:  # the noise as measured (a robust estimate over the log: to a tenth)
+        measured = float(noisy[0].split("scatters ")[1].split(" kg")[0])
+        assert measured == pytest.approx(sigma_kg, rel=0.1), noisy
