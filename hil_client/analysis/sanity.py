@@ -325,13 +325,15 @@ def _efficiency(log: LabLog, params: BoilerParams, burning: np.ndarray) -> tuple
     return heat_kJ / energy_kJ, fuel_kg
 
 
-def _closure_line(eta: float, fuel_kg: float, band: tuple[float, float], what: str) -> str:
+def _closure_line(
+    eta: float, fuel_kg: float, band: tuple[float, float], what: str, flow: str = "kg/h"
+) -> str:
     low, high = band
     return (
         f"the heat to the water is {eta:.0%} of the energy of the {fuel_kg:.2f} kg of fuel"
         f" the balance lost while the boiler fired ({low:.0%}-{high:.0%} {what}): is"
-        " the flow in kg/h, are the forward and return temperatures right, and is the balance"
-        " in kg?"
+        f" the flow in {flow}, are the forward and return temperatures right, and is the"
+        " balance in kg?"
     )
 
 
@@ -357,8 +359,10 @@ def _closure_refused(log: LabLog, params: BoilerParams, burning: np.ndarray) -> 
     low, high = DIRECT_EFFICIENCY_REFUSED
     if not np.isfinite(eta) or low <= eta <= high:
         return []
-    line = _closure_line(eta, fuel_kg, DIRECT_EFFICIENCY_REFUSED, "for any boiler")
-    return [f"column 'water_flow_kg_h': {line.replace('kg/h,', 'kg/h (not l/min),')}"]
+    line = _closure_line(
+        eta, fuel_kg, DIRECT_EFFICIENCY_REFUSED, "for any boiler", "kg/h (not l/min)"
+    )
+    return [f"column 'water_flow_kg_h': {line}"]
 
 
 def _firing_gain(log: LabLog, burning: np.ndarray) -> list[str]:
@@ -489,6 +493,11 @@ def _time_step(log: LabLog) -> list[str]:
     return []
 
 
+def _noisy_balance(log: LabLog) -> list[str]:
+    line = noisy_balance(log["balance_mass_kg"]) if log.has("balance_mass_kg") else None
+    return [line] if line else []
+
+
 def suspicious(log: LabLog, params: BoilerParams | None = None) -> list[str]:
     """One line per thing in ``log`` that looks like a wrong unit or a broken sensor (see
     the module docstring), each naming the log's file (without ``params``, the energy
@@ -505,8 +514,6 @@ def suspicious(log: LabLog, params: BoilerParams | None = None) -> list[str]:
         *(_closure(log, params, burning) if params is not None else []),
         *_firing_gain(log, burning),
         *_quiet_gain(log, burning),
-        *filter(
-            None, [noisy_balance(log["balance_mass_kg"]) if log.has("balance_mass_kg") else None]
-        ),
+        *_noisy_balance(log),
     ]
     return [f"{log.path}: {line}" for line in found]

@@ -105,18 +105,15 @@ class PtyMasters:
                 elif mask & (IN_CLOSE_WRITE | IN_CLOSE_NOWRITE):
                     closed = True
                     counted = max(counted - 1, 0)
-        if not (closed or overflowed):  # (opens alone: somebody is there, as counted)
-            came = before == 0 and opened
-            self.openers, self.arrivals = counted, self.arrivals + came
-            return came, False
-        seen, whole = count_openers(self.path, self._own)
         if overflowed:
-            self.openers = seen
-            return False, seen == 0
-        self.openers = seen if whole else max(seen, counted)
+            self.openers = count_openers(self.path, self._own)[0]
+            return False, self.openers == 0
+        if closed:  # (opens alone need no count: somebody is there, as counted)
+            seen, whole = count_openers(self.path, self._own)
+            counted = seen if whole else max(seen, counted)
         came = (before == 0 and opened) or swapped
-        self.arrivals += came
-        return came, self.openers == 0
+        self.openers, self.arrivals = counted, self.arrivals + came
+        return came, closed and counted == 0
 
     def close(self) -> None:
         with contextlib.suppress(OSError):
