@@ -55,7 +55,7 @@ bench: $(STAMP)
 bench-diagnosis: $(STAMP)
 	$(BIN)/python bench/reality_gap.py 20
 	$(BIN)/python bench/reality2_gap.py --cases 20
-	for plant in reality3 reality4 reality5 reality6 reality7 reality8 reality9; do \
+	for plant in reality3 reality4 reality5 reality6 reality7 reality8 reality9 reality10; do \
 		$(BIN)/python bench/reality2_gap.py --cases 20 --plant $$plant || exit 1; \
 	done
 

@@ -12,7 +12,7 @@ sequence: T RMSD 1.36-2.63 K, Q RMSD 0.30-0.67 kW over its four runs; the brief'
 1-3 K and 0.3-0.7 kW). Also the time to simulate one log. Figures are printed, never asserted.
 
     PYTHONPATH=. .venv/bin/python bench/reality2_gap.py [--cases 20] [--seed 7]
-        [--phase-from signals] [--plant reality3|...|reality9]
+        [--phase-from signals] [--plant reality3|...|reality10]
 """
 
 from __future__ import annotations

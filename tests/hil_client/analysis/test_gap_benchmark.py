@@ -130,9 +130,9 @@ def test_each_miss_says_which_of_the_diagnosis_tests_stopped_the_true_effect():
 
 
 def test_an_unknown_plant_is_named_in_one_line(tmp_path, capsys):
-    code = main(["gap-benchmark", "--plant", "reality10", "--out", str(tmp_path / "gap")])
+    code = main(["gap-benchmark", "--plant", "reality11", "--out", str(tmp_path / "gap")])
     err = capsys.readouterr().err
-    assert code == 2 and err.count("\n") == 1 and "reality10" in err and "reality3" in err
+    assert code == 2 and err.count("\n") == 1 and "reality11" in err and "reality3" in err
     assert not (tmp_path / "gap").exists()
 
 
