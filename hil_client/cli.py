@@ -61,7 +61,7 @@ from hil_client.modbus_client import READ_FUNCTIONS, WRITE_FUNCTIONS
 from hil_client.progress import LiveView, ProgressLine, hms
 from hil_client.protocol.definition import ProtocolError, load_protocol
 from hil_client.protocol.rig import RigError
-from hil_client.protocol.runner import RunResult, check_setpoints, run_protocol
+from hil_client.protocol.runner import RunResult, check_setpoints, listed, run_protocol
 from hil_client.rigs.local import LocalRig, wire_only_faults
 from hil_client.rigs.modbus import WRITES, ModbusRig, check_map
 from hil_client.rigs.transports import RIG_TIMEOUT_S, connector, tls_files
@@ -316,7 +316,7 @@ def _build_parser() -> argparse.ArgumentParser:
         action="append",
         metavar="NAME",
         help="only this independent plant: reality, reality2, or the held-out reality3 to "
-        "reality9 (repeatable) [reality and reality2]",
+        "reality10 (repeatable) [reality and reality2]",
     )
     return parser
 
@@ -853,16 +853,35 @@ def _end_notes(rig: object) -> list[str]:
 BREAKS_TOLD = 10
 
 
+#: What another client's write of each command the rig reads back did, in words.
+_OVERRIDES = {
+    "boiler_command": "the boiler was switched",
+    "pump_on": "the bench pump was switched",
+    "return_heating": "the return heating was switched",
+    "water_flow_setpoint_kg_h": "the flow setpoint was changed",
+    "return_setpoint_C": "the return setpoint was changed",
+}
+
+
+def _overridden_what(events: list[dict]) -> str:
+    """What the ``overridden`` events say was changed (an event without ``signals``, of an
+    earlier release: the boiler's switch)."""
+    signals = dict.fromkeys(s for e in events for s in e.get("signals") or ["boiler_command"])
+    return listed([_OVERRIDES.get(s, f"{s} was changed") for s in signals])
+
+
 def _overridden(events: list[dict]) -> str | None:
-    """One line on the rows where the boiler was not in the on/off state this run wrote
-    (another client, or a hand at the bench, switched it), or None."""
-    times = [e["time_s"] for e in events if e.get("event") == "overridden"]
-    if not times:
+    """One line on the rows where a command of this run's was not what it wrote (another
+    client, or a hand at the bench, switched the boiler or the pump, or wrote a setpoint),
+    or None."""
+    changed = [e for e in events if e.get("event") == "overridden"]
+    if not changed:
         return None
     return (
-        f"the boiler was switched against this run's command on {len(times)} row(s) (first at "
-        f"time_s {times[0]:g}; another client or a hand at the bench): each time the command "
-        "was written again, and those rows are not this protocol's (see the events file)"
+        f"{_overridden_what(changed)} against this run's command on {len(changed)} row(s) "
+        f"(first at time_s {changed[0]['time_s']:g}; another client or a hand at the bench): "
+        "each time the command was written again, and those rows are not this protocol's "
+        "(see the events file)"
     )
 
 
@@ -1370,15 +1389,15 @@ def _run(args: argparse.Namespace, held: contextlib.ExitStack) -> int:
                 notes_told[0] = len(rig_notes)
                 comm = getattr(rig, "comm_events", [])
                 fresh, switch_seen[0] = comm[switch_seen[0] :], len(comm)
-                if not switched_told[0] and any(  # said as it happens, once (two clients
-                    e.get("event") == "overridden"
-                    for e in fresh  # fought over the burner
-                ):  # for 155 rows in silence: a stranger's probe)
+                # said as it happens, once (two clients fought over the burner for 155
+                # rows in silence: a stranger's probe)
+                changed = [e for e in fresh if e.get("event") == "overridden"]
+                if not switched_told[0] and changed:
                     switched_told[0] = True
                     print(
-                        f"hil-client: warning: the boiler was switched against this run at "
-                        f"time_s {row[0]:g} (another client, or a hand at the bench); it is "
-                        "switched back each time, and the count comes at the end",
+                        f"hil-client: warning: {_overridden_what(changed)} against this run "
+                        f"at time_s {row[0]:g} (another client, or a hand at the bench); its "
+                        "command is written again each time, and the count comes at the end",
                         file=sys.stderr,
                     )
                 summary(row)

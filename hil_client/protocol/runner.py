@@ -229,7 +229,7 @@ def _hole(from_s: float, to_s: float, period_s: float, timing: StepTiming | None
         if len(late) == 1:
             who = f"unit {late[0][0]} (a slow unit, or a delay fault on it)"
         else:
-            named = _listed([f"unit {unit} ({waited:.1f} s)" for unit, waited in late])
+            named = listed([f"unit {unit} ({waited:.1f} s)" for unit, waited in late])
             who = f"{named} (slow units, or delay faults)"
         return (
             f"{head}the client waited {units_s:.1f} s on late replies of {who}, while the "
@@ -248,7 +248,7 @@ def _hole(from_s: float, to_s: float, period_s: float, timing: StepTiming | None
     )
 
 
-def _listed(items: list[str]) -> str:
+def listed(items: list[str]) -> str:
     """``a``, ``a and b``, ``a, b and c``."""
     return " and ".join(filter(None, (", ".join(items[:-1]), items[-1])))
 
@@ -259,7 +259,7 @@ def _sequences(indices: list[int], sequences: tuple[Sequence, ...]) -> tuple[str
     'b' (...)", "s")``."""
     named = [f"'{sequences[i].name}' (test_sequence.sequences[{i}])" for i in indices]
     plural = "s" if len(named) > 1 else ""
-    return f"sequence{plural} {_listed(named)}", plural
+    return f"sequence{plural} {listed(named)}", plural
 
 
 def _stop(result: RunResult, on_phase: Callable[[RunResult], None] | None, why: str) -> None:

@@ -35,7 +35,9 @@ a failed setpoint write is sent again next step. Each is an entry of :attr:`comm
 (``time_s`` of the row, ``server_time_s``, ``event``: ``timeout``, ``no_reply``,
 ``exception`` with its ``code``, ``late`` with ``wait_s``, ``invalid``, ``disconnect``,
 ``overridden``: the boiler's controller shows another on/off state than this rig wrote,
-another client's doing, written again; ``unit``, ``function`` and ``signals``). After a
+or the bench's pump, return heating or setpoints read back (:data:`READ_BACK`) are not
+what it wrote, another client's doing, written again, with ``read``: what they showed;
+``unit``, ``function`` and ``signals``). After a
 timeout the rig reconnects, so later steps do not queue behind a slow unit (on an RTU
 line a silent unit costs one timeout per request, one transaction at a time). The
 simulation control (unit 100) must answer: its transient exceptions (06 busy, a gateway's
@@ -161,6 +163,11 @@ WRITES = (
 )
 #: The setpoints the rig writes every step (checked against what their points carry).
 SETPOINTS = ("water_flow_setpoint_kg_h", "return_setpoint_C")
+#: The bench's commands read back with every step's readings (with checks): another
+#: client's write of one shows, as the boiler's switch shows in its controller's mode (a
+#: second client switched the bench pump off mid-test: 20,000 rows of flow 0, exit 0, and
+#: wrote return setpoints unseen: a stranger's probe).
+READ_BACK = ("water_flow_setpoint_kg_h", "return_setpoint_C", "pump_on", "return_heating")
 #: Every signal the rig reads or writes: a register map must have them all.
 NEEDED = (
     *(s for s in READING_KEYS if s not in OPTIONAL_READINGS),
@@ -436,6 +443,9 @@ class ModbusRig:
         #: the switches went out with this step's reads: the boiler's mode may not show them
         #: yet (a real-time server's controller takes them at its next tick)
         self._switches_in_flight = False
+        #: the setpoints this step's writes carried, where the server took them
+        self._setpoints_taken: dict[str, float] = {}
+        self._setpoints_sent: list[dict[str, float]] = []  # ... per command request
         #: the flow setpoint the server holds from this rig's writes, as carried (the log's)
         self.written_flow_setpoint_kg_h = math.nan
         self._flow_carried = math.nan  # ... that the step being sent carries
@@ -500,6 +510,10 @@ class ModbusRig:
         self._row_held_s = held_up_s()  # this process's hold-ups by the last row
         self._clock_read_at = self._row_wall  # when the server's clock was last read
         self._clock_read_held = self._row_held_s  # and this process's hold-ups by then
+        if checks:  # (the map's check above asked for the readings' blocks only; ahead
+            # of them: a silent unit's request last in a batch, which no later reply shows
+            # dropped, costs the reply timeout at every step)
+            plan = _read_plan(register_map, READ_BACK, trim=True) + plan
         # the units that take commands but serve no reading: one written point read back
         plan = plan + self._read_backs(plan)
         # the simulation control first: a slow instrument never holds up the step's checks
@@ -1113,19 +1127,39 @@ class ModbusRig:
                     at[into[p.signal]] = at.get(into[p.signal], 0) + 1
                     into[p.signal] = math.nan
 
-    def _check_boiler_switch(self, values: dict[str, float]) -> None:
-        """Another client (or a hand at the bench) switched the boiler: its controller's
-        mode (0: off, the only mode of a boiler not switched on) disagrees with the command
-        this rig wrote. An ``overridden`` event, and the switches are written again next
-        step (the rig writes them only when they change)."""
-        mode = values.get("boiler_mode", math.nan)
+    def _check_overrides(self, values: dict[str, float]) -> None:
+        """Another client (or a hand at the bench) changed a command of this rig's: the
+        boiler's controller's mode (0: off, the only mode of a boiler not switched on), the
+        bench's pump or return heating, or a setpoint read back (:data:`READ_BACK`) disagree
+        with what this rig wrote. An ``overridden`` event naming them (``read``: what they
+        showed), and the switches are written again next step (the rig writes them only
+        when they change; the setpoints go every step)."""
         cmd = self._command
         in_flight, self._switches_in_flight = self._switches_in_flight, False
-        if cmd is None or self._written_switches is None or math.isnan(mode) or in_flight:
-            return  # (a restarted plant's first row read "switched by another client")
-        if (mode != 0.0) != cmd.boiler_on:
-            unit, pdu = self._write_request("boiler_command", float(cmd.boiler_on))
-            self._event("overridden", unit, pdu[0], signals=["boiler_command"], mode=mode)
+        taken, self._setpoints_taken = self._setpoints_taken, {}
+        if cmd is None:
+            return
+        read: dict[str, float] = {}
+        # (switches written with this step's reads are judged next step: a restarted
+        # plant's first row read "switched by another client")
+        if self._written_switches is not None and not in_flight:
+            mode = values.get("boiler_mode", math.nan)
+            if not math.isnan(mode) and (mode != 0.0) != cmd.boiler_on:
+                read["boiler_command"] = mode
+            for signal, on in (("pump_on", cmd.pump_on), ("return_heating", cmd.return_heating)):
+                now = values.get(signal, math.nan)
+                if not math.isnan(now) and (now >= 0.5) != on:
+                    read[signal] = now
+        for signal, written in taken.items():
+            now = values.get(signal, math.nan)
+            if not math.isnan(now) and not math.isclose(now, written, rel_tol=1e-6):
+                read[signal] = now
+        if not read:
+            return
+        unit, pdu = self._write_request(next(iter(read)), 0.0)
+        extra = {"mode": read["boiler_command"]} if "boiler_command" in read else {}
+        self._event("overridden", unit, pdu[0], signals=list(read), read=read, **extra)
+        if read.keys() - set(SETPOINTS):
             self._written_switches = None
 
     def _commands_tolerant(self, requests: list[tuple[int, bytes]], replies: list[Reply]) -> None:
@@ -1133,11 +1167,14 @@ class ModbusRig:
         refused as an illegal value (03) is a candidate refusal (:meth:`_settle_refusals`).
         The flow setpoint (the step's first request) taken: what the server now holds."""
         self._refused.clear()
+        self._setpoints_taken = {}
         replies = self._single_coils(requests, replies)
         for i, ((unit, pdu), reply) in enumerate(zip(requests, replies, strict=True)):
             if isinstance(reply, bytes):
                 if i == 0 and self._command_labels:
                     self.written_flow_setpoint_kg_h = self._flow_carried
+                if i < len(self._setpoints_sent):  # (read back: :meth:`_check_overrides`)
+                    self._setpoints_taken.update(self._setpoints_sent[i])
                 continue
             self._failed(unit, pdu[0], reply, [])
             self._written_switches = None
@@ -1253,16 +1290,23 @@ class ModbusRig:
         self._flow_carried = written_value(flow, flow_words)
         flow_label = f"the write of water_flow_setpoint_kg_h = {self._flow_carried:g} kg/h"
         ret_label = f"return_setpoint_C = {cmd.return_setpoint_C:g} C"
+        ret_words = encode(ret, cmd.return_setpoint_C)
+        carried = {
+            "water_flow_setpoint_kg_h": self._flow_carried,
+            "return_setpoint_C": written_value(ret, ret_words),
+        }
         if flow_dev is ret_dev and ret.address == flow.address + flow.width:
-            words = flow_words + encode(ret, cmd.return_setpoint_C)
+            words = flow_words + ret_words
             requests = [(flow_dev.unit_id, write_registers_pdu(flow.address, words))]
             labels = [f"{flow_label} and {ret_label}"]
+            self._setpoints_sent = [carried]
         else:
             requests = [
                 (flow_dev.unit_id, write_registers_pdu(flow.address, flow_words)),
-                self._write_request("return_setpoint_C", cmd.return_setpoint_C),
+                (ret_dev.unit_id, write_registers_pdu(ret.address, ret_words)),
             ]
             labels = [flow_label, f"the write of {ret_label}"]
+            self._setpoints_sent = [{k: v} for k, v in carried.items()]
         switches = (cmd.pump_on, cmd.return_heating, cmd.boiler_on)
         if switches != self._written_switches:  # a new plant resets this to None
             for signal, on in zip(
@@ -1671,7 +1715,7 @@ class ModbusRig:
             timed_out = isinstance(self._conn, RtuConnection) and self._timed_out(reads)
             if timed_out and self._rebuilt_under_timeouts():
                 return self._step_again(dt_s)
-        self._check_boiler_switch(values)
+        self._check_overrides(values)
         self._logged = len(journal)
         server_time = self._journal_time[-1]
         self.sim_time_s = server_time
@@ -1712,7 +1756,7 @@ class ModbusRig:
                 )
                 gap["speed_before"], gap["speed_after"] = self.speed, speed  # no row lost
                 self._new_speed(speed)
-        self._check_boiler_switch(values)
+        self._check_overrides(values)
         server_time = values["sim_time_s"]
         self.sim_time_s = server_time
         self._row_server_time = server_time
@@ -1761,9 +1805,16 @@ class ModbusRig:
         )
 
     def unit_signals(self, unit: int) -> list[str]:
-        """The readings this rig reads from ``unit``, in the order of its reads."""
+        """The readings this rig reads from ``unit``, in the order of its reads (its
+        commands read back aside: :data:`READ_BACK`)."""
         return list(
-            dict.fromkeys(p.signal for r in self._reads if r.unit == unit for p in r.points)
+            dict.fromkeys(
+                p.signal
+                for r in self._reads
+                if r.unit == unit
+                for p in r.points
+                if p.signal not in READ_BACK
+            )
         )
 
     def end_notes(self) -> list[str]:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import time
 
 import pytest
 
@@ -127,11 +128,13 @@ def test_a_delay_ahead_of_the_lockstep_advance_loses_no_step_and_adds_none(serve
             for signal in ("flue_gas_O2_pct", "flue_gas_temp_C", "balance_mass_kg"):
                 assert not math.isnan(row[signal]), (t, signal)  # units 2, 4, 5
     timeouts = [e for e in rig.comm_events if e["event"] == "timeout" and e["unit"] == 1]
-    # the reads at the server's 4 and 5 s came too late to count
-    assert {(e["function"], e["server_time_s"]) for e in timeouts} == {(4, 4.0), (4, 5.0)}
+    # the reads at the server's 4 and 5 s came too late to count: the readings (04), and
+    # the setpoints (03) and switches (01) read back
+    expected = {(function, t) for function in (4, 3, 1) for t in (4.0, 5.0)}
+    assert {(e["function"], e["server_time_s"]) for e in timeouts} == expected
     # the writes of the steps from 4 and from 5 s came back late, so were carried out
     late = [e for e in rig.comm_events if e["event"] == "late" and e["unit"] == 1]
-    assert {e["server_time_s"] for e in late if e["function"] != 4} == {5.0, 6.0}
+    assert {e["server_time_s"] for e in late if e["function"] in (15, 16)} == {5.0, 6.0}
 
 
 def _run_with_report(serve, tmp_path, faults: list[dict], *extra: str):
@@ -267,13 +270,76 @@ def test_a_boiler_switched_off_by_another_client_is_noticed_and_switched_back(se
     assert modes[5.0] == 0.0 and all(modes[t] != 0.0 for t in (4.0, 6.0, 7.0, 8.0))
 
 
+def test_the_bench_pump_switched_off_by_another_client_is_noticed_and_switched_back(serve):
+    """A stranger's probe: a second client switched the bench pump off mid-test, and 20,000
+    test rows read flow 0 with exit 0 (the rig writes its switches only when they change,
+    and only the boiler's showed, in its controller's mode). The pump and return heating
+    coils are read back with every step: an ``overridden`` event naming the pump, and the
+    switches are written again."""
+    from tests.modbus_helpers import client, point, read_point, write
+
+    srv = serve()
+    rig = ModbusRig(f"modbus://127.0.0.1:{srv.port}", srv.map, timeout_s=2.0)
+    rig.apply(RigCommand(600.0, 55.0, True, True))
+    other = client(srv.port)
+    try:
+        for step in range(8):
+            if step == 4:
+                assert not write(other, srv, "bench_plc", "pump", 0).isError()
+            rig.advance(1.0)
+        pump = read_point(other, *point(srv, "bench_plc", "pump"))
+    finally:
+        other.close()
+        rig.close()
+    overridden = [e for e in rig.comm_events if e["event"] == "overridden"]
+    assert [(e["server_time_s"], e["signals"]) for e in overridden] == [(5.0, ["pump_on"])]
+    assert overridden[0]["read"] == {"pump_on": 0.0}
+    assert pump == 1.0  # written again
+
+
+def test_a_setpoint_another_client_wrote_within_a_step_is_noticed(serve):
+    """A stranger's probe: a second client's return setpoints, written on a real-time server
+    between this rig's writes, went unseen. The setpoints are read back with the step's
+    readings: one that is not what this rig wrote is an ``overridden`` event, and the step
+    after writes this rig's again (it writes them every step)."""
+    import threading
+
+    from tests.modbus_helpers import client, write
+
+    srv = serve(lockstep=False, speed=1.0)
+    rig = ModbusRig(f"modbus://127.0.0.1:{srv.port}", srv.map, timeout_s=2.0)
+    rig.apply(RigCommand(600.0, 55.0, True, True))
+    other = client(srv.port)
+    wrote = threading.Event()
+
+    def write_mid_step() -> None:  # well inside the 2-s step, after this rig's write
+        time.sleep(1.0)
+        wrote.set()
+        write(other, srv, "bench_plc", "return_setpoint", 30.0)
+
+    try:
+        rig.advance(1.0)
+        thread = threading.Thread(target=write_mid_step, daemon=True)
+        thread.start()
+        rig.advance(2.0)
+        thread.join(timeout=10)
+        rig.advance(1.0)
+    finally:
+        other.close()
+        rig.close()
+    assert wrote.is_set()
+    overridden = [e for e in rig.comm_events if e["event"] == "overridden"]
+    assert [(e["signals"], e["read"]) for e in overridden] == [
+        (["return_setpoint_C"], {"return_setpoint_C": 30.0})
+    ]
+
+
 def test_a_run_says_the_boiler_was_switched_against_it_as_it_happens(serve, tmp_path, capsys):
     """A stranger's probe: two clients on one real-time server fought over the burner for
     155 rows without a word on the console (the warning came only at a run's end, and an
     interrupted run never reached it). The first switch against the run is said as it
     happens, once; the count comes at the end."""
     import threading
-    import time
 
     from tests.modbus_helpers import client, write
 
@@ -327,6 +393,14 @@ def test_the_run_names_rows_where_the_boiler_was_switched_against_it():
     assert _overridden([{"event": "timeout", "time_s": 3.0}]) is None
     line = _overridden([{"event": "overridden", "time_s": 8814.0}] * 3)
     assert line is not None and "3 row(s)" in line and "time_s 8814" in line
+    assert line.startswith("the boiler was switched against")  # (no signals: an old event)
+    pump = {"event": "overridden", "time_s": 9.0, "signals": ["pump_on"]}
+    setpoint = {"event": "overridden", "time_s": 12.0, "signals": ["return_setpoint_C"]}
+    line = _overridden([pump, setpoint, pump])
+    assert line is not None and line.startswith(
+        "the bench pump was switched and the return setpoint was changed against this run's "
+        "command on 3 row(s) (first at time_s 9;"
+    ), line
 
 
 @pytest.mark.parametrize(

@@ -176,7 +176,7 @@ def test_a_hole_from_a_unit_s_late_replies_names_the_unit(serve_process, tmp_pat
     fault = (
         ("fault_kind", KIND_CODES["delay"]),
         ("fault_target", 1),
-        ("fault_parameter", 1500.0),
+        ("fault_parameter", 600.0),
         ("fault_duration_s", 150.0),
         ("fault_at_s", 0.0),  # now
         ("fault_command", 1),
@@ -208,7 +208,9 @@ def test_a_client_stopped_while_it_waited_on_a_late_unit_is_named_held_up(serve_
     the reply there when it goes on, so the stop looked like that wait, and a client
     SIGSTOPped 4 s while a 1500-ms delay fault held unit 1's replies was noted as "the
     client waited ... on late replies of unit 1". Its heartbeat saw it stand still: the
-    hole is the client's, held up the 4 s."""
+    hole is the client's, held up the 4 s. (The fault is 600 ms here: each step now waits
+    on unit 1 four times, its write, its readings and the setpoints and switches read back,
+    and at 1500 ms those 6 s outweighed the 4-s stop, which the note rightly names then.)"""
     srv = serve_process("--speed", f"{SPEED:g}", "--allow-control")
     out = tmp_path / "stopped.csv"
     protocol = tmp_path / "rt.yaml"
@@ -219,7 +221,7 @@ def test_a_client_stopped_while_it_waited_on_a_late_unit_is_named_held_up(serve_
     fault = (
         ("fault_kind", KIND_CODES["delay"]),
         ("fault_target", 1),
-        ("fault_parameter", 1500.0),
+        ("fault_parameter", 600.0),
         ("fault_duration_s", 1000.0),  # 10 s of wall at x100: every step waits on unit 1
         ("fault_at_s", 0.0),  # now
         ("fault_command", 1),
@@ -227,7 +229,7 @@ def test_a_client_stopped_while_it_waited_on_a_late_unit_is_named_held_up(serve_
 
     def stop_in_a_wait() -> None:
         _write_block(srv.port, *fault)
-        time.sleep(2.0)  # the client now spends 1.5 s of each step in that wait
+        time.sleep(2.0)  # the client now spends 2.4 s of each step in those waits
         os.kill(client.pid, signal.SIGSTOP)
         time.sleep(4.0)
         os.kill(client.pid, signal.SIGCONT)
