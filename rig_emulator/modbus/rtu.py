@@ -339,6 +339,11 @@ class RtuLine:
             masters = self._masters if not received else None
             watched = [self._fd, self._stop_r] + ([masters] if masters is not None else [])
             ready, _, _ = select.select(watched, [], [], timeout)
+            # the bytes ready now came by now: their time on the line is not the time the
+            # pty's count took (a /proc count of some ms put a master's request that late,
+            # and the next master's frame, sent within the line's silence after it as it
+            # really was, was read as part of it: both unanswered, a re-probe)
+            came_by = time.monotonic()
             if self._stop_r in ready:
                 return
             if masters is not None and masters in ready:  # (before its request)
@@ -368,9 +373,9 @@ class RtuLine:
                     continue
                 self._reopen_wait_s = REOPEN_FIRST_S
                 if not received:
-                    frame_start = max(now, line_free)
+                    frame_start = max(came_by, line_free)
                 carried = self._carried(
-                    len(data), frame_start + received * self.character_s, max(now, line_free)
+                    len(data), frame_start + received * self.character_s, max(came_by, line_free)
                 )
                 if carried < len(data):
                     self._discard(len(data) - carried, now)
@@ -378,7 +383,7 @@ class RtuLine:
                 if len(buffer) <= MAX_FRAME_BYTES:  # beyond: noise until the next silence
                     buffer += data[: MAX_FRAME_BYTES + 1 - len(buffer)]
                 wire_end = frame_start + received * self.character_s
-                deadline = max(wire_end, now) + self.silence_s
+                deadline = max(wire_end, came_by) + self.silence_s
                 if early is not None:  # more bytes: that frame was not the request
                     _abandon(early[1])
                 early = self._read_ahead(bytes(buffer)) if received <= MAX_FRAME_BYTES else None

@@ -618,6 +618,31 @@ def test_a_master_that_comes_before_the_last_ones_reply_does_not_get_it(rtu_serv
     assert _is_reply_of(_read_as_mbpoll(rtu_server.line.path, 4), 4)
 
 
+@pytest.mark.parametrize("after_reply_ms", [0.5, 1.5, 2.5, 3.5])
+def test_a_master_that_comes_as_the_last_ones_reply_is_written_does_not_get_it(
+    rtu_server, after_reply_ms
+):
+    """A re-probe: the next master opening the pty a few ms after the reply's hand-over
+    time of a master that asked and left (13-15 ms after its request at 19,200 baud) read
+    that reply as its own in 17 of 20 runs. The line counted the processes that had the
+    pty open as the reply came: the newcomer was in that count, but its open, read after
+    it, was not told as a master coming, and the reply was written into its queue. A
+    newcomer opening while the count runs is told now (the events are read again after
+    the count)."""
+    request = rtu_frame(1, _fc4(0, 2))
+    reply_at_s = 8 * character_s(BAUD) + silence_s(BAUD) + 9 * character_s(BAUD)
+    for _ in range(5):
+        gone = Line(rtu_server.line.path)
+        sent = time.monotonic()
+        gone.send(request)
+        time.sleep(0.001)  # (it leaves as its request is on the line)
+        gone.close()
+        time.sleep(max(sent + reply_at_s + after_reply_ms / 1000 - time.monotonic(), 0.0))
+        reply = _read_as_mbpoll(rtu_server.line.path, 4)
+        assert not _is_reply_of(reply[:9], 1), reply.hex()  # the one that left asked unit 1
+        time.sleep(0.1)
+
+
 def test_another_process_opening_the_pty_takes_no_masters_reply(rtu_server):
     """A re-probe: a process that opened and closed the pty while a master waited for its
     reply (``stty -F``, a prober) had the queue emptied at its close, and the master timed
