@@ -199,6 +199,18 @@ class _Break(Exception):
         self.reason = reason
         self.status = status
 
+    @property
+    def foreign(self) -> bool:
+        """Another client's doing (an advance or a reset), not a restart."""
+        return self.reason.startswith("another client")
+
+
+#: Breaks by another client's advance or reset, with no step between them that had none,
+#: after which a run that goes on from breaks stops: another run is stepping the same
+#: server, and neither's log is one plant's (two lockstep runs with --on-restart continue
+#: broke at every step, the meta grew to 2 MB and both crawled: a stranger's probe)
+FOREIGN_BREAKS_MAX = 5
+
 
 @dataclass(frozen=True, slots=True)
 class _Read:
@@ -443,6 +455,8 @@ class ModbusRig:
         #: the switches went out with this step's reads: the boiler's mode may not show them
         #: yet (a real-time server's controller takes them at its next tick)
         self._switches_in_flight = False
+        self._foreign_step = False  # another client broke the step being taken
+        self._foreign_breaks = 0  # another client's breaks with no clean step between
         #: the setpoints this step's writes carried, where the server took them
         self._setpoints_taken: dict[str, float] = {}
         self._setpoints_sent: list[dict[str, float]] = []  # ... per command request
@@ -1531,7 +1545,8 @@ class ModbusRig:
         return status["lockstep_counter"] == 0 and status["sim_time_s"] == 0.0
 
     def _on_break(self, brk: _Break) -> None:
-        """A break: stop (abort) or go on from the plant as it is, one epoch higher."""
+        """A break: stop (abort) or go on from the plant as it is, one epoch higher; stop
+        too where another client has broken it :data:`FOREIGN_BREAKS_MAX` times in a row."""
         status = brk.status
         if self.on_restart == "abort":
             self._gap(brk.reason, "abort", status)
@@ -1539,6 +1554,17 @@ class ModbusRig:
                 f"{self.url}: {brk.reason} after time_s = {self.log_time_s:g} s; stopped "
                 "(--on-restart abort; restart-phase or continue would go on, the break marked)"
             )
+        if brk.foreign:
+            self._foreign_step = True
+            self._foreign_breaks += 1
+        if self._foreign_breaks >= FOREIGN_BREAKS_MAX:
+            reason = (
+                f"{brk.reason}, {self._foreign_breaks} times in a row: another client is "
+                "stepping this server too (two runs on one server are neither's plant; "
+                "give each its own)"
+            )
+            self._gap(reason, "abort", status)
+            raise RigError(f"{self.url}: {reason}; stopped after time_s = {self.log_time_s:g} s")
         self.epoch += 1
         self._gap(brk.reason, self.on_restart, status)
         same = status["epoch_id"] == self._epoch_id
@@ -1581,6 +1607,7 @@ class ModbusRig:
         Returns the log time that passed [s]: ``dt_s`` in lockstep, more in real time when
         the client fell behind, and more across a break (see the module docstring).
         """
+        self._foreign_step = False  # (another client broke this step: see _on_break)
         for _ in range(1000):
             self._step_failures.clear()  # (an attempt given up left its own)
             try:
@@ -1604,6 +1631,7 @@ class ModbusRig:
             self._row_wall = time.monotonic()
             self._row_held_s = held_up_s()
             self._stepped = True
+            self._foreign_breaks = self._foreign_breaks if self._foreign_step else 0
             for event in self._step_events:
                 self.comm_events.append(
                     {"time_s": round(self.log_time_s, 3), "server_time_s": self.sim_time_s} | event

@@ -474,3 +474,30 @@ def test_a_delay_longer_than_the_reconnect_timeout_stops_the_run_in_one_line(ser
         rig.advance(1.0)  # its setpoints held the advance back 4 s
     rig.close()
     assert rig.gaps[-1]["action"] == "abort"
+
+
+def test_two_runs_stepping_one_lockstep_server_stop_after_five_breaks_in_a_row(serve):
+    """A stranger's probe: two lockstep runs on one server, both with --on-restart
+    continue, broke at every step (each saw the other's advance), their meta files grew to
+    2 MB and both crawled on. Five breaks by another client with no clean step between
+    stop the run, the last gap saying why (a lone advance by another client goes on as
+    before: tests/hil_client/test_restarts.py)."""
+    from hil_client.protocol.rig import RigError
+
+    srv = serve()
+    url = f"modbus://127.0.0.1:{srv.port}"
+    first = ModbusRig(url, srv.map, timeout_s=2.0, on_restart="continue")
+    second = ModbusRig(url, srv.map, timeout_s=2.0, on_restart="continue")
+    for rig in (first, second):
+        rig.apply(RigCommand(600.0, 55.0, True, True))
+    try:
+        with pytest.raises(RigError, match="another client is stepping this server too"):
+            for _ in range(20):  # (the second breaks first: the first stepped before it)
+                first.advance(1.0)
+                second.advance(1.0)
+    finally:
+        first.close()
+        second.close()
+    assert [g["action"] for g in second.gaps] == ["continue"] * 4 + ["abort"]
+    assert "5 times in a row" in second.gaps[-1]["reason"]
+    assert len(first.gaps) == 4  # (it stepped four times after the other's advances)
