@@ -63,6 +63,7 @@ import fcntl
 import logging
 import os
 import select
+import stat
 import termios
 import threading
 import time
@@ -220,6 +221,16 @@ def _configure(fd: int, baud: int, parity: str) -> bool:
     held = termios.tcgetattr(fd)
     mask = termios.PARENB | termios.PARODD | termios.CSTOPB
     return (held[2] & mask) == (cflag & mask) and held[4] == attrs[4] and held[5] == attrs[5]
+
+
+def _link_of(path: str) -> tuple[int, int] | None:
+    """A symbolic link's identity (its inode and change time), None where ``path`` is no
+    link (or nothing)."""
+    try:
+        status = os.lstat(path)
+    except OSError:
+        return None
+    return (status.st_ino, status.st_ctime_ns) if stat.S_ISLNK(status.st_mode) else None
 
 
 def _abandon(answer: Future) -> None:
@@ -413,12 +424,19 @@ class RtuLine:
             with contextlib.suppress(OSError):
                 os.close(self._fd)
             self._fd = None
+        # a link that named the line that went away names no line: a pty given the same
+        # number later is another program's (a test's server, its socat pair gone, opened
+        # the next test's pty under the old link and took its bytes); a line comes back as
+        # a new link (socat started again) or a device at a plain path
+        stale = _link_of(self.path)
         while not select.select([self._stop_r], [], [], self._reopen_wait_s)[0]:
             self._reopen_wait_s = min(2.0 * self._reopen_wait_s, REOPEN_MAX_S)
             if own:
                 if self._fd is not None and not hung_up(self._fd):
                     log.info("RTU %s: the line is back, served again", self.path)
                     return True
+                continue
+            if stale is not None and _link_of(self.path) == stale:
                 continue
             try:
                 fd, _, _, applied = open_line(self.path, self.baud, self.parity, warn=False)

@@ -7,11 +7,15 @@ coming back."""
 from __future__ import annotations
 
 import os
+import select
 import struct
 import time
 import tty
 from pathlib import Path
 
+import pytest
+
+from rig_emulator.modbus.rtu_wire import frame
 from tests.rig_emulator.transports.served import RtuClient, serving
 
 READ = struct.pack(">BHH", 4, 0, 2)  # FC4 of 2 registers; its reply starts 04 04
@@ -93,4 +97,38 @@ def test_a_line_that_goes_away_is_said_and_served_again_when_it_comes_back(tmp_p
     gone = [text for text in served.stderr if "the line went away (hang-up)" in text]
     back = [text for text in served.stderr if "the line is back" in text]
     assert len(gone) == 2, served.stderr  # one line each time it went, not one per read
+    assert len(back) == 1 and f"({second.name})" in back[0], served.stderr
+
+
+def test_a_pty_that_takes_the_gone_lines_number_under_its_old_link_is_not_opened(tmp_path):
+    """Found in a CI run: a server whose line went away opened the path again when a pty
+    was there, and its link still named the old pty's number, which the kernel gave the
+    next pty made: another test's, whose bytes it then read and answered (both failed).
+    A link that named the line that went away names no line; a new link does."""
+    link = tmp_path / "line"
+    first = PtyAt(link)
+    with serving("--serial", str(link), serial=True) as served:
+        try:
+            assert first.exchange(1, READ)[:2] == bytes([4, 4])  # the control, before
+        finally:
+            first.close()
+        time.sleep(1.0)  # the server sees the hang-up
+        master, slave = os.openpty()  # the freed number, most times
+        try:
+            if os.ttyname(slave) != first.name:
+                pytest.skip(f"the kernel gave {os.ttyname(slave)}, not {first.name} again")
+            tty.setraw(slave)
+            # the server looks again within 2 s at most (its longest wait): 3 s of silence
+            os.write(master, frame(1, READ))
+            ready = select.select([master], [], [], 3.0)[0]
+            assert not ready, "the server answered on another program's pty"
+        finally:
+            os.close(slave)
+            os.close(master)
+        second = PtyAt(link)  # a new link: the line is back
+        try:
+            assert _answered(second, within_s=15.0)[:2] == bytes([4, 4])
+        finally:
+            second.close()
+    back = [text for text in served.stderr if "the line is back" in text]
     assert len(back) == 1 and f"({second.name})" in back[0], served.stderr
