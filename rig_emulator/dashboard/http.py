@@ -713,12 +713,15 @@ _TOKEN = re.compile(r"[!#$%&'*+\-.^_`|~0-9A-Za-z]+")
 
 
 async def _read_request(reader: asyncio.StreamReader) -> tuple[str, str, dict[str, str], bytes]:
+    first = await reader.readexactly(1)
+    if first == TLS_HANDSHAKE:  # (it waited 10 s for a line end and said 408: a probe)
+        raise BadRequest("a TLS handshake: this port serves plain HTTP (http://, not https://)")
     try:  # the request line first: a target too long (414) is told from long headers (400)
-        line = await reader.readuntil(b"\r\n")
+        line = first + await reader.readuntil(b"\n")
     except asyncio.LimitOverrunError:
         raise TooLong(f"request target longer than {MAX_TARGET_BYTES} bytes") from None
     try:
-        method, target, version = line.decode("latin-1").removesuffix("\r\n").split(" ")
+        method, target, version = _line(line).split(" ")
     except ValueError:
         raise BadRequest("malformed request line") from None
     if len(target) > MAX_TARGET_BYTES:
@@ -727,15 +730,15 @@ async def _read_request(reader: asyncio.StreamReader) -> tuple[str, str, dict[st
     size = 0
     while True:
         try:
-            field = await reader.readuntil(b"\r\n")
+            field = await reader.readuntil(b"\n")
         except asyncio.LimitOverrunError:
             raise BadRequest("headers too long") from None
         size += len(field)
         if size > MAX_HEADER_BYTES:
             raise BadRequest("headers too long")
-        if field == b"\r\n":
+        if field in (b"\r\n", b"\n"):
             break
-        lines.append(field.decode("latin-1").removesuffix("\r\n"))
+        lines.append(_line(field))
     if not version.startswith("HTTP/1."):
         raise BadRequest(f"unsupported protocol {version!r}")
     headers: dict[str, str] = {}
@@ -769,6 +772,17 @@ async def _read_request(reader: asyncio.StreamReader) -> tuple[str, str, dict[st
         raise BadRequest(f"body of {length} bytes (at most {MAX_BODY_BYTES})")
     body = await reader.readexactly(length) if length else b""
     return method, target, headers, body
+
+
+#: The first byte of a TLS record carrying a handshake (RFC 8446 5.1: ContentType 22)
+TLS_HANDSHAKE = b"\x16"
+
+
+def _line(raw: bytes) -> str:
+    """A request or header line without its end: CRLF, or a bare LF, which RFC 9112 2.2
+    lets a recipient take as one (typed into nc, it waited 10 s and said 408: a
+    stranger's probe)."""
+    return raw.decode("latin-1").removesuffix("\n").removesuffix("\r")
 
 
 def _host(version: str, target: str, hosts: list[str]) -> str:

@@ -319,6 +319,11 @@ def test_a_content_length_that_is_no_number_of_bytes_or_given_twice_is_a_400(ser
         (b"GET / HTTP/1.1\r\nHost : 127.0.0.1\r\n\r\n", b"400", b"malformed header"),
         (b"GET / HTTP/1.1\r\nHost:\r\n 127.0.0.1\r\n\r\n", b"400", b"folded"),
         (b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nno colon\r\n\r\n", b"400", b"malformed"),
+        # RFC 9112 2.2: a bare LF may end a line (typed into nc: it waited 10 s for a CRLF
+        # and said 408, a stranger's probe); a TLS hello is told at once, not after 10 s
+        (b"GET /api/state HTTP/1.0\n\n", b"200", b'"units"'),
+        (b"GET /api/state HTTP/1.1\nHost: 127.0.0.1\r\n\n", b"200", b'"units"'),
+        (b"\x16\x03\x01\x00\xa5\x01\x00\x00\xa1\x03\x03", b"400", b"a TLS handshake"),
     ],
 )
 def test_the_host_is_one_field_or_the_targets_authority(served_once, request_bytes, status, said):
