@@ -779,7 +779,7 @@ def _make_rig(args: argparse.Namespace, params: BoilerParams, register_map: Regi
             file=sys.stderr,
         )
     with bad_input(ValueError, prefix="--rig: "):
-        tls = tls_files(args)
+        tls = tls_files(args, args.rig)
         connect = connector(args.rig, timeout_s, tls)
         if tls is not None and (problem := validity_problem(tls.cert)):
             print(

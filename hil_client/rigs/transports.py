@@ -64,12 +64,15 @@ class TlsFiles:
     ca: Path
 
 
-def tls_files(options: Any) -> TlsFiles | None:
+def tls_files(options: Any, url: str | None = None) -> TlsFiles | None:
     """The :class:`TlsFiles` of parsed ``--tls-cert``/``--tls-key``/``--tls-ca`` options
-    (None if none is given; ValueError if only some are)."""
+    (None if none is given; ValueError if only some are, or any for a ``url`` that is no
+    Modbus/TCP Security rig: a plain rig's --tls-cert was told to add --tls-key)."""
     given = {name: getattr(options, name, None) for name in ("tls_cert", "tls_key", "tls_ca")}
     if not any(given.values()):
         return None
+    if url is not None and not url.startswith("modbus+tls://"):
+        raise ValueError(f"--tls-* options need a modbus+tls:// rig, not {url}")
     missing = [f"--{k.replace('_', '-')}" for k, v in given.items() if not v]
     if missing:
         raise ValueError(f"TLS needs {', '.join(missing)} too")

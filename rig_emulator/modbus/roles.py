@@ -195,8 +195,9 @@ def _units(value: Any, where: str) -> frozenset[int]:
     units = set()
     for item in value:
         if isinstance(item, bool) or not isinstance(item, int) or item not in UNIT_IDS:
+            written = str(item).lower() if isinstance(item, bool) else item  # (as in YAML)
             raise RolesError(
-                f"{where}: '{item}' is not a unit ID (1-247; 0 is the broadcast address, "
+                f"{where}: '{written}' is not a unit ID (1-247; 0 is the broadcast address, "
                 "248-255 are reserved)"
             )
         units.add(item)

@@ -244,7 +244,11 @@ class Authorisation:
         suppressed = self._refusal_log.admit(info.peer, reason)
         if suppressed is not None:
             subject = self._subjects.get(info.peer, "no TLS")
-            more = f"; {suppressed} refusals not logged before this" if suppressed else ""
+            more = (  # (counted over every connection: they were charged to this one's)
+                f"; {suppressed} refusals of any connection not logged since the last such line"
+                if suppressed
+                else ""
+            )
             log.warning(
                 "refused function %d to unit %d of %s (subject %s, role %s): %s "
                 "(exception 01; further refusals of this kind on this connection not logged%s)",

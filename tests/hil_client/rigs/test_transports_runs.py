@@ -152,6 +152,11 @@ def test_tls_options_checked_before_connecting(certs, tmp_path, capsys):
     missing = [*_tls_args(certs, "engineer")[:4], "--tls-ca", str(tmp_path / "none.pem")]
     assert _run(SHORT, *args, *missing) == 2
     assert "--tls-ca" in capsys.readouterr().err and not out.exists()
+    # a plain rig given one TLS option: not told to add the other two (a stranger's probe)
+    plain = ["--rig", "modbus://127.0.0.1:1", "--out", str(out), "--tls-cert", "x.pem"]
+    assert _run(SHORT, *plain) == 2
+    err = capsys.readouterr().err
+    assert "--tls-* options need a modbus+tls:// rig" in err and "needs --tls-key" not in err
 
 
 @pytest.fixture

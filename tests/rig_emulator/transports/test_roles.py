@@ -196,7 +196,7 @@ def test_file_redefines_roles(tmp_path):
         ('roles: {"eng\\tineer": {read: all}}\n', "holds U+0009: a control character"),
         ('roles: {"\\n": {read: all}}\n', "role name '\\n' is not a non-empty text"),
         ("roles: {a: {read: some}}\n", "roles.a.read: 'some' is neither"),
-        ("roles: {a: {write: [true]}}\n", "roles.a.write: 'True' is not a unit ID"),
+        ("roles: {a: {write: [true]}}\n", "roles.a.write: 'true' is not a unit ID"),
         ("roles: {a: {read: all}}\ndefault_role: b\n", "default_role 'b' is not one"),
         ("roles: {a: 3}\n", "roles.a: expected a mapping"),
         ("roles: [\n", "not valid YAML"),
