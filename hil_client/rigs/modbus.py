@@ -486,6 +486,12 @@ class ModbusRig:
             hint = ""
             if url.startswith("modbus://") and "closed by the server" in str(exc):
                 hint = " (a Modbus/TCP Security port closes plain connections: modbus+tls://?)"
+            elif url.startswith("modbus-rtu://") and "no reply" in str(exc):
+                hint = (  # (a stranger's probe: the emulator now answers as a device would)
+                    " (a device at another baud rate or parity than the URL's gets every "
+                    "frame garbled and answers none: ?baud=...&parity=...; the server's log "
+                    "names the speed a master set)"
+                )
             elif url.startswith("modbus+tls://") and "closed by the server" in str(exc):
                 hint = (
                     " (a Modbus/TCP Security server closes the connection of a client "

@@ -112,6 +112,7 @@ _BAUD_CONSTANTS = {
     for name in dir(termios)
     if name.startswith("B") and name[1:].isdigit()
 }
+_BAUD_OF = {constant: baud for baud, constant in _BAUD_CONSTANTS.items()}
 
 
 class SerialConfigError(ValueError):
@@ -262,6 +263,7 @@ class RtuLine:
     ) -> None:
         self.server = server
         self.baud = baud
+        self._speeds_said: set[int] = set()  # other speeds masters set, said once each
         self.parity = parity
         self.character_s = character_s(baud)
         self.silence_s = silence_s(baud)
@@ -534,8 +536,10 @@ class RtuLine:
     def _transaction(self, request: bytes, ended: float, answer: Future | None = None) -> float:
         """Answer one frame that ended (silence included) at ``ended`` (``answer``: its reply,
         already under way); when the line is free again."""
-        if len(request) > MAX_FRAME_BYTES:
+        if len(request) > MAX_FRAME_BYTES or self._at_another_speed():
             self.crc_errors += 1
+            if answer is not None:
+                _abandon(answer)
             return ended
         decoded = unframe(request)
         if decoded is None:
@@ -573,6 +577,36 @@ class RtuLine:
         finally:
             for hold in holds:
                 hold.close()
+
+    def _at_another_speed(self) -> bool:
+        """Whether a master set the pty to another speed than the line's: the client side's
+        settings are one for all its openers, so what a master set is read there (the line
+        set its own at the start). On a line its frames would come garbled, so none is
+        answered (a stranger's probe: hil-client at ?baud=9600, and mbpoll -b 9600, read a
+        19,200-baud line for rows on end, where the bench would have answered nothing).
+        Said once per speed. A Linux pty keeps no parity, so parity is not compared."""
+        if self._keep_fd is None:
+            return False
+        try:
+            speed = termios.tcgetattr(self._keep_fd)[4]
+        except termios.error:
+            return False
+        if speed == _BAUD_CONSTANTS[self.baud]:
+            return False
+        if speed not in self._speeds_said:
+            self._speeds_said.add(speed)
+            baud = _BAUD_OF.get(speed, f"an unknown rate (termios {speed})")
+            log.warning(
+                "RTU %s: a master set the line to %s baud; it runs at %d baud, so its frames "
+                "come garbled, as on a line, and get no reply (give the master %d baud, or "
+                "serve --baud %s)",
+                self.path,
+                baud,
+                self.baud,
+                self.baud,
+                baud,
+            )
+        return True
 
     def _held(self, ended: float, delay_s: float, holds: list[DelayHold]) -> float | None:
         """Wait out a delay fault's ``delay_s`` after the request ``ended``, no longer than

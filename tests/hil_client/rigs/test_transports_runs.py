@@ -185,6 +185,20 @@ def test_run_over_rtu_equals_the_local_run(rtu_server, tiny, tmp_path):
     assert rtu_server.line.crc_errors == 0
 
 
+def test_a_run_at_another_baud_rate_than_the_lines_is_told_why_nothing_answers(
+    rtu_server, tiny, tmp_path, capsys
+):
+    """A stranger's probe: ?baud=9600 on a 115,200-baud line logged rows as if the lab's
+    serial settings were right; a bench would answer nothing. The run stops before its
+    first row, saying the device may run at another baud rate or parity."""
+    out = tmp_path / "rtu.csv"
+    rig = f"modbus-rtu://{rtu_server.line.path}?baud=9600&parity=E"
+    assert _run(str(tiny), "--rig", rig, "--reply-timeout", "0.5", "--out", str(out)) == 1
+    err = capsys.readouterr().err
+    assert "no reply" in err and "another baud rate or parity than the URL's" in err, err
+    assert rtu_server.line.transactions == 0
+
+
 def _step_alike(
     rig: ModbusRig, ref: ModbusRig, command: RigCommand, killer: threading.Thread | None = None
 ) -> None:

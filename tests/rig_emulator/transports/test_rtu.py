@@ -643,6 +643,32 @@ def test_a_master_that_comes_as_the_last_ones_reply_is_written_does_not_get_it(
         time.sleep(0.1)
 
 
+def test_a_master_at_another_baud_rate_gets_no_reply_and_the_log_says_why(rtu_server, caplog):
+    """A stranger's probe: hil-client at ?baud=9600 (and mbpoll -b 9600) read a 19,200-baud
+    line for rows on end; on the bench every frame would come garbled and none be answered.
+    The pty's client side holds the speed a master set: a frame at another is not
+    answered, and the server's log says so once; the master back at the line's speed is."""
+    import termios
+
+    caplog.set_level("WARNING", logger="rig_emulator.serve")
+    master = Line(rtu_server.line.path)
+    try:
+        attrs = termios.tcgetattr(master.fd)
+        attrs[4] = attrs[5] = termios.B9600
+        termios.tcsetattr(master.fd, termios.TCSANOW, attrs)
+        for _ in range(2):
+            master.send(rtu_frame(4, _fc4(0, 2)))
+            assert master.read(9, timeout_s=0.5) == b""
+        said = [r.getMessage() for r in caplog.records if "set the line to 9600" in r.getMessage()]
+        assert len(said) == 1 and "it runs at 19200 baud" in said[0], said
+        attrs[4] = attrs[5] = termios.B19200
+        termios.tcsetattr(master.fd, termios.TCSANOW, attrs)
+        master.send(rtu_frame(4, _fc4(0, 2)))
+        assert _is_reply_of(master.read(9, timeout_s=2.0), 4)
+    finally:
+        master.close()
+
+
 def test_another_process_opening_the_pty_takes_no_masters_reply(rtu_server):
     """A re-probe: a process that opened and closed the pty while a master waited for its
     reply (``stty -F``, a prober) had the queue emptied at its close, and the master timed
