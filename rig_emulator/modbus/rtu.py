@@ -335,6 +335,7 @@ class RtuLine:
         line_free = 0.0  # the end of the silence after the last frame on the line
         deadline = 0.0  # when the silence after the bytes received so far is complete
         early: tuple[int, Future] | None = None  # a read answered ahead: (length, answer)
+        frame_arrivals = 0  # the pty's arrivals as the frame began (see below)
         while True:
             timeout = max(deadline - time.monotonic(), 0.0) if received else None
             for check_at in (self._unread_check_at, self._nobody_check_at):
@@ -359,8 +360,11 @@ class RtuLine:
             came_by = time.monotonic()
             if self._stop_r in ready:
                 return
+            swap_with_bytes = False  # a master left and the next came as bytes waited
             if masters is not None and masters in ready:  # (before its request)
+                arrivals_before = masters.arrivals
                 self._masters_changed()
+                swap_with_bytes = masters.swapped and self._fd in ready
             now = time.monotonic()
             if now - self._discard_logged_at >= DISCARD_LOG_INTERVAL_S:
                 self._log_discards_left()
@@ -387,6 +391,14 @@ class RtuLine:
                 self._reopen_wait_s = REOPEN_FIRST_S
                 if not received:
                     frame_start = max(came_by, line_free)
+                    # the masters there as the frame began: one that comes while it is read
+                    # (the last one leaving as it asked) is not its master (a re-probe: a
+                    # newcomer 0-3 ms after the request read the reply)
+                    frame_arrivals = self._masters.arrivals if self._masters is not None else 0
+                    if swap_with_bytes:  # whose they are, the leaver's or the newcomer's,
+                        # cannot be told: the frame is the leaver's, unanswered (a newcomer's
+                        # is asked again, as after a collision)
+                        frame_arrivals = arrivals_before
                 carried = self._carried(
                     len(data), frame_start + received * self.character_s, max(came_by, line_free)
                 )
@@ -407,7 +419,7 @@ class RtuLine:
                 if early is not None and answer is None:
                     _abandon(early[1])
                 early = None
-                line_free = self._transaction(request, deadline, answer)
+                line_free = self._transaction(request, deadline, answer, frame_arrivals)
 
     def _line_back(self, why: str) -> bool:
         """The line went away (``why``): say so, close it and open its path again, the wait
@@ -533,9 +545,12 @@ class RtuLine:
         with contextlib.suppress(OSError):  # (full: a wake is pending; closed: stopped)
             os.write(self._wake_w, b"w")
 
-    def _transaction(self, request: bytes, ended: float, answer: Future | None = None) -> float:
+    def _transaction(
+        self, request: bytes, ended: float, answer: Future | None = None, arrivals: int = 0
+    ) -> float:
         """Answer one frame that ended (silence included) at ``ended`` (``answer``: its reply,
-        already under way); when the line is free again."""
+        already under way; ``arrivals``: :attr:`PtyMasters.arrivals` as it began); when the
+        line is free again."""
         if len(request) > MAX_FRAME_BYTES or self._at_another_speed():
             self.crc_errors += 1
             if answer is not None:
@@ -555,8 +570,6 @@ class RtuLine:
             return ended
         if unit_id not in self.server.units:
             return ended  # nobody on the line has that address: silence, as on a line
-        # (the masters that came by the request: one that comes after it is not its master)
-        arrivals = self._masters.arrivals if self._masters is not None else 0
         if answer is None:
             info = RequestInfo.of(unit_id, pdu, self.path, None)
             answer = asyncio.run_coroutine_threadsafe(self._answer(info, pdu), self._loop)
