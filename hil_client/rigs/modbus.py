@@ -205,11 +205,13 @@ class _Break(Exception):
         return self.reason.startswith("another client")
 
 
-#: Breaks by another client's advance or reset, with no step between them that had none,
+#: Breaks by another client's advance or reset within :data:`FOREIGN_WINDOW_STEPS` steps
 #: after which a run that goes on from breaks stops: another run is stepping the same
 #: server, and neither's log is one plant's (two lockstep runs with --on-restart continue
-#: broke at every step, the meta grew to 2 MB and both crawled: a stranger's probe)
+#: broke at every step, the meta grew to 2 MB and both crawled: a stranger's probe; one
+#: stepping it every 30 ms, a clean step between, made 121 breaks: a re-probe)
 FOREIGN_BREAKS_MAX = 5
+FOREIGN_WINDOW_STEPS = 200
 
 
 @dataclass(frozen=True, slots=True)
@@ -455,8 +457,7 @@ class ModbusRig:
         #: the switches went out with this step's reads: the boiler's mode may not show them
         #: yet (a real-time server's controller takes them at its next tick)
         self._switches_in_flight = False
-        self._foreign_step = False  # another client broke the step being taken
-        self._foreign_breaks = 0  # another client's breaks with no clean step between
+        self._foreign_breaks: list[int] = []  # another client's breaks: the steps by then
         #: the setpoints this step's writes carried, where the server took them
         self._setpoints_taken: dict[str, float] = {}
         self._setpoints_sent: list[dict[str, float]] = []  # ... per command request
@@ -532,8 +533,12 @@ class ModbusRig:
         self._clock_read_held = self._row_held_s  # and this process's hold-ups by then
         if checks:  # (the map's check above asked for the readings' blocks only; ahead
             # of them: a silent unit's request last in a batch, which no later reply shows
-            # dropped, costs the reply timeout at every step)
-            plan = _read_plan(register_map, READ_BACK, trim=True) + plan
+            # dropped, costs the reply timeout at every step). In lockstep the setpoints go
+            # with the step's advance, so another client's come before them and are
+            # written over: the switches only (a read less a step: 10-25 % of the steps a
+            # second, a re-probe)
+            backs = READ_BACK if not self.lockstep else READ_BACK[len(SETPOINTS) :]
+            plan = _read_plan(register_map, backs, trim=True) + plan
         # the units that take commands but serve no reading: one written point read back
         plan = plan + self._read_backs(plan)
         # the simulation control first: a slow instrument never holds up the step's checks
@@ -1160,11 +1165,13 @@ class ModbusRig:
         if cmd is None:
             return
         read: dict[str, float] = {}
-        # (switches written with this step's reads are judged next step: a restarted
-        # plant's first row read "switched by another client")
-        if self._written_switches is not None and not in_flight:
+        if self._written_switches is not None:
+            # the boiler's mode shows a switch written with this step's reads next step
+            # (its controller takes it at a tick: a restarted plant's first row read
+            # "switched by another client"); a coil read back after its write shows it
+            # (judged next step, a pump another client kept off went untold every other row)
             mode = values.get("boiler_mode", math.nan)
-            if not math.isnan(mode) and (mode != 0.0) != cmd.boiler_on:
+            if not in_flight and not math.isnan(mode) and (mode != 0.0) != cmd.boiler_on:
                 read["boiler_command"] = mode
             for signal, on in (("pump_on", cmd.pump_on), ("return_heating", cmd.return_heating)):
                 now = values.get(signal, math.nan)
@@ -1552,7 +1559,8 @@ class ModbusRig:
 
     def _on_break(self, brk: _Break) -> None:
         """A break: stop (abort) or go on from the plant as it is, one epoch higher; stop
-        too where another client has broken it :data:`FOREIGN_BREAKS_MAX` times in a row."""
+        too where another client has broken it :data:`FOREIGN_BREAKS_MAX` times within
+        :data:`FOREIGN_WINDOW_STEPS` steps."""
         status = brk.status
         if self.on_restart == "abort":
             self._gap(brk.reason, "abort", status)
@@ -1561,11 +1569,13 @@ class ModbusRig:
                 "(--on-restart abort; restart-phase or continue would go on, the break marked)"
             )
         if brk.foreign:
-            self._foreign_step = True
-            self._foreign_breaks += 1
-        if self._foreign_breaks >= FOREIGN_BREAKS_MAX:
+            self._foreign_breaks.append(self.rows_stepped)
+        recent = [n for n in self._foreign_breaks if n > self.rows_stepped - FOREIGN_WINDOW_STEPS]
+        self._foreign_breaks = recent
+        if len(recent) >= FOREIGN_BREAKS_MAX:
             reason = (
-                f"{brk.reason}, {self._foreign_breaks} times in a row: another client is "
+                f"{brk.reason}, {len(recent)} times within {FOREIGN_WINDOW_STEPS} steps: "
+                "another client is "
                 "stepping this server too (two runs on one server are neither's plant; "
                 "give each its own)"
             )
@@ -1613,7 +1623,6 @@ class ModbusRig:
         Returns the log time that passed [s]: ``dt_s`` in lockstep, more in real time when
         the client fell behind, and more across a break (see the module docstring).
         """
-        self._foreign_step = False  # (another client broke this step: see _on_break)
         for _ in range(1000):
             self._step_failures.clear()  # (an attempt given up left its own)
             try:
@@ -1637,7 +1646,6 @@ class ModbusRig:
             self._row_wall = time.monotonic()
             self._row_held_s = held_up_s()
             self._stepped = True
-            self._foreign_breaks = self._foreign_breaks if self._foreign_step else 0
             for event in self._step_events:
                 self.comm_events.append(
                     {"time_s": round(self.log_time_s, 3), "server_time_s": self.sim_time_s} | event
