@@ -63,7 +63,6 @@ class PtyMasters:
         arrivals: how many times a master came to a pty nobody had open (or as the last
             one left): a reply to a request made before the last arrival is the departed
             master's.
-        swapped: the last batch held the last master leaving and the next coming.
     """
 
     def __init__(self, path: str, fd: int, own: frozenset[int] = frozenset()) -> None:
@@ -72,7 +71,6 @@ class PtyMasters:
         self._own = own
         self.openers = 0
         self.arrivals = 0
-        self.swapped = False
 
     @classmethod
     def watch(cls, path: str, own: frozenset[int] = frozenset()) -> PtyMasters | None:
@@ -121,11 +119,9 @@ class PtyMasters:
             batch.running = seen if whole else max(seen, batch.running)
         if batch.overflowed:
             self.openers = count_openers(self.path, self._own)[0]
-            self.swapped = False
             return False, self.openers == 0
         came = (before == 0 and batch.opened) or batch.swapped
         self.openers, self.arrivals = batch.running, self.arrivals + came
-        self.swapped = batch.swapped
         return came, batch.closed and batch.running == 0
 
     def _take(self, batch: _Batch) -> _Batch:

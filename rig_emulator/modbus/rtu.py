@@ -360,11 +360,8 @@ class RtuLine:
             came_by = time.monotonic()
             if self._stop_r in ready:
                 return
-            swap_with_bytes = False  # a master left and the next came as bytes waited
             if masters is not None and masters in ready:  # (before its request)
-                arrivals_before = masters.arrivals
                 self._masters_changed()
-                swap_with_bytes = masters.swapped and self._fd in ready
             now = time.monotonic()
             if now - self._discard_logged_at >= DISCARD_LOG_INTERVAL_S:
                 self._log_discards_left()
@@ -395,10 +392,6 @@ class RtuLine:
                     # (the last one leaving as it asked) is not its master (a re-probe: a
                     # newcomer 0-3 ms after the request read the reply)
                     frame_arrivals = self._masters.arrivals if self._masters is not None else 0
-                    if swap_with_bytes:  # whose they are, the leaver's or the newcomer's,
-                        # cannot be told: the frame is the leaver's, unanswered (a newcomer's
-                        # is asked again, as after a collision)
-                        frame_arrivals = arrivals_before
                 carried = self._carried(
                     len(data), frame_start + received * self.character_s, max(came_by, line_free)
                 )
