@@ -456,6 +456,44 @@ def test_the_held_out_log_may_not_be_the_calibration_log_again(run_log, tmp_path
     assert not _same_record(read_log(other), read_log(cal))
 
 
+def test_a_part_or_a_thinning_of_the_calibration_log_either_way_round_is_refused(
+    run_log, tmp_path, capsys
+):
+    """A stranger's probe: the held-out log as the calibration log less its first row, its
+    odd rows, a random half of its rows, or the calibration log as a thinned copy or a later
+    part of the held-out one, were taken as held out (exit 0, 85-92 % shrinkage measured
+    on the calibration data itself). Each is refused, whichever role it is given."""
+    from hil_client.cli import _same_record
+
+    whole = run_log("load_cycle", "windhager_12kw").path
+    lines = whole.read_text().splitlines()
+    rng = np.random.default_rng(3)
+
+    def part(name: str, rows: list[str]):
+        path = tmp_path / name
+        path.write_text("\n".join([lines[0], *rows]) + "\n")
+        return path
+
+    body = lines[1:]
+    parts = [
+        part("no_first_row.csv", body[1:]),
+        part("odd_rows.csv", body[1::2]),
+        part("random_half.csv", [r for r in body if rng.random() < 0.5]),
+        part("every_10_s.csv", body[::10]),
+        part("from_row_5000.csv", body[5000:]),
+        part("first_half.csv", body[: len(body) // 2]),
+    ]
+    log = read_log(whole)
+    for path in parts:
+        other = read_log(path)
+        assert _same_record(log, other) and _same_record(other, log), path.name
+    argv = ["diagnose", "--calibration", str(parts[3]), "--validation", str(whole)]
+    assert main([*argv, "--boiler", "windhager_12kw", "--out", str(tmp_path / "d")]) == 2
+    err = capsys.readouterr().err
+    assert "--validation: the same record as --calibration, or a part of it" in err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "d").exists()
+
+
 @pytest.mark.parametrize("target", ["short.csv", "short.meta.json", "short.modbus_events.jsonl"])
 def test_balance_may_not_write_over_its_own_log(tmp_path, capsys, target):
     """``balance --out LOG.csv`` (or its meta file) wrote its JSON over the lab log and
