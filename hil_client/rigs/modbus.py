@@ -458,12 +458,12 @@ class ModbusRig:
         #: yet (a real-time server's controller takes them at its next tick)
         self._switches_in_flight = False
         self._foreign_breaks: list[int] = []  # another client's breaks: the steps by then
-        #: the setpoints this step's writes carried, where the server took them
+        #: the setpoints this step's writes carried, where the server took them (read back
+        #: in real time only: in lockstep they go with the advance)
         self._setpoints_taken: dict[str, float] = {}
         self._setpoints_sent: list[dict[str, float]] = []  # ... per command request
         #: the flow setpoint the server holds from this rig's writes, as carried (the log's)
         self.written_flow_setpoint_kg_h = math.nan
-        self._flow_carried = math.nan  # ... that the step being sent carries
         self._command_labels: list[str] = []  # what each command request of the step sets
         #: writes refused this step as no fault would (03; 01 to FC15 and FC5): (unit,
         #: what was refused and how, why the method cannot be carried out: "" the 03's)
@@ -1198,10 +1198,11 @@ class ModbusRig:
         replies = self._single_coils(requests, replies)
         for i, ((unit, pdu), reply) in enumerate(zip(requests, replies, strict=True)):
             if isinstance(reply, bytes):
-                if i == 0 and self._command_labels:
-                    self.written_flow_setpoint_kg_h = self._flow_carried
-                if i < len(self._setpoints_sent):  # (read back: :meth:`_check_overrides`)
-                    self._setpoints_taken.update(self._setpoints_sent[i])
+                sent = self._setpoints_sent[i] if i < len(self._setpoints_sent) else {}
+                if "water_flow_setpoint_kg_h" in sent:
+                    self.written_flow_setpoint_kg_h = sent["water_flow_setpoint_kg_h"]
+                if not self.lockstep:  # (read back: :meth:`_check_overrides`)
+                    self._setpoints_taken.update(sent)
                 continue
             self._failed(unit, pdu[0], reply, [])
             self._written_switches = None
@@ -1314,14 +1315,15 @@ class ModbusRig:
         flow_dev, flow = self._points["water_flow_setpoint_kg_h"]
         ret_dev, ret = self._points["return_setpoint_C"]
         flow_words = encode(flow, cmd.flow_setpoint_kg_h)
-        self._flow_carried = written_value(flow, flow_words)
-        flow_label = f"the write of water_flow_setpoint_kg_h = {self._flow_carried:g} kg/h"
-        ret_label = f"return_setpoint_C = {cmd.return_setpoint_C:g} C"
         ret_words = encode(ret, cmd.return_setpoint_C)
         carried = {
-            "water_flow_setpoint_kg_h": self._flow_carried,
+            "water_flow_setpoint_kg_h": written_value(flow, flow_words),
             "return_setpoint_C": written_value(ret, ret_words),
         }
+        flow_label = (
+            f"the write of water_flow_setpoint_kg_h = {carried['water_flow_setpoint_kg_h']:g} kg/h"
+        )
+        ret_label = f"return_setpoint_C = {cmd.return_setpoint_C:g} C"
         if flow_dev is ret_dev and ret.address == flow.address + flow.width:
             words = flow_words + ret_words
             requests = [(flow_dev.unit_id, write_registers_pdu(flow.address, words))]
