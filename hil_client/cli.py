@@ -669,9 +669,9 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
             if written == documented
             else f"{written:.4g} written, at that bound (documentation value {documented:.4g})"
         )
-        print(f"warning: {key}: {why}; {kept}")
+        print(f"hil-client: warning: {key}: {why}; {kept}", file=sys.stderr)
     for line in result.warnings:
-        print(f"warning: {line}")
+        print(f"hil-client: warning: {line}", file=sys.stderr)
     print(f"written: {args.out}, {side}, " + ", ".join(str(p) for p in figures))
     return 0
 

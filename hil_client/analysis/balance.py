@@ -113,6 +113,13 @@ READ = (
 )
 
 
+#: A balance that gains more than this [kg] over a phase the burner fired in, or over a
+#: validated segment, reads no fuel there: the fuel only leaves (its sign reversed, or a
+#: refill the refill detection did not take out). The fuel is unknown, not 0 kg, nor the
+#: negative mass ``validate`` gave (a stranger's probe).
+GAIN_UNREAD_KG = 0.1
+
+
 #: The largest share of a phase's firing rows the flue-gas temperature may miss before its
 #: loss is unknown (what is interpolated over more than half the firing is no reading).
 UNREAD_MAX = 0.5
@@ -216,6 +223,13 @@ def energy_balance(log: LabLog, params: BoilerParams, phases: Phases) -> list[Ph
             balance_loss = _read_across(not_read, readings, first, idx[-1], balance_loss, warn)
             if noisy is not None and math.isfinite(balance_loss):
                 warn.append(noisy)
+            if fired_s > 0 and balance_loss < -GAIN_UNREAD_KG:
+                warn.append(
+                    f"the balance gains {-balance_loss:.2f} kg over the phase while the "
+                    "burner fires, which burns fuel (its sign reversed, or a refill not taken "
+                    "out?): fuel, Q_fuel, flue-gas loss and efficiencies unknown"
+                )
+                balance_loss = math.nan
         fuel_dry = max(balance_loss, 0.0) / per_kg_dry if math.isfinite(balance_loss) else math.nan
         # (the balance's loss was given as the fuel as received, short of the ash left in
         # the box: read as such, it made a moisture error that does not exist, a stranger's

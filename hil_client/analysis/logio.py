@@ -492,6 +492,9 @@ class _Parsed:
                 self.parts[j] = []
         #: per number column: (row, field as written) of its first implausible reading
         self.first_wild: dict[int, tuple[int, str]] = {}
+        #: per number column: [fields read as no reading (NaN, NA, #N/A ...), the first's
+        #: row, that field as written] (said, as the implausible ones are: a stranger's probe)
+        self.no_reading: dict[int, list] = {}
 
     def add(self, rows: list[list[str]]) -> None:
         if not rows:
@@ -508,6 +511,7 @@ class _Parsed:
                     f"{self.path}: column '{name}' row {self.rows + i + 2}: '{_shown(v)}' is "
                     "not a number"
                 )
+            self._count_no_readings(j, values, out, self.rows)
             if not self.as_read and j not in self.first_wild:
                 low, high = plausible_range(self.header[j])
                 wild = np.isinf(out) | (out < low) | (out > high)
@@ -516,6 +520,14 @@ class _Parsed:
                     self.first_wild[j] = (self.rows + i, values[i])
             self.parts[j].append(out)
         self.rows += len(rows)
+
+    def _count_no_readings(self, j: int, values: Any, out: np.ndarray, first_row: int) -> None:
+        """Count the fields of column ``j`` written but read as no reading (``out`` NaN)."""
+        missing = np.flatnonzero(np.isnan(out))
+        said = [int(i) for i in missing if values[i].strip()] if len(missing) else []
+        if said:
+            seen = self.no_reading.setdefault(j, [0, first_row + said[0], values[said[0]]])
+            seen[0] += len(said)
 
     def finish(self, notes: list[str]) -> tuple[dict[str, np.ndarray], dict[str, list[str]]]:
         """The columns and the text columns, with what was tolerated added to ``notes``."""
@@ -551,6 +563,16 @@ class _Parsed:
                 del parts
             if j in self.first_wild:
                 self._implausible(name, out, *self.first_wild[j], notes)
+            if j in self.no_reading:
+                count, i, written = self.no_reading[j]
+                if name == "time_s":
+                    raise LogError(
+                        f"{path}: column 'time_s' row {i + 2}: '{_shown(written)}' is no time"
+                    )
+                notes.append(
+                    f"{path}: column '{name}': {count} field(s) written as no reading (first "
+                    f"row {i + 2}: '{_shown(written)}'), taken as missing"
+                )
             columns[name] = out
         return columns, text
 

@@ -456,9 +456,16 @@ def check_time_step(log: LabLog) -> None:
             f"most {1 / TIME_STEP_MIN_S:g} a second)"
         )
     span = float(t[-1] - t[0]) if len(t) else 0.0
+    jumps = np.diff(t)
+    if span > TIME_SPAN_REFUSE_S and float(jumps.max()) > 0.5 * span:  # one row's time
+        i = int(np.argmax(jumps)) + 1  # (a last row of 1e300 was shown as 300 digits of
+        raise LogError(  # days and called milliseconds: a stranger's probe)
+            f"{log.path}: column 'time_s': the row at {t[i]:.6g} s comes {jumps[i - 1] / 86400:.3g}"
+            f" days after the row before ({t[i - 1]:.6g} s): a wrong time in that row?"
+        )
     if span > TIME_SPAN_REFUSE_S:
         raise LogError(
-            f"{log.path}: column 'time_s' spans {span / 86400:.0f} days: a time in "
+            f"{log.path}: column 'time_s' spans {span / 86400:.3g} days: a time in "
             f"milliseconds? (a test bench's run lasts hours to days; the analyses read at "
             f"most {TIME_SPAN_REFUSE_S / 86400:.0f})"
         )

@@ -25,7 +25,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hil_client.analysis.balance import flue_gas_loss_per_kg, fuel_rate_from_balance
+from hil_client.analysis.balance import (
+    GAIN_UNREAD_KG,
+    flue_gas_loss_per_kg,
+    fuel_rate_from_balance,
+)
 from hil_client.analysis.logio import (
     LabLog,
     LogError,
@@ -189,6 +193,8 @@ def validation_metrics(comp: Comparison, log: LabLog, params: BoilerParams) -> d
             sum(mass[run[0] - 1 if run[0] > 0 and not gap[run[0]] else run[0]] - mass[run[-1]]
                 for run in runs)
         )  # fmt: skip
+        if lab_kg < -GAIN_UNREAD_KG:  # (the fuel only leaves: see GAIN_UNREAD_KG)
+            lab_kg = math.nan
         fuel[name] = {
             "model_kg": model_kg,
             "balance_kg": lab_kg if math.isfinite(lab_kg) else None,

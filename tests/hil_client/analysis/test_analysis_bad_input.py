@@ -16,6 +16,7 @@ from hil_client.analysis.fault_report import check_journal, compare
 from hil_client.analysis.logio import LogError, read_log
 from hil_client.analysis.phases import Phases, find_phases
 from hil_client.analysis.validate import compare as validation_compare
+from hil_client.analysis.validate import validation_metrics
 from hil_client.cli import main
 from rig_emulator.boilers import load_boiler
 
@@ -149,6 +150,26 @@ def test_balance_without_mass_keeps_lambda_and_leaves_the_fuel_unknown(params_12
         assert math.isnan(value)
     assert test.lambda_mean > 1.0  # from O2 alone
     assert "warning: column 'balance_mass_kg' has no readings" in text
+
+
+def test_a_balance_read_with_its_sign_reversed_gives_no_fuel_in_balance_or_validate(
+    params_12kw,
+):
+    """A stranger's probe: the balance's sign reversed (it gains what the burner burns)
+    gave 0.00 kg of fuel in the balance's test phase and -16.32 kg in validate's cumulative
+    fuel. Fuel only leaves: both say unknown, with the reason."""
+    log, _ = _steady_log(params_12kw, hours=1.0)
+    log.columns["balance_mass_kg"] = -log["balance_mass_kg"]
+    t_end = float(log.t[-1])
+    phases = Phases(0.0, 0.5, t_end, t_end + 1, t_end + 2, "test")
+    test = next(r for r in energy_balance(log, params_12kw, phases) if r.phase == "test")
+    for value in (test.fuel_as_received_kg, test.q_fuel_kW, test.eta_direct, test.eta_indirect):
+        assert math.isnan(value)
+    assert any("the balance gains" in w and "sign reversed" in w for w in test.warnings)
+    comp = validation_compare(log, phases, params_12kw)
+    fuel = validation_metrics(comp, log, params_12kw)["fuel"]
+    assert fuel["test"]["balance_kg"] is None and fuel["total"]["balance_kg"] is None
+    assert fuel["test"]["deviation_pct"] is None and fuel["test"]["model_kg"] > 0
 
 
 def test_a_balance_stuck_through_firing_reads_no_fuel(params_12kw):

@@ -136,7 +136,7 @@ def test_a_refill_in_a_steady_interval_leaves_every_fit(round_trip, tmp_path, ca
         out = tmp_path / f"{log.stem}.yaml"
         assert main(["calibrate", str(log), "--boiler", str(boiler), "--out", str(out)]) == 0
         results.append(json.loads(out.with_suffix(".uncertainty.json").read_text()))
-    assert "no fuel flow" not in capsys.readouterr().out
+    assert "no fuel flow" not in capsys.readouterr().err
     plain, refill = results
     for key in ("fac_a_lambda", "p_el_max_W"):
         assert refill[key]["points"] > 0
@@ -258,14 +258,15 @@ def test_one_implausible_value_does_not_throw_the_rest_away(round_trip, tmp_path
     out = tmp_path / "cal.yaml"
     capsys.readouterr()
     assert main(["calibrate", str(log), "--boiler", str(boiler), "--out", str(out)]) == 0
-    printed = capsys.readouterr().out
+    printed = capsys.readouterr().err
     written = yaml.safe_load(out.read_text())
     doc = yaml.safe_load(Path(boiler).read_text())
     flags = json.loads(out.with_suffix(".uncertainty.json").read_text())
     for key in ("ua_amb_on_W_K", "w_el_Wh"):
         assert flags[key]["implausible"] is True and flags[key]["value"] < 0
         assert written[key] == flags[key]["kept"] == doc[key]
-        assert f"warning: {key}: fitted" in printed and "must be not negative" in printed
+        assert f"hil-client: warning: {key}: fitted" in printed
+        assert "must be not negative" in printed
     # the rest is calibrated as before
     assert flags["ua_amb_off_W_K"]["implausible"] is False
     assert written["ua_amb_off_W_K"] == pytest.approx(flags["ua_amb_off_W_K"]["value"])
@@ -500,14 +501,14 @@ def test_a_draught_read_backwards_gives_a_file_that_loads(round_trip, tmp_path, 
     out = tmp_path / "cal.yaml"
     capsys.readouterr()
     assert main(["calibrate", str(log), "--boiler", str(boiler), "--out", str(out)]) == 0
-    printed = capsys.readouterr().out
+    printed = capsys.readouterr().err
     calibrated = load_boiler(str(out))  # a valid file
     flags = json.loads(out.with_suffix(".uncertainty.json").read_text())
     on, off = flags["ua_amb_on_W_K"], flags["ua_amb_off_W_K"]
     assert on["implausible"] is True and on["value"] > off["value"]
     assert calibrated.ua_amb_on_W_K == on["kept"] <= calibrated.ua_amb_off_W_K
     assert off["implausible"] is False  # the second cooling's fit stays
-    assert "warning: ua_amb_on_W_K: fitted ua_amb_on_W_K" in printed and "(Eq. 14-16)" in printed
+    assert "hil-client: warning: ua_amb_on_W_K: fitted" in printed and "(Eq. 14-16)" in printed
 
 
 def test_outputs_cut_by_a_full_disk_leave_no_broken_file(run_log, tmp_path):

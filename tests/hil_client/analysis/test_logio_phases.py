@@ -381,6 +381,9 @@ _BASE = (
 )
 
 
+_NO_READING_NOTE = "column 'balance_mass_kg': 1 field(s) written as no reading (first row 4: '{}')"
+
+
 @pytest.mark.parametrize(
     ("variant", "note"),
     [
@@ -389,11 +392,14 @@ _BASE = (
         (lambda t: "# bench 3, operator JS\n# exported\n" + t, "line 1 (a comment)"),
         (lambda t: "sep=,\n" + t, "line 1 (sep=) before the header"),
         (lambda t: t.replace("preheat", "vorwärmen"), "read as Windows-1252"),
-        (lambda t: t.replace(",,20\n", ",#N/A,20\n"), None),  # Excel's no reading
-        (lambda t: t.replace(",,20\n", ",#div/0!,20\n"), None),
-        (lambda t: t.replace(",,20\n", ",NA,20\n"), None),  # R's and pandas' no reading
-        (lambda t: t.replace(",,20\n", ",-,20\n"), None),  # a dash
-        (lambda t: t.replace(",,20\n", ",null,20\n"), None),
+        # Excel's, R's and pandas', SQL's no reading, a dash: read as such, and said (a
+        # stranger's probe: NA, NaN, null, '-' went silently, where inf was said)
+        (lambda t: t.replace(",,20\n", ",#N/A,20\n"), _NO_READING_NOTE.format("#N/A")),
+        (lambda t: t.replace(",,20\n", ",#div/0!,20\n"), _NO_READING_NOTE.format("#div/0!")),
+        (lambda t: t.replace(",,20\n", ",NA,20\n"), _NO_READING_NOTE.format("NA")),
+        (lambda t: t.replace(",,20\n", ",-,20\n"), _NO_READING_NOTE.format("-")),
+        (lambda t: t.replace(",,20\n", ",null,20\n"), _NO_READING_NOTE.format("null")),
+        (lambda t: t.replace(",,20\n", ",NaN,20\n"), _NO_READING_NOTE.format("NaN")),
         (lambda t: t.replace("\n2,", "\n# operator: flow check\n2,") + "# end\n", "2 comment"),
         (lambda t: ",,,,\n" + t, None),  # a row of empty fields above the header
     ],
@@ -408,6 +414,7 @@ _BASE = (
         "NA",
         "dash",
         "null",
+        "NaN",
         "comments-among-rows",
         "empty-row-on-top",
     ],
@@ -459,7 +466,10 @@ def test_what_is_no_lab_log_is_refused_in_a_line_that_shows_it(tmp_path):
         read_log(utf16)
     na_time = tmp_path / "na_time.csv"  # #N/A in time_s is no comment line: refused
     na_time.write_text(_BASE.replace("\n2,", "\n#N/A,", 1))
-    with pytest.raises(LogError, match="column 'time_s' row 3 is empty"):
+    with pytest.raises(LogError, match="column 'time_s' row 3: '#N/A' is no time"):
+        read_log(na_time)
+    na_time.write_text(_BASE.replace("\n2,", "\nNaN,", 1))  # (not "row 3 is empty": a probe)
+    with pytest.raises(LogError, match="column 'time_s' row 3: 'NaN' is no time"):
         read_log(na_time)
     both = tmp_path / "both.csv"
     both.write_text(_BASE.replace("phase,", "TIME_S,", 1).replace(",preheat,", ",0,"))

@@ -137,6 +137,15 @@ def test_where_the_phases_cannot_be_found_the_error_says_what_looks_wrong(logs, 
             err = capsys.readouterr().err.strip()
             assert said in err and "a time in milliseconds?" in err, err
             assert len(err.splitlines()) == 1 and not out.exists()
+    # one row's wild time is that row's, in a line of readable length (a stranger's probe:
+    # a last row of 1e300 gave 300 digits of days and "a time in milliseconds?")
+    lines = logs["stationary"].path.read_text().splitlines()
+    wild = tmp_path / "wild.csv"
+    wild.write_text("\n".join([*lines[:-1], "1e300" + lines[-1][lines[-1].index(",") :]]) + "\n")
+    assert main(["balance", str(wild), "--boiler", BOILER]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "the row at 1e+300 s comes " in err and "a wrong time in that row?" in err, err
+    assert len(err) < 300 and "milliseconds" not in err
 
 
 def test_a_short_part_load_test_is_no_wrong_unit(tmp_path):
@@ -290,7 +299,7 @@ def test_a_log_of_another_boiler_size_is_warned_by_calibrate(run_log, tmp_path, 
     bare = _rewritten(src, tmp_path, "six.csv", "room_temp_C", float)  # no meta file
     out = tmp_path / "c.yaml"
     assert main(["calibrate", str(bare), "--boiler", BOILER, "--out", str(out)]) == 0
-    said = [ln for ln in capsys.readouterr().out.splitlines() if "another boiler size" in ln]
+    said = [ln for ln in capsys.readouterr().err.splitlines() if "another boiler size" in ln]
     assert len(said) == 1, said
     assert "windhager_12kw" in said[0] and "13.2" in said[0] and "97" in said[0], said
     flags = json.loads(out.with_suffix(".uncertainty.json").read_text())
@@ -303,7 +312,7 @@ def test_a_log_of_its_own_boiler_size_is_not_warned(logs, tmp_path, capsys):
     out = tmp_path / "c.yaml"
     src = logs["stationary"].path
     assert main(["calibrate", str(src), "--boiler", BOILER, "--out", str(out)]) == 0
-    assert "another boiler size" not in capsys.readouterr().out
+    assert "another boiler size" not in capsys.readouterr().err
     flags = json.loads(out.with_suffix(".uncertainty.json").read_text())
     assert not any("far_from_documentation" in v for v in flags.values())
 
