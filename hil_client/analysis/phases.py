@@ -261,11 +261,14 @@ MARK_SLACK_S = 900.0
 
 
 def _check_against_signals(log: LabLog, phases: Phases) -> None:
-    """A note where the meta file's t0 is far from the log's first firing, or its t3 (the
-    circulation stops) from the log's last circulating row: marks of another log taken
-    within the record gave confident figures of phases that were not (a test phase with
-    the burner off for two hours; a stranger's probe). (t2 has no such mark: a load
-    cycle's last, lowest step can leave the burner off for an hour and more before it.)"""
+    """:class:`LogError` where the meta file's t0 is far from the log's first firing, or its
+    t3 (the circulation stops) from the log's last circulating row: marks of another log
+    taken within the record gave confident figures of phases that were not (a test phase
+    with the burner off for two hours; a stranger's probe), and a note beside those figures
+    was not enough (a stranger's probe: a load cycle's marks on a stationary log gave an
+    8-h test and 10.9 kW of fuel where 6 h and 14.3 kW were true). Refused as marks
+    outside the record are (:func:`_from_meta`). (t2 has no such mark: a load cycle's
+    last, lowest step can leave the burner off for an hour and more before it.)"""
     far = []
     first = _first_firing(log)
     if first is not None and abs(phases.t0 - log.t[first]) > MARK_SLACK_S:
@@ -276,10 +279,11 @@ def _check_against_signals(log: LabLog, phases: Phases) -> None:
         if abs(phases.t3 - stop) > MARK_SLACK_S:
             far.append(f"t3_s = {phases.t3:g} s, the circulation stopping at {stop:g} s")
     if far:
-        log.notes.append(
-            f"the meta file's {'; '.join(far)} in {_log_name(log)}: marks of another log? (the "
-            "phases follow the marks; remove t0_s..t4_s from the meta file to find them from "
-            "the signals)"
+        meta_file = log.path.with_name(log.path.stem + ".meta.json") if log.path else "meta"
+        raise LogError(
+            f"{meta_file}: {'; '.join(far)} in {_log_name(log)} (more than "
+            f"{MARK_SLACK_S / 60:g} min apart): marks of another log? remove t0_s..t4_s "
+            "from it to find the phases from the signals"
         )
 
 

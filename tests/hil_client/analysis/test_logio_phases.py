@@ -481,11 +481,13 @@ def test_what_is_no_lab_log_is_refused_in_a_line_that_shows_it(tmp_path):
         read_log(binary)
 
 
-def test_marks_of_another_log_within_the_record_are_said(run_log, tmp_path):
+def test_marks_of_another_log_within_the_record_are_refused(run_log, tmp_path, capsys):
     """A stationary log without its phase column, beside the load cycle's meta file (its
     marks inside the record): the test ran two hours past the burner's last firing, with
-    confident figures and no word (a stranger's probe). t3, where the circulation stops,
-    is far from the log's; the log's own marks say nothing."""
+    confident figures and no word (a stranger's probe), then with a note beside figures
+    still wrong (an 8-h test, 10.9 kW of fuel for 6 h and 14.3 kW: another). t3, where the
+    circulation stops, is far from the log's: refused, naming it, in one line; the log's
+    own marks pass."""
     import json
 
     stationary, cycle = (
@@ -503,12 +505,19 @@ def test_marks_of_another_log_within_the_record_are_said(run_log, tmp_path):
             pytest.skip("the load cycle's t3 lies beyond the stationary record")
         path.with_name("st.meta.json").write_text(json.dumps(marks))
         again = read_log(path)
-        phases = find_phases(again)
-        assert phases.source == "meta file" and phases.t3 == meta["t3_s"]
-        said = [n for n in again.notes if "marks of another log?" in n]
-        assert bool(said) == far, again.notes
-        if far:
-            assert f"t3_s = {meta['t3_s']:g} s" in said[0]
+        if not far:
+            phases = find_phases(again)
+            assert phases.source == "meta file" and phases.t3 == meta["t3_s"]
+            continue
+        with pytest.raises(LogError) as info:
+            find_phases(again)
+        assert f"t3_s = {meta['t3_s']:g} s" in str(info.value)
+        assert "marks of another log?" in str(info.value)
+        out = tmp_path / "b.json"
+        argv = ["balance", str(path), "--boiler", "windhager_12kw", "--out", str(out)]
+        assert hil_client_main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "st.meta.json: " in err and not out.exists(), err
 
 
 def test_a_phase_column_is_read_in_any_case_and_one_without_the_names_is_said(tmp_path):
