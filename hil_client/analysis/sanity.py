@@ -362,7 +362,24 @@ def _closure_refused(log: LabLog, params: BoilerParams, burning: np.ndarray) -> 
     line = _closure_line(
         eta, fuel_kg, DIRECT_EFFICIENCY_REFUSED, "for any boiler", "kg/h (not l/min)"
     )
+    # the column at fault, where the readings tell (the flow was named for temperatures
+    # swapped or in Fahrenheit: a stranger's probe)
+    if eta < 0.0:
+        return [
+            f"columns 'water_in_temp_C' and 'water_out_temp_C': {line} (the return reads "
+            "warmer than the forward while the boiler fires: swapped?)"
+        ]
+    forward = float(np.median(_readings(log, "water_out_temp_C")))
+    if forward > WATER_BOILS_C:
+        return [
+            f"column 'water_out_temp_C': {line} (it reads a median of {forward:.4g}, above "
+            "boiling: Fahrenheit? convert to C)"
+        ]
     return [f"column 'water_flow_kg_h': {line}"]
+
+
+#: A boiler's forward water above this [C] in the median boils at the bench's pressure.
+WATER_BOILS_C = 100.0
 
 
 def _firing_gain(log: LabLog, burning: np.ndarray) -> list[str]:

@@ -11,7 +11,7 @@ import json
 import numpy as np
 import pytest
 
-from hil_client.analysis.logio import LabLog, read_log
+from hil_client.analysis.logio import LabLog, LogError, read_log
 from hil_client.analysis.sanity import refuse_wrong_units, suspicious
 from hil_client.cli import main
 from rig_emulator.boilers import load_boiler
@@ -270,6 +270,24 @@ def test_a_unit_no_bench_reads_is_refused_by_every_analysis(logs, tmp_path, caps
         assert err.startswith(f"hil-client: error: {bad}: {column}"), err
         assert said in err, err
     assert not any((tmp_path / n).exists() for n in ("b.json", "v", "c.yaml", "d"))
+
+
+def test_a_refused_heat_names_the_temperatures_where_they_are_at_fault(logs):
+    """A stranger's probe: the forward and return swapped, and the water temperatures in
+    Fahrenheit, were refused as "column 'water_flow_kg_h': ...", the flow being right."""
+    params, log = load_boiler(BOILER), logs["stationary"]
+    forward, back = log["water_out_temp_C"], log["water_in_temp_C"]
+    swapped = _mutated(log, water_out_temp_C=lambda x, t: back.copy())
+    swapped.columns["water_in_temp_C"] = forward.copy()
+    fahrenheit = _mutated(log, **{n: (lambda x, t: x * 1.8 + 32.0) for n in _WATER_AND_ROOM[:3]})
+    for bad, said in (
+        (swapped, "columns 'water_in_temp_C' and 'water_out_temp_C': the heat to the water is -"),
+        (fahrenheit, "column 'water_out_temp_C': the heat to the water is"),
+    ):
+        with pytest.raises(LogError) as info:
+            refuse_wrong_units(bad, params)
+        assert said in str(info.value), str(info.value)
+    assert "Fahrenheit?" in str(info.value)
 
 
 def test_a_flow_of_zero_or_one_value_or_no_fuel_is_data_not_a_wrong_unit(logs):
