@@ -435,7 +435,7 @@ def _same_log(a: Path, b: Path) -> bool:
         if a.resolve() == b.resolve():
             return True
         return a.is_file() and b.is_file() and filecmp.cmp(a, b, shallow=False)
-    except OSError:  # a missing file is reported when it is read
+    except (OSError, RuntimeError):  # reported when it is read (a loop of links: a probe)
         return False
 
 

@@ -385,11 +385,21 @@ def text_input(text: str) -> str:
     return text
 
 
+def _no_such_file(text: str) -> argparse.ArgumentTypeError:
+    """What is said of an input path that leads to no file (a link to none, or a loop of
+    links, was "no such file": a stranger's probe)."""
+    if Path(text).is_symlink():
+        return argparse.ArgumentTypeError(
+            f"{text}: a symbolic link that leads to no file (a loop?)"
+        )
+    return argparse.ArgumentTypeError(f"{text}: no such file")
+
+
 def text_file(text: str) -> Path:
     """An argparse ``type`` for an input file that must exist and be UTF-8 text."""
     _refuse_relative_without_cwd(text)
     if not Path(text).exists():
-        raise argparse.ArgumentTypeError(f"{text}: no such file")
+        raise _no_such_file(text)
     return Path(text_input(text))
 
 
@@ -401,7 +411,7 @@ def data_file(text: str) -> Path:
     _refuse_relative_without_cwd(text)
     path = Path(text)
     if not path.exists():
-        raise argparse.ArgumentTypeError(f"{text}: no such file")
+        raise _no_such_file(text)
     if path.is_dir():
         raise argparse.ArgumentTypeError(f"{text} is a directory, not a file")
     if not path.is_file():

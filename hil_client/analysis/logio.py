@@ -672,6 +672,8 @@ def _text_of(path: Path, notes: list[str]) -> str:
     try:
         if not path.is_file():
             what = "a directory" if path.is_dir() else "not a regular file"
+            if not path.exists() and path.is_symlink():  # (called no such file: a probe)
+                raise LogError(f"{path}: a symbolic link that leads to no file (a loop?)")
             if not path.exists():
                 raise LogError(f"{path}: cannot read (No such file or directory)")
             raise LogError(f"{path}: {what}, not a lab log")

@@ -154,3 +154,26 @@ def test_wait_for_port_refuses_a_timeout_that_is_no_time(timeout, capsys):
     with pytest.raises(SystemExit) as info:
         wait_main(["127.0.0.1", "1", "--timeout", timeout])
     assert info.value.code == 2 and "--timeout" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["balance", "LOOP"],
+        ["calibrate", "LOOP", "--boiler", "windhager_12kw", "--out", "c.yaml"],
+        ["validate", "LOOP", "--boiler", "windhager_12kw", "--out", "v"],
+        ["diagnose", "--calibration", "LOOP", "--validation", "LOG", "--out", "d"],
+    ],
+    ids=["balance", "calibrate", "validate", "diagnose"],
+)
+def test_a_loop_of_links_as_a_log_is_one_line(tmp_path, capsys, monkeypatch, argv):
+    """A stranger's probe: a log path that is a loop of symbolic links gave a traceback in
+    diagnose (RuntimeError: Symlink loop) and "no such file" elsewhere."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "LOOP").symlink_to("LOOP")
+    (tmp_path / "LOG").write_text("time_s\n1\n")
+    if argv[0] == "diagnose":
+        argv = [*argv, "--boiler", "windhager_12kw"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "a symbolic link that leads to no file" in err, err

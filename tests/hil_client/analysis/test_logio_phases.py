@@ -464,6 +464,10 @@ def test_what_is_no_lab_log_is_refused_in_a_line_that_shows_it(tmp_path):
     utf16.write_bytes(_BASE.encode("utf-16-le"))  # without: named, not "missing 'time_s'"
     with pytest.raises(LogError, match="line 1 holds NUL bytes: UTF-16 without its"):
         read_log(utf16)
+    loop = tmp_path / "loop.csv"  # (said to be no such file: a stranger's probe)
+    loop.symlink_to(loop)
+    with pytest.raises(LogError, match="a symbolic link that leads to no file"):
+        read_log(loop)
     na_time = tmp_path / "na_time.csv"  # #N/A in time_s is no comment line: refused
     na_time.write_text(_BASE.replace("\n2,", "\n#N/A,", 1))
     with pytest.raises(LogError, match="column 'time_s' row 3: '#N/A' is no time"):
