@@ -38,13 +38,13 @@ from hil_client.analysis.figures import (
 from hil_client.analysis.logio import (
     LabLog,
     LogError,
-    fill_gaps,
     one_plant,
     read_log,
     refills,
 )
 from hil_client.analysis.phases import Phases, find_phases
 from hil_client.analysis.report import validation_report
+from hil_client.analysis.same_record import SAME_RECORD_K, same_record
 from hil_client.analysis.sanity import (
     check_time_step,
     refuse_reversed_flow,
@@ -439,54 +439,6 @@ def _same_log(a: Path, b: Path) -> bool:
         return False
 
 
-#: A held-out log that follows the calibration log to within this [K] in the median over
-#: the rows they share, where they share at least half of the shorter one's span, is the
-#: calibration log again: re-exported with absolute times, rounded to two decimals, a
-#: column nudged by a hundredth, every second row kept, its first row dropped, a random
-#: half of its rows kept, or a part of it cut out (a re-probe slipped the last three past a
-#: comparison of exact rows; a stranger's probe five more past a comparison counted from
-#: each one's start, or made only one way). Two runs of a plant part after their common
-#: preheat, and two runs of the same test differ by their instruments' noise (0.05-0.1 K).
-SAME_RECORD_K = 0.02
-
-
-_SAME_RECORD_COLUMNS = ("boiler_water_temp_C", "flue_gas_temp_C")
-
-
-def _same_record(cal: LabLog, val: LabLog) -> bool:
-    """Whether one log is the other again, or a part of it (see :data:`SAME_RECORD_K`): on
-    their own times (a row dropped, a part cut out), or each counted from its start (times
-    re-based on export)."""
-    if len(cal) < 2 or len(val) < 2:
-        return False
-    shifts = {0.0, float(cal.t[0] - val.t[0])}
-    return any(_follows(cal, val, shift) for shift in shifts)
-
-
-def _follows(a: LabLog, b: LabLog, shift: float) -> bool:
-    """Whether ``b``, its times moved by ``shift`` [s], follows ``a`` where they overlap;
-    compared at the rows of the sparser of the two (a thinned copy's rows are rows of the
-    other, whichever of the two it is)."""
-    ta, tb = a.t, b.t + shift
-    lo, hi = max(ta[0], tb[0]), min(ta[-1], tb[-1])
-    if not hi - lo >= 0.5 * min(ta[-1] - ta[0], tb[-1] - tb[0]):
-        return False
-    sparse_is_a = np.median(np.diff(ta)) >= np.median(np.diff(tb))
-    (sparse, ts), (dense, td) = ((a, ta), (b, tb)) if sparse_is_a else ((b, tb), (a, ta))
-    shared = (ts >= lo) & (ts <= hi)
-    if shared.sum() < 2:
-        return False
-    for name in _SAME_RECORD_COLUMNS:
-        ours = fill_gaps(dense[name], dense.t)
-        theirs = fill_gaps(sparse[name], sparse.t)[shared]
-        if np.isnan(ours).all() or np.isnan(theirs).all():
-            return False
-        apart = np.abs(np.interp(ts[shared], td, ours) - theirs)
-        if not float(np.nanmedian(apart)) <= SAME_RECORD_K:
-            return False
-    return True
-
-
 def _check_out_dir(out: Path) -> None:
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out: '{out}' exists and is not a directory")
@@ -511,10 +463,10 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
             " (CONTRACT section 4: nothing is fitted or selected on it)"
         )
     cal, val = _logs_with_phases([args.calibration, args.validation], doc)
-    if _same_record(cal[0], val[0]):
+    if same_record(cal[0], val[0]):
         raise UsageError(
-            "--validation: the same record as --calibration, or a part of it (within"
-            f" {SAME_RECORD_K:g} K: re-exported, rounded, thinned or cut?);"
+            "--validation: the same record as --calibration, or a part of it (its firing"
+            f" within {SAME_RECORD_K:g} K: re-exported, rounded, thinned or cut?);"
             " the held-out log must be another (CONTRACT section 4: nothing is fitted or"
             " selected on it)"
         )

@@ -364,16 +364,16 @@ def _closure_refused(log: LabLog, params: BoilerParams, burning: np.ndarray) -> 
     )
     # the column at fault, where the readings tell (the flow was named for temperatures
     # swapped or in Fahrenheit: a stranger's probe)
+    forward = float(np.median(_readings(log, "water_out_temp_C")))
+    if forward > WATER_BOILS_C:  # (before the sign: the two in Fahrenheit beside a boiler
+        return [  # water in C read negative, and "swapped?": a re-probe)
+            f"column 'water_out_temp_C': {line} (it reads a median of {forward:.4g}, above "
+            "boiling: Fahrenheit? convert to C)"
+        ]
     if eta < 0.0:
         return [
             f"columns 'water_in_temp_C' and 'water_out_temp_C': {line} (the return reads "
             "warmer than the forward while the boiler fires: swapped?)"
-        ]
-    forward = float(np.median(_readings(log, "water_out_temp_C")))
-    if forward > WATER_BOILS_C:
-        return [
-            f"column 'water_out_temp_C': {line} (it reads a median of {forward:.4g}, above "
-            "boiling: Fahrenheit? convert to C)"
         ]
     return [f"column 'water_flow_kg_h': {line}"]
 
@@ -474,12 +474,17 @@ def check_time_step(log: LabLog) -> None:
         )
     span = float(t[-1] - t[0]) if len(t) else 0.0
     jumps = np.diff(t)
-    if span > TIME_SPAN_REFUSE_S and float(jumps.max()) > 0.5 * span:  # one row's time
-        i = int(np.argmax(jumps)) + 1  # (a last row of 1e300 was shown as 300 digits of
-        raise LogError(  # days and called milliseconds: a stranger's probe)
-            f"{log.path}: column 'time_s': the row at {t[i]:.6g} s comes {jumps[i - 1] / 86400:.3g}"
-            f" days after the row before ({t[i - 1]:.6g} s): a wrong time in that row?"
-        )
+    if span > TIME_SPAN_REFUSE_S and float(jumps.max()) > 0.5 * span:  # a few rows' time
+        # (a last row of 1e300 was shown as 300 digits of days and called milliseconds: a
+        # stranger's probe); the wild rows are the fewer, on either side of the jump (a
+        # wild first row had the good second named: a re-probe)
+        i = int(np.argmax(jumps)) + 1
+        days = f"{jumps[i - 1] / 86400:.3g} days"
+        if i <= len(t) - i:
+            where = f"the row at {t[i - 1]:.6g} s lies {days} before the row after ({t[i]:.6g} s)"
+        else:
+            where = f"the row at {t[i]:.6g} s comes {days} after the row before ({t[i - 1]:.6g} s)"
+        raise LogError(f"{log.path}: column 'time_s': {where}: a wrong time in that row?")
     if span > TIME_SPAN_REFUSE_S:
         raise LogError(
             f"{log.path}: column 'time_s' spans {span / 86400:.3g} days: a time in "

@@ -434,7 +434,7 @@ def test_the_held_out_log_may_not_be_the_calibration_log_again(run_log, tmp_path
     import shutil
 
     from hil_client.analysis.logio import read_log
-    from hil_client.cli import _same_record
+    from hil_client.analysis.same_record import same_record as _same_record
 
     # (the load cycle logged every 5 s, as labs also log: each diagnose reads both logs
     # whole, a fifth as long)
@@ -484,7 +484,7 @@ def test_a_part_or_a_thinning_of_the_calibration_log_either_way_round_is_refused
     odd rows, a random half of its rows, or the calibration log as a thinned copy or a later
     part of the held-out one, were taken as held out (exit 0, 85-92 % shrinkage measured
     on the calibration data itself). Each is refused, whichever role it is given."""
-    from hil_client.cli import _same_record
+    from hil_client.analysis.same_record import same_record as _same_record
 
     whole = run_log("load_cycle", "windhager_12kw").path
     lines = whole.read_text().splitlines()
@@ -496,8 +496,20 @@ def test_a_part_or_a_thinning_of_the_calibration_log_either_way_round_is_refused
         return path
 
     body = lines[1:]
+    col = lines[0].split(",").index("time_s")
+
+    def rebased(rows: list[str]) -> list[str]:  # its times counted from its first row
+        cells = [r.split(",") for r in rows]
+        start = float(cells[0][col])
+        for c in cells:
+            c[col] = f"{float(c[col]) - start:g}"
+        return [",".join(c) for c in cells]
+
     parts = [
         part("no_first_row.csv", body[1:]),
+        # (a re-probe: rows dropped and the times re-based went through)
+        part("no_first_rows_rebased.csv", rebased(body[600:])),
+        part("thinned_cut_rebased.csv", rebased(body[601::10])),
         part("odd_rows.csv", body[1::2]),
         part("random_half.csv", [r for r in body if rng.random() < 0.5]),
         part("every_10_s.csv", body[::10]),
@@ -508,11 +520,36 @@ def test_a_part_or_a_thinning_of_the_calibration_log_either_way_round_is_refused
     for path in parts:
         other = read_log(path)
         assert _same_record(log, other) and _same_record(other, log), path.name
-    argv = ["diagnose", "--calibration", str(parts[3]), "--validation", str(whole)]
+    argv = ["diagnose", "--calibration", str(parts[5]), "--validation", str(whole)]
     assert main([*argv, "--boiler", "windhager_12kw", "--out", str(tmp_path / "d")]) == 2
     err = capsys.readouterr().err
     assert "--validation: the same record as --calibration, or a part of it" in err
     assert len(err.strip().splitlines()) == 1 and not (tmp_path / "d").exists()
+
+
+def test_two_clean_tests_that_cool_alike_for_a_day_are_two_records(tmp_path):
+    """A re-probe: two clean emulated runs, a 30-min test at 100 % and one at 80 %, each
+    cooling for a day after, were refused as the same record: their preheats are the same
+    and their coolings converge to the room, 0.006 K apart in the median. What is compared
+    is what both fire; the firing differs."""
+    import yaml
+
+    from hil_client.analysis.same_record import same_record
+    from hil_client.protocol.definition import DEFINITION_DIR
+
+    logs = []
+    for load in (100, 80):
+        data = yaml.safe_load((DEFINITION_DIR / "stationary.yaml").read_text())
+        step = {"name": "stationary_100", "load_pct": load, "duration": "00:30:00"}
+        data["test_sequence"]["sequences"] = [step]
+        data["cooling_2"] = {"until_after_t2_s": 86400}
+        protocol = tmp_path / f"p{load}.yaml"
+        protocol.write_text(yaml.safe_dump(data))
+        log = tmp_path / f"r{load}.csv"
+        argv = ["run", str(protocol), "--boiler", "windhager_12kw", "--rig", "local"]
+        assert main([*argv, "--quiet", "--out", str(log)]) == 0
+        logs.append(read_log(log))
+    assert not same_record(*logs) and not same_record(*logs[::-1])
 
 
 @pytest.mark.parametrize("target", ["short.csv", "short.meta.json", "short.modbus_events.jsonl"])

@@ -146,6 +146,11 @@ def test_where_the_phases_cannot_be_found_the_error_says_what_looks_wrong(logs, 
     err = capsys.readouterr().err.strip()
     assert "the row at 1e+300 s comes " in err and "a wrong time in that row?" in err, err
     assert len(err) < 300 and "milliseconds" not in err
+    first = lines[1][lines[1].index(",") :]  # a wild first row is that row's (a re-probe)
+    wild.write_text("\n".join([lines[0], "-1e9" + first, *lines[2:]]) + "\n")
+    assert main(["balance", str(wild), "--boiler", BOILER]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "the row at -1e+09 s lies " in err and "before the row after" in err, err
 
 
 def test_a_short_part_load_test_is_no_wrong_unit(tmp_path):
@@ -280,8 +285,11 @@ def test_a_refused_heat_names_the_temperatures_where_they_are_at_fault(logs):
     swapped = _mutated(log, water_out_temp_C=lambda x, t: back.copy())
     swapped.columns["water_in_temp_C"] = forward.copy()
     fahrenheit = _mutated(log, **{n: (lambda x, t: x * 1.8 + 32.0) for n in _WATER_AND_ROOM[:3]})
+    # the forward and return alone in Fahrenheit (a re-probe: "swapped?")
+    two = _mutated(log, **{n: (lambda x, t: x * 1.8 + 32.0) for n in _WATER_AND_ROOM[:2]})
     for bad, said in (
         (swapped, "columns 'water_in_temp_C' and 'water_out_temp_C': the heat to the water is -"),
+        (two, "column 'water_out_temp_C': the heat to the water is"),
         (fahrenheit, "column 'water_out_temp_C': the heat to the water is"),
     ):
         with pytest.raises(LogError) as info:
