@@ -4,6 +4,7 @@ import shutil
 import signal
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -31,6 +32,37 @@ def test_run_writes_log_and_meta(run_log):
             assert None not in values, name
     in_test = [s for s, ph in zip(rec["sequence"], rec["phase"], strict=True) if ph == "test"]
     assert None not in in_test and in_test[0] == "peak" and in_test[-1] == "stationary_13"
+
+
+def test_a_run_with_a_boiler_file_of_ones_own_records_its_parameters(tmp_path, capsys):
+    """A stranger's probe: a parameter file of the user's own that keeps a shipped
+    boiler's name (moisture 0.15) was recorded in the meta file by that name, and
+    ``balance`` without --boiler read the log with the shipped fuel: a direct efficiency of
+    75.9 % for 84.0 %, no word. Its parameters now go into the meta file inline (CONTRACT
+    section 3), and the balance reads them."""
+    import json
+
+    import yaml
+
+    from rig_emulator.boilers import BOILER_DIR
+
+    own = yaml.safe_load((BOILER_DIR / "windhager_12kw.yaml").read_text())
+    own["fuel"]["moisture"] = 0.15
+    boiler = tmp_path / "moist.yaml"
+    boiler.write_text(yaml.safe_dump(own))
+    protocol = Path(__file__).parents[1] / "data" / "short_protocol.yaml"  # (1.7 h)
+    log = tmp_path / "st.csv"
+    argv = ["run", str(protocol), "--boiler", str(boiler), "--rig", "local", "--quiet"]
+    assert main([*argv, "--out", str(log)]) == 0
+    recorded = json.loads(log.with_name("st.meta.json").read_text())["boiler"]
+    assert isinstance(recorded, dict) and recorded["fuel"]["moisture"] == 0.15
+    outs = []
+    for extra in ([], ["--boiler", str(boiler)]):
+        out = tmp_path / f"b{len(extra)}.json"
+        assert main(["balance", str(log), "--out", str(out), *extra]) == 0
+        outs.append(json.loads(out.read_text())["balance"])
+    assert outs[0] == outs[1]
+    capsys.readouterr()
 
 
 @pytest.mark.parametrize(
