@@ -129,7 +129,12 @@ def check_effects(data: Any) -> dict[str, dict[str, float]]:
             raise EffectError(
                 f"effects.{name}", f"is not a known effect (known: {', '.join(EFFECT_NAMES)})"
             )
-        entry = {} if entry is None else entry
+        if entry is None:  # (on at full strength, where a user blanked it to switch it
+            raise EffectError(  # off: a stranger's probe)
+                f"effects.{name}",
+                "is empty: write {strength: S} ({} for its reference magnitude), or leave it "
+                "out (or strength 0) to switch it off",
+            )
         if not isinstance(entry, Mapping):
             raise EffectError(f"effects.{name}", "must be a mapping")
         values: dict[str, float] = {}

@@ -99,6 +99,9 @@ def test_parameters_have_units_and_are_validated(name):
                 check_effects({name: {p.name: p.lab + 0.5}})
     with pytest.raises(EffectError, match=rf"'effects.{name}.nope' is not a parameter"):
         check_effects({name: {"nope": 1.0}})
+    # blanked (null) to switch it off, it was on at full strength (a stranger's probe)
+    with pytest.raises(EffectError, match=rf"'effects.{name}' is empty: write"):
+        check_effects({name: None})
     for strength in (STRENGTH_LIMITS[0] - 0.1, STRENGTH_LIMITS[1] + 0.1):
         with pytest.raises(EffectError, match=rf"'effects.{name}.strength' must be finite"):
             check_effects({name: {"strength": strength}})
