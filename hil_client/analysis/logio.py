@@ -385,6 +385,19 @@ def _drop_rows_written_twice(
     )
 
 
+class _TwiceError(ValueError):
+    """A JSON object with a key twice (the key)."""
+
+
+def _object_once(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in out:
+            raise _TwiceError(key[:40])
+        out[key] = value
+    return out
+
+
 def _meta(meta_file: Path) -> dict[str, Any]:
     """The log's meta file as an object, {} where there is none."""
     meta: dict[str, Any] = {}
@@ -392,7 +405,10 @@ def _meta(meta_file: Path) -> dict[str, Any]:
         raise LogError(f"{meta_file}: not a regular file, not a meta file")
     if meta_file.exists():
         try:
-            meta = json.loads(meta_file.read_text(encoding="utf-8-sig"))  # BOM dropped
+            text = meta_file.read_text(encoding="utf-8-sig")  # BOM dropped
+            meta = json.loads(text, object_pairs_hook=_object_once)
+        except _TwiceError as exc:  # (the last silently won: a stranger's probe)
+            raise LogError(f"{meta_file}: key '{exc}' appears twice in one object") from None
         except UnicodeDecodeError as exc:
             raise LogError(f"{meta_file}: not UTF-8 text (byte at {exc.start})") from None
         except OSError as exc:

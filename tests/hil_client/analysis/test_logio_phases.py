@@ -697,3 +697,13 @@ def test_a_record_cut_short_in_its_test_without_marks_is_said_so(run_log, tmp_pa
     with pytest.raises(LogError, match="cannot find t2") as info:
         find_phases(read_log(path))
     assert "its phase column ends before the first cooling too" in str(info.value)
+
+
+def test_a_meta_file_with_a_key_twice_is_refused_naming_it(tmp_path):
+    """A stranger's probe: a meta file holding t3_s twice was read with the last one, in
+    silence (the YAML files refuse a key twice)."""
+    log = tmp_path / "twice.csv"
+    log.write_text(_BASE)
+    log.with_name("twice.meta.json").write_text('{"t3_s": 2.0, "test": "stationary", "t3_s": 3.0}')
+    with pytest.raises(LogError, match=r"twice\.meta\.json: key 't3_s' appears twice"):
+        read_log(log)
