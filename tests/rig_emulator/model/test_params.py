@@ -54,6 +54,14 @@ def _write(tmp_path: Path, mutate) -> Path:
         # falls with the load
         (lambda d: d.update(ua_amb_on_W_K=9.0), "'ua_amb_on_W_K' (9) exceeds 'ua_amb_off_W_K'"),
         (lambda d: d.update(p_el_min_W=70.0), "'p_el_min_W' (70) exceeds 'p_el_max_W' (50)"),
+        # a stranger's probe: 7 MW of stand-by, 126 MWh an ignition, a start-up of 1e12 s
+        (lambda d: d.update(p_el_off_W=7e6), "'p_el_off_W' (7e+06) exceeds 'p_el_max_W' (50)"),
+        (
+            lambda d: d.update(p_el_max_W=7e6, p_el_off_W=7.0),
+            "'p_el_max_W' (7e+06) is above 20% of p_nom_kW",
+        ),
+        (lambda d: d.update(w_el_Wh=1.26e8), "'w_el_Wh' (1.26e+08) is above p_nom_kW for 6 min"),
+        (lambda d: d.update(startup_duration_s=1e12), "'startup_duration_s' (1e+12) is over 24 h"),
         (lambda d: d.update(co_ppm_at_p_max=-60.0), "'co_ppm_at_p_max' must not be negative"),
         (lambda d: d.update(co_stop_peak_ppm=-600.0), "'co_stop_peak_ppm' must not be negative"),
         (lambda d: d.update(co_transient_s=0.0), "'co_transient_s' must be positive"),
