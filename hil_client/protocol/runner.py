@@ -541,6 +541,12 @@ def run_protocol(
             if values[_R_OUT] <= c1.until_forward_C or timed_out:
                 if timed_out:
                     result.notes.append("t3: forward temperature rule not met, timed out")
+                elif t - times["t2_s"] <= dt + 1e-9:  # (no word: a stranger's probe)
+                    result.notes.append(
+                        f"t3: the forward ({values[_R_OUT]:.4g} C) was already at or below "
+                        f"cooling_1.until_forward_C ({c1.until_forward_C:g} C) when the test "
+                        "ended; the first cooling lasted one row"
+                    )
                 phase, phase_start = "cooling_2", t
                 times["t3_s"] = t
                 if on_phase is not None:

@@ -105,6 +105,18 @@ def test_a_second_cooling_shorter_than_the_first_is_noted(tmp_path):
     )
 
 
+def test_a_first_cooling_that_ends_at_once_is_noted(tmp_path):
+    """cooling_1.until_forward_C of 150 C, above any forward: the first cooling lasted one
+    row, with no word (a stranger's probe; the second cooling's like case was noted)."""
+    cooling_1 = {"load_pct": 20, "return_setpoint_C": 55, "until_forward_C": 150}
+    cooling_1["max_duration_s"] = 10800
+    out = _run_stationary_as(tmp_path, "hot", cooling_1=cooling_1)
+    meta = _marks(out)
+    assert meta["t3_s"] - meta["t2_s"] <= 1.0
+    assert any(n.startswith("t3: the forward (") for n in meta["notes"]), meta["notes"]
+    assert "cooling_1.until_forward_C (150 C)" in " ".join(meta["notes"])
+
+
 def test_a_run_of_six_days_has_its_hopper_topped_up(tmp_path, capsys):
     """Six days at 63 % burn more than the 250 kg the balance holds: it read negative from
     the fifth day on, without a word (a stranger's probe); a later probe found a server
