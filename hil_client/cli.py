@@ -63,7 +63,7 @@ from hil_client.protocol.definition import ProtocolError, load_protocol
 from hil_client.protocol.rig import RigError
 from hil_client.protocol.runner import RunResult, check_setpoints, listed, run_protocol
 from hil_client.rigs.local import LocalRig, wire_only_faults
-from hil_client.rigs.modbus import WRITES, ModbusRig, check_map
+from hil_client.rigs.modbus import WRITES, MapMismatch, ModbusRig, check_map
 from hil_client.rigs.transports import RIG_TIMEOUT_S, connector, tls_files
 from hil_client.run_lock import RunBusy, lock_path, run_lock
 from hil_client.summary import RunSummary
@@ -1263,6 +1263,8 @@ def _run(args: argparse.Namespace, held: contextlib.ExitStack) -> int:
     previous = _EarlierRun(out, held)  # (its name chosen and locked: nothing moved yet)
     try:
         rig = _make_rig(args, params, register_map)
+    except MapMismatch as exc:  # (exit 1, where another boiler was 2: a stranger's probe)
+        raise UsageError(str(exc)) from None
     except RigError as exc:
         print(f"hil-client: error: {exc}", file=sys.stderr)
         return 1

@@ -345,6 +345,11 @@ def _role_hint(url: str, exc: ModbusExceptionResponse) -> str:
     )
 
 
+class MapMismatch(RigError):
+    """The server serves another register map than the client's, found before the first
+    row: the client's ``--map`` is the wrong one (bad input, as another boiler is)."""
+
+
 class ModbusRig:
     """A remote bench reached over Modbus TCP (see the module docstring).
 
@@ -482,7 +487,7 @@ class ModbusRig:
             status = self._first_status()
             problem = self._map_problem(plan, register_map)
             if problem is not None:
-                raise RigError(f"{url}: {problem}")
+                raise MapMismatch(f"{url}: {problem}")
         except ConnectionLost as exc:
             hint = ""
             if url.startswith("modbus://") and "closed by the server" in str(exc):

@@ -110,14 +110,16 @@ def test_a_server_running_another_map_is_named_before_the_first_row(serve, tmp_p
     plc["points"] = [p for p in plc["points"] if p["signal"] != "water_out_temp_C"]
     out = tmp_path / "blind.csv"
     srv = serve(register_map=map_from_mapping(data, "theirs.yaml"))
-    assert _run(["--rig", f"modbus://127.0.0.1:{srv.port}", "--out", str(out)]) == 1
+    assert _run(["--rig", f"modbus://127.0.0.1:{srv.port}", "--out", str(out)]) == 2
+    # (exit 2: the client's --map is the wrong one, as a wrong --boiler is; a stranger's
+    # probe found it 1)
     err = capsys.readouterr().err  # its map id differs: stopped by that first
     assert err.count("\n") == 1 and "serves another register map" in err and "--map" in err
     # a server without a map id (an older one) is asked for every block of readings
     control = next(d for d in data["devices"] if d["unit_id"] == 100)
     control["points"] = [p for p in control["points"] if p["signal"] != "map_id"]
     srv = serve(register_map=map_from_mapping(data, "theirs.yaml"))
-    assert _run(["--rig", f"modbus://127.0.0.1:{srv.port}", "--out", str(out)]) == 1
+    assert _run(["--rig", f"modbus://127.0.0.1:{srv.port}", "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "answers exception 02" in err
     assert "water_out_temp_C" in err and "--map" in err and not out.exists()
@@ -144,7 +146,7 @@ def test_a_map_that_differs_in_what_a_point_carries_stops_the_run(serve, tmp_pat
         points["flue_gas_temp_C"]["scale"] = 0.1
     srv = serve(register_map=map_from_mapping(data, "theirs.yaml"))
     out = tmp_path / "wrong.csv"
-    assert _run(["--rig", f"modbus://127.0.0.1:{srv.port}", "--out", str(out)]) == 1
+    assert _run(["--rig", f"modbus://127.0.0.1:{srv.port}", "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "serves another register map" in err and not out.exists()
 

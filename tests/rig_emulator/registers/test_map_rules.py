@@ -210,7 +210,7 @@ def test_a_server_that_refuses_the_clients_writes_stops_the_run(serve, tmp_path,
     assert int(served) == map_identity(srv.map) != map_identity(load_map())
     out = tmp_path / "refused.csv"
     argv = ["run", SHORT, "--boiler", "windhager_12kw", "--quiet", "--out", str(out)]
-    assert hil_main([*argv, "--rig", f"modbus://127.0.0.1:{srv.port}"]) == 1
+    assert hil_main([*argv, "--rig", f"modbus://127.0.0.1:{srv.port}"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "serves another register map" in err, err
     assert not out.exists()
