@@ -206,6 +206,12 @@ def _text_key(
         raise ProtocolError(f"{source}: key '{full}' must be a non-empty text, got {value!r:.40}")
     if not in_log and _control_free(value):
         return value
+    if value.lstrip().startswith(_FORMULA_STARTS):  # (a stranger's probe: '=...' went in)
+        raise ProtocolError(
+            f"{source}: key '{full}' {value!r:.40} may not begin with "
+            f"{' '.join(_FORMULA_STARTS)}: a spreadsheet opening the lab log would run it as "
+            "a formula"
+        )
     if not _log_text(value):
         raise ProtocolError(
             f"{source}: key '{full}' {value!r:.40} may not hold "
@@ -216,6 +222,10 @@ def _text_key(
             )
         )
     return value
+
+
+#: What makes a spreadsheet read a CSV field as a formula (CSV injection, OWASP).
+_FORMULA_STARTS = ("=", "+", "-", "@")
 
 
 def _control_free(text: str) -> bool:

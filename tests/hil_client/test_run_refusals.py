@@ -98,6 +98,8 @@ def test_setpoints_out_of_the_emulators_range_are_refused(tmp_path, capsys, muta
         (lambda d: d["start_up"].update(t1_max_rise_K_min=-0.5), "'start_up.t1_max_rise_K_min'"),
         (lambda d: _seq(d, name="a,b\nc"), "'test_sequence.sequences[0].name'"),
         (lambda d: _seq(d, name='say "peak"'), "may not hold a comma, a quote"),
+        # a spreadsheet's formula in the log's sequence column (a stranger's probe)
+        (lambda d: _seq(d, name="=1+1"), "may not begin with = + - @: a spreadsheet"),
         (lambda d: _seq(d, name="tab\there"), "control characters"),
         # a stranger's probe: float("-00") is -0.0, so "-00:10:00" played +600 s; Arabic-Indic
         # digits read as 10 h; a name given as a number was "missing"; a ramp's bad end was
