@@ -201,6 +201,8 @@ def _given(value: Any) -> str:
 
 def _integer(where: str, value: Any, low: int, high: int) -> int:
     """A whole number (numpy's integers too)."""
+    if value is None:  # ("not None" for a key left out: a stranger's probe)
+        raise FaultError(f"{where}: missing (a whole number, {low}..{high})")
     if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Integral):
         raise FaultError(f"{where}: must be a whole number, not {value!r}")
     value = int(value)

@@ -194,6 +194,8 @@ def _units(value: Any, where: str) -> frozenset[int]:
         raise RolesError(f"{where}: '{value}' is neither 'all' nor a list of unit IDs")
     units = set()
     for item in value:
+        if isinstance(item, str):  # ('1' is not a unit ID, said of a quoted 1: a probe)
+            raise RolesError(f"{where}: {item!r:.40} is text: a unit ID is a number, unquoted")
         if isinstance(item, bool) or not isinstance(item, int) or item not in UNIT_IDS:
             written = str(item).lower() if isinstance(item, bool) else item  # (as in YAML)
             raise RolesError(

@@ -47,7 +47,7 @@ def test_every_kind_parses_with_its_parameter():
         ({"kind": "exception", "unit": 1, "code": 0}, "faults[0].code"),
         ({"kind": "exception", "unit": 1, "code": 4.5}, "faults[0].code"),
         ({"kind": "no_reply", "unit": 300}, "faults[0].unit"),
-        ({"kind": "no_reply"}, "faults[0].unit"),
+        ({"kind": "no_reply"}, "faults[0].unit: missing (a whole number"),  # (was "not None")
         ({"kind": "stuck", "signal": "nonsense"}, "faults[0].signal"),
         ({"kind": "stuck"}, "faults[0].signal"),
         ({"kind": "stuck", "signal": "room_temp_C", "unit": 1}, "faults[0].unit"),

@@ -197,6 +197,8 @@ def test_file_redefines_roles(tmp_path):
         ('roles: {"\\n": {read: all}}\n', "role name '\\n' is not a non-empty text"),
         ("roles: {a: {read: some}}\n", "roles.a.read: 'some' is neither"),
         ("roles: {a: {write: [true]}}\n", "roles.a.write: 'true' is not a unit ID"),
+        # a quoted 1 was "'1' is not a unit ID (1-247 ...)" (a stranger's probe)
+        ("roles: {a: {write: ['1', 2]}}\n", "roles.a.write: '1' is text: a unit ID is a number"),
         ("roles: {a: {read: all}}\ndefault_role: b\n", "default_role 'b' is not one"),
         ("roles: {a: 3}\n", "roles.a: expected a mapping"),
         ("roles: [\n", "not valid YAML"),

@@ -398,7 +398,7 @@ def test_tls_port_defaults_to_802(certs):
         (["--tls-cert", "server.pem"], "--tls-cert needs --tls-key, --tls-ca too"),
         (["--tcp-port", "0"], "--tcp-port goes with --tls-*"),
         (["--roles", "ROLES"], "--roles needs --tls-*"),
-        (["TLS", "--roles", "ROLES"], "roles.admin.write: 'x' is not a unit ID"),
+        (["TLS", "--roles", "ROLES"], "roles.admin.write: 'x' is text: a unit ID is a number"),
         (["TLS", "--plain-role", "root"], "--plain-role: 'root' is not one of"),
         # a certificate as the key: OpenSSL's "[SSL] PEM lib (_ssl.c:3905)" (a stranger's probe)
         (["TLS-BAD-KEY"], "ca.pem: not a PEM private key"),
