@@ -396,8 +396,15 @@ def _warn_other_boiler(log: LabLog, boiler: BoilerParams) -> None:
     """A warning when the log's meta file names another boiler than the one it is analysed
     with (by name: a calibrated file keeps its boiler's name)."""
     recorded = log.meta.get("boiler")
-    if isinstance(recorded, dict):
-        recorded = recorded.get("name")
+    if isinstance(recorded, dict):  # the run's own parameters (a file of the user's own)
+        if recorded != boiler.to_mapping():  # (by its name alone, a file keeping a shipped
+            print(  # boiler's name was balanced with the shipped fuel: a re-probe)
+                f"hil-client: warning: {log.path} was recorded with the parameters its meta "
+                f"file holds ('{recorded.get('name')}'), and is analysed with other ones "
+                f"('{boiler.name}', --boiler)",
+                file=sys.stderr,
+            )
+        return
     if isinstance(recorded, str) and recorded != boiler.name:
         print(
             f"hil-client: warning: {log.path} was recorded with boiler '{recorded}' (its meta "

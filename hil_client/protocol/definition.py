@@ -206,7 +206,8 @@ def _text_key(
         raise ProtocolError(f"{source}: key '{full}' must be a non-empty text, got {value!r:.40}")
     if not in_log and _control_free(value):
         return value
-    if value.lstrip().startswith(_FORMULA_STARTS):  # (a stranger's probe: '=...' went in)
+    # (a stranger's probe: '=...' went in; a re-probe: a full-width '＝' too)
+    if unicodedata.normalize("NFKC", value).lstrip().startswith(_FORMULA_STARTS):
         raise ProtocolError(
             f"{source}: key '{full}' {value!r:.40} may not begin with "
             f"{' '.join(_FORMULA_STARTS)}: a spreadsheet opening the lab log would run it as "

@@ -57,12 +57,20 @@ def test_a_run_with_a_boiler_file_of_ones_own_records_its_parameters(tmp_path, c
     recorded = json.loads(log.with_name("st.meta.json").read_text())["boiler"]
     assert isinstance(recorded, dict) and recorded["fuel"]["moisture"] == 0.15
     outs = []
+    capsys.readouterr()
     for extra in ([], ["--boiler", str(boiler)]):
         out = tmp_path / f"b{len(extra)}.json"
         assert main(["balance", str(log), "--out", str(out), *extra]) == 0
         outs.append(json.loads(out.read_text())["balance"])
+        assert "recorded with" not in capsys.readouterr().err
     assert outs[0] == outs[1]
-    capsys.readouterr()
+    # the shipped file of that name given: other parameters, said (a re-probe: by the
+    # name alone, nothing was)
+    assert (
+        main(["balance", str(log), "--out", str(tmp_path / "b.json"), "--boiler", "windhager_12kw"])
+        == 0
+    )
+    assert "recorded with the parameters its meta file holds" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(

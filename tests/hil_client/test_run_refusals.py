@@ -100,6 +100,7 @@ def test_setpoints_out_of_the_emulators_range_are_refused(tmp_path, capsys, muta
         (lambda d: _seq(d, name='say "peak"'), "may not hold a comma, a quote"),
         # a spreadsheet's formula in the log's sequence column (a stranger's probe)
         (lambda d: _seq(d, name="=1+1"), "may not begin with = + - @: a spreadsheet"),
+        (lambda d: _seq(d, name="＝1+1"), "may not begin with = + - @: a spreadsheet"),
         (lambda d: _seq(d, name="tab\there"), "control characters"),
         # a stranger's probe: float("-00") is -0.0, so "-00:10:00" played +600 s; Arabic-Indic
         # digits read as 10 h; a name given as a number was "missing"; a ramp's bad end was
