@@ -487,7 +487,9 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     if same_record(cal[0], val[0]):
         raise UsageError(
             "--validation: the same record as --calibration, or a part of it (its firing"
-            f" within {SAME_RECORD_K:g} K: re-exported, rounded, thinned or cut?);"
+            f" within {SAME_RECORD_K:g} K: re-exported, rounded, thinned or cut? two"
+            " emulated runs with the same --seed, or clean ones, are one record where they"
+            " run alike: give the held-out run another seed);"
             " the held-out log must be another (CONTRACT section 4: nothing is fitted or"
             " selected on it)"
         )

@@ -510,6 +510,9 @@ def test_a_part_or_a_thinning_of_the_calibration_log_either_way_round_is_refused
         # (a re-probe: rows dropped and the times re-based went through)
         part("no_first_rows_rebased.csv", rebased(body[600:])),
         part("thinned_cut_rebased.csv", rebased(body[601::10])),
+        # (a re-probe: cut after the first firing and re-based, it lined up with neither
+        # start nor firing)
+        part("from_its_test_rebased.csv", rebased(body[3000::3])),
         part("odd_rows.csv", body[1::2]),
         part("random_half.csv", [r for r in body if rng.random() < 0.5]),
         part("every_10_s.csv", body[::10]),
@@ -520,7 +523,7 @@ def test_a_part_or_a_thinning_of_the_calibration_log_either_way_round_is_refused
     for path in parts:
         other = read_log(path)
         assert _same_record(log, other) and _same_record(other, log), path.name
-    argv = ["diagnose", "--calibration", str(parts[5]), "--validation", str(whole)]
+    argv = ["diagnose", "--calibration", str(parts[6]), "--validation", str(whole)]
     assert main([*argv, "--boiler", "windhager_12kw", "--out", str(tmp_path / "d")]) == 2
     err = capsys.readouterr().err
     assert "--validation: the same record as --calibration, or a part of it" in err
