@@ -28,6 +28,7 @@ which they are.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -60,11 +61,11 @@ class _Record:
         firing = burning if burning.any() else np.ones(len(log), dtype=bool)
         return cls(log.t, firing, {name: fill_gaps(log[name], log.t) for name in COLUMNS})
 
-    @property
+    @cached_property  # (asked for at every shift tried)
     def step(self) -> float:
         return float(np.median(np.diff(self.t)))
 
-    @property
+    @cached_property
     def firing_s(self) -> float:
         return float(self.firing.sum()) * self.step
 
