@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -151,6 +152,11 @@ def _log_name(log: LabLog) -> str:
     return str(log.path) if log.path else "the log"
 
 
+def _meta_file(log: LabLog) -> Path | str:
+    """The log's meta file, as messages name it."""
+    return log.path.with_name(log.path.stem + ".meta.json") if log.path else "meta file"
+
+
 def _from_meta(log: LabLog) -> Phases | None:
     """The marks t0_s..t4_s of the meta file; None unless it gives all five (CONTRACT
     section 3: "where known"; an interrupted run's meta file keeps the marks it reached),
@@ -171,7 +177,7 @@ def _from_meta(log: LabLog) -> Phases | None:
 def _meta_marks(log: LabLog, partial: bool) -> Phases | None:
     """:func:`_from_meta`; with ``partial``, also the marks an interrupted run reached (at
     least t0_s, then each up to the first null), the rest at the record's last row."""
-    meta_file = log.path.with_name(log.path.stem + ".meta.json") if log.path else "meta file"
+    meta_file = _meta_file(log)
     fix = "; remove t0_s..t4_s from it to find the phases from the signals"
     for key in MARKS:
         v = log.meta.get(key)
@@ -279,7 +285,7 @@ def _check_against_signals(log: LabLog, phases: Phases) -> None:
         if abs(phases.t3 - stop) > MARK_SLACK_S:
             far.append(f"t3_s = {phases.t3:g} s, the circulation stopping at {stop:g} s")
     if far:
-        meta_file = log.path.with_name(log.path.stem + ".meta.json") if log.path else "meta"
+        meta_file = _meta_file(log)
         raise LogError(
             f"{meta_file}: {'; '.join(far)} in {_log_name(log)} (more than "
             f"{MARK_SLACK_S / 60:g} min apart): marks of another log? remove t0_s..t4_s "
@@ -420,7 +426,7 @@ def find_phases(log: LabLog, prefer_signals: bool = False, partial: bool = False
     first_null = next(key for key in MARKS if log.meta.get(key) is None)
     after = [key for key in MARKS[MARKS.index(first_null) + 1 :] if key in reached]
     if after:  # no run writes that: it stops marking at the first mark it does not reach
-        meta_file = log.path.with_name(log.path.stem + ".meta.json") if log.path else "meta"
+        meta_file = _meta_file(log)
         log.notes.append(
             f"{meta_file}: {', '.join(after)} given after {first_null} = null, which no "
             "interrupted run writes (edited?): its marks are not used; phases from the signals"
