@@ -28,6 +28,7 @@ import numpy as np
 from hil_client.analysis.balance import as_json as balance_json
 from hil_client.analysis.balance import energy_balance
 from hil_client.analysis.balance import table as balance_table
+from hil_client.analysis.balance import warnings_by_reason as balance_warnings
 from hil_client.analysis.calibrate import calibrate
 from hil_client.analysis.diagnose import diagnose
 from hil_client.analysis.diagnosis_files import write_diagnosis
@@ -696,6 +697,8 @@ def _cmd_balance(args: argparse.Namespace) -> int:
     write_atomically(out, text + "\n")
     print(f"energy balance of {args.log} ({params.name}; phases from the {phases.source})")
     print(balance_table(rows))
+    for line in balance_warnings(rows):  # on stderr, as every other warning
+        print(f"hil-client: warning: {line}", file=sys.stderr)
     if log.has("balance_mass_kg"):  # taken out of the fuel, as said (it was not: a probe)
         found = refills(log.balance_readings()[0], log.t)  # (a dropout's return was one)
         if found:

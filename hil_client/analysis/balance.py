@@ -349,13 +349,16 @@ def table(rows: list[PhaseBalance]) -> str:
             f"{_cell(r.q_flue_gas_kW, '.3f', 9)} {_cell(r.lambda_mean, '.2f', 7)} "
             f"{_cell(r.eta_direct, '.1f', 8, 100, '%')} {_cell(r.eta_indirect, '.1f', 8, 100, '%')}"
         )
-    # each reason once, with the phases it concerns
+    return "\n".join(lines)
+
+
+def warnings_by_reason(rows: list[PhaseBalance]) -> list[str]:
+    """Each phase's warnings once per reason, with the phases it concerns."""
     reasons: dict[str, list[str]] = {}
     for r in rows:
         for w in r.warnings:
             reasons.setdefault(w, []).append(r.phase)
-    lines += [f"warning: {w} ({', '.join(phases)})" for w, phases in reasons.items()]
-    return "\n".join(lines)
+    return [f"{w} ({', '.join(phases)})" for w, phases in reasons.items()]
 
 
 def as_json(rows: list[PhaseBalance], phases: Phases) -> dict:

@@ -162,8 +162,8 @@ def test_a_run_cut_short_gets_the_balance_of_the_phases_it_recorded(run_log, tmp
     cut.with_name("cut.meta.json").write_text(json.dumps(meta))
     capsys.readouterr()
     assert main(["balance", str(cut), "--out", str(tmp_path / "cut.json")]) == 0
-    out = capsys.readouterr().out
-    assert "cut short in its test phase" in out and "cut short in this phase" in out
+    said = capsys.readouterr()
+    assert "cut short in its test phase" in said.out and "cut short in this phase" in said.err
     data = json.loads((tmp_path / "cut.json").read_text())
     assert data["phases"]["t2_s"] is None and data["phases"]["t1_s"] == rec.meta["t1_s"]
     by_phase = {r["phase"]: r for r in data["balance"]}
