@@ -350,6 +350,7 @@ def read_log(
         )
     meta_file = path.with_name(path.stem + ".meta.json")
     meta = _meta(meta_file)
+    notes += _keys_not_read(meta, meta_file)
     if not as_read:
         _drop_error_codes(path, columns, text, meta, meta_file, notes)
     return LabLog(path, columns, text, meta, notes)
@@ -420,6 +421,38 @@ def _meta(meta_file: Path) -> dict[str, Any]:
         if not isinstance(meta, dict):
             raise LogError(f"{meta_file}: expected a JSON object")
     return meta
+
+
+#: The meta file's keys the analyses read (CONTRACT section 3, and the error codes').
+META_KEYS_READ = ("boiler", "test", "t0_s", "t1_s", "t2_s", "t3_s", "t4_s", "missing_values")
+
+
+def _keys_not_read(meta: dict[str, Any], meta_file: Path) -> list[str]:
+    """A note for each key of ``meta`` written like one the analyses read but not as they
+    read it (``t0``, ``T1_s``, ``t2 [s]``, ``Boiler``): its mark was silently not used and the
+    phases came from the signals (a stranger's review). Other keys are the lab's own."""
+    notes = []
+    for key in meta:
+        if key in META_KEYS_READ:
+            continue
+        bare = re.sub(r"[^a-z0-9]", "", key.lower())
+        meant = next(
+            (
+                k
+                for k in META_KEYS_READ
+                if bare == k.replace("_", "")
+                or (
+                    k.endswith("_s")
+                    and re.fullmatch(re.escape(k[:-2]) + r"(s|sec|secs|seconds)?", bare)
+                )
+            ),
+            None,
+        )
+        if meant is not None:
+            notes.append(
+                f"key '{_shown(key)}' of {meta_file.name} is not read: the analyses read '{meant}'"
+            )
+    return notes
 
 
 def _drop_error_codes(

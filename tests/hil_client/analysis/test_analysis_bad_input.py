@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from hil_client.analysis.balance import energy_balance, table
+from hil_client.analysis.balance import energy_balance, table, warnings_by_reason
 from hil_client.analysis.calibrate import calibrate
 from hil_client.analysis.fault_report import check_journal, compare
 from hil_client.analysis.logio import LogError, read_log
@@ -69,6 +69,19 @@ def test_meta_marks_in_order_within_the_record_are_taken(tmp_path):
     phases = find_phases(read_log(path))
     assert phases.source == "meta file"
     assert phases.as_dict() == {**MARKS, "t4_s": 9.0}
+
+
+def test_meta_keys_written_like_the_marks_but_not_as_read_are_named(tmp_path):
+    """A stranger's review: ``t0`` or ``T1_s`` for ``t0_s``, ``Boiler`` for ``boiler`` were
+    silently not read, the phases then coming from the signals. Each is named with the key
+    meant; a lab's own keys (``operator``) and the project's (``seed``) are no note."""
+    marks = {"t0": 3.0, "T1_s": 5.0, "t2 [s]": 7.0, "t3_sec": 8.0, "t4_s": 10.0}
+    meta = {**marks, "Boiler": "windhager_6kw", "operator": "JS", "seed": 3, "t0_note": "x"}
+    notes = read_log(_short_log(tmp_path, meta=meta)).notes
+    for key, meant in [("t0", "t0_s"), ("T1_s", "t1_s"), ("t2 [s]", "t2_s"), ("t3_sec", "t3_s"),
+                       ("Boiler", "boiler")]:  # fmt: skip
+        assert f"key '{key}' of short.meta.json is not read: the analyses read '{meant}'" in notes
+    assert len(notes) == 5  # operator, seed, t0_note and the right t4_s are no note
 
 
 def test_an_interrupted_runs_partial_marks_leave_the_phases_to_the_signals(tmp_path):
@@ -130,7 +143,8 @@ def _balance(params, **columns: np.ndarray):
     t_end = float(log.t[-1])
     phases = Phases(0.0, 0.5, t_end, t_end + 1, t_end + 2, "test")
     rows = energy_balance(log, params, phases)
-    return next(r for r in rows if r.phase == "test"), table(rows)
+    said = [table(rows), *(f"warning: {line}" for line in warnings_by_reason(rows))]
+    return next(r for r in rows if r.phase == "test"), "\n".join(said)
 
 
 def test_balance_without_o2_reports_the_flue_gas_loss_unknown_not_zero(params_12kw):
@@ -195,7 +209,9 @@ def test_balance_json_writes_unknown_as_null_with_the_reason(tmp_path, capsys):
     path.with_name("steady.meta.json").write_text(json.dumps(meta))
     out = tmp_path / "b.json"
     assert main(["balance", str(path), "--boiler", "windhager_6kw", "--out", str(out)]) == 0
-    assert "warning: column 'flue_gas_O2_pct' has no readings" in capsys.readouterr().out
+    said = capsys.readouterr()  # warnings on stderr, as every other (a stranger's review)
+    assert "hil-client: warning: column 'flue_gas_O2_pct' has no readings" in said.err
+    assert "warning" not in said.out and "test" in said.out
     test = next(r for r in json.loads(out.read_text())["balance"] if r["phase"] == "test")
     assert test["q_flue_gas_kW"] is None and test["eta_indirect"] is None
     assert test["q_fuel_kW"] > 0 and test["warnings"]
