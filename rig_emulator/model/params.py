@@ -185,6 +185,11 @@ def params_from_mapping(data: Any, source: str = "<parameters>") -> BoilerParams
     name = data["name"]
     if not isinstance(name, str) or not name:
         raise ParameterError(f"{source}: key 'name' must be a non-empty string")
+    if len(name) > NAME_MAX_CHARS:  # (100,000 characters went into every line naming it)
+        raise ParameterError(
+            f"{source}: key 'name' is {len(name)} characters long: a boiler's name is at most "
+            f"{NAME_MAX_CHARS}"
+        )
     hidden = hidden_character(name)
     if hidden is not None:  # (U+202E and a line break were printed raw: a stranger's probe)
         raise ParameterError(f"{source}: key 'name' '{shown(name)}' holds {hidden}")
@@ -295,6 +300,9 @@ def params_from_mapping(data: Any, source: str = "<parameters>") -> BoilerParams
     return params
 
 
+#: The longest boiler name [characters]: a maker, a model and a lab's note fit in it; a
+#: name of 100,000 characters was taken into every message and meta file (a stranger's probe).
+NAME_MAX_CHARS = 200
 #: The most of the nominal firing power the auxiliaries may draw at full load [-]: fans,
 #: auger and controller draw 0.3-1 % (the bench's boilers: 50 W of 12 kW); 20 % is no
 #: boiler, and 7 MW of stand-by went into a log unremarked (a stranger's probe).

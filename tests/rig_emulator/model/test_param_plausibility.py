@@ -203,6 +203,8 @@ def test_a_second_yaml_document_is_named(tmp_path, capsys):
     [
         ("wind\u202eager", "'wind\\u202eager' holds U+202E RIGHT-TO-LEFT OVERRIDE"),
         ("wind\nhager", "'wind\\nhager' holds U+000A: a control character"),
+        # a stranger's probe: 100,000 characters went into every message naming the boiler
+        ("w" * 100_000, "key 'name' is 100000 characters long: a boiler's name is at most 200"),
     ],
 )
 def test_a_name_with_control_or_format_characters_is_refused(tmp_path, capsys, name, fragment):
