@@ -315,6 +315,11 @@ def _random_from_mapping(data: Mapping, where: str) -> RandomSpec:
             raise FaultError(f"{where}.params.{kind}: not a kind with a parameter")
         if not isinstance(given, Mapping) or set(given) - {name}:
             raise FaultError(f"{where}.params.{kind}: must be {{{name}: NUMBER}}")
+        if kind not in kinds:  # (it was ignored without a word: a stranger's probe)
+            raise FaultError(
+                f"{where}.params.{kind}: '{kind}' is not among the kinds drawn "
+                f"({', '.join(kinds)}): add it to 'kinds' or leave its parameters out"
+            )
         if name in given:
             value = check_parameter(f"{where}.params.{kind}.{name}", kind, given[name])
             params[kind] = {name: value}

@@ -62,6 +62,16 @@ def test_every_kind_parses_with_its_parameter():
             {"kind": "random", "rate_per_h": 1, "kinds": ["delay"], "params": {"delay": {"x": 1}}},
             "faults[0].params.delay",
         ),
+        # a stranger's probe: a parameter of a kind never drawn was ignored without a word
+        (
+            {
+                "kind": "random",
+                "rate_per_h": 1,
+                "kinds": ["no_reply", "delay"],
+                "params": {"spike": {"value": 50}},
+            },
+            "faults[0].params.spike: 'spike' is not among the kinds drawn (no_reply, delay)",
+        ),
         ("no_reply", "faults[0]"),
         # said as "kind: None is not one of", and a date as datetime.date(...): a probe
         ({"unit": 1}, "faults[0]: missing 'kind'"),
