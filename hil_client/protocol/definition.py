@@ -240,6 +240,10 @@ def _log_text(name: str) -> bool:
     return _control_free(name) and not any(ch in ',"' for ch in name)
 
 
+#: Water boils at atmospheric pressure [C]: no forward the protocol sets may reach it.
+WATER_BOILS_C = 100.0
+
+
 def _not_longer(short: float, long: float, keys: tuple[str, str], source: str) -> None:
     if short > long:
         raise ProtocolError(
@@ -381,6 +385,21 @@ def protocol_from_mapping(data: Any, source: str = "<protocol>") -> ProtocolDefi
     )
     c2 = _section(data, "cooling_2", source)
     _check_keys(c2, {"until_after_t2_s"}, "cooling_2", source)
+    test_return_C = _get(ts, "test_sequence", "return_setpoint_C", source)
+    for key, return_C in (
+        ("start_up.return_setpoint_C", start_up.return_setpoint_C),
+        ("test_sequence.return_setpoint_C", test_return_C),
+        ("cooling_1.return_setpoint_C", cooling_1.return_setpoint_C),
+    ):
+        # the flows are set for a forward of return + spread at every load (a spread of
+        # 1000 K gave flows of a few kg/h and a preheat that timed out: a stranger's probe)
+        # (a return itself out of the emulator's range is told as such when the run starts)
+        if return_C < WATER_BOILS_C <= return_C + spread:
+            raise ProtocolError(
+                f"{source}: key 'flow_spread_K' ({spread:g} K) over '{key}' ({return_C:g} C) "
+                f"sets the flows for a forward water of {return_C + spread:g} C, at or above "
+                f"the {WATER_BOILS_C:g} C at which it boils (a boiler's spread: 5-30 K)"
+            )
     protocol = ProtocolDefinition(
         name=data["name"],
         test=data["test"],
@@ -388,7 +407,7 @@ def protocol_from_mapping(data: Any, source: str = "<protocol>") -> ProtocolDefi
         flow_spread_K=spread,
         preheat=preheat,
         start_up=start_up,
-        test_return_setpoint_C=_get(ts, "test_sequence", "return_setpoint_C", source),
+        test_return_setpoint_C=test_return_C,
         sequences=tuple(sequences),
         cooling_1=cooling_1,
         cooling_2_until_after_t2_s=_get(c2, "cooling_2", "until_after_t2_s", source, "duration"),

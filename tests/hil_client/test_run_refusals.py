@@ -102,6 +102,12 @@ def test_setpoints_out_of_the_emulators_range_are_refused(tmp_path, capsys, muta
         (lambda d: _seq(d, name="=1+1"), "may not begin with = + - @: a spreadsheet"),
         (lambda d: _seq(d, name="＝1+1"), "may not begin with = + - @: a spreadsheet"),
         (lambda d: _seq(d, name="tab\there"), "control characters"),
+        # a stranger's probe: flows of a few kg/h, and only "preheat timed out" hours later
+        (
+            lambda d: d.update(flow_spread_K=1000),
+            "key 'flow_spread_K' (1000 K) over 'start_up.return_setpoint_C' (55 C) sets the "
+            "flows for a forward water of 1055 C, at or above the 100 C at which it boils",
+        ),
         # a stranger's probe: float("-00") is -0.0, so "-00:10:00" played +600 s; Arabic-Indic
         # digits read as 10 h; a name given as a number was "missing"; a ramp's bad end was
         # named load_pct.b, a key the file does not have; a line break in the protocol's name
