@@ -567,6 +567,36 @@ def _read_as_mbpoll(path: str, unit: int) -> bytes:
     return reply
 
 
+#: Trials of a master that asks and leaves before its reply, and how many must be had: on a
+#: loaded machine the test process itself may be held up past the reply between its request
+#: and its close, and then the master was there as its reply came (a CI run of three workers
+#: on two cores wrote it so, and the newcomer read it; the claim is not about that case).
+TRIALS, TRIALS_NEEDED = 8, 3
+
+
+def _asked_and_left(path: str, request: bytes, pause_s: float = 0.0) -> float | None:
+    """Send ``request`` as a master that closes the pty ``pause_s`` after (before its
+    reply can be on the line): the time it was sent, or None where the close came too late
+    for that (the process was held up: :data:`TRIALS`)."""
+    gone = Line(path)
+    sent = time.monotonic()
+    gone.send(request)
+    if pause_s:
+        time.sleep(pause_s)
+    gone.close()
+    # the request's own wire time and silence: no reply can be on the line before
+    in_time = time.monotonic() - sent < len(request) * character_s(BAUD) + silence_s(BAUD)
+    return sent if in_time else None
+
+
+def _enough(tried: int) -> None:
+    if tried < TRIALS_NEEDED:
+        pytest.skip(
+            f"the machine held the test up between a request and its close in "
+            f"{TRIALS - tried} of {TRIALS} trials: too few masters left before their reply"
+        )
+
+
 def _is_reply_of(reply: bytes, unit: int) -> bool:
     return reply[:3] == bytes([unit, 4, 4]) and rtu_frame(unit, reply[1:-2]) == reply
 
@@ -604,16 +634,18 @@ def test_a_master_that_comes_before_the_last_ones_reply_does_not_get_it(rtu_serv
     then the reply written into it, which the next master read as its own (mbpoll printed
     the register's old value, exit 0, in 5 of 20 runs). The reply is its master's or none
     (two masters' frames read as one, as two that collide on a line, get none)."""
-    for _ in range(5):  # (the newcomer opens before the reply, most times)
-        gone = Line(rtu_server.line.path)
-        gone.send(rtu_frame(1, _fc4(0, 2)))
-        gone.close()
+    tried = 0
+    for _ in range(TRIALS):  # (the newcomer opens before the reply, most times)
+        if _asked_and_left(rtu_server.line.path, rtu_frame(1, _fc4(0, 2))) is None:
+            continue
         # its request a frame of its own (its wire time and t3.5), and the next master
         # there before the reply's wire time has passed
         time.sleep(8 * character_s(BAUD) + 2 * silence_s(BAUD))
         reply = _read_as_mbpoll(rtu_server.line.path, 4)
         assert not _is_reply_of(reply[:9], 1), reply.hex()  # the one that left asked unit 1
+        tried += 1
         time.sleep(0.1)
+    _enough(tried)
     time.sleep(0.2)  # the line answers the next master as ever
     assert _is_reply_of(_read_as_mbpoll(rtu_server.line.path, 4), 4)
 
@@ -631,16 +663,17 @@ def test_a_master_that_comes_as_the_last_ones_reply_is_written_does_not_get_it(
     the count)."""
     request = rtu_frame(1, _fc4(0, 2))
     reply_at_s = 8 * character_s(BAUD) + silence_s(BAUD) + 9 * character_s(BAUD)
-    for _ in range(5):
-        gone = Line(rtu_server.line.path)
-        sent = time.monotonic()
-        gone.send(request)
-        time.sleep(0.001)  # (it leaves as its request is on the line)
-        gone.close()
+    tried = 0
+    for _ in range(TRIALS):
+        sent = _asked_and_left(rtu_server.line.path, request, pause_s=0.001)
+        if sent is None:
+            continue
         time.sleep(max(sent + reply_at_s + after_reply_ms / 1000 - time.monotonic(), 0.0))
         reply = _read_as_mbpoll(rtu_server.line.path, 4)
         assert not _is_reply_of(reply[:9], 1), reply.hex()  # the one that left asked unit 1
+        tried += 1
         time.sleep(0.1)
+    _enough(tried)
 
 
 def test_a_master_at_another_baud_rate_gets_no_reply_and_the_log_says_why(rtu_server, caplog):
@@ -714,6 +747,9 @@ def test_mbpoll_after_a_master_that_left_reads_the_register_now(cli_server):
         time.sleep(0.2)  # its reply came: nobody reads it
         gone.close()
         assert not tcp.write_register(0, 600, device_id=7).isError()
+        # mbpoll run again a moment later, as a person does (a server held up past the time
+        # a newcomer takes to open and read is a known limit: README, RTU)
+        time.sleep(0.3)
     finally:
         tcp.close()
     out = _mbpoll("-a", "7", "-r", "0", "-c", "1", "-t", "4", pty).stdout
