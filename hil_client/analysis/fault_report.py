@@ -314,7 +314,10 @@ def _already_still(x: np.ndarray, rows: np.ndarray) -> bool:
     if rows.size == 0 or rows[0] < STILL_BEFORE_ROWS:
         return False
     span = x[rows[0] - STILL_BEFORE_ROWS : rows[-1] + 1]
-    return bool(np.all(span == x[rows[0]]))
+    # rows without a reading (a dropout within the window) show nothing either way: the
+    # same stuck fault was no trace without one and missed with one (a stranger's probe)
+    read = span[np.isfinite(span)]
+    return bool(read.size) and bool(np.all(read == read[0]))
 
 
 def _missing(name: str, values: np.ndarray) -> np.ndarray:
@@ -391,7 +394,10 @@ def compare(
         client_events = [e for e, ok in zip(client_events, spanned, strict=True) if ok]
 
         def in_run(fault: Mapping[str, Any]) -> bool:
-            ended = fault["end_s"] is not None and fault["end_s"] < first - 1e-9
+            # a window ends before its end (the row read at end_s has the value after it):
+            # a spike at 0 for 1 s before a first row at 1.0 no row could show, and it was
+            # counted missed (a stranger's probe)
+            ended = fault["end_s"] is not None and fault["end_s"] <= first + 1e-9
             return not ended and fault["start_s"] <= last + slack_s
 
         faults = [f for f in served if in_run(f)]

@@ -66,6 +66,20 @@ def test_faults_before_the_first_row_or_after_the_last_are_outside_the_run():
     assert outside == [("delay", 130.0), ("exception", 150.0), ("no_reply", 10.0)]
 
 
+def test_a_fault_that_ends_as_the_first_row_is_read_is_outside_the_run():
+    """A stranger's probe: a spike at 0 for 1 s, the log's first row at 1.0 s reading the
+    value after it (a window ends before its end), was counted missed."""
+    journal = _journal(
+        {"start": 0.0, "end": 1.0, "what": {"kind": "spike", "signal": "a"}},
+        {"start": 0.0, "end": 2.0, "what": {"kind": "spike", "signal": "a"}},  # row 1.0 in it
+    )
+    t = np.arange(1.0, 60.0)
+    columns = {"a": np.where(t == 1.0, 99.0, 22.0)}
+    report = compare(journal, [], columns, t)
+    assert [(f["start_s"], f["end_s"]) for f in report["outside_run"]] == [(0.0, 1.0)]
+    assert [(r["end_s"], r["detected"]) for r in report["faults"]] == [(2.0, False)]
+
+
 def test_log_detectors_find_spike_offset_and_stuck_only_where_they_are():
     rng = np.random.default_rng(0)
     t = np.arange(200.0)
@@ -115,3 +129,8 @@ def test_a_stuck_fault_on_a_reading_that_was_not_moving_is_no_trace_not_detected
     assert [(f["signal"], f["start_s"]) for f in report["no_trace"]] == [("still", 100.0)]
     assert [(r["signal"], r["detected"]) for r in report["faults"]] == [("held", True)]
     assert report["detected"] == 1 and report["missed"] == 0
+    # rows without a reading in the window (a dropout) change nothing: still no trace
+    # (such a stuck O2 at air's 20.95 % was missed: a stranger's probe)
+    still[110:115] = np.nan
+    report = compare(journal, [], columns, t)
+    assert [(f["signal"], f["start_s"]) for f in report["no_trace"]] == [("still", 100.0)]
