@@ -277,9 +277,13 @@ def _log_detects(
         else 0.0
     )
     n = x.size
+    read = np.flatnonzero(np.isfinite(x))
     for i in rows:
-        if kind == "spike" and 0 < i < n - 1:
-            a, b, c = x[i - 1], x[i], x[i + 1]
+        # a spike's neighbours: the readings next to it, across rows without one (a spike
+        # among a dropout's empty rows was missed: a stranger's probe)
+        k = int(np.searchsorted(read, i))
+        if kind == "spike" and 0 < k < read.size - 1 and read[k] == i:
+            a, b, c = x[read[k - 1]], x[i], x[read[k + 1]]
             level = max(abs(a), abs(c), 1.0)
             jump = max(least, 0.01 * level)
             if abs(b - a) > jump and abs(b - c) > jump and abs(a - c) < jump:

@@ -110,6 +110,27 @@ def test_log_detectors_find_spike_offset_and_stuck_only_where_they_are():
     assert report["false"] == 0
 
 
+def test_a_spike_among_a_dropouts_empty_rows_is_told_from_the_readings_either_side():
+    """A stranger's probe: a spike to 5000 ppm logged amid a dropout's empty rows was
+    missed (its neighbours were no readings); they are the readings next to it now. A
+    reading in the gap at the level either side is no spike."""
+    t = np.arange(300.0)
+    co = 40.0 + np.sin(t / 200.0)
+    co[100:200] = np.nan  # the dropout
+    co[150] = 5000.0  # the spike within it
+    level = co.copy()
+    level[150] = 40.5  # a reading at the level either side
+    journal = _journal(
+        {"start": 150.0, "end": 151.0, "what": {"kind": "spike", "signal": "co"}},
+        {"start": 150.0, "end": 151.0, "what": {"kind": "spike", "signal": "level"}},
+    )
+    report = compare(journal, [], {"co": co, "level": level}, t)
+    assert [(r["signal"], r["detected"]) for r in report["faults"]] == [
+        ("co", True),
+        ("level", False),
+    ]
+
+
 def test_a_stuck_fault_on_a_reading_that_was_not_moving_is_no_trace_not_detected():
     """A stranger's probe: a stuck fault on the clean profile's forward temperature, at its
     set point (70.00000 for hours), was "detected" in the log; the same fault, made up, on
