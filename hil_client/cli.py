@@ -1302,7 +1302,8 @@ def _run(args: argparse.Namespace, held: contextlib.ExitStack) -> int:
         "rig": args.rig,
         "clock": _clock(rig) if remote else "offline",
         "profile": "set by the server" if remote else (args.profile or "clean"),
-        "seed": None if remote else (args.seed or 0),
+        # the server's, as it publishes it (null on a Modbus run: a stranger's probe)
+        "seed": rig.identity["seed"] if remote else (args.seed or 0),
         # what the server publishes of its set-up (CONTRACT section 7)
         **(
             {

@@ -233,7 +233,7 @@ def test_the_meta_file_records_the_servers_boiler(tmp_path, capsys, serve):
     from rig_emulator.boilers import load_boiler
     from rig_emulator.emulator import boiler_identity
 
-    srv = serve(boiler="windhager_6kw")
+    srv = serve(boiler="windhager_6kw", seed=5)
     out = tmp_path / "log.csv"
     rig = f"modbus://127.0.0.1:{srv.port}"
     argv = ["run", str(SHORT), "--boiler", "windhager_6kw", "--rig", rig, "--quiet"]
@@ -241,6 +241,7 @@ def test_the_meta_file_records_the_servers_boiler(tmp_path, capsys, serve):
     meta = json.loads((tmp_path / "log.meta.json").read_text())
     assert meta["server_boiler_id"] == f"{boiler_identity(load_boiler('windhager_6kw')):08x}"
     assert meta["server_boiler_id"] == f"{int(srv.values()['boiler_id']):08x}"
+    assert meta["seed"] == 5  # the server's (it was null: a stranger's probe)
 
 
 def test_the_log_writer_quotes_a_text_field_that_would_break_the_row(tmp_path):
