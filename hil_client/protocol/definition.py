@@ -255,7 +255,9 @@ def _check_keys(section: Mapping[str, Any], allowed: set[str], prefix: str, sour
     for key in section:
         if key not in allowed:
             name = f"{prefix}.{key}" if prefix else key
-            raise ProtocolError(f"{source}: unknown key '{name}'")
+            known = ", ".join(sorted(allowed))  # (a stranger wrote a file from the errors)
+            where = f"'{prefix}'" if prefix else "a protocol"
+            raise ProtocolError(f"{source}: unknown key '{name}' (the keys of {where}: {known})")
 
 
 def protocol_from_mapping(data: Any, source: str = "<protocol>") -> ProtocolDefinition:

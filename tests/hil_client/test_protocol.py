@@ -95,6 +95,12 @@ def test_log_columns_are_the_contract_columns_then_optional_ones():
         (lambda d: d["start_up"].pop("t1_window_s"), "'start_up.t1_window_s'"),
         (lambda d: d.update(acquisition_period_s=0), "must be > 0"),
         (lambda d: d.update(extra=1), "unknown key 'extra'"),
+        # a stranger wrote a protocol from the errors, which did not say the keys there are
+        (
+            lambda d: d["cooling_1"].update(duration_s=60),
+            "unknown key 'cooling_1.duration_s' (the keys of 'cooling_1': load_pct, "
+            "max_duration_s, return_setpoint_C, until_forward_C)",
+        ),
         # a stranger's probes: a repeated or blank name, a step shorter than a period (never
         # logged, its setpoint never written), a time of 99 minutes
         (
@@ -283,3 +289,20 @@ def test_the_schemas_own_example_is_a_protocol(tmp_path):
     path = tmp_path / "example.yaml"
     path.write_text("\n".join(line[4:] for line in block.splitlines()))
     assert definition.load_protocol(str(path)).name == "load_cycle"
+
+
+def test_the_documented_example_protocol_is_one(tmp_path):
+    """docs/protocols.md's example loads as written, its loads and ramp as it says (the
+    form was written for a stranger who had built a file from the error messages)."""
+    import re
+
+    text = (Path(__file__).parents[2] / "docs" / "protocols.md").read_text()
+    path = tmp_path / "mine.yaml"
+    path.write_text(re.search(r"```yaml\n(.*?)```", text, re.S).group(1))
+    protocol = load_protocol(str(path))
+    assert [(s.name, s.load_start_pct, s.load_end_pct) for s in protocol.sequences] == [
+        ("full", 100.0, 100.0),
+        ("ramp_100_30", 100.0, 30.0),
+        ("part_30", 30.0, 30.0),
+    ]
+    assert protocol.test_duration_s == 3600.0 + 1800.0 + 7200.0
