@@ -3,14 +3,16 @@
 The fuel fed (the balance loses it) collects in the bed of mass M [kg dry, nominal-energy
 equivalent]: dM/dt = m_feed - m_burn. For ``delay_s`` after a start from an unlit bed
 nothing burns; then the bed burns at m_burn = M / tau_b, also after a stop (without feed)
-until it is empty (burn-out; below :data:`BED_EMPTY_KG` it counts as burnt and the bed goes
-out). The bed holds m_feed tau_b in steady firing, so the heat release follows the feed with
-the lag tau_b; at ignition it holds m_feed delay_s, which flares up if the delay exceeds
-tau_b (equal at the lab values and under any strength: at constant feed the heat is the feed
-delayed). The excess-air ratio is the controller's (Eq. 9 at the feed rate; the fan keeps
-the last value in the burn-out); flue-gas temperature (Eq. 8), composition and losses
-(Eq. 3-6) follow the fuel that burns. The fan runs (UA_amb,ON) while the controller fires or
-the bed burns; the start CO peak decays from the ignition of the bed.
+until it is empty (burn-out; below :data:`BED_EMPTY_KG` the bed goes out, the rest staying
+in it for the next start). The bed holds m_feed tau_b in steady firing, so the heat release
+follows the feed with the lag tau_b; at ignition it holds m_feed delay_s, which flares up
+if the delay exceeds tau_b (equal at the lab values and under any strength: at constant feed
+the heat is the feed delayed). The excess-air ratio is the controller's (Eq. 9 at the
+feed rate); in the burn-out the fan holds the air of the last feed, so lambda rises as the
+bed burns down and the gas leaves cooler (:func:`rig_emulator.model.boiler.burnout_gas`);
+flue-gas temperature (Eq. 8), composition and losses (Eq. 3-6) follow the fuel that burns.
+The fan runs (UA_amb,ON) while the controller fires or the bed burns; the start CO peak
+decays from the ignition of the bed.
 
 Numerics: the bed's linear equation is solved exactly over the lit part of the step.
 
@@ -82,7 +84,8 @@ def fuel_bed(c, s, fc, fs, row, firing, feed_kg_h, firing_kW, co_start, dt_s):
         tau = fc[row, C_TAU]
         m1 = f_s * tau + (m1 - f_s * tau) * math.exp(-t_lit / tau) if tau > 0.0 else 0.0
         if not firing and m1 < BED_EMPTY_KG:
-            m1 = 0.0
+            # out: the rest stays in the bed, unlit, for the next start (burnt in this
+            # step, it flared to 2 kW in the burn-out's last second: a physics review)
             fs[row, S_LIT] = 0.0
     fs[row, S_BED] = m1
     burn = (m0 + f_s * dt_s - m1) * 3600.0 / dt_s  # mean over the step [kg/h]

@@ -24,9 +24,10 @@ from rig_emulator.bench import (
     resolve_effects,
     strength_ranges,
 )
-from rig_emulator.bench.bench import YB_BALANCE, YB_T_OUT
+from rig_emulator.bench.bench import YB_BALANCE, YB_T_OUT, YB_VELOCITY
 from rig_emulator.bench.effects import SPECS, STRENGTH_LIMITS, EffectError, check_effects
 from rig_emulator.bench.effects.flue_gas_lag import lag2
+from rig_emulator.bench.effects.ignition_delay import BED_EMPTY_KG
 from rig_emulator.emulator import Emulator
 from rig_emulator.instruments import ProfileError, load_profile, profile_from_mapping
 from rig_emulator.model.boiler import balance_residual_kW
@@ -282,8 +283,33 @@ def test_ignition_delay_balance_drops_before_heat_is_released(params_12kw, clean
         y[stop - 1, 5] / 3600 * bench.effects["ignition_delay"]["burnout_time_constant_s"],
         rel=0.05,
     )
-    assert bench.effect_state("ignition_delay")["bed_kg"] == 0.0
+    state = bench.effect_state("ignition_delay")  # out, its last 0.1 g left for the next start
+    assert state["bed_lit"] == 0.0 and 0.0 < state["bed_kg"] < BED_EMPTY_KG
     assert np.sum(y[stop + 600 :, Y_Q_FUEL]) == 0.0
+
+
+def test_a_bed_burning_out_is_fanned_by_the_air_of_the_last_feed(params_12kw):
+    """A physics review: in the burn-out the analyser read the full-load O2 to the last gram
+    and then air at once, the duct velocity fell to a hundredth of the idle draught's, and
+    the gas left as hot as at full load. The fan holds the last feed's air: O2 rises to air
+    as the bed burns down, the velocity stays the fan's until the bed is out, and the gas
+    cools towards the water (module docstring of boiler.burnout_gas)."""
+    bench = _bench(params_12kw, {"ignition_delay": {"strength": 1.0}})
+    run = drive(bench)
+    y, yb, t = run["y"], run["yb"], run["t"]
+    stop = int(np.searchsorted(t, 3600.0))
+    out = stop + int(np.argmax(y[stop:, Y_Q_FUEL] == 0.0))  # the first row the bed is out
+    burning = slice(stop + 1, out)
+    assert out - stop > 100  # (a bed of some minutes' burning)
+    o2 = y[burning, Y_O2]
+    assert y[stop - 1, Y_O2] < o2[0] < 17.0 and o2[-1] > 20.0  # the fire's, then air's
+    assert np.all(np.diff(o2) >= -1e-9)  # as the bed burns down, never back
+    velocity = yb[burning, YB_VELOCITY]
+    idle = yb[out + 5, YB_VELOCITY]  # the bed out: the idle draught's
+    assert velocity.min() > idle  # the fan's air, not the fuel's gas alone
+    assert y[out - 1, Y_Q_FUEL] < 0.05  # its last second no flare (2 kW: the review)
+    water, gas = y[burning, Y_T_BOILER], y[burning, Y_T_FG]
+    assert np.all(gas >= water - 1e-9) and gas[-1] - water[-1] < 0.2 * (gas[0] - water[0])
 
 
 def test_flue_gas_lag_rises_slower_after_ignition(params_12kw, clean_run):
