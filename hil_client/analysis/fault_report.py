@@ -278,6 +278,11 @@ def _log_detects(
     )
     n = x.size
     read = np.flatnonzero(np.isfinite(x))
+    # whether the column moves outside the window (a stuck reading to the log's end, half
+    # its rows, counted itself as not moving and was missed: a re-probe)
+    elsewhere = np.delete(x, rows)
+    elsewhere = elsewhere[np.isfinite(elsewhere)]
+    moves = elsewhere.size > 1 and np.mean(np.diff(elsewhere) != 0) > 0.5
     for i in rows:
         # a spike's neighbours: the readings next to it, across rows without one (a spike
         # among a dropout's empty rows was missed: a stranger's probe)
@@ -294,12 +299,7 @@ def _log_detects(
             level = max(abs(float(np.median(before))), 1.0)
             if abs(step) > max(least, 0.01 * level):
                 return True
-        elif (
-            kind == "stuck"
-            and i + 10 <= n
-            and np.all(x[i : i + 10] == x[i])
-            and np.mean(np.diff(x[np.isfinite(x)]) != 0) > 0.5  # it moves otherwise
-        ):
+        elif kind == "stuck" and i + 10 <= n and np.all(x[i : i + 10] == x[i]) and moves:
             return True
     return False
 
@@ -317,11 +317,17 @@ def _already_still(x: np.ndarray, rows: np.ndarray) -> bool:
     missed). Neither detected nor missed: nothing in the log could tell."""
     if rows.size == 0 or rows[0] < STILL_BEFORE_ROWS:
         return False
-    span = x[rows[0] - STILL_BEFORE_ROWS : rows[-1] + 1]
-    # rows without a reading (a dropout within the window) show nothing either way: the
-    # same stuck fault was no trace without one and missed with one (a stranger's probe)
-    read = span[np.isfinite(span)]
-    return bool(read.size) and bool(np.all(read == read[0]))
+    before = x[rows[0] - STILL_BEFORE_ROWS : rows[0]]
+    within = x[rows]
+    # rows without a reading (a dropout within or before the window) show nothing either
+    # way: the same stuck fault was no trace without one and missed with one (a stranger's
+    # probe); but some reading before the window must show the column still, or empty rows
+    # before a held reading passed as "not moving" (a re-probe: a sensor that dropped out,
+    # froze, and dropped out again was caught before)
+    before, within = before[np.isfinite(before)], within[np.isfinite(within)]
+    if before.size == 0 or within.size == 0:
+        return False
+    return bool(np.all(before == within[0]) and np.all(within == within[0]))
 
 
 def _missing(name: str, values: np.ndarray) -> np.ndarray:

@@ -155,3 +155,15 @@ def test_a_stuck_fault_on_a_reading_that_was_not_moving_is_no_trace_not_detected
     still[110:115] = np.nan
     report = compare(journal, [], columns, t)
     assert [(f["signal"], f["start_s"]) for f in report["no_trace"]] == [("still", 100.0)]
+    # but a reading held between two dropouts, nothing read just before it, is a fault the
+    # log shows (a re-probe: it passed as not moving)
+    held[290:300] = np.nan
+    report = compare(journal, [], columns, t)
+    assert [(r["signal"], r["detected"]) for r in report["faults"]] == [("held", True)]
+    # held from the middle to the log's end, no end journalled: it moves elsewhere (the
+    # rows it holds counted as a column not moving, and it was missed: a re-probe)
+    late = 60 + 0.05 * t
+    late[180:] = late[180]
+    journal = _journal({"start": 180.0, "what": {"kind": "stuck", "signal": "late"}})
+    report = compare(journal, [], {"late": late}, t)
+    assert [(r["signal"], r["detected"]) for r in report["faults"]] == [("late", True)]
