@@ -39,6 +39,7 @@ from typing import Any
 
 from hil_client.analysis.balance import energy_balance
 from hil_client.analysis.balance import table as balance_table
+from hil_client.analysis.balance import warnings_by_reason as balance_warnings
 from hil_client.analysis.figures import energy_and_temperatures
 from hil_client.analysis.logio import read_log
 from hil_client.analysis.phases import find_phases
@@ -214,7 +215,9 @@ def _report(
         running / FIGURE,
         f"{args.protocol} of {params.name} through Modbus ({pacing})",
     )
-    table = balance_table(rows)
+    # the reasons for what the table leaves unknown, under it (a re-probe: the report's
+    # table showed "-" without a word once the warnings left it for standard error)
+    table = "\n".join([balance_table(rows), *(f"warning: {w}" for w in balance_warnings(rows))])
     (running / REPORT).write_text(
         f"# Demo: {args.protocol} of {params.name} through Modbus TCP\n\n"
         f"Emulator: `rig-emulator serve --boiler {args.boiler} {' '.join(pace)}` (separate "

@@ -123,3 +123,27 @@ def test_the_demo_refuses_bad_input_in_one_line(tmp_path, capsys, argv, message)
         demo_main(argv)
     err = capsys.readouterr().err
     assert info.value.code == 2 and message in err and "Traceback" not in err
+
+
+def test_the_demo_report_says_why_its_balance_leaves_a_figure_unknown(run_log, tmp_path):
+    """A re-probe: once the balance's warnings went to standard error, the demo's report
+    showed "-" in its table without a word; it gives the reasons under the table."""
+    import argparse
+    import csv
+
+    from hil_client.demo import REPORT, _report
+
+    rec = run_log("stationary", "windhager_12kw")
+    with rec.path.open(newline="") as fh:
+        rows = list(csv.reader(fh))
+    o2 = rows[0].index("flue_gas_O2_pct")
+    for row in rows[1:]:
+        row[o2] = ""  # the analyser gave nothing
+    with (tmp_path / "log.csv").open("w", newline="") as fh:
+        csv.writer(fh).writerows(rows)
+    meta = rec.path.with_name(rec.path.stem + ".meta.json")
+    (tmp_path / "log.meta.json").write_text(meta.read_text())
+    args = argparse.Namespace(boiler="windhager_12kw", protocol="stationary", speed=1.0)
+    _report(args, tmp_path, "log.csv", 5020, ["--lockstep"])
+    report = (tmp_path / REPORT).read_text()
+    assert "warning: column 'flue_gas_O2_pct' has no readings" in report
