@@ -388,19 +388,19 @@ def protocol_from_mapping(data: Any, source: str = "<protocol>") -> ProtocolDefi
     c2 = _section(data, "cooling_2", source)
     _check_keys(c2, {"until_after_t2_s"}, "cooling_2", source)
     test_return_C = _get(ts, "test_sequence", "return_setpoint_C", source)
-    for key, return_C in (
+    for key, return_C in (  # (the first cooling's boiler does not fire: a re-probe)
         ("start_up.return_setpoint_C", start_up.return_setpoint_C),
         ("test_sequence.return_setpoint_C", test_return_C),
-        ("cooling_1.return_setpoint_C", cooling_1.return_setpoint_C),
     ):
-        # the flows are set for a forward of return + spread at every load (a spread of
-        # 1000 K gave flows of a few kg/h and a preheat that timed out: a stranger's probe)
-        # (a return itself out of the emulator's range is told as such when the run starts)
+        # while the boiler fires the flows are set for a forward of return + spread (a
+        # spread of 1000 K gave flows of a few kg/h and a preheat that timed out: a
+        # stranger's probe); a return itself outside the emulator's range is told as such
+        # when the run starts
         if return_C < WATER_BOILS_C <= return_C + spread:
             raise ProtocolError(
-                f"{source}: key 'flow_spread_K' ({spread:g} K) over '{key}' ({return_C:g} C) "
-                f"sets the flows for a forward water of {return_C + spread:g} C, at or above "
-                f"the {WATER_BOILS_C:g} C at which it boils (a boiler's spread: 5-30 K)"
+                f"{source}: '{key}' ({return_C:g} C) + 'flow_spread_K' ({spread:g} K) = "
+                f"{return_C + spread:g} C: the flows would be set for a forward water at or "
+                f"above the {WATER_BOILS_C:g} C at which it boils"
             )
     protocol = ProtocolDefinition(
         name=data["name"],

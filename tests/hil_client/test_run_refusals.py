@@ -105,8 +105,8 @@ def test_setpoints_out_of_the_emulators_range_are_refused(tmp_path, capsys, muta
         # a stranger's probe: flows of a few kg/h, and only "preheat timed out" hours later
         (
             lambda d: d.update(flow_spread_K=1000),
-            "key 'flow_spread_K' (1000 K) over 'start_up.return_setpoint_C' (55 C) sets the "
-            "flows for a forward water of 1055 C, at or above the 100 C at which it boils",
+            "'start_up.return_setpoint_C' (55 C) + 'flow_spread_K' (1000 K) = 1055 C: the "
+            "flows would be set for a forward water at or above the 100 C at which it boils",
         ),
         # a stranger's probe: float("-00") is -0.0, so "-00:10:00" played +600 s; Arabic-Indic
         # digits read as 10 h; a name given as a number was "missing"; a ramp's bad end was
