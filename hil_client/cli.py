@@ -666,8 +666,9 @@ def _boiler_for(log: LabLog, name: str | None):
     if not isinstance(recorded, str):
         if not log.meta:
             where = f"(no meta file {meta.name})"
-        elif recorded is None:
-            where = "in its meta file"
+        elif recorded is None:  # (a key 'Boiler' was noted after this error: a re-probe)
+            like = [n for n in log.notes if "the analyses read 'boiler'" in n]
+            where = "in its meta file" + (f" ({like[0]})" if like else "")
         else:
             kind = type(recorded).__name__
             where = f"in its meta file ('boiler' is {kind}, not a name or parameters)"

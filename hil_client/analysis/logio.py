@@ -443,12 +443,13 @@ def _keys_not_read(meta: dict[str, Any], meta_file: Path) -> list[str]:
                 if bare == k.replace("_", "")
                 or (
                     k.endswith("_s")
-                    and re.fullmatch(re.escape(k[:-2]) + r"(s|sec|secs|seconds)?", bare)
+                    and re.fullmatch(re.escape(k[:-2]) + r"(s|sec|secs|seconds|min|ms)?", bare)
                 )
             ),
             None,
         )
-        if meant is not None:
+        # (beside the key itself it is the lab's own, e.g. a 'Boiler' serial: a re-probe)
+        if meant is not None and meant not in meta:
             notes.append(
                 f"key '{_shown(key)}' of {meta_file.name} is not read: the analyses read '{meant}'"
             )

@@ -71,7 +71,7 @@ def test_meta_marks_in_order_within_the_record_are_taken(tmp_path):
     assert phases.as_dict() == {**MARKS, "t4_s": 9.0}
 
 
-def test_meta_keys_written_like_the_marks_but_not_as_read_are_named(tmp_path):
+def test_meta_keys_written_like_the_marks_but_not_as_read_are_named(tmp_path, capsys):
     """A stranger's review: ``t0`` or ``T1_s`` for ``t0_s``, ``Boiler`` for ``boiler`` were
     silently not read, the phases then coming from the signals. Each is named with the key
     meant; a lab's own keys (``operator``) and the project's (``seed``) are no note."""
@@ -82,6 +82,16 @@ def test_meta_keys_written_like_the_marks_but_not_as_read_are_named(tmp_path):
                        ("Boiler", "boiler")]:  # fmt: skip
         assert f"key '{key}' of short.meta.json is not read: the analyses read '{meant}'" in notes
     assert len(notes) == 5  # operator, seed, t0_note and the right t4_s are no note
+    # beside the key read, a variant is the lab's own (a boiler's serial: a re-probe); a
+    # mark in other units is named
+    marks = {k: v for k, v in MARKS.items() if k != "t1_s"}
+    meta = {**marks, "boiler": "windhager_6kw", "Boiler": "BioWIN 2 serial 4711", "T1_min": 2}
+    notes = read_log(_short_log(tmp_path, meta=meta)).notes
+    assert notes == ["key 'T1_min' of short.meta.json is not read: the analyses read 't1_s'"]
+    # where the boiler is only under the variant, the refusal names it (it came first)
+    path = _short_log(tmp_path, meta={**MARKS, "Boiler": "windhager_6kw"})
+    assert main(["balance", str(path), "--out", str(tmp_path / "b.json")]) == 2
+    assert "key 'Boiler' of short.meta.json is not read" in capsys.readouterr().err
 
 
 def test_an_interrupted_runs_partial_marks_leave_the_phases_to_the_signals(tmp_path):
