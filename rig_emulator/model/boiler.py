@@ -508,12 +508,15 @@ P_FLAME_CLOCK, P_FUEL_BED, P_FLUE_GAS, P_HEAT_STORE = range(len(STAGE_POINTS))
 
 @njit(cache=True, inline="always")
 def burnout_gas(t_water_C, t_fg_C, lam_fan, share):
-    """Flue-gas temperature [C] and excess-air ratio [-] while a bed burns out after a stop
-    (a fuel bed that burns without feed: the model's burns none; ``share``: the burning
-    rate over the feed that set the fan, in (0, 1)).
+    """Flue-gas temperature [C] and excess-air ratio [-] while a fuel bed burns less than
+    the feed that sets the fan: its burn-out after a stop, a restart onto a bed still
+    burning, a bed lighting (the model's burns its feed at once: never; ``share``: the
+    burning rate over that feed, in (0, 1)).
 
-    Not part of Type 869. Assumptions (ours): the fan holds the air of the last feed
-    (post-purge), so lambda = lambda_fan / share and the gas flow stays that of the air;
+    Not part of Type 869. Assumptions (ours): the fan blows the air of that feed (after a
+    stop, the last feed's: post-purge), so lambda = lambda_fan / share and the gas flow
+    stays that of the air (a restart onto the burn-out's bed collapsed the duct velocity
+    from 0.93 to 0.12 m/s in one second while the bed burnt on: a re-probe);
     with that gas flow the exchanger's effectiveness stays, so the exit gas's excess over
     the water scales with the adiabatic rise of the gas, which is proportional to the fuel
     burnt: T_fg = T_w + (T_fg,Eq.8 - T_w) share, T_w the boiler water. This neglects the air's
@@ -601,7 +604,7 @@ def step_skeleton(
     if burning:
         t_fg_target = flue_gas_temperature(c, water_in_C, water_flow_kg_h, burn)
         lam = excess_air(c, fan_feed)
-        if not firing and 0.0 < burn < fan_feed:
+        if 0.0 < burn < fan_feed:  # (the model's bed burns its feed: never)
             t_fg_target, lam = burnout_gas(t0, t_fg_target, lam, burn / fan_feed)
         t_fg = flue_gas(fc, fs, rows[P_FLUE_GAS], t_fg_target, dt_s)
         # while firing the start peak adds; in a burn-out the stop peak, as when off

@@ -312,6 +312,21 @@ def test_a_bed_burning_out_is_fanned_by_the_air_of_the_last_feed(params_12kw):
     assert np.all(gas >= water - 1e-9) and gas[-1] - water[-1] < 0.2 * (gas[0] - water[0])
 
 
+def test_a_restart_onto_a_bed_still_burning_keeps_the_fans_air(params_12kw):
+    """A re-probe: switched on again 3 min after a stop, the bed still burning, the duct
+    velocity fell from 0.93 to 0.12 m/s (below the idle draught's) and O2 from 19.3 to
+    6.05 % in one second, the gas of the burning bed alone taken for the flow. The fan's
+    air carries on: no step in the readings, the velocity above the idle draught's."""
+    bench = _bench(params_12kw, {"ignition_delay": {"strength": 0.5}})
+    scenario = ((2400, 1.0, 55.0, True, True), (180, 1.0, 55.0, True, False))
+    run = drive(bench, (*scenario, (900, 1.0, 55.0, True, True)))
+    y, yb = run["y"][2300:], run["yb"][2300:]
+    assert y[2579 - 2300, Y_Q_FUEL] > 0.0  # the bed burns as the boiler comes back on
+    assert np.abs(np.diff(y[:, Y_O2])).max() < 2.0  # vol-%, a second apart
+    idle = drive(_bench(params_12kw), ((600, 1.0, 55.0, True, False),))["yb"][-1, YB_VELOCITY]
+    assert yb[:, YB_VELOCITY].min() > idle
+
+
 def test_flue_gas_lag_rises_slower_after_ignition(params_12kw, clean_run):
     bench = _bench(params_12kw, {"flue_gas_lag": {"strength": 1.0}})
     run = drive(bench)

@@ -55,8 +55,9 @@ def test_the_vortex_meter_reads_no_negative_velocity_in_a_lab_run(tmp_path):
         if name != VELOCITY:
             assert floored[name] == unfloored[name], name
     raw = np.array(unfloored[VELOCITY], dtype=float)
-    # the probe's count: hundreds of rows below 0 without the floor, each now read as 0
-    assert (raw < 0.0).sum() > 100
+    # rows below 0 without the floor, each now read as 0: the probe counted 338; 77 since
+    # the bed's burn-out keeps the fan's air (its velocity no longer falls to 0)
+    assert (raw < 0.0).sum() > 20
     assert np.array_equal(np.array(floored[VELOCITY], dtype=float), np.maximum(raw, 0.0))
 
 
