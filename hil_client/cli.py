@@ -13,6 +13,7 @@ import filecmp
 import json
 import math
 import os
+import re
 import signal
 import stat
 import sys
@@ -372,11 +373,13 @@ def _phases_or_why(log: LabLog, boiler: BoilerParams | None, partial: bool = Fal
         raise LogError(f"{exc} (and {'; '.join(hints)})") from None
 
 
-def _warn_suspicious(log: LabLog, boiler: BoilerParams) -> None:
+def _warn_suspicious(log: LabLog, boiler: BoilerParams) -> list[str]:
     """A warning line for each thing in ``log`` that looks like a wrong unit or a broken
-    sensor (:func:`hil_client.analysis.sanity.suspicious`)."""
-    for line in suspicious(log, boiler):
+    sensor (:func:`hil_client.analysis.sanity.suspicious`); the lines said."""
+    said = suspicious(log, boiler)
+    for line in said:
         print(f"hil-client: warning: {line}", file=sys.stderr)
+    return said
 
 
 def _boiler_recorded(params: BoilerParams) -> str | dict[str, Any]:
@@ -688,7 +691,7 @@ def _cmd_balance(args: argparse.Namespace) -> int:
         refuse_wrong_units(log, params)
         phases = _phases_or_why(log, params, partial=True)
     _warn_tolerated([log])
-    _warn_suspicious(log, params)
+    said = _warn_suspicious(log, params)
     rows = energy_balance(log, params, phases)
     out = args.out or args.log.with_name(args.log.stem + ".balance.json")
     refuse_overwriting(out, _log_files(args.log) | {"the --boiler file": _file_given(args.boiler)})
@@ -699,6 +702,9 @@ def _cmd_balance(args: argparse.Namespace) -> int:
     print(f"energy balance of {args.log} ({params.name}; phases from the {phases.source})")
     print(balance_table(rows))
     for line in balance_warnings(rows):  # on stderr, as every other warning
+        empty = re.match(r"column '([^']+)' has no readings", line)
+        if empty and any(f"column '{empty[1]}' has no readings" in x for x in said):
+            continue  # said of the log already (twice on one stream: a re-probe)
         print(f"hil-client: warning: {line}", file=sys.stderr)
     if log.has("balance_mass_kg"):  # taken out of the fuel, as said (it was not: a probe)
         found = refills(log.balance_readings()[0], log.t)  # (a dropout's return was one)
