@@ -433,6 +433,13 @@ def test_effects_at_builds_a_profile_for_drawn_strengths(params_12kw):
             "'effects.body_heat_diffusion.nodes' must be finite",
         ),
         ({"fuel_energy_bias": {"relative_bias": 0.5}}, "relative_bias' must be finite and within"),
+        # a physics review: 26 MJ/kg (a coal's) and a direct efficiency of 104 % on the HHV;
+        # a 30-cm pipe that threw away 28 kW (the forward 20 K under the return, firing)
+        ({"fuel_energy_bias": {"relative_bias": 0.3}}, "within -0.3..0.1"),
+        (
+            {"outlet_sensor_pipe": {"cooling_time_constant_s": 1}},
+            "'effects.outlet_sensor_pipe.cooling_time_constant_s' must be finite and within 300",
+        ),
         ({"fuel_energy_bias": {"relative_bias": 10**400}}, "relative_bias' must be finite"),
         ({"outlet_sensor_pipe": [1, 2]}, "'effects.outlet_sensor_pipe' must be a mapping"),
         ([1], "'effects' must be a mapping"),
