@@ -571,7 +571,7 @@ def _read_as_mbpoll(path: str, unit: int) -> bytes:
 #: loaded machine the test process itself may be held up past the reply between its request
 #: and its close, and then the master was there as its reply came (a CI run of three workers
 #: on two cores wrote it so, and the newcomer read it; the claim is not about that case).
-TRIALS, TRIALS_NEEDED = 8, 3
+TRIALS, TRIALS_NEEDED = 6, 3
 
 
 def _asked_and_left(path: str, request: bytes, pause_s: float = 0.0) -> float | None:
