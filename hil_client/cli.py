@@ -43,6 +43,8 @@ from hil_client.analysis.logio import (
     one_plant,
     read_log,
     refills,
+    unread_key_note,
+    unread_meta_keys,
 )
 from hil_client.analysis.phases import Phases, find_phases
 from hil_client.analysis.report import validation_report
@@ -670,8 +672,9 @@ def _boiler_for(log: LabLog, name: str | None):
         if not log.meta:
             where = f"(no meta file {meta.name})"
         elif recorded is None:  # (a key 'Boiler' was noted after this error: a re-probe)
-            like = [n for n in log.notes if "the analyses read 'boiler'" in n]
-            where = "in its meta file" + (f" ({like[0]})" if like else "")
+            like = [k for k, m in unread_meta_keys(log.meta).items() if m == "boiler"]
+            said = f" ({unread_key_note(like[0], 'boiler', meta)})" if like else ""
+            where = "in its meta file" + said
         else:
             kind = type(recorded).__name__
             where = f"in its meta file ('boiler' is {kind}, not a name or parameters)"

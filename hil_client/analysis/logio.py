@@ -350,7 +350,7 @@ def read_log(
         )
     meta_file = path.with_name(path.stem + ".meta.json")
     meta = _meta(meta_file)
-    notes += _keys_not_read(meta, meta_file)
+    notes += [unread_key_note(k, m, meta_file) for k, m in unread_meta_keys(meta).items()]
     if not as_read:
         _drop_error_codes(path, columns, text, meta, meta_file, notes)
     return LabLog(path, columns, text, meta, notes)
@@ -427,11 +427,13 @@ def _meta(meta_file: Path) -> dict[str, Any]:
 META_KEYS_READ = ("boiler", "test", "t0_s", "t1_s", "t2_s", "t3_s", "t4_s", "missing_values")
 
 
-def _keys_not_read(meta: dict[str, Any], meta_file: Path) -> list[str]:
-    """A note for each key of ``meta`` written like one the analyses read but not as they
-    read it (``t0``, ``T1_s``, ``t2 [s]``, ``Boiler``): its mark was silently not used and the
-    phases came from the signals (a stranger's review). Other keys are the lab's own."""
-    notes = []
+def unread_meta_keys(meta: dict[str, Any]) -> dict[str, str]:
+    """The keys of ``meta`` written like one the analyses read but not as they read it
+    (``t0``, ``T1_s``, ``t2 [s]``, ``Boiler``), each with the key meant: its mark was
+    silently not used and the phases came from the signals (a stranger's review). Beside
+    the key meant, a variant is the lab's own (a 'Boiler' serial: a re-probe), as are all
+    other keys."""
+    unread = {}
     for key in meta:
         if key in META_KEYS_READ:
             continue
@@ -448,12 +450,14 @@ def _keys_not_read(meta: dict[str, Any], meta_file: Path) -> list[str]:
             ),
             None,
         )
-        # (beside the key itself it is the lab's own, e.g. a 'Boiler' serial: a re-probe)
         if meant is not None and meant not in meta:
-            notes.append(
-                f"key '{_shown(key)}' of {meta_file.name} is not read: the analyses read '{meant}'"
-            )
-    return notes
+            unread[key] = meant
+    return unread
+
+
+def unread_key_note(key: str, meant: str, meta_file: Path) -> str:
+    """The line that names an unread meta key (:func:`unread_meta_keys`)."""
+    return f"key '{_shown(key)}' of {meta_file.name} is not read: the analyses read '{meant}'"
 
 
 def _drop_error_codes(
